@@ -1,0 +1,164 @@
+// `seasonview demo`: generates (once, cached) the synthetic scene and writes stills plus an index.html.
+#include "Commands.h"
+#include "RenderJob.h"
+
+#include "AtomicFile.h"
+#include "SyntheticScene.h"
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+namespace seasonview::app {
+
+ProgressFn terminalProgress(const char* what); // SynthCommand.cpp
+
+namespace {
+
+struct DemoArgs {
+    std::string out = "out/demo", size = "1280x720", cache;
+    SynthOptions synth;
+    bool window = false;
+};
+
+// True when `dir` holds a complete scene generated with the same options.
+bool cachedSceneMatches(const std::filesystem::path& dir, const SynthOptions& o) {
+    std::ifstream f(dir / "scene.json");
+    if (!f) return false;
+    auto j = nlohmann::json::parse(f, nullptr, false);
+    if (j.is_discarded() || !j.contains("generator")) return false;
+    const auto& g = j["generator"];
+    return g.value("seed", std::uint64_t(0)) == o.seed && g.value("size_m", 0.0) == o.sizeM &&
+           g.value("gsd", 0.0) == o.gsd && g.value("dem", std::string()) == o.dem.string();
+}
+
+std::string htmlEscape(const std::string& s) {
+    std::string r;
+    for (char c : s) {
+        if (c == '<') r += "&lt;";
+        else if (c == '>') r += "&gt;";
+        else if (c == '&') r += "&amp;";
+        else r += c;
+    }
+    return r;
+}
+
+} // namespace
+
+Runner addDemoCommand(CLI::App& app) {
+    auto args = std::make_shared<DemoArgs>();
+    args->synth.sizeM = 1024.0;
+    args->synth.gsd = 0.5;
+    CLI::App* cmd = app.add_subcommand("demo", "Generate the synthetic demo scene (cached) and write stills + index.html");
+    cmd->add_option("--out", args->out, "Output folder")->capture_default_str();
+    cmd->add_option("--size", args->size, "Still size WxH")->capture_default_str();
+    cmd->add_option("--size-m", args->synth.sizeM, "Synthetic scene side, metres")->capture_default_str();
+    cmd->add_option("--gsd", args->synth.gsd, "Synthetic scene resolution, metres per pixel")->capture_default_str();
+    cmd->add_option("--seed", args->synth.seed, "Synthetic scene seed")->capture_default_str();
+    cmd->add_option("--cache", args->cache, "Cache folder (default $SEASONVIEW_CACHE or ~/.cache/seasonview)");
+    cmd->add_flag("--window", args->window, "Render through a hidden GLFW window instead of headless EGL");
+    return [args]() -> int {
+        auto fail = [](const std::string& m) {
+            std::fprintf(stderr, "seasonview demo: %s\n", m.c_str());
+            return 1;
+        };
+        using clock = std::chrono::steady_clock;
+        const auto t0 = clock::now();
+        auto size = parseSize(args->size);
+        if (!size) return fail(size.message());
+        const auto [w, h] = *size;
+        const std::filesystem::path out = args->out;
+        const std::filesystem::path sceneDir = out / "scene";
+        std::error_code ec;
+        std::filesystem::create_directories(out, ec);
+        if (ec) return fail(out.string() + ": cannot create folder (" + ec.message() + ")");
+
+        double synthSeconds = 0.0;
+        bool cached = cachedSceneMatches(sceneDir, args->synth);
+        if (!cached) {
+            std::printf("generating the synthetic scene (%.0f m at %.2f m/px, seed %llu) ...\n", args->synth.sizeM,
+                        args->synth.gsd, static_cast<unsigned long long>(args->synth.seed));
+            std::fflush(stdout);
+            auto report = generateSyntheticScene(args->synth, sceneDir, terminalProgress("synth"));
+            if (!report) return fail(report.message());
+            synthSeconds = report->seconds;
+        }
+        SceneArgs sa;
+        sa.manifest = (sceneDir / "scene.json").string();
+        sa.cache = args->cache;
+        auto scene = sa.load();
+        if (!scene) return fail(scene.message());
+        printSceneNotes(*scene);
+
+        struct Still {
+            const char* file;
+            const char* caption;
+            Camera camera;
+            Season season;
+        };
+        const double aspect = double(w) / double(h);
+        const Camera top = overviewCamera(*scene, aspect);
+        const Camera oblique = obliqueCamera(*scene, 30.0, -35.0);
+        Camera low = obliqueCamera(*scene, 210.0, -15.0);
+        const std::vector<Still> stills = {
+            {"leafon_top.png", "Leaf-on (summer), straight down", top, Season::LeafOn},
+            {"leafoff_top.png", "Leaf-off (winter), straight down", top, Season::LeafOff},
+            {"leafon_oblique.png", "Leaf-on, oblique 3D view (35 deg down)", oblique, Season::LeafOn},
+            {"leafoff_oblique.png", "Leaf-off, oblique 3D view (35 deg down)", oblique, Season::LeafOff},
+            {"leafon_low.png", "Leaf-on, low view towards the horizon (15 deg down)", low, Season::LeafOn},
+        };
+        std::vector<StillRequest> requests;
+        for (const Still& s : stills) requests.push_back({s.camera, s.season, out / s.file});
+        const auto tr = clock::now();
+        auto info = renderStills(*scene, w, h, requests, args->window);
+        if (!info) return fail(info.message());
+        const double renderSeconds = std::chrono::duration<double>(clock::now() - tr).count();
+
+        std::ostringstream html;
+        html << "<!doctype html><html><head><meta charset=\"utf-8\"><title>seasonview demo</title><style>"
+                "body{font-family:sans-serif;margin:2em;max-width:1400px}figure{display:inline-block;margin:0 1em 1em 0}"
+                "img{max-width:640px;border:1px solid #888}table{border-collapse:collapse}"
+                "td,th{border:1px solid #aaa;padding:3px 8px;text-align:left}</style></head><body>\n"
+                "<h1>seasonview demo</h1>\n<p>Synthetic two-season scene generated by <code>seasonview synth</code>, "
+                "rendered headless by the reference renderer.</p>\n<table>\n";
+        auto row = [&](const std::string& k, const std::string& v) {
+            html << "<tr><th>" << htmlEscape(k) << "</th><td>" << htmlEscape(v) << "</td></tr>\n";
+        };
+        char buf[256];
+        row("scene", (sceneDir / "scene.json").string());
+        std::snprintf(buf, sizeof buf, "%dx%d px per season, %.2f m/px, %s", scene->leafon.info.width,
+                      scene->leafon.info.height, scene->gsd, scene->frame.crs().name().c_str());
+        row("imagery", buf);
+        row("device", info->platform + ": " + info->renderer + " (" + info->version + ")");
+        std::snprintf(buf, sizeof buf, "%s", cached ? "cached" : "");
+        if (!cached) std::snprintf(buf, sizeof buf, "%.1f s", synthSeconds);
+        row("scene generation", buf);
+        std::snprintf(buf, sizeof buf, "%.2f s for %zu stills of %dx%d (includes texture upload)", renderSeconds,
+                      stills.size(), w, h);
+        row("rendering", buf);
+        html << "</table>\n";
+        for (const Still& s : stills)
+            html << "<figure><img src=\"" << s.file << "\" alt=\"" << s.caption << "\"><figcaption>" << s.caption
+                 << " &mdash; camera <code>" << s.camera.toString() << "</code></figcaption></figure>\n";
+        html << "<h2>Ground truth</h2>\n<figure><img src=\"scene/truth_deciduous.png\"><figcaption>Deciduous crowns"
+                "</figcaption></figure><figure><img src=\"scene/truth_conifer.png\"><figcaption>Conifers</figcaption>"
+                "</figure>\n</body></html>\n";
+        std::string err;
+        if (!writeTextAtomic(out / "index.html", html.str(), err)) return fail((out / "index.html").string() + ": " + err);
+
+        const double total = std::chrono::duration<double>(clock::now() - t0).count();
+        std::printf("seasonview demo: %s\n", (out / "index.html").c_str());
+        std::printf("  scene     %s (%dx%d px, %s)\n", cached ? "cached" : "generated", scene->leafon.info.width,
+                    scene->leafon.info.height, scene->frame.crs().name().c_str());
+        for (const Still& s : stills) std::printf("  still     %s\n", (out / s.file).c_str());
+        std::printf("  device    %s: %s\n", info->platform.c_str(), info->renderer.c_str());
+        std::printf("  time      %.1f s total (synth %.1f s, render %.1f s)\n", total, synthSeconds, renderSeconds);
+        return 0;
+    };
+}
+
+} // namespace seasonview::app

@@ -1,0 +1,45 @@
+#pragma once
+// Display stretch of imagery: 16-bit (e.g. Sentinel-2 reflectance x10000) mapped to 8-bit by a robust per-band
+// linear stretch between the 0.5 and 99.5 percentiles. Computed once per file and stored in the cache, never
+// per tile (tiles would otherwise get different colours).
+#include "Raster.h"
+#include "Result.h"
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+
+namespace seasonview {
+
+struct Stretch {
+    int channels = 0;
+    std::array<float, 4> low{0, 0, 0, 0};    // sample value mapped to 0
+    std::array<float, 4> high{255, 255, 255, 255}; // sample value mapped to 255
+    bool identity = true; // 8-bit input: no change
+
+    /// Maps one sample of band `c` to 0..255.
+    std::uint8_t apply(int c, float v) const {
+        if (identity) return std::uint8_t(v < 0 ? 0 : v > 255 ? 255 : v);
+        const float t = (v - low[size_t(c)]) / (high[size_t(c)] - low[size_t(c)]) * 255.0f + 0.5f;
+        return std::uint8_t(t < 0 ? 0 : t > 255 ? 255 : t);
+    }
+};
+
+constexpr double kStretchLowPercent = 0.5, kStretchHighPercent = 99.5;
+
+/// Percentile stretch of a 16-bit image (per band; zero samples, the usual nodata fill, are ignored).
+Stretch computeStretch(const Image<std::uint16_t>& image, double lowPercent = kStretchLowPercent,
+                       double highPercent = kStretchHighPercent);
+
+/// The cache folder: $SEASONVIEW_CACHE, else $XDG_CACHE_HOME/seasonview, else ~/.cache/seasonview.
+std::filesystem::path defaultCacheDir();
+
+/// The stretch of an imagery file: identity for 8-bit, else read from `cacheDir` (keyed by absolute path, size
+/// and modification time) or computed from the pixels and stored there. A cache that cannot be written is not an
+/// error (the stretch is just recomputed next time).
+Result<Stretch> stretchFor(const RasterInfo& info, const std::filesystem::path& cacheDir);
+
+/// 8-bit RGBA pixels of an imagery file with its stretch applied (alpha 255 unless the file has alpha).
+Result<Image<std::uint8_t>> readDisplayRgba(const RasterInfo& info, const Stretch& stretch);
+
+} // namespace seasonview

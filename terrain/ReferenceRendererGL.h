@@ -1,0 +1,61 @@
+#pragma once
+// The brute-force reference renderer: the full-resolution DEM as one mesh, the full-resolution imagery of each
+// season as plain mipmapped textures (split into array layers when larger than the GL limit). Slow on purpose;
+// the clipmap renderers are compared against its images.
+#include "Camera.h"
+#include "ReferenceMesh.h"
+#include "Scene.h"
+#include "gl/GlObjects.h"
+#include "gl/RenderTarget.h"
+#include "gl/ShaderProgram.h"
+
+#include <glm/vec4.hpp>
+
+#include <cstdint>
+#include <memory>
+
+namespace seasonview {
+
+enum class Season { LeafOn, LeafOff };
+
+/// Sky colour behind the terrain (linear RGBA, 0..1). Tests look for it to find holes.
+inline const glm::vec4 kBackgroundColor{0.62f, 0.74f, 0.86f, 1.0f};
+
+struct ReferenceOptions {
+    int maxTextureSize = 0; // 0: GL_MAX_TEXTURE_SIZE; smaller values force the tiled path (tests)
+    float anisotropy = 16.0f;
+};
+
+struct ReferenceStats {
+    std::int64_t triangles = 0;
+    int textureLayers = 0;
+    int meshStride = 1;
+};
+
+class ReferenceRendererGL {
+public:
+    /// Uploads the mesh and both seasons' imagery. Needs a current GL 4.5 context; errors are file problems.
+    static Result<std::unique_ptr<ReferenceRendererGL>> create(const Scene& scene, const ReferenceOptions& options = {});
+
+    /// Draws the scene as seen by `camera` into `target` (cleared first).
+    void render(const Camera& camera, Season season, const gl::RenderTarget& target) const;
+
+    const ReferenceStats& stats() const { return m_stats; }
+
+private:
+    struct SeasonTexture {
+        gl::Texture texture;
+        TileLayout layout;
+    };
+    static SeasonTexture upload(const Image<std::uint8_t>& rgba, int maxSize, float anisotropy);
+
+    gl::ShaderProgram m_program;
+    gl::Buffer m_vertices, m_indices;
+    gl::VertexArray m_vao;
+    GLsizei m_indexCount = 0;
+    SeasonTexture m_seasons[2];
+    int m_imageWidth = 0, m_imageHeight = 0;
+    ReferenceStats m_stats;
+};
+
+} // namespace seasonview

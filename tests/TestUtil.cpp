@@ -1,0 +1,152 @@
+#include "TestUtil.h"
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace seasonview::test {
+
+std::filesystem::path outputDir() {
+    std::filesystem::path p = SEASONVIEW_TEST_OUTPUT_DIR;
+    std::filesystem::create_directories(p);
+    return p;
+}
+
+TempDir::TempDir(const std::string& name) {
+    static int counter = 0;
+    m_path = outputDir() / (name + "-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
+    std::filesystem::remove_all(m_path);
+    std::filesystem::create_directories(m_path);
+}
+
+TempDir::~TempDir() {
+    if (!std::getenv("SEASONVIEW_KEEP_TEST_FILES")) {
+        std::error_code ec;
+        std::filesystem::remove_all(m_path, ec);
+    }
+}
+
+std::optional<std::filesystem::path> realDataDir() {
+    std::filesystem::path p = SEASONVIEW_DATA_DIR;
+    if (const char* e = std::getenv("SEASONVIEW_DATA"); e && *e) p = e;
+    std::error_code ec;
+    if (std::filesystem::is_directory(p / "seasons", ec)) return p;
+    return std::nullopt;
+}
+
+Georef testGeoref(double gsd, double easting, double northing) {
+    Georef g;
+    g.crs = Crs::utm(32, true);
+    g.origin = {easting, northing};
+    g.pixelSize = {gsd, gsd};
+    return g;
+}
+
+void writeTestImage(const std::filesystem::path& path, int w, int h, const Georef& g, bool sixteenBit, int seed) {
+    std::vector<std::uint16_t> px16(size_t(w) * size_t(h) * 3);
+    std::vector<std::uint8_t> px8(px16.size());
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            for (int c = 0; c < 3; ++c) {
+                const double v = 0.5 + 0.25 * std::sin((x + seed * 7) * 0.21 + c) + 0.2 * std::cos((y - seed) * 0.13 * (c + 1)) +
+                                 ((x / 8 + y / 8) % 2 ? 0.05 : -0.05);
+                const double t = std::clamp(v, 0.0, 1.0);
+                const size_t i = (size_t(y) * size_t(w) + size_t(x)) * 3 + size_t(c);
+                px8[i] = std::uint8_t(t * 255.0 + 0.5);
+                px16[i] = std::uint16_t(300.0 + t * 2200.0); // Sentinel-2-like reflectance x10000
+            }
+    Status st = sixteenBit ? writeGeoTiff(path, px16.data(), SampleType::U16, w, h, 3, g)
+                           : writeGeoTiff(path, px8.data(), SampleType::U8, w, h, 3, g);
+    ASSERT_TRUE(st.ok()) << st.message();
+}
+
+ImageDiff compareRgb(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b, int w, int h,
+                     int channels) {
+    ImageDiff d;
+    const size_t n = size_t(w) * size_t(h) * size_t(channels);
+    d.sameSize = a.size() == n && b.size() == n;
+    if (!d.sameSize) return d;
+    double sum = 0, sq = 0;
+    for (size_t i = 0; i < n; ++i) {
+        const int delta = std::abs(int(a[i]) - int(b[i]));
+        d.maxDelta = std::max(d.maxDelta, delta);
+        sum += delta;
+        sq += double(delta) * delta;
+    }
+    d.meanDelta = sum / double(n);
+    const double mse = sq / double(n);
+    d.psnr = mse == 0 ? INFINITY : 10.0 * std::log10(255.0 * 255.0 / mse);
+    return d;
+}
+
+ImageDiff compareWithGolden(const std::string& name, const std::vector<std::uint8_t>& rgb, int w, int h, int maxTol,
+                            double meanTol) {
+    const std::filesystem::path golden = std::filesystem::path(SEASONVIEW_SOURCE_DIR) / "tests" / "golden" / (name + ".png");
+    if (std::getenv("SEASONVIEW_UPDATE_GOLDEN")) {
+        std::filesystem::create_directories(golden.parent_path());
+        Status st = writeImageAtomic(golden, rgb.data(), w, h, 3);
+        EXPECT_TRUE(st.ok()) << st.message();
+    }
+    ImageDiff d;
+    auto expected = readImageU8(golden, 3);
+    if (expected && expected->width == w && expected->height == h && expected->channels == 3)
+        d = compareRgb(rgb, expected->pixels, w, h, 3);
+    if (!d.sameSize || d.maxDelta > maxTol || d.meanDelta > meanTol) {
+        const auto actual = outputDir() / (name + ".actual.png");
+        (void)writeImageAtomic(actual, rgb.data(), w, h, 3);
+        if (d.sameSize) {
+            std::vector<std::uint8_t> diff(rgb.size());
+            for (size_t i = 0; i < rgb.size(); ++i)
+                diff[i] = std::uint8_t(std::min(255, 8 * std::abs(int(rgb[i]) - int(expected->pixels[i]))));
+            (void)writeImageAtomic(outputDir() / (name + ".diff.png"), diff.data(), w, h, 3);
+        }
+        ADD_FAILURE() << "golden " << golden << (expected ? "" : " unreadable: " + expected.message())
+                      << " mismatch: max " << d.maxDelta << " (tol " << maxTol << "), mean " << d.meanDelta
+                      << " (tol " << meanTol << "); actual written to " << actual;
+    }
+    return d;
+}
+
+namespace {
+std::string quote(const std::string& s) {
+    std::string r = "'";
+    for (char c : s) {
+        if (c == '\'') r += "'\\''";
+        else r += c;
+    }
+    return r + "'";
+}
+std::string slurp(const std::filesystem::path& p) {
+    std::ifstream f(p);
+    std::stringstream s;
+    s << f.rdbuf();
+    return s.str();
+}
+} // namespace
+
+CliResult runCli(const std::vector<std::string>& args) {
+    static int counter = 0;
+    const auto base = outputDir() / ("cli-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
+    std::string cmd = quote(SEASONVIEW_BINARY);
+    for (const auto& a : args) cmd += " " + quote(a);
+    cmd += " >" + quote(base.string() + ".out") + " 2>" + quote(base.string() + ".err") + " </dev/null";
+    const int status = std::system(cmd.c_str());
+    CliResult r;
+    // system() runs sh -c; a child killed by a signal shows as 128+N from the shell.
+    if (WIFEXITED(status)) r.exitCode = WEXITSTATUS(status);
+    if (r.exitCode > 128) r.exitCode = -1;
+    r.out = slurp(base.string() + ".out");
+    r.err = slurp(base.string() + ".err");
+    std::filesystem::remove(base.string() + ".out");
+    std::filesystem::remove(base.string() + ".err");
+    return r;
+}
+
+} // namespace seasonview::test

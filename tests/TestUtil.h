@@ -1,0 +1,60 @@
+#pragma once
+// Shared test helpers: temp folders, small georeferenced test rasters, golden-image comparison, running the CLI.
+#include "Raster.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace seasonview::test {
+
+/// build/tests/output: where tests write (actual and diff images on failure too).
+std::filesystem::path outputDir();
+
+/// A fresh folder under outputDir(), removed when the object dies (kept if SEASONVIEW_KEEP_TEST_FILES is set).
+class TempDir {
+public:
+    explicit TempDir(const std::string& name);
+    ~TempDir();
+    TempDir(const TempDir&) = delete;
+    TempDir& operator=(const TempDir&) = delete;
+    const std::filesystem::path& path() const { return m_path; }
+    std::filesystem::path operator/(const std::string& f) const { return m_path / f; }
+
+private:
+    std::filesystem::path m_path;
+};
+
+/// ../shared/data (or $SEASONVIEW_DATA) when present.
+std::optional<std::filesystem::path> realDataDir();
+
+/// A UTM 32N georef with `gsd` metres per pixel, top-left at (easting, northing).
+Georef testGeoref(double gsd = 1.0, double easting = 405000.0, double northing = 5758000.0);
+
+/// Writes a w×h RGB test image (8- or 16-bit) with a smooth pattern seeded by `seed`.
+void writeTestImage(const std::filesystem::path& path, int w, int h, const Georef& g, bool sixteenBit = false,
+                    int seed = 0);
+
+struct ImageDiff {
+    int maxDelta = 0;      // largest per-channel difference, 0..255
+    double meanDelta = 0;  // mean per-channel difference
+    double psnr = 0;       // dB (inf when identical)
+    bool sameSize = false;
+};
+ImageDiff compareRgb(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b, int w, int h, int channels);
+
+/// Compares an image with tests/golden/NAME.png. On mismatch (or when SEASONVIEW_UPDATE_GOLDEN is set, which
+/// rewrites the golden) writes NAME.actual.png and NAME.diff.png into outputDir(). Returns the difference.
+ImageDiff compareWithGolden(const std::string& name, const std::vector<std::uint8_t>& rgb, int w, int h, int maxTol,
+                            double meanTol);
+
+struct CliResult {
+    int exitCode = -1; // -1: killed by a signal
+    std::string out, err;
+};
+/// Runs the seasonview binary with `args` (shell-quoted here), capturing stdout and stderr.
+CliResult runCli(const std::vector<std::string>& args);
+
+} // namespace seasonview::test
