@@ -51,7 +51,10 @@ glm::dmat4 Camera::projectionMatrix(double aspect, double near) const {
 std::string Camera::toString() const {
     std::ostringstream s;
     s.precision(10);
-    s << position.x << ',' << position.y << ',' << position.z << ',' << yawDeg << ',' << pitchDeg << ',' << fovYDeg;
+    // Round to 0.1 mm / 1e-7 degrees so float noise does not print as 1e-11.
+    auto clean = [](double v) { return std::round(v * 1e7) / 1e7; };
+    s << clean(position.x) << ',' << clean(position.y) << ',' << clean(position.z) << ',' << clean(yawDeg) << ','
+      << clean(pitchDeg) << ',' << clean(fovYDeg);
     return s.str();
 }
 

@@ -59,7 +59,7 @@ Result<Stretch> stretchFor(const RasterInfo& info, const std::filesystem::path& 
         return s;
     }
     std::error_code ec;
-    const std::filesystem::path abs = std::filesystem::absolute(info.path, ec);
+    const std::filesystem::path abs = std::filesystem::weakly_canonical(std::filesystem::absolute(info.path, ec), ec);
     const auto size = std::filesystem::file_size(info.path, ec);
     const auto mtime = std::filesystem::last_write_time(info.path, ec).time_since_epoch().count();
     const std::string key = abs.string() + "|" + std::to_string(size) + "|" + std::to_string(mtime) + "|" +

@@ -1,0 +1,35 @@
+#include "RenderJob.h"
+#include "TestUtil.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+
+using namespace seasonview;
+using namespace seasonview::test;
+
+// Runs under xvfb-run from CTest (see tests/CMakeLists.txt); skipped where there is no display.
+TEST(GlfwWindowGLTest, SameImageAsHeadless) {
+    if (!std::getenv("DISPLAY")) GTEST_SKIP() << "no DISPLAY: the windowed path runs in the Xvfb test";
+    TempDir dir("glfw");
+    writeTestImage(dir / "on.tif", 96, 64, testGeoref(0.5), false, 1);
+    writeTestImage(dir / "off.tif", 96, 64, testGeoref(0.5), false, 2);
+    SceneSources s;
+    s.leafon = dir / "on.tif";
+    s.leafoff = dir / "off.tif";
+    auto scene = loadScene(s, dir / "cache");
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    Camera cam;
+    cam.position = {0, -40, 25};
+    cam.pitchDeg = -40;
+    auto win = app::renderStills(*scene, 160, 120, {{cam, Season::LeafOn, dir / "window.png"}}, true);
+    ASSERT_TRUE(win.ok()) << win.message();
+    EXPECT_EQ(win->platform, "GLFW window");
+    auto egl = app::renderStills(*scene, 160, 120, {{cam, Season::LeafOn, dir / "egl.png"}}, false);
+    ASSERT_TRUE(egl.ok()) << egl.message();
+    auto a = readImageU8(dir / "window.png", 3);
+    auto b = readImageU8(dir / "egl.png", 3);
+    ASSERT_TRUE(a.ok() && b.ok());
+    const ImageDiff d = compareRgb(a->pixels, b->pixels, 160, 120, 3);
+    EXPECT_EQ(d.maxDelta, 0) << "one renderer code path for both contexts";
+}

@@ -1,0 +1,232 @@
+#include "Heightfield.h"
+#include "ReferenceMesh.h"
+#include "Scene.h"
+#include "TestUtil.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+using namespace seasonview;
+using namespace seasonview::test;
+
+namespace {
+
+void writeText(const std::filesystem::path& p, const std::string& text) { std::ofstream(p) << text; }
+
+void writeDem(const std::filesystem::path& p, int w, int h, const Georef& g, float fill, int nanEvery = 0) {
+    std::vector<float> v(size_t(w) * size_t(h));
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const size_t i = size_t(y) * size_t(w) + size_t(x);
+            v[i] = std::isnan(fill) ? fill : fill + float(x) + 2.0f * float(y);
+            if (nanEvery && i % size_t(nanEvery) == 0) v[i] = std::numeric_limits<float>::quiet_NaN();
+        }
+    ASSERT_TRUE(writeGeoTiff(p, v.data(), SampleType::F32, w, h, 1, g).ok());
+}
+
+struct Pair {
+    TempDir dir{"scene"};
+    Pair() {
+        writeTestImage(dir / "on.tif", 64, 48, testGeoref(0.5), false, 1);
+        writeTestImage(dir / "off.tif", 64, 48, testGeoref(0.5), false, 2);
+    }
+    SceneSources sources() const {
+        SceneSources s;
+        s.leafon = dir / "on.tif";
+        s.leafoff = dir / "off.tif";
+        return s;
+    }
+};
+
+} // namespace
+
+TEST(ManifestTest, ParsesAndResolvesRelativePaths) {
+    Pair p;
+    std::filesystem::create_directories(p.dir / "sub");
+    writeText(p.dir / "sub/scene.json", R"({"name": "x", "leafon": "../on.tif", "leafoff": "../off.tif",
+        "truth": {"deciduous": "t.png"}, "parameters": {"tree_height_m": 21.5}, "colour": 1})");
+    auto s = parseManifest(p.dir / "sub/scene.json");
+    ASSERT_TRUE(s.ok()) << s.message();
+    EXPECT_EQ(s->leafon, p.dir / "sub/../on.tif");
+    EXPECT_EQ(s->truthDeciduous, p.dir / "sub/t.png");
+    EXPECT_DOUBLE_EQ(s->treeHeightM, 21.5);
+    ASSERT_EQ(s->warnings.size(), 1u);
+    EXPECT_NE(s->warnings[0].find("unknown key 'colour'"), std::string::npos);
+    auto scene = loadScene(*s, p.dir / "cache");
+    ASSERT_TRUE(scene.ok()) << scene.message();
+}
+
+TEST(ManifestTest, ErrorsNameTheManifestAndTheKey) {
+    TempDir dir("manifest-bad");
+    struct Case {
+        const char* text;
+        const char* needle;
+    } cases[] = {
+        {"{\"leafon\": \"a.tif\",\n \"leafoff\": }", "malformed JSON manifest (line 2"},
+        {"[1, 2]", "must be a JSON object"},
+        {"{\"leafoff\": \"b.tif\"}", "missing required key 'leafon'"},
+        {"{\"leafon\": 3, \"leafoff\": \"b.tif\"}", "'leafon' must be a non-empty string"},
+        {"{\"leafon\": \"a.tif\", \"leafoff\": \"b.tif\", \"truth\": 5}", "'truth' must be an object"},
+        {"{\"leafon\": \"a.tif\", \"leafoff\": \"b.tif\", \"parameters\": {\"tree_height_m\": -2}}",
+         "'parameters.tree_height_m' must be a positive number"},
+        {"", "malformed JSON manifest"},
+    };
+    int i = 0;
+    for (const Case& c : cases) {
+        const auto path = dir / ("m" + std::to_string(i++) + ".json");
+        writeText(path, c.text);
+        auto r = parseManifest(path);
+        ASSERT_FALSE(r.ok()) << c.text;
+        EXPECT_EQ(r.message().rfind(path.string() + ": ", 0), 0u) << r.message();
+        EXPECT_NE(r.message().find(c.needle), std::string::npos) << r.message();
+        EXPECT_EQ(r.message().find('\n'), std::string::npos);
+    }
+    auto missing = parseManifest(dir / "none.json");
+    ASSERT_FALSE(missing.ok());
+    EXPECT_NE(missing.message().find("none.json: file not found"), std::string::npos);
+}
+
+TEST(SceneTest, FlatSceneFrameAndExtent) {
+    Pair p;
+    auto scene = loadScene(p.sources(), p.dir / "cache");
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    EXPECT_FALSE(scene->elevation);
+    EXPECT_NEAR(scene->localMin.x, -16, 1e-9);
+    EXPECT_NEAR(scene->localMax.x, 16, 1e-9);
+    EXPECT_NEAR(scene->localMin.y, -12, 1e-9);
+    EXPECT_NEAR(scene->gsd, 0.5, 1e-12);
+    EXPECT_DOUBLE_EQ(scene->terrainHeight(3, 4), 0.0);
+    const glm::dvec2 px = scene->localToImagePixel({-16, 12}); // north-west corner
+    EXPECT_NEAR(px.x, 0, 1e-9);
+    EXPECT_NEAR(px.y, 0, 1e-9);
+}
+
+TEST(SceneTest, MismatchedSeasonsAreErrors) {
+    Pair p;
+    writeTestImage(p.dir / "small.tif", 60, 48, testGeoref(0.5));
+    SceneSources s = p.sources();
+    s.leafoff = p.dir / "small.tif";
+    auto a = loadScene(s, p.dir / "cache");
+    ASSERT_FALSE(a.ok());
+    EXPECT_NE(a.message().find("small.tif: leaf-off is 60x48 pixels but leaf-on"), std::string::npos) << a.message();
+
+    // Shifted by 0.3 px: still registered. By 0.8 px: not.
+    writeTestImage(p.dir / "near.tif", 64, 48, testGeoref(0.5, 405000 + 0.15, 5758000));
+    s.leafoff = p.dir / "near.tif";
+    EXPECT_TRUE(loadScene(s, p.dir / "cache").ok());
+    writeTestImage(p.dir / "far.tif", 64, 48, testGeoref(0.5, 405000, 5758000 + 0.4));
+    s.leafoff = p.dir / "far.tif";
+    auto b = loadScene(s, p.dir / "cache");
+    ASSERT_FALSE(b.ok());
+    EXPECT_NE(b.message().find("far.tif: georeferencing disagrees with leaf-on"), std::string::npos) << b.message();
+    EXPECT_NE(b.message().find("0.80 pixels"), std::string::npos) << b.message();
+}
+
+TEST(SceneTest, DemWithHolesIsFilledAndSaidSo) {
+    Pair p;
+    writeDem(p.dir / "dem.tif", 20, 16, testGeoref(2.0, 404996, 5758004), 100.0f, 7);
+    SceneSources s = p.sources();
+    s.elevation = p.dir / "dem.tif";
+    auto scene = loadScene(s, p.dir / "cache");
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    ASSERT_TRUE(scene->elevation);
+    EXPECT_GT(scene->elevation->filledSamples, 0);
+    ASSERT_EQ(scene->notes.size(), 1u);
+    EXPECT_NE(scene->notes[0].find("filled"), std::string::npos);
+    for (float v : scene->elevation->heights.pixels) EXPECT_FALSE(std::isnan(v));
+    // Heights rise by 1 m per sample east, 2 m per sample south: bilinear sampling follows.
+    const double h0 = scene->terrainHeight(0, 0), hEast = scene->terrainHeight(4, 0), hNorth = scene->terrainHeight(0, 4);
+    EXPECT_NEAR(hEast - h0, 2.0, 0.6);
+    EXPECT_NEAR(hNorth - h0, -4.0, 1.2);
+}
+
+TEST(SceneTest, AllNanDemIsAnError) {
+    Pair p;
+    writeDem(p.dir / "nan.tif", 8, 8, testGeoref(4.0, 404990, 5758010), std::numeric_limits<float>::quiet_NaN());
+    SceneSources s = p.sources();
+    s.elevation = p.dir / "nan.tif";
+    auto scene = loadScene(s, p.dir / "cache");
+    ASSERT_FALSE(scene.ok());
+    EXPECT_NE(scene.message().find("nan.tif: DEM has no valid heights (all 64 samples"), std::string::npos)
+        << scene.message();
+}
+
+TEST(SceneTest, DemOutsideTheImageryIsAnError) {
+    Pair p;
+    writeDem(p.dir / "far.tif", 8, 8, testGeoref(4.0, 500000, 5000000), 1.0f);
+    SceneSources s = p.sources();
+    s.elevation = p.dir / "far.tif";
+    auto scene = loadScene(s, p.dir / "cache");
+    ASSERT_FALSE(scene.ok());
+    EXPECT_NE(scene.message().find("does not cover the imagery"), std::string::npos) << scene.message();
+}
+
+TEST(HeightfieldTest, FillHolesPushPull) {
+    Image<float> img;
+    img.width = 5;
+    img.height = 1;
+    img.channels = 1;
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    img.pixels = {10, nan, nan, nan, 20};
+    EXPECT_EQ(fillHoles(img), 3);
+    for (float v : img.pixels) {
+        EXPECT_GE(v, 10.0f);
+        EXPECT_LE(v, 20.0f);
+    }
+    img.pixels = {nan, nan, nan, nan, nan};
+    EXPECT_EQ(fillHoles(img), -1);
+}
+
+TEST(ReferenceMeshTest, FlatGridCoversTheImage) {
+    Pair p;
+    auto scene = loadScene(p.sources(), p.dir / "cache");
+    ASSERT_TRUE(scene.ok());
+    const ReferenceMesh m = buildReferenceMesh(*scene, 8);
+    EXPECT_EQ(m.columns, 9);
+    EXPECT_EQ(m.vertices.size(), 81u);
+    EXPECT_EQ(m.indices.size(), 8u * 8u * 6u);
+    EXPECT_FLOAT_EQ(m.vertices.front().u, 0.0f);
+    EXPECT_FLOAT_EQ(m.vertices.back().v, 1.0f);
+    EXPECT_FLOAT_EQ(m.vertices.front().x, -16.0f);
+    EXPECT_FLOAT_EQ(m.vertices.front().y, 12.0f);
+}
+
+TEST(ReferenceMeshTest, DemMeshUsesEverySampleAndSpansTheImagery) {
+    Pair p;
+    writeDem(p.dir / "dem.tif", 50, 50, testGeoref(1.0, 404990, 5758010), 50.0f);
+    SceneSources s = p.sources();
+    s.elevation = p.dir / "dem.tif";
+    auto scene = loadScene(s, p.dir / "cache");
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    const ReferenceMesh m = buildReferenceMesh(*scene);
+    EXPECT_EQ(m.stride, 1);
+    // Imagery spans 32 m x 24 m = 32 x 24 DEM samples, plus a margin of one sample each side.
+    EXPECT_GE(m.columns, 33);
+    EXPECT_LE(m.columns, 37);
+    float umin = 1e9f, umax = -1e9f;
+    for (const auto& v : m.vertices) {
+        umin = std::min(umin, v.u);
+        umax = std::max(umax, v.u);
+    }
+    EXPECT_LT(umin, 0.0f);
+    EXPECT_GT(umax, 1.0f);
+    const ReferenceMesh dec = buildReferenceMesh(*scene, 64, 400);
+    EXPECT_GE(dec.stride, 2);
+    EXPECT_LE(std::int64_t(dec.vertices.size()), 400);
+}
+
+TEST(ReferenceMeshTest, TileLayout) {
+    const TileLayout one = computeTileLayout(1000, 700, 16384);
+    EXPECT_EQ(one.layers(), 1);
+    EXPECT_EQ(one.border, 0);
+    EXPECT_EQ(one.tileWidth, 1000);
+    const TileLayout many = computeTileLayout(1000, 700, 256);
+    EXPECT_EQ(many.border, 1);
+    EXPECT_EQ(many.step, 254);
+    EXPECT_EQ(many.tilesX, 4); // 4 * 254 >= 1000
+    EXPECT_EQ(many.tilesY, 3); // 3 * 254 >= 700
+    EXPECT_LT((many.tilesX - 1) * many.step, 1000);
+}
