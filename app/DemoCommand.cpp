@@ -15,12 +15,10 @@
 
 namespace seasonview::app {
 
-ProgressFn terminalProgress(const char* what); // SynthCommand.cpp
-
 namespace {
 
 struct DemoArgs {
-    std::string out = "out/demo", size = "1280x720", cache;
+    std::string out = "out/demo", size = "1280x720", cache, preset;
     SynthOptions synth;
     bool window = false;
 };
@@ -56,16 +54,24 @@ Runner addDemoCommand(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand("demo", "Generate the synthetic demo scene (cached) and write stills + index.html");
     cmd->add_option("--out", args->out, "Output folder")->capture_default_str();
     cmd->add_option("--size", args->size, "Still size WxH")->capture_default_str();
+    cmd->add_option("--preset", args->preset, "Synthetic scene preset JSON (defaults are data/presets/demo.json's)");
     cmd->add_option("--size-m", args->synth.sizeM, "Synthetic scene side, metres")->capture_default_str();
     cmd->add_option("--gsd", args->synth.gsd, "Synthetic scene resolution, metres per pixel")->capture_default_str();
     cmd->add_option("--seed", args->synth.seed, "Synthetic scene seed")->capture_default_str();
     cmd->add_option("--cache", args->cache, "Cache folder (default $SEASONVIEW_CACHE or ~/.cache/seasonview)");
     cmd->add_flag("--window", args->window, "Render through a hidden GLFW window instead of headless EGL");
-    return [args]() -> int {
+    return [args, cmd]() -> int {
         auto fail = [](const std::string& m) {
             std::fprintf(stderr, "seasonview demo: %s\n", m.c_str());
             return 1;
         };
+        if (!args->preset.empty()) {
+            auto preset = loadSynthPreset(args->preset);
+            if (!preset) return fail(preset.message());
+            if (cmd->count("--size-m") == 0) args->synth.sizeM = preset->sizeM;
+            if (cmd->count("--gsd") == 0) args->synth.gsd = preset->gsd;
+            if (cmd->count("--seed") == 0) args->synth.seed = preset->seed;
+        }
         using clock = std::chrono::steady_clock;
         const auto t0 = clock::now();
         auto size = parseSize(args->size);
@@ -102,14 +108,14 @@ Runner addDemoCommand(CLI::App& app) {
         };
         const double aspect = double(w) / double(h);
         const Camera top = overviewCamera(*scene, aspect);
-        const Camera oblique = obliqueCamera(*scene, 30.0, -35.0);
-        Camera low = obliqueCamera(*scene, 210.0, -15.0);
+        const Camera oblique = obliqueCamera(*scene, 30.0, -35.0, 0.3);
+        const Camera low = obliqueCamera(*scene, 210.0, -12.0, 0.22);
         const std::vector<Still> stills = {
             {"leafon_top.png", "Leaf-on (summer), straight down", top, Season::LeafOn},
             {"leafoff_top.png", "Leaf-off (winter), straight down", top, Season::LeafOff},
             {"leafon_oblique.png", "Leaf-on, oblique 3D view (35 deg down)", oblique, Season::LeafOn},
             {"leafoff_oblique.png", "Leaf-off, oblique 3D view (35 deg down)", oblique, Season::LeafOff},
-            {"leafon_low.png", "Leaf-on, low view towards the horizon (15 deg down)", low, Season::LeafOn},
+            {"leafon_low.png", "Leaf-on, low view towards the horizon (12 deg down)", low, Season::LeafOn},
         };
         std::vector<StillRequest> requests;
         for (const Still& s : stills) requests.push_back({s.camera, s.season, out / s.file});

@@ -62,14 +62,14 @@ Camera overviewCamera(const Scene& scene, double aspect) {
     return c;
 }
 
-Camera obliqueCamera(const Scene& scene, double yawDeg, double pitchDeg) {
+Camera obliqueCamera(const Scene& scene, double yawDeg, double pitchDeg, double distanceFraction) {
     Camera c;
     const glm::dvec2 centre = (scene.localMin + scene.localMax) * 0.5;
     const double size = glm::length(scene.localMax - scene.localMin);
     c.yawDeg = yawDeg;
     c.pitchDeg = pitchDeg;
     const double ground = scene.terrainHeight(centre.x, centre.y);
-    const double dist = size * 0.55;
+    const double dist = size * distanceFraction;
     c.position = glm::dvec3(centre, ground) - c.forward() * dist;
     // Keep the camera above the terrain under it.
     c.position.z = std::max(c.position.z, scene.terrainHeight(c.position.x, c.position.y) + 20.0);

@@ -30,8 +30,9 @@ Result<std::pair<int, int>> parseSize(const std::string& text);
 /// The camera looking straight down at the whole scene (default when --camera is not given).
 Camera overviewCamera(const Scene& scene, double aspect);
 
-/// An oblique camera `pitchDeg` below the horizon at heading `yawDeg`, placed so the scene centre is in view.
-Camera obliqueCamera(const Scene& scene, double yawDeg, double pitchDeg);
+/// An oblique camera `pitchDeg` below the horizon at heading `yawDeg`, looking at the scene centre from
+/// `distanceFraction` × the scene diagonal away (kept at least 20 m above the terrain under it).
+Camera obliqueCamera(const Scene& scene, double yawDeg, double pitchDeg, double distanceFraction = 0.55);
 
 /// Checks an output image name before any work: extension .png/.tif/.tiff and an existing folder.
 Status checkImageOutput(const std::filesystem::path& out);

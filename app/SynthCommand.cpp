@@ -3,14 +3,16 @@
 
 #include "SyntheticScene.h"
 
+#include <nlohmann/json.hpp>
+
 #include <cstdio>
+#include <fstream>
 #include <memory>
 
 #include <unistd.h>
 
 namespace seasonview::app {
 
-/// A one-line progress bar on stderr when it is a terminal (nothing in logs).
 ProgressFn terminalProgress(const char* what) {
     if (!::isatty(2)) return {};
     return [what](double f, const char* stage) {
@@ -22,14 +24,33 @@ ProgressFn terminalProgress(const char* what) {
     };
 }
 
+Result<SynthOptions> loadSynthPreset(const std::filesystem::path& path) {
+    std::ifstream f(path);
+    if (!f) return fileError(path.string(), "file not found");
+    auto j = nlohmann::json::parse(f, nullptr, false);
+    if (j.is_discarded() || !j.is_object()) return fileError(path.string(), "malformed JSON preset");
+    SynthOptions o;
+    try {
+        o.sizeM = j.value("size_m", o.sizeM);
+        o.gsd = j.value("gsd", o.gsd);
+        o.seed = j.value("seed", o.seed);
+    } catch (const nlohmann::json::exception&) {
+        return fileError(path.string(), "preset keys size_m, gsd must be numbers and seed an integer");
+    }
+    if (!(o.sizeM >= 16.0) || !(o.gsd >= 0.01)) return fileError(path.string(), "preset size_m or gsd out of range");
+    return o;
+}
+
 Runner addSynthCommand(CLI::App& app) {
     struct Args {
         SynthOptions o;
-        std::string out, dem;
+        std::string out, dem, preset;
     };
     auto args = std::make_shared<Args>();
     CLI::App* cmd = app.add_subcommand("synth", "Generate a deterministic synthetic leaf-on/leaf-off scene with ground truth");
     cmd->add_option("--out", args->out, "Output folder")->required();
+    cmd->add_option("--preset", args->preset,
+                    "Preset JSON (data/presets/*.json: size_m, gsd, seed); explicit flags override it");
     cmd->add_option("--size-m", args->o.sizeM, "Scene side in metres")->capture_default_str()->check(CLI::Range(16.0, 1.0e6));
     cmd->add_option("--gsd", args->o.gsd, "Ground sample distance, metres per pixel")
         ->capture_default_str()
@@ -37,11 +58,21 @@ Runner addSynthCommand(CLI::App& app) {
     cmd->add_option("--seed", args->o.seed, "Random seed (same seed -> identical files)")->capture_default_str();
     cmd->add_option("--dem", args->dem, "Real DEM GeoTIFF: terrain is a crop around its centre instead of fBm");
     cmd->add_option("--threads", args->o.threads, "Worker threads (0 = all cores; output does not depend on it)");
-    return [args]() -> int {
+    return [args, cmd]() -> int {
+        if (!args->preset.empty()) {
+            auto preset = loadSynthPreset(args->preset);
+            if (!preset) {
+                std::fprintf(stderr, "seasonview synth: %s\n", preset.message().c_str());
+                return 1;
+            }
+            if (cmd->count("--size-m") == 0) args->o.sizeM = preset->sizeM;
+            if (cmd->count("--gsd") == 0) args->o.gsd = preset->gsd;
+            if (cmd->count("--seed") == 0) args->o.seed = preset->seed;
+        }
         args->o.dem = args->dem;
         const double pixels = args->o.sizeM / args->o.gsd;
-        if (pixels > 131072.0) {
-            std::fprintf(stderr, "seasonview synth: --size-m/--gsd gives %.0f pixels per side (max 131072)\n", pixels);
+        if (pixels > 32768.0) {
+            std::fprintf(stderr, "seasonview synth: --size-m/--gsd gives %.0f pixels per side (max 32768)\n", pixels);
             return 1;
         }
         auto report = generateSyntheticScene(args->o, args->out, terminalProgress("synth"));
