@@ -12,11 +12,12 @@ TexelRect intersect(const TexelRect& a, const TexelRect& b) {
     return r;
 }
 
-TexelRect windowAround(glm::dvec2 centre, int size) {
-    assert(size > 0 && size % 2 == 0 && "windowAround(): size must be even");
+TexelRect windowAround(glm::dvec2 centre, int size, int align) {
+    assert(size > 0 && align >= 2 && align % 2 == 0 && size % align == 0 && "windowAround(): bad size or alignment");
     // Even origins: level l+1's texel x covers level l's texels 2x, 2x+1, so aligned windows nest exactly.
-    const int ox = 2 * int(std::floor((centre.x - 0.5 * size) * 0.5 + 0.5));
-    const int oy = 2 * int(std::floor((centre.y - 0.5 * size) * 0.5 + 0.5));
+    const double a = align;
+    const int ox = align * int(std::floor((centre.x - 0.5 * size) / a + 0.5));
+    const int oy = align * int(std::floor((centre.y - 0.5 * size) / a + 0.5));
     return TexelRect{ox, oy, ox + size, oy + size};
 }
 

@@ -27,9 +27,10 @@ inline int wrapTexel(int v, int size) {
     return m < 0 ? m + size : m;
 }
 
-/// The N×N window centred on `centre` (level texel coordinates, may be fractional): its origin is snapped to an even
-/// texel so that the window of level l+1 can always be aligned with level l's (Tanner: centres move in whole texels).
-TexelRect windowAround(glm::dvec2 centre, int size);
+/// The N×N window centred on `centre` (level texel coordinates, may be fractional): its origin is snapped to a
+/// multiple of `align` texels (even at least, so level l+1's window can always be aligned with level l's; the
+/// clipmap uses its upload block size so windows move in whole blocks).
+TexelRect windowAround(glm::dvec2 centre, int size, int align = 2);
 
 /// Texels of `next` not in `previous`: empty when they are equal, `next` whole when they do not overlap, else at
 /// most two disjoint rectangles (an L-shape: a full-height column strip and a row strip without the corner).

@@ -25,6 +25,11 @@ TEST(ToroidalWindowTest, WindowAroundIsEvenAndCentred) {
     const TexelRect n = windowAround({-3.0, -700.2}, 64);
     EXPECT_EQ(n.x0 % 2, 0);
     EXPECT_LE(std::abs((n.x0 + n.x1) / 2.0 + 3.0), 1.0);
+    const TexelRect b = windowAround({1000.4, -2000.9}, 1024, 64);
+    EXPECT_EQ(b.x0 % 64, 0);
+    EXPECT_EQ(b.y0 % 64, 0);
+    EXPECT_LE(std::abs((b.x0 + b.x1) / 2.0 - 1000.4), 32.0);
+    EXPECT_LE(std::abs((b.y0 + b.y1) / 2.0 + 2000.9), 32.0);
 }
 
 TEST(ToroidalWindowTest, ExposedStripsAreExactlyTheNewTexels) {
