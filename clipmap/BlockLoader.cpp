@@ -1,0 +1,135 @@
+#include "BlockLoader.h"
+
+#include <OpenImageIO/imagecache.h>
+
+#include <algorithm>
+#include <cstring>
+
+namespace seasonview {
+
+struct PyramidBlockSource::Cache {
+    struct Destroy {
+        void operator()(OIIO::ImageCache* c) const { OIIO::ImageCache::destroy(c); }
+    };
+    std::unique_ptr<OIIO::ImageCache, Destroy> cache;
+};
+
+PyramidBlockSource::PyramidBlockSource(std::vector<std::vector<std::filesystem::path>> levelFiles, int cacheMegabytes)
+    : m_files(std::move(levelFiles)), m_cache(std::make_unique<Cache>()) {
+    // A private cache (not the process-wide shared one) so its size bound is ours alone.
+    m_cache->cache.reset(OIIO::ImageCache::create(false));
+    m_cache->cache->attribute("max_memory_MB", float(cacheMegabytes));
+    m_cache->cache->attribute("autotile", 0);
+    m_cache->cache->attribute("max_open_files", 64);
+}
+
+PyramidBlockSource::~PyramidBlockSource() = default;
+
+Status PyramidBlockSource::read(int layer, int level, const TexelRect& t, std::uint8_t* rgba) {
+    const std::filesystem::path& file = m_files[size_t(layer)][size_t(level)];
+    const OIIO::ustring name(file.string());
+    // Pyramid files are RGB: read 3 channels, then widen to RGBA in place from the back.
+    const size_t n = size_t(t.width()) * size_t(t.height());
+    if (!m_cache->cache->get_pixels(name, 0, 0, t.x0, t.x1, t.y0, t.y1, 0, 1, 0, 3, OIIO::TypeDesc::UINT8, rgba,
+                                    OIIO::AutoStride, OIIO::AutoStride, OIIO::AutoStride)) {
+        std::string e = m_cache->cache->geterror();
+        if (auto nl = e.find('\n'); nl != std::string::npos) e.resize(nl);
+        return fileError(file.string(), "cannot read texels (" + e + ")");
+    }
+    for (size_t i = n; i-- > 0;) {
+        rgba[i * 4 + 3] = 255;
+        rgba[i * 4 + 2] = rgba[i * 3 + 2];
+        rgba[i * 4 + 1] = rgba[i * 3 + 1];
+        rgba[i * 4 + 0] = rgba[i * 3 + 0];
+    }
+    return Ok{};
+}
+
+std::int64_t PyramidBlockSource::cacheBytes() const {
+    long long bytes = 0;
+    m_cache->cache->getattribute("stat:cache_memory_used", OIIO::TypeDesc::INT64, &bytes);
+    return bytes;
+}
+
+BlockLoader::BlockLoader(BlockSource& source, const ClipmapSchedule& schedule)
+    : m_source(source), m_schedule(schedule), m_worker([this] { run(); }) {}
+
+BlockLoader::~BlockLoader() {
+    {
+        std::lock_guard lock(m_mutex);
+        m_stop = true;
+    }
+    m_wake.notify_all();
+    m_worker.join();
+}
+
+bool BlockLoader::isPending(const BlockKey& k) const {
+    return std::find(m_inFlight.begin(), m_inFlight.end(), k) != m_inFlight.end() ||
+           std::any_of(m_queue.begin(), m_queue.end(), [&](const Job& j) { return j.key == k; }) ||
+           std::any_of(m_done.begin(), m_done.end(), [&](const LoadedBlock& b) { return b.key == k; });
+}
+
+void BlockLoader::want(const std::vector<BlockKey>& blocks) {
+    {
+        std::lock_guard lock(m_mutex);
+        m_queue.clear(); // no longer wanted (or re-added below in the new priority order)
+        for (const BlockKey& k : blocks)
+            if (!isPending(k)) m_queue.push_back({k, m_schedule.blockTexels(k)});
+    }
+    m_wake.notify_one();
+}
+
+std::vector<LoadedBlock> BlockLoader::take(std::int64_t maxTexels) {
+    std::vector<LoadedBlock> out;
+    std::lock_guard lock(m_mutex);
+    std::int64_t texels = 0;
+    while (!m_done.empty()) {
+        const std::int64_t t = m_done.front().texels.area();
+        if (!out.empty() && texels + t > maxTexels) break;
+        texels += t;
+        out.push_back(std::move(m_done.front()));
+        m_done.pop_front();
+    }
+    return out;
+}
+
+size_t BlockLoader::pending() const {
+    std::lock_guard lock(m_mutex);
+    return m_queue.size() + m_inFlight.size();
+}
+
+void BlockLoader::waitIdle() {
+    std::unique_lock lock(m_mutex);
+    m_idle.wait(lock, [&] { return m_queue.empty() && m_inFlight.empty(); });
+}
+
+void BlockLoader::run() {
+    std::unique_lock lock(m_mutex);
+    while (true) {
+        m_wake.wait(lock, [&] { return m_stop || !m_queue.empty(); });
+        if (m_stop) return;
+        const Job job = m_queue.front();
+        m_queue.pop_front();
+        m_inFlight.push_back(job.key);
+        lock.unlock();
+
+        LoadedBlock block;
+        block.key = job.key;
+        block.texels = job.texels;
+        block.layers.resize(size_t(m_source.layers()));
+        for (int layer = 0; layer < m_source.layers() && block.error.empty(); ++layer) {
+            auto& px = block.layers[size_t(layer)];
+            px.resize(size_t(job.texels.area()) * 4);
+            if (Status st = m_source.read(layer, job.key.level, job.texels, px.data()); !st) block.error = st.message();
+        }
+        ++m_read;
+        if (!block.error.empty()) ++m_errors;
+
+        lock.lock();
+        m_inFlight.erase(std::find(m_inFlight.begin(), m_inFlight.end(), job.key));
+        m_done.push_back(std::move(block));
+        if (m_queue.empty() && m_inFlight.empty()) m_idle.notify_all();
+    }
+}
+
+} // namespace seasonview

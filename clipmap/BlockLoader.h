@@ -1,0 +1,97 @@
+#pragma once
+// Background loading of clipmap blocks (no GL): a worker thread reads the blocks the schedule asks for, for every
+// layer (leaf-on, leaf-off, ...) at once, from a BlockSource; the render thread takes finished blocks within its
+// per-frame budget and uploads them. Nothing on the render thread ever waits for disk.
+#include "ClipmapSchedule.h"
+#include "Result.h"
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace seasonview {
+
+/// Where block texels come from. Implementations must be safe to call from the loader thread.
+class BlockSource {
+public:
+    virtual ~BlockSource() = default;
+    virtual int layers() const = 0;
+    /// Reads `texels` (level texel coordinates, inside the level's image) of `layer` at `level` as RGBA8 rows of
+    /// `texels.width()` pixels into `rgba`. Errors name the file.
+    virtual Status read(int layer, int level, const TexelRect& texels, std::uint8_t* rgba) = 0;
+    /// Bytes the source holds in its own cache (0 when it has none).
+    virtual std::int64_t cacheBytes() const { return 0; }
+};
+
+/// Pyramid level files (one per level, per layer) read through one OpenImageIO ImageCache of bounded size.
+class PyramidBlockSource final : public BlockSource {
+public:
+    /// levelFiles[layer][level]: the tiled TIFF of that pyramid level. `cacheMegabytes` bounds the tile cache.
+    PyramidBlockSource(std::vector<std::vector<std::filesystem::path>> levelFiles, int cacheMegabytes = 256);
+    ~PyramidBlockSource() override;
+    int layers() const override { return int(m_files.size()); }
+    Status read(int layer, int level, const TexelRect& texels, std::uint8_t* rgba) override;
+    std::int64_t cacheBytes() const override;
+
+private:
+    std::vector<std::vector<std::filesystem::path>> m_files;
+    struct Cache;
+    std::unique_ptr<Cache> m_cache;
+};
+
+/// A loaded block: RGBA8 texels of every layer, rows of `texels.width()`.
+struct LoadedBlock {
+    BlockKey key;
+    TexelRect texels;
+    std::vector<std::vector<std::uint8_t>> layers;
+    std::string error; // non-empty: the read failed (the block stays missing; the shader keeps falling back)
+};
+
+class BlockLoader {
+public:
+    BlockLoader(BlockSource& source, const ClipmapSchedule& schedule);
+    ~BlockLoader(); // stops and joins the worker
+    BlockLoader(const BlockLoader&) = delete;
+    BlockLoader& operator=(const BlockLoader&) = delete;
+
+    /// Replaces the wanted list (render thread, once a frame): blocks already queued or in flight are not asked
+    /// twice; queued blocks no longer wanted are dropped. Order = priority.
+    void want(const std::vector<BlockKey>& blocks);
+    /// Finished blocks, oldest first, at most `maxTexels` texels in all (at least one block when any is ready).
+    std::vector<LoadedBlock> take(std::int64_t maxTexels);
+    /// Blocks queued or being read.
+    size_t pending() const;
+    /// Blocks read so far, and read errors so far.
+    std::int64_t blocksRead() const { return m_read.load(); }
+    std::int64_t readErrors() const { return m_errors.load(); }
+    /// Waits until nothing is queued or in flight (tests and one-shot stills only; never in a frame loop).
+    void waitIdle();
+
+private:
+    void run();
+    bool isPending(const BlockKey& k) const; // m_mutex held
+
+    struct Job {
+        BlockKey key;
+        TexelRect texels;
+    };
+    BlockSource& m_source;
+    const ClipmapSchedule& m_schedule;
+    mutable std::mutex m_mutex;
+    std::condition_variable m_wake, m_idle;
+    std::deque<Job> m_queue;
+    std::vector<BlockKey> m_inFlight;
+    std::deque<LoadedBlock> m_done;
+    bool m_stop = false;
+    std::atomic<std::int64_t> m_read{0}, m_errors{0};
+    std::thread m_worker;
+};
+
+} // namespace seasonview
