@@ -11,7 +11,9 @@ namespace seasonview::app {
 namespace {
 struct RenderArgs {
     SceneArgs scene;
-    std::string camera, size = "1280x720", view = "leafon", out, renderer = "reference";
+    std::string camera, size = "1280x720", view = "leafon", out, renderer = "clipmap", centers = "footprint", stats;
+    float blend = 0.5f, swipe = 0.5f;
+    int clipSize = 1024;
     bool window = false;
 };
 } // namespace
@@ -25,8 +27,16 @@ Runner addRenderCommand(CLI::App& app) {
                     "terrain), yaw = heading in degrees (0 north, clockwise), pitch in degrees (-90 down), fov "
                     "vertical degrees (default 60). Default: straight down over the whole scene");
     cmd->add_option("--size", args->size, "Image size WxH")->capture_default_str();
-    cmd->add_option("--view", args->view, "What to show: leafon|leafoff")->capture_default_str();
-    cmd->add_option("--renderer", args->renderer, "Renderer: reference")->capture_default_str();
+    cmd->add_option("--view", args->view, "What to show: leafon|leafoff|blend|swipe|lod")->capture_default_str();
+    cmd->add_option("--blend", args->blend, "blend view: 0 = leaf-on .. 1 = leaf-off")->capture_default_str();
+    cmd->add_option("--swipe", args->swipe, "swipe view: fraction of the width showing leaf-on")->capture_default_str();
+    cmd->add_option("--renderer", args->renderer,
+                    "Renderer: clipmap (streamed texture clipmaps) | reference (brute force, full-resolution textures)")
+        ->capture_default_str();
+    cmd->add_option("--centers", args->centers, "Clipmap level centres: " + placementNames())->capture_default_str();
+    cmd->add_option("--clip-size", args->clipSize, "Clipmap level size N, texels (256..4096, multiple of 64)")
+        ->capture_default_str();
+    cmd->add_option("--stats", args->stats, "Write level statistics (coverage, uploads, memory) to this JSON file");
     cmd->add_option("--out", args->out, "Output image (.png or .tif)")->required();
     cmd->add_flag("--window", args->window, "Render through a hidden GLFW window instead of headless EGL");
     return [args]() -> int {
@@ -35,11 +45,27 @@ Runner addRenderCommand(CLI::App& app) {
             std::fprintf(stderr, "seasonview render: %s\n", m.c_str());
             return 1;
         };
-        Season season;
-        if (args->view == "leafon") season = Season::LeafOn;
-        else if (args->view == "leafoff") season = Season::LeafOff;
-        else return fail("--view '" + args->view + "': expected leafon|leafoff");
-        if (args->renderer != "reference") return fail("--renderer '" + args->renderer + "': expected reference");
+        RenderSettings settings;
+        ImagerySettings imagery;
+        const auto view = parseImageryView(args->view);
+        if (!view) return fail("--view '" + args->view + "': expected leafon|leafoff|blend|swipe|lod");
+        imagery.view = *view;
+        imagery.blend = args->blend;
+        imagery.swipe = args->swipe;
+        if (args->renderer == "reference") settings.renderer = RendererKind::Reference;
+        else if (args->renderer != "clipmap") return fail("--renderer '" + args->renderer + "': expected clipmap|reference");
+        const auto centers = parsePlacement(args->centers);
+        if (!centers) return fail("--centers '" + args->centers + "': expected " + placementNames());
+        settings.centers = *centers;
+        if (args->clipSize < 256 || args->clipSize > 4096 || args->clipSize % 64 != 0)
+            return fail("--clip-size " + std::to_string(args->clipSize) + ": expected 256..4096, a multiple of 64");
+        settings.clipmap.size = args->clipSize;
+        settings.windowed = args->window;
+        settings.cacheDir = args->scene.cache.empty() ? defaultCacheDir() : std::filesystem::path(args->scene.cache);
+        if (settings.renderer == RendererKind::Reference && view != ImageryView::LeafOn && view != ImageryView::LeafOff)
+            return fail("--view " + args->view + " needs --renderer clipmap");
+        if (!args->stats.empty() && settings.renderer == RendererKind::Reference)
+            return fail("--stats needs --renderer clipmap");
         auto size = parseSize(args->size);
         if (!size) return fail(size.message());
         if (auto st = checkImageOutput(args->out); !st) return fail(st.message());
@@ -55,11 +81,13 @@ Runner addRenderCommand(CLI::App& app) {
         const auto [w, h] = *size;
         const Camera camera = spec ? spec->resolve([&](double x, double y) { return scene->terrainHeight(x, y); })
                                    : overviewCamera(*scene, double(w) / double(h));
-        auto info = renderStills(*scene, w, h, {{camera, season, args->out}}, args->window);
+        auto info = renderStills(*scene, w, h, {{camera, imagery, args->out, args->stats}}, settings);
         if (!info) return fail(info.message());
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        std::printf("wrote %s (%dx%d, %s, reference renderer, %s: %s) camera %s in %.2f s\n", args->out.c_str(), w, h,
-                    args->view.c_str(), info->platform.c_str(), info->renderer.c_str(), camera.toString().c_str(), s);
+        std::printf("wrote %s (%dx%d, %s, %s renderer%s, %s: %s) camera %s in %.2f s\n", args->out.c_str(), w, h,
+                    args->view.c_str(), args->renderer.c_str(),
+                    settings.renderer == RendererKind::Clipmap ? (", centers " + args->centers).c_str() : "",
+                    info->platform.c_str(), info->renderer.c_str(), camera.toString().c_str(), s);
         return 0;
     };
 }

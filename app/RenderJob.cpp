@@ -1,6 +1,10 @@
 #include "RenderJob.h"
 
+#include "AtomicFile.h"
+#include "Commands.h"
 #include "gl/GlDebug.h"
+
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <charconv>
@@ -88,28 +92,132 @@ Status checkImageOutput(const std::filesystem::path& out) {
     return Ok{};
 }
 
+Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std::filesystem::path& cacheDir) {
+    std::vector<ImagePyramid> out;
+    const std::pair<const char*, const ImageryLayer*> layers[] = {{"leafon", &scene.leafon}, {"leafoff", &scene.leafoff}};
+    for (const auto& [name, layer] : layers) {
+        PrepareOptions o;
+        o.cacheDir = cacheDir;
+        o.progress = terminalProgress(name);
+        auto report = preparePyramid(*layer, o);
+        if (!report) return report.error();
+        if (report->built) {
+            std::printf("prepared %s pyramid in %.2f s (%s)\n", name, report->seconds, report->reason.c_str());
+            std::fflush(stdout);
+        }
+        out.push_back(std::move(report->pyramid));
+    }
+    return out;
+}
+
+ClipmapGeometry clipmapGeometry(const Scene& scene, const ClipmapLayout& layout) {
+    ClipmapGeometry g;
+    g.levels = layout.clipLevels();
+    g.size = layout.size;
+    g.texelSize0 = scene.gsd;
+    return g;
+}
+
+std::vector<glm::dvec2> clipmapCentres(const Scene& scene, const Camera& camera, int width, int height,
+                                       CenterPlacement placement, const ClipmapGeometry& geometry) {
+    ViewSetup v;
+    v.camera = camera;
+    v.width = width;
+    v.height = height;
+    v.aspect = double(width) / double(height);
+    v.groundHeight = scene.terrainHeight(camera.position.x, camera.position.y);
+    std::vector<glm::dvec2> px;
+    for (const glm::dvec2& c : placeCenters(placement, v, geometry)) px.push_back(scene.localToImagePixel(c));
+    return px;
+}
+
+namespace {
+
+Status writeRgb(const gl::RenderTarget& target, const std::filesystem::path& out) {
+    const std::vector<std::uint8_t> rgba = target.readRgba();
+    const size_t n = size_t(target.width()) * size_t(target.height());
+    std::vector<std::uint8_t> rgb(n * 3);
+    for (size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c) rgb[i * 3 + size_t(c)] = rgba[i * 4 + size_t(c)];
+    return writeImageAtomic(out, rgb.data(), target.width(), target.height(), 3);
+}
+
+} // namespace
+
 Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, const std::vector<StillRequest>& stills,
-                                     bool windowed) {
-    auto ctx = windowed ? gl::createWindowContext(width, height, "seasonview", false) : gl::createHeadlessContext();
+                                     const RenderSettings& settings) {
+    std::vector<ImagePyramid> pyramids;
+    if (settings.renderer == RendererKind::Clipmap) {
+        auto p = preparePyramids(scene, settings.cacheDir);
+        if (!p) return p.error();
+        pyramids = std::move(*p);
+    }
+    auto ctx = settings.windowed ? gl::createWindowContext(width, height, "seasonview", false)
+                                 : gl::createHeadlessContext();
     if (!ctx) return ctx.error();
     const int errorsBefore = gl::debugErrorCount();
-    auto renderer = ReferenceRendererGL::create(scene);
-    if (!renderer) return renderer.error();
     gl::RenderTarget target(width, height);
-    for (const StillRequest& s : stills) {
-        (*renderer)->render(s.camera, s.season, target);
-        std::vector<std::uint8_t> rgba = target.readRgba();
+    auto checkGl = [&](const std::filesystem::path& out) -> Status {
         if (const std::string e = gl::drainErrors(); !e.empty() || gl::debugErrorCount() != errorsBefore)
-            return Error{"OpenGL error while rendering " + s.out.string() + (e.empty() ? "" : ": " + e)};
-        std::vector<std::uint8_t> rgb(size_t(width) * size_t(height) * 3);
-        for (size_t i = 0, n = size_t(width) * size_t(height); i < n; ++i)
-            for (int c = 0; c < 3; ++c) rgb[i * 3 + size_t(c)] = rgba[i * 4 + size_t(c)];
-        if (auto st = writeImageAtomic(s.out, rgb.data(), width, height, 3); !st) return st.error();
-        if (windowed) {
-            int fw = 0, fh = 0;
-            (*ctx)->framebufferSize(fw, fh);
-            target.blitToDefault(fw, fh);
-            (*ctx)->swapBuffers();
+            return Error{"OpenGL error while rendering " + out.string() + (e.empty() ? "" : ": " + e)};
+        return Ok{};
+    };
+    auto present = [&] {
+        if (!settings.windowed) return;
+        int fw = 0, fh = 0;
+        (*ctx)->framebufferSize(fw, fh);
+        target.blitToDefault(fw, fh);
+        (*ctx)->swapBuffers();
+    };
+    if (settings.renderer == RendererKind::Reference) {
+        auto renderer = ReferenceRendererGL::create(scene);
+        if (!renderer) return renderer.error();
+        for (const StillRequest& s : stills) {
+            const ImageryView v = s.imagery.view;
+            if (v != ImageryView::LeafOn && v != ImageryView::LeafOff)
+                return Error{std::string("--view ") + imageryViewName(v) + " needs --renderer clipmap"};
+            (*renderer)->render(s.camera, v == ImageryView::LeafOn ? Season::LeafOn : Season::LeafOff, target);
+            if (auto st = checkGl(s.out); !st) return st.error();
+            if (auto st = writeRgb(target, s.out); !st) return st.error();
+            present();
+        }
+        return (*ctx)->info();
+    }
+    auto clipmap = ClipmapGL::create(pyramids, settings.clipmap);
+    if (!clipmap) return clipmap.error();
+    auto renderer = ClipmapTerrainRendererGL::create(scene, **clipmap);
+    if (!renderer) return renderer.error();
+    const ClipmapGeometry geometry = clipmapGeometry(scene, (*clipmap)->schedule().layout());
+    std::unique_ptr<gl::RenderTarget> scratch;
+    for (const StillRequest& s : stills) {
+        (*clipmap)->update(clipmapCentres(scene, s.camera, width, height, settings.centers, geometry));
+        const ClipmapFrameStats loaded = (*clipmap)->completeSynchronously(); // a still waits for its texels
+        (*renderer)->render(s.camera, s.imagery, target);
+        if (auto st = checkGl(s.out); !st) return st.error();
+        if (auto st = writeRgb(target, s.out); !st) return st.error();
+        present();
+        if (!s.statsOut.empty()) {
+            if (!scratch) scratch = std::make_unique<gl::RenderTarget>(width, height);
+            const FrameLevelStats ls = (*renderer)->measureLevels(s.camera, *scratch);
+            nlohmann::json j = {{"renderer", "clipmap"},
+                                {"centers", placementName(settings.centers)},
+                                {"view", imageryViewName(s.imagery.view)},
+                                {"camera", s.camera.toString()},
+                                {"size", {width, height}},
+                                {"clip_size", geometry.size},
+                                {"clip_levels", geometry.levels},
+                                {"coverage", ls.coverage},
+                                {"mean_level_deficit", ls.meanLevelDeficit},
+                                {"used_level_histogram", ls.usedLevelHistogram},
+                                {"terrain_pixels", ls.terrainPixels},
+                                {"texels_uploaded", (*clipmap)->totalTexelsUploaded()},
+                                {"blocks_missing", loaded.blocksMissing},
+                                {"resident_texture_bytes", (*clipmap)->residentBytes()},
+                                {"loader_cache_bytes", (*clipmap)->loaderCacheBytes()},
+                                {"device", (*ctx)->info().renderer}};
+            std::string err;
+            if (!writeTextAtomic(s.statsOut, j.dump(2) + "\n", err)) return fileError(s.statsOut.string(), err);
+            if (auto st = checkGl(s.statsOut); !st) return st.error();
         }
     }
     return (*ctx)->info();

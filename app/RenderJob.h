@@ -2,6 +2,9 @@
 // What `render` and `demo` share: turning CLI scene arguments into a Scene, parsing sizes and cameras, and
 // rendering stills with the reference renderer through a headless or windowed context.
 #include "Camera.h"
+#include "ClipmapCenters.h"
+#include "ClipmapTerrainRendererGL.h"
+#include "ImagePyramid.h"
 #include "ReferenceRendererGL.h"
 #include "Scene.h"
 #include "gl/GlContext.h"
@@ -39,14 +42,36 @@ Status checkImageOutput(const std::filesystem::path& out);
 
 struct StillRequest {
     Camera camera;
-    Season season = Season::LeafOn;
+    ImagerySettings imagery;
     std::filesystem::path out;
+    std::filesystem::path statsOut; // optional: level statistics JSON (clipmap renderer)
 };
 
-/// Renders each request with one context and one renderer and writes the images atomically. `windowed` renders
-/// through a hidden GLFW window instead of EGL (same renderer code). Prints nothing; returns the context info.
+enum class RendererKind { Clipmap, Reference };
+
+struct RenderSettings {
+    RendererKind renderer = RendererKind::Clipmap;
+    CenterPlacement centers = CenterPlacement::Footprint;
+    ClipmapOptions clipmap;
+    std::filesystem::path cacheDir; // pyramids (prepared implicitly when missing or stale)
+    bool windowed = false;          // a hidden GLFW window instead of EGL (same renderer code)
+};
+
+/// Makes sure both seasons' pyramids are prepared (building them when needed, with a progress bar on a terminal;
+/// says so on stdout when it built one). Returns leaf-on, leaf-off.
+Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std::filesystem::path& cacheDir);
+
+/// Level-0 clipmap centres (leaf-on image pixels) of the toroidal levels for a camera.
+std::vector<glm::dvec2> clipmapCentres(const Scene& scene, const Camera& camera, int width, int height,
+                                       CenterPlacement placement, const ClipmapGeometry& geometry);
+
+/// The clipmap geometry (levels, size, texel size in metres) of a scene's imagery for a clipmap of `size`.
+ClipmapGeometry clipmapGeometry(const Scene& scene, const ClipmapLayout& layout);
+
+/// Renders each request with one context and one renderer and writes the images atomically. Prints nothing but
+/// what preparing pyramids says; returns the context info.
 Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, const std::vector<StillRequest>& stills,
-                                     bool windowed);
+                                     const RenderSettings& settings);
 
 /// Prints the scene's warnings and notes to stderr, one line each.
 void printSceneNotes(const Scene& scene);

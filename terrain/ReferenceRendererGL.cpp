@@ -61,23 +61,7 @@ Result<std::unique_ptr<ReferenceRendererGL>> ReferenceRendererGL::create(const S
     const ReferenceMesh mesh = buildReferenceMesh(scene);
     r->m_stats.meshStride = mesh.stride;
     r->m_stats.triangles = std::int64_t(mesh.indices.size() / 3);
-    r->m_vertices = gl::Buffer::create();
-    r->m_indices = gl::Buffer::create();
-    glNamedBufferStorage(r->m_vertices.id(), GLsizeiptr(mesh.vertices.size() * sizeof(ReferenceVertex)),
-                         mesh.vertices.data(), 0);
-    glNamedBufferStorage(r->m_indices.id(), GLsizeiptr(mesh.indices.size() * sizeof(std::uint32_t)),
-                         mesh.indices.data(), 0);
-    r->m_indexCount = GLsizei(mesh.indices.size());
-    r->m_vao = gl::VertexArray::create();
-    const GLuint vao = r->m_vao.id();
-    glVertexArrayVertexBuffer(vao, 0, r->m_vertices.id(), 0, sizeof(ReferenceVertex));
-    glVertexArrayElementBuffer(vao, r->m_indices.id());
-    glEnableVertexArrayAttrib(vao, 0);
-    glEnableVertexArrayAttrib(vao, 1);
-    glVertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, offsetof(ReferenceVertex, x));
-    glVertexArrayAttribFormat(vao, 1, 2, GL_FLOAT, GL_FALSE, offsetof(ReferenceVertex, u));
-    glVertexArrayAttribBinding(vao, 0, 0);
-    glVertexArrayAttribBinding(vao, 1, 0);
+    r->m_mesh = std::make_unique<TerrainMeshGL>(mesh);
 
     GLint glMax = 0;
     glGetIntegerv(GL_MAX_TEXTURE_SIZE, &glMax);
@@ -96,15 +80,7 @@ Result<std::unique_ptr<ReferenceRendererGL>> ReferenceRendererGL::create(const S
 
 void ReferenceRendererGL::render(const Camera& camera, Season season, const gl::RenderTarget& target) const {
     target.bind();
-    glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE); // reversed Z: far = 0
-    glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_GREATER);
-    glDisable(GL_CULL_FACE);
-    glClearColor(kBackgroundColor.r, kBackgroundColor.g, kBackgroundColor.b, kBackgroundColor.a);
-    glClearDepth(0.0);
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-
-    // Camera-relative positions keep float precision far from the scene centre.
+    beginTerrainPass(kBackgroundColor.r, kBackgroundColor.g, kBackgroundColor.b, kBackgroundColor.a);
     const double aspect = double(target.width()) / double(target.height());
     glm::dmat4 view = camera.viewMatrix();
     const glm::mat4 viewProj = glm::mat4(camera.projectionMatrix(aspect, 0.05) * view);
@@ -120,9 +96,7 @@ void ReferenceRendererGL::render(const Camera& camera, Season season, const gl::
     m_program.set("uImagery", 0);
     m_program.use();
     glBindTextureUnit(0, st.texture.id());
-    glBindVertexArray(m_vao.id());
-    glDrawElements(GL_TRIANGLES, m_indexCount, GL_UNSIGNED_INT, nullptr);
-    glBindVertexArray(0);
+    m_mesh->draw();
 }
 
 } // namespace seasonview

@@ -5,6 +5,7 @@
 #include "Camera.h"
 #include "ReferenceMesh.h"
 #include "Scene.h"
+#include "TerrainMeshGL.h"
 #include "gl/GlObjects.h"
 #include "gl/RenderTarget.h"
 #include "gl/ShaderProgram.h"
@@ -50,9 +51,7 @@ private:
     static SeasonTexture upload(const Image<std::uint8_t>& rgba, int maxSize, float anisotropy);
 
     gl::ShaderProgram m_program;
-    gl::Buffer m_vertices, m_indices;
-    gl::VertexArray m_vao;
-    GLsizei m_indexCount = 0;
+    std::unique_ptr<TerrainMeshGL> m_mesh;
     SeasonTexture m_seasons[2];
     int m_imageWidth = 0, m_imageHeight = 0;
     ReferenceStats m_stats;

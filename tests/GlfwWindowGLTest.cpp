@@ -26,10 +26,14 @@ TEST(GlfwWindowGLTest, SameImageAsHeadless) {
     Camera cam;
     cam.position = {0, -40, 25};
     cam.pitchDeg = -40;
-    auto win = app::renderStills(*scene, 160, 120, {{cam, Season::LeafOn, dir / "window.png"}}, true);
+    app::RenderSettings settings;
+    settings.cacheDir = dir / "cache";
+    settings.windowed = true;
+    auto win = app::renderStills(*scene, 160, 120, {{cam, {}, dir / "window.png", {}}}, settings);
     ASSERT_TRUE(win.ok()) << win.message();
     EXPECT_EQ(win->platform, "GLFW window");
-    auto egl = app::renderStills(*scene, 160, 120, {{cam, Season::LeafOn, dir / "egl.png"}}, false);
+    settings.windowed = false;
+    auto egl = app::renderStills(*scene, 160, 120, {{cam, {}, dir / "egl.png", {}}}, settings);
     ASSERT_TRUE(egl.ok()) << egl.message();
     auto a = readImageU8(dir / "window.png", 3);
     auto b = readImageU8(dir / "egl.png", 3);

@@ -1,0 +1,168 @@
+#include "ClipmapGL.h"
+
+#include "Raster.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace seasonview {
+
+ClipmapGL::ClipmapGL(ClipmapLayout layout, const ClipmapOptions& options)
+    : m_options(options), m_schedule(std::move(layout)) {}
+
+ClipmapGL::~ClipmapGL() {
+    m_loader.reset(); // join the worker before the source goes
+}
+
+Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyramid>& layers,
+                                                     const ClipmapOptions& options) {
+    assert(!layers.empty() && "ClipmapGL::create(): no layers");
+    assert(options.size >= 256 && options.size <= 4096 && options.size % options.block == 0 &&
+           "ClipmapGL::create(): size must be 256..4096 and a multiple of the block");
+    ClipmapLayout layout = makeClipmapLayout(layers[0].width(), layers[0].height(), options.size, options.block);
+    for (const ImagePyramid& p : layers) {
+        if (p.levels.size() != layout.levelSizes.size() || p.width() != layers[0].width() ||
+            p.height() != layers[0].height())
+            return fileError(p.folder.string(), "pyramid does not match the other layers' size or level count");
+        for (size_t l = 0; l < p.levels.size(); ++l)
+            if (glm::ivec2(p.levels[l].width, p.levels[l].height) != layout.levelSizes[l])
+                return fileError(p.levels[l].file.string(), "pyramid level has an unexpected size");
+    }
+    auto c = std::unique_ptr<ClipmapGL>(new ClipmapGL(std::move(layout), options));
+    const ClipmapLayout& L = c->m_schedule.layout();
+    const int clipLevels = L.clipLevels();
+    const int arrayLayers = std::max(1, clipLevels);
+    const int slots = c->m_schedule.slotsPerSide();
+
+    std::vector<std::vector<std::filesystem::path>> files;
+    for (const ImagePyramid& p : layers) {
+        std::vector<std::filesystem::path> f;
+        for (const PyramidLevel& lv : p.levels) f.push_back(lv.file);
+        files.push_back(std::move(f));
+    }
+    c->m_source = std::make_unique<PyramidBlockSource>(std::move(files), options.cacheMegabytes);
+
+    c->m_tags = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
+    glTextureStorage3D(c->m_tags.id(), 1, GL_R32I, slots, slots, arrayLayers);
+    const GLint empty = ClipmapSchedule::kEmptyTag;
+    glClearTexImage(c->m_tags.id(), 0, GL_RED_INTEGER, GL_INT, &empty);
+    glTextureParameteri(c->m_tags.id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTextureParameteri(c->m_tags.id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+
+    c->m_coarseSize = L.levelSizes[size_t(clipLevels)];
+    c->m_coarseLevels = 1 + int(std::floor(std::log2(double(std::max(c->m_coarseSize.x, c->m_coarseSize.y)))));
+    for (const ImagePyramid& p : layers) {
+        gl::Texture clip = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
+        glTextureStorage3D(clip.id(), 1, GL_RGBA8, options.size, options.size, arrayLayers);
+        const GLubyte zero[4] = {0, 0, 0, 0};
+        glClearTexImage(clip.id(), 0, GL_RGBA, GL_UNSIGNED_BYTE, zero);
+        // GL_REPEAT does the toroidal modulo for texture coordinates q / N, bilinear taps included.
+        glTextureParameteri(clip.id(), GL_TEXTURE_WRAP_S, GL_REPEAT);
+        glTextureParameteri(clip.id(), GL_TEXTURE_WRAP_T, GL_REPEAT);
+        glTextureParameteri(clip.id(), GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        glTextureParameteri(clip.id(), GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        c->m_clip.push_back(std::move(clip));
+
+        // The resident coarse pyramid: the first level that fits, mipmapped down to 1×1.
+        auto base = readImageU8(p.levels[size_t(clipLevels)].file, 4);
+        if (!base) return base.error();
+        std::vector<std::uint8_t> rgba(size_t(base->width) * size_t(base->height) * 4, 255);
+        for (size_t i = 0, n = size_t(base->width) * size_t(base->height); i < n; ++i)
+            for (int ch = 0; ch < 3; ++ch)
+                rgba[i * 4 + size_t(ch)] = base->pixels[i * size_t(base->channels) + size_t(std::min(ch, base->channels - 1))];
+        gl::Texture coarse = gl::Texture::create(GL_TEXTURE_2D);
+        glTextureStorage2D(coarse.id(), c->m_coarseLevels, GL_RGBA8, base->width, base->height);
+        glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+        glTextureSubImage2D(coarse.id(), 0, 0, 0, base->width, base->height, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+        glGenerateTextureMipmap(coarse.id());
+        glTextureParameteri(coarse.id(), GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+        glTextureParameteri(coarse.id(), GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+        glTextureParameteri(coarse.id(), GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+        glTextureParameteri(coarse.id(), GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        c->m_coarse.push_back(std::move(coarse));
+    }
+    c->m_loader = std::make_unique<BlockLoader>(*c->m_source, c->m_schedule);
+    return c;
+}
+
+int ClipmapGL::uploadReady(std::int64_t budget, ClipmapFrameStats& stats) {
+    const int slots = m_schedule.slotsPerSide();
+    const int b = m_schedule.layout().block;
+    std::vector<char> touched(size_t(std::max(1, m_schedule.layout().clipLevels())), 0);
+    int uploaded = 0;
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    for (LoadedBlock& blk : m_loader->take(budget)) {
+        if (!blk.error.empty()) continue; // stays missing; the shader keeps using a coarser level
+        // A block of an older window (the view moved on while it loaded) would evict a wanted one: drop it.
+        if (intersect(m_schedule.window(blk.key.level), blk.texels) != blk.texels) continue;
+        const int dx = wrapTexel(blk.key.bx, slots) * b, dy = wrapTexel(blk.key.by, slots) * b;
+        for (size_t layer = 0; layer < m_clip.size(); ++layer)
+            glTextureSubImage3D(m_clip[layer].id(), 0, dx, dy, blk.key.level, blk.texels.width(), blk.texels.height(), 1,
+                                GL_RGBA, GL_UNSIGNED_BYTE, blk.layers[layer].data());
+        m_schedule.markStored(blk.key);
+        touched[size_t(blk.key.level)] = 1;
+        stats.texelsUploaded += blk.texels.area() * std::int64_t(m_clip.size());
+        ++stats.blocksUploaded;
+        ++uploaded;
+    }
+    for (size_t l = 0; l < touched.size(); ++l)
+        if (touched[l])
+            glTextureSubImage3D(m_tags.id(), 0, 0, 0, GLint(l), slots, slots, 1, GL_RED_INTEGER, GL_INT,
+                                m_schedule.slotTags(int(l)).data());
+    m_totalUploaded += stats.texelsUploaded;
+    return uploaded;
+}
+
+ClipmapFrameStats ClipmapGL::update(const std::vector<glm::dvec2>& centres) {
+    ClipmapFrameStats stats;
+    stats.exposedTexels = m_schedule.setCenters(centres);
+    m_loader->want(m_schedule.missingBlocks(4096));
+    uploadReady(m_options.uploadBudgetTexels, stats);
+    stats.blocksMissing = int(m_schedule.missingBlocks(size_t(1) << 30).size());
+    return stats;
+}
+
+ClipmapFrameStats ClipmapGL::completeSynchronously() {
+    ClipmapFrameStats stats;
+    while (true) {
+        const auto missing = m_schedule.missingBlocks(size_t(1) << 30);
+        stats.blocksMissing = int(missing.size());
+        if (missing.empty()) break;
+        m_loader->want(missing);
+        m_loader->waitIdle();
+        if (uploadReady(std::int64_t(1) << 40, stats) == 0) break; // only unreadable blocks are left
+    }
+    stats.blocksMissing = int(m_schedule.missingBlocks(size_t(1) << 30).size());
+    return stats;
+}
+
+void ClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit) const {
+    const int n = int(m_clip.size());
+    for (int i = 0; i < n; ++i) {
+        glBindTextureUnit(GLuint(firstUnit + i), m_clip[size_t(i)].id());
+        glBindTextureUnit(GLuint(firstUnit + n + i), m_coarse[size_t(i)].id());
+        program.set(("uClip" + std::to_string(i)).c_str(), firstUnit + i);
+        program.set(("uCoarse" + std::to_string(i)).c_str(), firstUnit + n + i);
+    }
+    glBindTextureUnit(GLuint(firstUnit + 2 * n), m_tags.id());
+    program.set("uClipTags", firstUnit + 2 * n);
+    const ClipmapLayout& L = m_schedule.layout();
+    program.set("uClipLevels", L.clipLevels());
+    program.set("uClipSize", float(L.size));
+    program.set("uBlockSize", L.block);
+    program.set("uSlotsPerSide", m_schedule.slotsPerSide());
+    program.set("uLevel0Size", glm::vec2(L.levelSizes[0]));
+    program.set("uCoarseSize", glm::vec2(m_coarseSize));
+}
+
+std::int64_t ClipmapGL::residentBytes() const {
+    const ClipmapLayout& L = m_schedule.layout();
+    const std::int64_t arrayLayers = std::max(1, L.clipLevels());
+    const std::int64_t clip = std::int64_t(L.size) * L.size * 4 * arrayLayers;
+    const std::int64_t coarse = std::int64_t(m_coarseSize.x) * m_coarseSize.y * 4 * 4 / 3;
+    const std::int64_t tags = std::int64_t(m_schedule.slotsPerSide()) * m_schedule.slotsPerSide() * 4 * arrayLayers;
+    return std::int64_t(m_clip.size()) * (clip + coarse) + tags;
+}
+
+} // namespace seasonview

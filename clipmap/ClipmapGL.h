@@ -1,0 +1,76 @@
+#pragma once
+// The GL side of the texture clipmaps: per imagery layer (leaf-on, leaf-off, ...) one RGBA8 2D array texture of
+// N×N toroidal levels plus one mipmapped texture of the resident coarse pyramid, and one R32I array texture of
+// block tags shared by all layers (they share level geometry, centres and update schedule, so switching season
+// is instant). Uploads only; the schedule (ClipmapSchedule) and loading (BlockLoader) are plain C++.
+#include "BlockLoader.h"
+#include "ClipmapSchedule.h"
+#include "ImagePyramid.h"
+#include "gl/GlObjects.h"
+#include "gl/ShaderProgram.h"
+
+#include <glm/vec2.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace seasonview {
+
+struct ClipmapOptions {
+    int size = 1024;                          // N: texels per side of a toroidal level (256..4096)
+    int block = 64;                           // upload/validity block, texels
+    std::int64_t uploadBudgetTexels = 1 << 20; // per frame (per layer): 4 MiB of RGBA8 per layer
+    int cacheMegabytes = 256;                 // loader's OpenImageIO tile cache bound
+};
+
+struct ClipmapFrameStats {
+    std::int64_t texelsUploaded = 0;  // this frame, all layers
+    std::int64_t exposedTexels = 0;   // geometric minimum of this frame's move, per layer
+    int blocksUploaded = 0;
+    int blocksMissing = 0;            // wanted but not resident after this frame's uploads
+};
+
+class ClipmapGL {
+public:
+    /// All layers must have pyramids of the same size. Loads the resident coarse pyramid synchronously (at most
+    /// N² texels per layer); toroidal levels start empty. Needs a current GL 4.5 context.
+    static Result<std::unique_ptr<ClipmapGL>> create(const std::vector<ImagePyramid>& layers,
+                                                     const ClipmapOptions& options = {});
+    ~ClipmapGL();
+
+    /// Once a frame: moves the windows to `centres` (level-0 texels = leaf-on image pixels, one per toroidal level;
+    /// extra entries ignored), asks the loader for missing blocks, uploads what is ready within the budget.
+    ClipmapFrameStats update(const std::vector<glm::dvec2>& centres);
+    /// Blocks until every wanted block is loaded and uploaded (stills and tests; never in an interactive loop).
+    ClipmapFrameStats completeSynchronously();
+
+    /// Binds layer textures to units firstUnit + layer (sampler2DArray), their coarse textures to units after
+    /// those, the tag texture after that, and sets the clipmap uniforms of common_clipmap.glsl. Layer sampler
+    /// names: uClip0, uClip1, ..., uCoarse0, uCoarse1, ...
+    void bind(const gl::ShaderProgram& program, int firstUnit = 0) const;
+
+    const ClipmapSchedule& schedule() const { return m_schedule; }
+    int layers() const { return int(m_clip.size()); }
+    /// GPU bytes of all clipmap textures (toroidal levels, coarse pyramids with mips, tags).
+    std::int64_t residentBytes() const;
+    std::int64_t loaderCacheBytes() const { return m_source->cacheBytes(); }
+    std::int64_t totalTexelsUploaded() const { return m_totalUploaded; }
+    glm::ivec2 imageSize() const { return m_schedule.layout().levelSizes[0]; }
+
+private:
+    ClipmapGL(ClipmapLayout layout, const ClipmapOptions& options);
+    int uploadReady(std::int64_t budget, ClipmapFrameStats& stats);
+
+    ClipmapOptions m_options;
+    ClipmapSchedule m_schedule;
+    std::unique_ptr<PyramidBlockSource> m_source;
+    std::unique_ptr<BlockLoader> m_loader;
+    std::vector<gl::Texture> m_clip, m_coarse;
+    gl::Texture m_tags;
+    int m_coarseLevels = 0; // mip levels of each coarse texture
+    glm::ivec2 m_coarseSize{0};
+    std::int64_t m_totalUploaded = 0;
+};
+
+} // namespace seasonview

@@ -1,0 +1,53 @@
+// Terrain draped with the imagery clipmaps (layer 0 leaf-on, layer 1 leaf-off). Variant LEVEL_STATS writes
+// (needed level, used level) / 255 for FrameLevelStats instead of a colour.
+#include "common_clipmap.glsl"
+
+uniform sampler2DArray uClip0;
+uniform sampler2DArray uClip1;
+uniform sampler2D uCoarse0;
+uniform sampler2D uCoarse1;
+uniform int uView;       // ImageryView: 0 leafon, 1 leafoff, 2 blend, 3 swipe, 4 lod
+uniform float uBlend;
+uniform float uSwipeX;   // pixels
+uniform vec3 uLevelColors[8];
+
+in vec2 vImageUv;
+out vec4 fragColor;
+
+void main() {
+    if (any(lessThan(vImageUv, vec2(0.0))) || any(greaterThan(vImageUv, vec2(1.0)))) discard;
+    vec2 p = vImageUv * uLevel0Size;
+    float lambda = clipmapLambda(p);
+    int used;
+#ifdef LEVEL_STATS
+    sampleClipmap(uClip0, uCoarse0, p, lambda, used);
+    float needed = clamp(floor(max(lambda, 0.0)), 0.0, 254.0);
+    fragColor = vec4(needed / 255.0, float(min(used, 254)) / 255.0, 0.0, 1.0);
+#else
+    vec3 c;
+    if (uView == 0) {
+        c = sampleClipmap(uClip0, uCoarse0, p, lambda, used).rgb;
+    } else if (uView == 1) {
+        c = sampleClipmap(uClip1, uCoarse1, p, lambda, used).rgb;
+    } else if (uView == 2) {
+        int u1;
+        c = mix(sampleClipmap(uClip0, uCoarse0, p, lambda, used).rgb, sampleClipmap(uClip1, uCoarse1, p, lambda, u1).rgb,
+                uBlend);
+    } else if (uView == 3) {
+        // Split screen: leaf-on left of uSwipeX, leaf-off right, a 2-pixel white divider.
+        if (abs(gl_FragCoord.x - uSwipeX) < 1.0) {
+            c = vec3(1.0);
+        } else if (gl_FragCoord.x < uSwipeX) {
+            c = sampleClipmap(uClip0, uCoarse0, p, lambda, used).rgb;
+        } else {
+            c = sampleClipmap(uClip1, uCoarse1, p, lambda, used).rgb;
+        }
+    } else {
+        // Level colours (Ropinski 2007 Fig. 2) over the imagery's brightness.
+        vec3 img = sampleClipmap(uClip0, uCoarse0, p, lambda, used).rgb;
+        float luma = dot(img, vec3(0.299, 0.587, 0.114));
+        c = uLevelColors[min(used, 7)] * (0.45 + 0.55 * luma);
+    }
+    fragColor = vec4(c, 1.0);
+#endif
+}

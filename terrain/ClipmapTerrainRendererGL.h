@@ -1,0 +1,63 @@
+#pragma once
+// The terrain draped with the imagery clipmaps (Ropinski et al. 2007 §2): every fragment picks its clipmap level
+// from screen-space derivatives and falls back to coarser levels where blocks are not loaded yet. Geometry is the
+// full-resolution mesh until the geometry clipmaps land.
+#include "Camera.h"
+#include "ClipmapGL.h"
+#include "ReferenceMesh.h"
+#include "Scene.h"
+#include "TerrainMeshGL.h"
+#include "gl/RenderTarget.h"
+#include "gl/ShaderProgram.h"
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace seasonview {
+
+/// What the imagery shows. CLI names: leafon, leafoff, blend, swipe, lod.
+enum class ImageryView { LeafOn, LeafOff, Blend, Swipe, Lod };
+std::optional<ImageryView> parseImageryView(const std::string& name);
+const char* imageryViewName(ImageryView v);
+
+struct ImagerySettings {
+    ImageryView view = ImageryView::LeafOn;
+    float blend = 0.5f; // blend: 0 = leaf-on, 1 = leaf-off
+    float swipe = 0.5f; // swipe: fraction of the width showing leaf-on (left), the rest leaf-off
+};
+
+/// The colours of `--view lod`, level 0 first (paper Fig. 2: red, green, blue, ...).
+extern const float kLevelColors[8][3];
+
+/// Per-frame level statistics from the GPU (same definitions as clipmap/ClipmapCenters.h's CPU estimate).
+struct FrameLevelStats {
+    double coverage = 0.0;          // terrain pixels whose used level <= the level their footprint needs
+    double meanLevelDeficit = 0.0;  // mean of max(0, used - needed)
+    std::vector<double> usedLevelHistogram; // fraction of terrain pixels per used level
+    std::int64_t terrainPixels = 0;
+};
+
+class ClipmapTerrainRendererGL {
+public:
+    /// `clipmap` layers: 0 = leaf-on, 1 = leaf-off. Keeps a reference to it.
+    static Result<std::unique_ptr<ClipmapTerrainRendererGL>> create(const Scene& scene, const ClipmapGL& clipmap);
+
+    void render(const Camera& camera, const ImagerySettings& settings, const gl::RenderTarget& target) const;
+
+    /// Renders the level-statistics pass into `scratch` (same size as the frame) and reduces it.
+    FrameLevelStats measureLevels(const Camera& camera, const gl::RenderTarget& scratch) const;
+
+    std::int64_t triangles() const { return m_mesh->triangles(); }
+
+private:
+    ClipmapTerrainRendererGL(const ClipmapGL& clipmap) : m_clipmap(clipmap) {}
+    void draw(const gl::ShaderProgram& program, const Camera& camera, const gl::RenderTarget& target) const;
+
+    const ClipmapGL& m_clipmap;
+    std::unique_ptr<TerrainMeshGL> m_mesh;
+    gl::ShaderProgram m_program, m_statsProgram;
+};
+
+} // namespace seasonview
