@@ -16,7 +16,8 @@ ClipmapGL::~ClipmapGL() {
 }
 
 Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyramid>& layers,
-                                                     const ClipmapOptions& options) {
+                                                     const ClipmapOptions& options,
+                                                     std::unique_ptr<BlockSource> source) {
     assert(!layers.empty() && "ClipmapGL::create(): no layers");
     assert(options.size >= 256 && options.size <= 4096 && options.size % options.block == 0 &&
            "ClipmapGL::create(): size must be 256..4096 and a multiple of the block");
@@ -41,7 +42,8 @@ Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyra
         for (const PyramidLevel& lv : p.levels) f.push_back(lv.file);
         files.push_back(std::move(f));
     }
-    c->m_source = std::make_unique<PyramidBlockSource>(std::move(files), options.cacheMegabytes);
+    if (source) c->m_source = std::move(source);
+    else c->m_source = std::make_unique<PyramidBlockSource>(std::move(files), options.cacheMegabytes);
 
     c->m_tags = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
     glTextureStorage3D(c->m_tags.id(), 1, GL_R32I, slots, slots, arrayLayers);

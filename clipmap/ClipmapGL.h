@@ -35,8 +35,11 @@ class ClipmapGL {
 public:
     /// All layers must have pyramids of the same size. Loads the resident coarse pyramid synchronously (at most
     /// N² texels per layer); toroidal levels start empty. Needs a current GL 4.5 context.
+    /// `source` replaces the pyramid files as the loader's source (tests: a slow source); it must serve the
+    /// same layers and levels.
     static Result<std::unique_ptr<ClipmapGL>> create(const std::vector<ImagePyramid>& layers,
-                                                     const ClipmapOptions& options = {});
+                                                     const ClipmapOptions& options = {},
+                                                     std::unique_ptr<BlockSource> source = nullptr);
     ~ClipmapGL();
 
     /// Once a frame: moves the windows to `centres` (level-0 texels = leaf-on image pixels, one per toroidal level;
@@ -64,7 +67,7 @@ private:
 
     ClipmapOptions m_options;
     ClipmapSchedule m_schedule;
-    std::unique_ptr<PyramidBlockSource> m_source;
+    std::unique_ptr<BlockSource> m_source;
     std::unique_ptr<BlockLoader> m_loader;
     std::vector<gl::Texture> m_clip, m_coarse;
     gl::Texture m_tags;
