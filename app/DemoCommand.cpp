@@ -49,8 +49,8 @@ std::string htmlEscape(const std::string& s) {
 
 Runner addDemoCommand(CLI::App& app) {
     auto args = std::make_shared<DemoArgs>();
-    args->synth.sizeM = 1024.0;
-    args->synth.gsd = 0.5;
+    args->synth.sizeM = 2048.0;
+    args->synth.gsd = 0.25;
     CLI::App* cmd = app.add_subcommand("demo", "Generate the synthetic demo scene (cached) and write stills + index.html");
     cmd->add_option("--out", args->out, "Output folder")->capture_default_str();
     cmd->add_option("--size", args->size, "Still size WxH")->capture_default_str();

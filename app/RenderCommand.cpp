@@ -13,7 +13,7 @@ struct RenderArgs {
     SceneArgs scene;
     std::string camera, size = "1280x720", view = "leafon", out, renderer = "clipmap", centers = "footprint", stats;
     float blend = 0.5f, swipe = 0.5f;
-    int clipSize = 1024;
+    int clipSize = 2048;
     bool window = false;
 };
 } // namespace

@@ -18,7 +18,9 @@
 namespace seasonview {
 
 struct ClipmapOptions {
-    int size = 1024;                          // N: texels per side of a toroidal level (256..4096)
+    // N: texels per side of a toroidal level (256..4096). 2048 = the smallest power of two at least as wide as a
+    // 1920-pixel view: straight down, a level spans at most N pixels, so narrower levels leave pixels too coarse.
+    int size = 2048;
     int block = 64;                           // upload/validity block, texels
     std::int64_t uploadBudgetTexels = 1 << 20; // per frame (per layer): 4 MiB of RGBA8 per layer
     int cacheMegabytes = 256;                 // loader's OpenImageIO tile cache bound
