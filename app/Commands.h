@@ -15,6 +15,7 @@ using Runner = std::function<int()>;
 Runner addSynthCommand(CLI::App& app);
 Runner addRenderCommand(CLI::App& app);
 Runner addDemoCommand(CLI::App& app);
+Runner addPrepareCommand(CLI::App& app);
 
 /// Reads a synthetic-scene preset (data/presets/*.json: size_m, gsd, seed).
 Result<SynthOptions> loadSynthPreset(const std::filesystem::path& path);

@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
     add(seasonview::app::addSynthCommand);
     add(seasonview::app::addRenderCommand);
     add(seasonview::app::addDemoCommand);
+    add(seasonview::app::addPrepareCommand);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

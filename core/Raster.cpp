@@ -304,10 +304,12 @@ Status writeGeoTiff(const std::filesystem::path& path, const void* data, SampleT
             }
     } else {
         TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP, std::uint32_t(16));
-        for (int y = 0; y < height; ++y)
-            if (TIFFWriteScanline(tif, const_cast<std::uint8_t*>(src + size_t(y) * size_t(width) * pixelBytes),
-                                  std::uint32_t(y), 0) < 0)
-                return fail("write failed");
+        // libtiff's predictor works in place: hand it a copy, never the caller's const buffer.
+        std::vector<std::uint8_t> row(size_t(width) * pixelBytes);
+        for (int y = 0; y < height; ++y) {
+            std::memcpy(row.data(), src + size_t(y) * size_t(width) * pixelBytes, row.size());
+            if (TIFFWriteScanline(tif, row.data(), std::uint32_t(y), 0) < 0) return fail("write failed");
+        }
     }
     if (!TIFFWriteDirectory(tif)) return fail("write failed");
     XTIFFClose(tif);

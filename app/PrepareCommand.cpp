@@ -1,0 +1,54 @@
+// `seasonview prepare`: builds (or checks) the tiled mip pyramid of each imagery layer in the cache.
+#include "Commands.h"
+#include "ImagePyramid.h"
+#include "RenderJob.h"
+
+#include <cstdio>
+#include <memory>
+
+namespace seasonview::app {
+
+namespace {
+struct PrepareArgs {
+    SceneArgs scene;
+    bool force = false;
+};
+} // namespace
+
+Runner addPrepareCommand(CLI::App& app) {
+    auto args = std::make_shared<PrepareArgs>();
+    CLI::App* cmd = app.add_subcommand(
+        "prepare", "Build the tiled mip pyramids of a scene's imagery in the cache (skipped when up to date)");
+    args->scene.addTo(*cmd);
+    cmd->add_flag("--force", args->force, "Rebuild the pyramids even when they are up to date");
+    return [args]() -> int {
+        auto fail = [](const std::string& m) {
+            std::fprintf(stderr, "seasonview prepare: %s\n", m.c_str());
+            return 1;
+        };
+        auto scene = args->scene.load();
+        if (!scene) return fail(scene.message());
+        printSceneNotes(*scene);
+        PrepareOptions options;
+        options.cacheDir = args->scene.cache.empty() ? defaultCacheDir() : std::filesystem::path(args->scene.cache);
+        options.force = args->force;
+        const std::pair<const char*, const ImageryLayer*> layers[] = {{"leafon", &scene->leafon},
+                                                                      {"leafoff", &scene->leafoff}};
+        for (const auto& [name, layer] : layers) {
+            options.progress = terminalProgress(name);
+            auto report = preparePyramid(*layer, options);
+            if (!report) return fail(report.message());
+            const ImagePyramid& p = report->pyramid;
+            if (report->built)
+                std::printf("%s: built in %.2f s (%s): %dx%d, %zu levels, %s\n", name, report->seconds,
+                            report->reason.c_str(), p.width(), p.height(), p.levels.size(), p.folder.c_str());
+            else
+                std::printf("%s: up to date: %dx%d, %zu levels, %s\n", name, p.width(), p.height(), p.levels.size(),
+                            p.folder.c_str());
+            std::fflush(stdout);
+        }
+        return 0;
+    };
+}
+
+} // namespace seasonview::app

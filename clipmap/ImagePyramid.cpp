@@ -1,0 +1,295 @@
+// The pyramid cache: keys, the manifest, validation, and the build-then-rename around buildPyramidLevels.
+#include "ImagePyramid.h"
+
+#include "AtomicFile.h"
+#include "PyramidBuilder.h"
+
+#include <OpenImageIO/imageio.h>
+#include <nlohmann/json.hpp>
+
+#include <cassert>
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <optional>
+#include <stdexcept>
+
+#include <signal.h>
+#include <unistd.h>
+
+namespace seasonview {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Bumped whenever the level files' content or layout changes: old caches then no longer match any key.
+constexpr int kPyramidFormatVersion = 1;
+constexpr const char* kManifestName = "pyramid.json";
+
+/// 64-bit FNV-1a: stable across compilers and runs, unlike std::hash.
+std::uint64_t fnv1a(const std::string& s) {
+    std::uint64_t h = 0xcbf29ce484222325ull;
+    for (unsigned char c : s) h = (h ^ c) * 0x100000001b3ull;
+    return h;
+}
+
+struct SourceId {
+    std::string path; // canonical absolute path
+    std::string key;  // path | size | mtime | stretch | format version
+};
+
+Result<SourceId> sourceId(const ImageryLayer& layer) {
+    const fs::path& p = layer.info.path;
+    std::error_code ec;
+    if (!fs::is_regular_file(p, ec)) return fileError(p.string(), fs::exists(p, ec) ? "not a file" : "file not found");
+    SourceId id;
+    id.path = fs::weakly_canonical(fs::absolute(p, ec), ec).string();
+    const auto size = fs::file_size(p, ec);
+    if (ec) return fileError(p.string(), "cannot read file size (" + ec.message() + ")");
+    const auto mtime = fs::last_write_time(p, ec).time_since_epoch().count();
+    if (ec) return fileError(p.string(), "cannot read modification time (" + ec.message() + ")");
+    std::string stretch = "identity";
+    if (!layer.stretch.identity) {
+        stretch.clear();
+        char v[64];
+        for (size_t c = 0; c < size_t(layer.stretch.channels) && c < 4; ++c) {
+            std::snprintf(v, sizeof v, "%s%.9g:%.9g", c ? "," : "", double(layer.stretch.low[c]),
+                          double(layer.stretch.high[c]));
+            stretch += v;
+        }
+    }
+    id.key = id.path + "|" + std::to_string(size) + "|" + std::to_string(mtime) + "|" + stretch + "|v" +
+             std::to_string(kPyramidFormatVersion);
+    return id;
+}
+
+fs::path pyramidsDir(const fs::path& cacheDir) { return cacheDir / "pyramids"; }
+
+fs::path folderFor(const fs::path& cacheDir, const SourceId& id) {
+    char name[32];
+    std::snprintf(name, sizeof name, "%016llx", static_cast<unsigned long long>(fnv1a(id.key)));
+    return pyramidsDir(cacheDir) / name;
+}
+
+std::optional<nlohmann::json> readManifest(const fs::path& folder) {
+    std::ifstream f(folder / kManifestName);
+    if (!f) return std::nullopt;
+    auto j = nlohmann::json::parse(f, nullptr, false);
+    if (j.is_discarded() || !j.is_object()) return nlohmann::json(nullptr);
+    return j;
+}
+
+/// Checks one level file against the manifest and the expected size; "" when it is fine.
+std::string checkLevelFile(const fs::path& file, std::uintmax_t bytes, int width, int height, int tileSize) {
+    const std::string name = file.filename().string();
+    std::error_code ec;
+    if (!fs::is_regular_file(file, ec)) return name + " missing";
+    const std::uintmax_t actual = fs::file_size(file, ec);
+    if (ec || actual != bytes)
+        return name + " has " + std::to_string(actual) + " bytes, pyramid.json says " + std::to_string(bytes);
+    auto in = OIIO::ImageInput::open(file.string());
+    if (!in) {
+        (void)OIIO::geterror(); // consume the message so OpenImageIO does not print it at exit
+        return name + " unreadable";
+    }
+    const OIIO::ImageSpec& s = in->spec();
+    if (s.width != width || s.height != height || s.nchannels != 3 || s.format != OIIO::TypeDesc::UINT8 ||
+        s.tile_width != tileSize || s.tile_height != tileSize)
+        return name + " is " + std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +
+               std::to_string(s.nchannels) + " " + s.format.c_str() + " in " + std::to_string(s.tile_width) + "x" +
+               std::to_string(s.tile_height) + " tiles, expected " + std::to_string(width) + "x" +
+               std::to_string(height) + "x3 uint8 in " + std::to_string(tileSize) + "x" + std::to_string(tileSize) + " tiles";
+    return {};
+}
+
+/// A valid pyramid in `folder` for `id`, or the reason why there is none ("not prepared yet", "source changed",
+/// "cache corrupt: ...").
+struct Validation {
+    std::optional<ImagePyramid> pyramid;
+    std::string reason;
+};
+
+Validation validate(const fs::path& folder, const SourceId& id, const ImageryLayer& layer) {
+    Validation v;
+    std::error_code ec;
+    if (!fs::exists(folder, ec)) {
+        v.reason = "not prepared yet";
+        return v;
+    }
+    const auto manifest = readManifest(folder);
+    if (!manifest) {
+        v.reason = "cache corrupt: pyramid.json missing";
+        return v;
+    }
+    const nlohmann::json& j = *manifest;
+    ImagePyramid p;
+    p.folder = folder;
+    std::vector<std::uintmax_t> bytes;
+    try {
+        if (!j.is_object()) throw std::runtime_error("not an object");
+        p.sourceKey = j.at("source_key").get<std::string>();
+        p.tileSize = j.at("tile_size").get<int>();
+        for (const auto& l : j.at("levels")) {
+            p.levels.push_back({folder / l.at("file").get<std::string>(), l.at("width").get<int>(),
+                                l.at("height").get<int>()});
+            bytes.push_back(l.at("bytes").get<std::uintmax_t>());
+        }
+    } catch (const std::exception&) {
+        v.reason = "cache corrupt: pyramid.json unreadable";
+        return v;
+    }
+    if (p.sourceKey != id.key) {
+        v.reason = "source changed";
+        return v;
+    }
+    if (p.tileSize < 16 || p.tileSize % 16 != 0) {
+        v.reason = "cache corrupt: pyramid.json has tile size " + std::to_string(p.tileSize);
+        return v;
+    }
+    const auto sizes = pyramidLevelSizes(layer.info.width, layer.info.height);
+    if (p.levels.size() != sizes.size()) {
+        v.reason = "cache corrupt: pyramid.json lists " + std::to_string(p.levels.size()) + " levels, expected " +
+                   std::to_string(sizes.size());
+        return v;
+    }
+    for (size_t k = 0; k < sizes.size(); ++k) {
+        const PyramidLevel& l = p.levels[k];
+        if (l.file.filename() != pyramidLevelFileName(int(k)) || l.width != sizes[k].first ||
+            l.height != sizes[k].second) {
+            v.reason = "cache corrupt: pyramid.json level " + std::to_string(k) + " is wrong";
+            return v;
+        }
+        if (std::string e = checkLevelFile(l.file, bytes[k], l.width, l.height, p.tileSize); !e.empty()) {
+            v.reason = "cache corrupt: " + e;
+            return v;
+        }
+    }
+    v.pyramid = std::move(p);
+    return v;
+}
+
+/// Other folders in the cache that belong to the same source file (older versions of it).
+std::vector<fs::path> siblingsOf(const fs::path& cacheDir, const fs::path& folder, const SourceId& id) {
+    std::vector<fs::path> found;
+    std::error_code ec;
+    for (fs::directory_iterator it(pyramidsDir(cacheDir), ec), end; !ec && it != end; it.increment(ec)) {
+        const fs::path& p = it->path();
+        if (p == folder || p.filename().string().find(".partial-") != std::string::npos) continue;
+        const auto m = readManifest(p);
+        if (m && m->is_object() && m->value("source_path", std::string()) == id.path) found.push_back(p);
+    }
+    return found;
+}
+
+/// Removes older pyramids of the same source and partial folders left by processes that no longer run.
+void removeStale(const fs::path& cacheDir, const fs::path& folder, const SourceId& id) {
+    std::error_code ec;
+    for (const fs::path& p : siblingsOf(cacheDir, folder, id)) fs::remove_all(p, ec);
+    for (fs::directory_iterator it(pyramidsDir(cacheDir), ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        const auto at = name.find(".partial-");
+        if (at == std::string::npos) continue;
+        const long pid = std::strtol(name.c_str() + at + 9, nullptr, 10);
+        if (pid > 0 && pid != long(::getpid()) && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH) {
+            std::error_code ignored;
+            fs::remove_all(it->path(), ignored);
+        }
+    }
+}
+
+Status writeManifest(const fs::path& folder, const SourceId& id, int tileSize, const std::vector<PyramidLevel>& levels) {
+    nlohmann::json j = {{"format", "seasonview image pyramid"},
+                        {"version", kPyramidFormatVersion},
+                        {"source_path", id.path},
+                        {"source_key", id.key},
+                        {"tile_size", tileSize},
+                        {"levels", nlohmann::json::array()}};
+    for (const PyramidLevel& l : levels) {
+        std::error_code ec;
+        const std::uintmax_t bytes = fs::file_size(l.file, ec);
+        if (ec) return fileError(l.file.string(), "cannot read back the written file (" + ec.message() + ")");
+        j["levels"].push_back(
+            {{"file", l.file.filename().string()}, {"width", l.width}, {"height", l.height}, {"bytes", bytes}});
+    }
+    std::string err;
+    if (!writeTextAtomic(folder / kManifestName, j.dump(2) + "\n", err))
+        return fileError((folder / kManifestName).string(), err);
+    return Ok{};
+}
+
+} // namespace
+
+Result<ImagePyramid> openPyramid(const ImageryLayer& layer, const std::filesystem::path& cacheDir) {
+    auto id = sourceId(layer);
+    if (!id) return id.error();
+    const fs::path folder = folderFor(cacheDir, *id);
+    Validation v = validate(folder, *id, layer);
+    if (v.pyramid) return std::move(*v.pyramid);
+    if (v.reason == "not prepared yet" && !siblingsOf(cacheDir, folder, *id).empty()) v.reason = "source changed";
+    return fileError(folder.string(), "no valid pyramid for " + layer.info.path.string() + ": " + v.reason +
+                                          " (run seasonview prepare)");
+}
+
+Result<PrepareReport> preparePyramid(const ImageryLayer& layer, const PrepareOptions& options) {
+    assert(options.tileSize >= 16 && options.tileSize % 16 == 0 &&
+           "preparePyramid(): tile size must be a positive multiple of 16 (TIFF tiles)");
+    const auto t0 = std::chrono::steady_clock::now();
+    auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
+    auto id = sourceId(layer);
+    if (!id) return id.error();
+    const fs::path folder = folderFor(options.cacheDir, *id);
+
+    PrepareReport report;
+    if (options.force) {
+        report.reason = "forced";
+    } else {
+        Validation v = validate(folder, *id, layer);
+        if (v.pyramid && v.pyramid->tileSize == options.tileSize) {
+            report.pyramid = std::move(*v.pyramid);
+            report.seconds = seconds();
+            return report;
+        }
+        report.reason = v.pyramid ? "tile size changed" : v.reason;
+        if (report.reason == "not prepared yet" && !siblingsOf(options.cacheDir, folder, *id).empty())
+            report.reason = "source changed";
+    }
+
+    const fs::path dir = pyramidsDir(options.cacheDir);
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) return fileError(dir.string(), "cannot create the cache folder (" + ec.message() + ")");
+    const fs::path tmp = folder.string() + ".partial-" + std::to_string(::getpid());
+    fs::remove_all(tmp, ec);
+    if (!fs::create_directory(tmp, ec) || ec)
+        return fileError(dir.string(), "cannot write to the cache folder (" + ec.message() + ")");
+    auto fail = [&](const Error& e) {
+        std::error_code ignored;
+        fs::remove_all(tmp, ignored);
+        return e;
+    };
+
+    auto levels = buildPyramidLevels(layer, tmp, options.tileSize, options.progress);
+    if (!levels) return fail(levels.error());
+    if (auto st = writeManifest(tmp, *id, options.tileSize, *levels); !st) return fail(st.error());
+    // rename() cannot replace a non-empty folder: remove the old pyramid first. Between the two steps there is no
+    // pyramid under the final name, never a half one.
+    fs::remove_all(folder, ec);
+    if (ec) return fail(fileError(folder.string(), "cannot remove the old pyramid (" + ec.message() + ")"));
+    fs::rename(tmp, folder, ec);
+    if (ec) return fail(fileError(folder.string(), "cannot move the pyramid into place (" + ec.message() + ")"));
+    removeStale(options.cacheDir, folder, *id);
+
+    report.built = true;
+    report.pyramid.folder = folder;
+    report.pyramid.sourceKey = id->key;
+    report.pyramid.tileSize = options.tileSize;
+    report.pyramid.levels = std::move(*levels);
+    for (PyramidLevel& l : report.pyramid.levels) l.file = folder / l.file.filename();
+    report.seconds = seconds();
+    return report;
+}
+
+} // namespace seasonview

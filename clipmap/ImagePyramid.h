@@ -1,0 +1,56 @@
+#pragma once
+// The prepared form of one imagery layer that clipmaps stream from: a folder in the cache holding one tiled
+// (256² by default), deflate-compressed 8-bit RGB TIFF per mip level, the layer's stored display stretch already
+// applied, plus a manifest (pyramid.json) written last. Built once per source file (`seasonview prepare`), reused
+// while the source is unchanged, rebuilt when it changed or when the cache is corrupt.
+#include "Result.h"
+#include "Scene.h"
+#include "SyntheticScene.h" // ProgressFn
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace seasonview {
+
+struct PyramidLevel {
+    std::filesystem::path file; // level_LL.tif inside the pyramid folder
+    int width = 0, height = 0;  // level 0 = the source size; level k = ceil(level k-1 / 2), down to 1x1
+};
+
+struct ImagePyramid {
+    std::filesystem::path folder;   // <cache>/pyramids/<key hash>
+    std::string sourceKey;          // canonical source path | size | mtime | stretch: what the cache belongs to
+    int tileSize = 256;
+    std::vector<PyramidLevel> levels;
+    int width() const { return levels.empty() ? 0 : levels[0].width; }
+    int height() const { return levels.empty() ? 0 : levels[0].height; }
+};
+
+struct PrepareOptions {
+    std::filesystem::path cacheDir;  // pyramids go to cacheDir/pyramids/
+    int tileSize = 256;
+    bool force = false;              // rebuild even when up to date
+    ProgressFn progress;             // fraction of this layer done, stage name
+};
+
+/// What preparing did: reused an up-to-date pyramid, or built it (and why).
+struct PrepareReport {
+    ImagePyramid pyramid;
+    bool built = false;
+    std::string reason;              // "not prepared yet", "source changed", "cache corrupt: ...", "forced"
+    double seconds = 0.0;
+};
+
+/// Makes sure `layer` has an up-to-date, valid pyramid in the cache and returns it. Idempotent (an up-to-date
+/// pyramid is only validated, not rebuilt) and atomic (built in a temporary folder, renamed into place, so a crash
+/// never leaves a half pyramid that looks valid). Streams the source in bands of rows: memory stays bounded
+/// (a few tile rows per level) whatever the image size. Errors name the source or the cache file.
+Result<PrepareReport> preparePyramid(const ImageryLayer& layer, const PrepareOptions& options);
+
+/// Opens an existing pyramid for `layer` without building: an error when it is missing, belongs to another
+/// source (or an older version of it), or is corrupt (missing or truncated level files, wrong sizes).
+Result<ImagePyramid> openPyramid(const ImageryLayer& layer, const std::filesystem::path& cacheDir);
+
+} // namespace seasonview

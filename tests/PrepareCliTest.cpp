@@ -1,0 +1,78 @@
+// `seasonview prepare` through the binary: builds, then reports up to date, rebuilds on --force, and fails with one
+// line naming the file on bad input.
+#include "TestUtil.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <fstream>
+
+using namespace seasonview;
+using namespace seasonview::test;
+
+namespace {
+
+struct PrepareCli : ::testing::Test {
+    TempDir dir{"prepare-cli"};
+    void SetUp() override {
+        writeTestImage(dir / "on.tif", 300, 200, testGeoref(1.0), false, 1);
+        writeTestImage(dir / "off.tif", 300, 200, testGeoref(1.0), true, 2); // 16-bit: stretch applied
+    }
+    std::vector<std::string> prepare(const std::string& leafon, const std::string& cache = "cache") const {
+        return {"prepare", "--leafon", (dir / leafon).string(), "--leafoff", (dir / "off.tif").string(), "--cache",
+                (dir / cache).string()};
+    }
+    static int count(const std::string& text, const std::string& word) {
+        int n = 0;
+        for (size_t at = text.find(word); at != std::string::npos; at = text.find(word, at + 1)) ++n;
+        return n;
+    }
+};
+
+} // namespace
+
+TEST_F(PrepareCli, BuildsThenUpToDateThenForced) {
+    const CliResult first = runCli(prepare("on.tif"));
+    ASSERT_EQ(first.exitCode, 0) << first.err;
+    EXPECT_EQ(count(first.out, "built"), 2) << first.out;
+    EXPECT_NE(first.out.find("leafon: built"), std::string::npos) << first.out;
+    EXPECT_NE(first.out.find("leafoff: built"), std::string::npos) << first.out;
+    EXPECT_NE(first.out.find("not prepared yet"), std::string::npos) << first.out;
+    EXPECT_NE(first.out.find("10 levels"), std::string::npos) << first.out; // 300x200 ... 1x1
+
+    const CliResult second = runCli(prepare("on.tif"));
+    ASSERT_EQ(second.exitCode, 0) << second.err;
+    EXPECT_EQ(count(second.out, "up to date"), 2) << second.out;
+    EXPECT_EQ(count(second.out, "built"), 0) << second.out;
+
+    std::vector<std::string> force = prepare("on.tif");
+    force.push_back("--force");
+    const CliResult third = runCli(force);
+    ASSERT_EQ(third.exitCode, 0) << third.err;
+    EXPECT_EQ(count(third.out, "built"), 2) << third.out;
+    EXPECT_EQ(count(third.out, "forced"), 2) << third.out;
+}
+
+TEST_F(PrepareCli, MissingSourceIsOneLineNamingIt) {
+    const CliResult r = runCli(prepare("gone.tif"));
+    EXPECT_EQ(r.exitCode, 1);
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find("seasonview prepare: "), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find((dir / "gone.tif").string() + ": file not found"), std::string::npos) << r.err;
+    EXPECT_EQ(r.out, "");
+}
+
+TEST_F(PrepareCli, UnwritableCacheIsOneLineNamingIt) {
+    std::ofstream(dir / "plainfile") << "not a folder";
+    const CliResult r = runCli(prepare("on.tif", "plainfile/cache"));
+    EXPECT_EQ(r.exitCode, 1);
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find((dir / "plainfile" / "cache").string()), std::string::npos) << r.err;
+}
+
+TEST_F(PrepareCli, HelpListsForce) {
+    const CliResult r = runCli({"prepare", "--help"});
+    EXPECT_EQ(r.exitCode, 0);
+    EXPECT_NE(r.out.find("--force"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("--cache"), std::string::npos) << r.out;
+}
