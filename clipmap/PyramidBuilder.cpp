@@ -1,8 +1,9 @@
 #include "PyramidBuilder.h"
 
+#include "BandReader.h"
+
 #include "TiledTiffWriter.h"
 
-#include <OpenImageIO/imageio.h>
 
 #include <algorithm>
 #include <cassert>
@@ -16,11 +17,6 @@ namespace {
 
 constexpr size_t kRgb = 3;
 
-std::string firstLine(std::string s) {
-    if (const auto nl = s.find('\n'); nl != std::string::npos) s.resize(nl);
-    while (!s.empty() && (s.back() == ' ' || s.back() == '.')) s.pop_back();
-    return s;
-}
 
 /// One level being written: the rows of its current tile row, and the writer they go to when it is full.
 struct LevelStream {
@@ -58,51 +54,35 @@ Status pushRow(std::vector<LevelStream>& levels, size_t k, const std::uint8_t* r
 
 /// The source image opened for banded reading of its first three channels (or its first one, for grey).
 struct Source {
-    std::unique_ptr<OIIO::ImageInput> in;
+    BandReader reader;
     int width = 0, height = 0, channels = 0; // channels read: 3 (RGB) or 1 (grey)
     bool sixteenBit = false;
-    int tileHeight = 0;                      // 0 for scanline files
-    int bandRows = 0;                        // rows per read; a multiple of the tile height for tiled files
+    int bandRows = 0;                        // rows per read; whole tiles for tiled files
 
-    /// Reads rows [y0, y1) into `buf` (interleaved, native 8/16-bit). Returns "" or the reader's error.
+    /// Reads rows [y0, y1) into `buf` (interleaved, native 8/16-bit). Returns "" or the error line (names the file).
     std::string read(int y0, int y1, void* buf) const {
-        const OIIO::TypeDesc t = sixteenBit ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::UINT8;
-        const bool ok = tileHeight > 0 ? in->read_tiles(0, 0, 0, width, y0, y1, 0, 1, 0, channels, t, buf)
-                                       : in->read_scanlines(0, 0, y0, y1, 0, 0, channels, t, buf);
-        if (ok) return {};
-        const std::string e = firstLine(in->geterror());
-        return e.empty() ? "read failed" : e;
+        Status st = reader.read(y0, y1, channels, sixteenBit ? SampleType::U16 : SampleType::U8, buf);
+        return st ? std::string() : st.message();
     }
 };
 
 Result<Source> openSource(const ImageryLayer& layer, int tileSize) {
     const std::string path = layer.info.path.string();
-    Source s;
-    s.in = OIIO::ImageInput::open(path);
-    if (!s.in) {
-        std::error_code ec;
-        if (!std::filesystem::exists(layer.info.path, ec)) return fileError(path, "file not found");
-        const std::string e = firstLine(OIIO::geterror());
-        return fileError(path, "not a readable image" + (e.empty() ? std::string() : " (" + e + ")"));
-    }
-    const OIIO::ImageSpec& spec = s.in->spec();
-    s.width = spec.width;
-    s.height = spec.height;
+    auto reader = BandReader::open(layer.info.path, tileSize);
+    if (!reader) return reader.error();
+    Source s{std::move(*reader)};
+    s.width = s.reader.width();
+    s.height = s.reader.height();
     if (s.width != layer.info.width || s.height != layer.info.height)
         return fileError(path, "changed while preparing (now " + std::to_string(s.width) + "x" +
                                    std::to_string(s.height) + ", was " + std::to_string(layer.info.width) + "x" +
                                    std::to_string(layer.info.height) + ")");
-    if (spec.format != OIIO::TypeDesc::UINT8 && spec.format != OIIO::TypeDesc::UINT16)
-        return fileError(path, std::string("unsupported sample type ") + spec.format.c_str() +
+    if (s.reader.type() != SampleType::U8 && s.reader.type() != SampleType::U16)
+        return fileError(path, std::string("unsupported sample type ") + sampleTypeName(s.reader.type()) +
                                    " (imagery must be 8- or 16-bit)");
-    s.sixteenBit = spec.format == OIIO::TypeDesc::UINT16;
-    s.channels = spec.nchannels >= 3 ? 3 : 1;
-    if (spec.tile_width > 0 && spec.tile_height > 0 && spec.tile_depth <= 1) {
-        s.tileHeight = spec.tile_height;
-        s.bandRows = s.tileHeight * std::max(1, tileSize / s.tileHeight);
-    } else {
-        s.bandRows = tileSize;
-    }
+    s.sixteenBit = s.reader.type() == SampleType::U16;
+    s.channels = s.reader.channels() >= 3 ? 3 : 1;
+    s.bandRows = s.reader.bandRows();
     return s;
 }
 
@@ -201,8 +181,7 @@ Result<std::vector<PyramidLevel>> buildPyramidLevels(const ImageryLayer& layer, 
     };
     std::future<std::string> pending = readBand(0);
     for (int b = 0; b < bands; ++b) {
-        if (const std::string e = pending.get(); !e.empty())
-            return fileError(layer.info.path.string(), "truncated or corrupt image data (" + e + ")");
+        if (const std::string e = pending.get(); !e.empty()) return Error{e};
         if (b + 1 < bands) pending = readBand(b + 1);
         const int y0 = b * src.bandRows, y1 = std::min(src.height, y0 + src.bandRows);
         for (int y = y0; y < y1; ++y) {

@@ -2,6 +2,8 @@
 
 #include "AtomicFile.h"
 
+#include "BandReader.h"
+
 #include <nlohmann/json.hpp>
 
 #include <cstdlib>
@@ -11,38 +13,63 @@
 
 namespace seasonview {
 
-Stretch computeStretch(const Image<std::uint16_t>& image, double lowPercent, double highPercent) {
+namespace {
+
+using Histograms = std::vector<std::vector<std::uint64_t>>; // per band, 65536 bins
+
+Stretch stretchFromHistograms(const Histograms& hist, double lowPercent, double highPercent) {
     Stretch s;
     s.identity = false;
-    s.channels = std::min(image.channels, 4);
-    for (int c = 0; c < s.channels; ++c) {
-        std::vector<std::uint64_t> hist(65536, 0);
+    s.channels = int(hist.size());
+    for (size_t c = 0; c < hist.size(); ++c) {
         std::uint64_t n = 0;
-        const size_t count = size_t(image.width) * size_t(image.height);
-        for (size_t i = 0; i < count; ++i) {
-            std::uint16_t v = image.pixels[i * size_t(image.channels) + size_t(c)];
-            if (v == 0) continue;
-            ++hist[v];
-            ++n;
-        }
+        for (int v = 1; v < 65536; ++v) n += hist[c][size_t(v)]; // zero: the usual nodata fill, ignored
         if (n == 0) {
-            s.low[size_t(c)] = 0;
-            s.high[size_t(c)] = 65535;
+            s.low[c] = 0;
+            s.high[c] = 65535;
             continue;
         }
         auto percentile = [&](double p) {
             const std::uint64_t target = std::uint64_t(p / 100.0 * double(n - 1));
             std::uint64_t acc = 0;
-            for (int v = 0; v < 65536; ++v) {
-                acc += hist[size_t(v)];
+            for (int v = 1; v < 65536; ++v) {
+                acc += hist[c][size_t(v)];
                 if (acc > target) return float(v);
             }
             return 65535.0f;
         };
-        s.low[size_t(c)] = percentile(lowPercent);
-        s.high[size_t(c)] = std::max(percentile(highPercent), s.low[size_t(c)] + 1.0f);
+        s.low[c] = percentile(lowPercent);
+        s.high[c] = std::max(percentile(highPercent), s.low[c] + 1.0f);
     }
     return s;
+}
+
+void accumulate(Histograms& hist, const std::uint16_t* px, size_t pixels, int stride) {
+    for (size_t c = 0; c < hist.size(); ++c)
+        for (size_t i = 0; i < pixels; ++i) ++hist[c][px[i * size_t(stride) + c]];
+}
+
+// Streams the file in bands of rows: memory stays a few MB whatever the image size.
+Result<Stretch> streamedStretch(const std::filesystem::path& path, double lowPercent, double highPercent) {
+    auto reader = BandReader::open(path, 64);
+    if (!reader) return reader.error();
+    const int channels = std::min(reader->channels(), 4);
+    Histograms hist(size_t(channels), std::vector<std::uint64_t>(65536, 0));
+    std::vector<std::uint16_t> rows(size_t(reader->width()) * size_t(reader->bandRows()) * size_t(channels));
+    for (int y = 0; y < reader->height(); y += reader->bandRows()) {
+        const int y1 = std::min(reader->height(), y + reader->bandRows());
+        if (auto st = reader->read(y, y1, channels, SampleType::U16, rows.data()); !st) return st.error();
+        accumulate(hist, rows.data(), size_t(reader->width()) * size_t(y1 - y), channels);
+    }
+    return stretchFromHistograms(hist, lowPercent, highPercent);
+}
+
+} // namespace
+
+Stretch computeStretch(const Image<std::uint16_t>& image, double lowPercent, double highPercent) {
+    Histograms hist(size_t(std::min(image.channels, 4)), std::vector<std::uint64_t>(65536, 0));
+    accumulate(hist, image.pixels.data(), size_t(image.width) * size_t(image.height), image.channels);
+    return stretchFromHistograms(hist, lowPercent, highPercent);
 }
 
 std::filesystem::path defaultCacheDir() {
@@ -80,9 +107,9 @@ Result<Stretch> stretchFor(const RasterInfo& info, const std::filesystem::path& 
             return s;
         }
     }
-    auto img = readImageU16(info.path, 4);
-    if (!img) return img.error();
-    Stretch s = computeStretch(*img);
+    auto streamed = streamedStretch(info.path, kStretchLowPercent, kStretchHighPercent);
+    if (!streamed) return streamed.error();
+    const Stretch s = *streamed;
     nlohmann::json j = {{"key", key},
                         {"file", abs.string()},
                         {"percentiles", {kStretchLowPercent, kStretchHighPercent}},

@@ -35,7 +35,8 @@ Stretch computeStretch(const Image<std::uint16_t>& image, double lowPercent = kS
 std::filesystem::path defaultCacheDir();
 
 /// The stretch of an imagery file: identity for 8-bit, else read from `cacheDir` (keyed by absolute path, size
-/// and modification time) or computed from the pixels and stored there. A cache that cannot be written is not an
+/// and modification time) or computed from the pixels (streamed in bands of rows: bounded memory for any size)
+/// and stored there. A cache that cannot be written is not an
 /// error (the stretch is just recomputed next time).
 Result<Stretch> stretchFor(const RasterInfo& info, const std::filesystem::path& cacheDir);
 

@@ -174,11 +174,17 @@ TEST(StretchTest, PercentilesPerBand) {
 
 TEST(StretchTest, StoredInCacheNotRecomputed) {
     TempDir dir("stretch-cache");
-    writeTestImage(dir / "s16.tif", 64, 64, testGeoref(), true);
+    writeTestImage(dir / "s16.tif", 64, 150, testGeoref(), true); // 150 rows: more than one 64-row band
     auto info = readRasterInfo(dir / "s16.tif");
     ASSERT_TRUE(info.ok());
     auto a = stretchFor(*info, dir / "cache");
     ASSERT_TRUE(a.ok()) << a.message();
+    // The streamed histogram (bands of rows) gives exactly the in-memory result.
+    const Stretch whole = computeStretch(*readImageU16(dir / "s16.tif"));
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_EQ(a->low[size_t(c)], whole.low[size_t(c)]);
+        EXPECT_EQ(a->high[size_t(c)], whole.high[size_t(c)]);
+    }
     size_t cached = 0;
     std::filesystem::path file;
     for (auto& e : std::filesystem::directory_iterator(dir / "cache")) {

@@ -1,0 +1,39 @@
+#pragma once
+// Reads an image in bands of whole rows, tiled or scanline files alike, so memory stays bounded (a band) whatever
+// the image size. OpenImageIO underneath: read_tiles for tiled files (its read_scanlines crashes on them in 2.4).
+#include "Raster.h"
+#include "Result.h"
+
+#include <filesystem>
+#include <memory>
+
+namespace seasonview {
+
+class BandReader {
+public:
+    /// Opens `path`; bands are `preferredRows` rows, rounded to whole tiles for tiled files.
+    static Result<BandReader> open(const std::filesystem::path& path, int preferredRows = 256);
+    BandReader(BandReader&&) noexcept;
+    BandReader& operator=(BandReader&&) noexcept;
+    ~BandReader();
+
+    int width() const { return m_width; }
+    int height() const { return m_height; }
+    int channels() const { return m_channels; }    // in the file
+    int bandRows() const { return m_bandRows; }    // rows per read (the last band may be shorter)
+    SampleType type() const { return m_type; }     // as stored (U8, U16, I16, F32)
+
+    /// Reads rows [y0, y1) (y0 a multiple of bandRows(), y1 - y0 <= bandRows()) of channels [0, channels) as
+    /// 8-bit (`type` U8) or 16-bit (U16) interleaved samples into `out`. Errors name the file.
+    Status read(int y0, int y1, int channels, SampleType type, void* out) const;
+
+private:
+    BandReader() = default;
+    std::filesystem::path m_path;
+    struct Input;
+    std::unique_ptr<Input> m_in;
+    int m_width = 0, m_height = 0, m_channels = 0, m_bandRows = 0, m_tileHeight = 0;
+    SampleType m_type = SampleType::U8;
+};
+
+} // namespace seasonview
