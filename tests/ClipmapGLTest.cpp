@@ -17,22 +17,9 @@ using namespace seasonview::test;
 
 namespace {
 
-gl::GlContext* context() {
-    static std::unique_ptr<gl::GlContext> ctx = [] {
-        auto c = gl::createHeadlessContext();
-        EXPECT_TRUE(c.ok()) << c.message();
-        return c.ok() ? std::move(*c) : nullptr;
-    }();
-    if (ctx) ctx->makeCurrent();
-    return ctx.get();
-}
+gl::GlContext* context() { return headlessContext(); }
 
-std::vector<std::uint8_t> rgbOf(const gl::RenderTarget& t) {
-    const auto rgba = t.readRgba();
-    std::vector<std::uint8_t> rgb;
-    for (size_t i = 0; i < rgba.size(); i += 4) rgb.insert(rgb.end(), {rgba[i], rgba[i + 1], rgba[i + 2]});
-    return rgb;
-}
+std::vector<std::uint8_t> rgbOf(const gl::RenderTarget& t) { return test::rgbOf(t.readRgba()); }
 
 // One synthetic scene (512 m at 0.25 m = 2048² per season) shared by the tests of this file.
 struct SceneFixture {

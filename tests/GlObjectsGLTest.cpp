@@ -1,3 +1,4 @@
+#include "TestUtil.h"
 #include "gl/GlContext.h"
 #include "gl/GlDebug.h"
 #include "gl/GlObjects.h"
@@ -9,14 +10,7 @@
 using namespace seasonview;
 
 namespace {
-std::unique_ptr<gl::GlContext>& context() {
-    static std::unique_ptr<gl::GlContext> ctx = [] {
-        auto c = gl::createHeadlessContext();
-        EXPECT_TRUE(c.ok()) << c.message();
-        return c.ok() ? std::move(*c) : nullptr;
-    }();
-    return ctx;
-}
+gl::GlContext* context() { return test::headlessContext(); }
 } // namespace
 
 TEST(GlObjectsGLTest, HeadlessContextIsGl45Core) {

@@ -16,12 +16,7 @@ TEST(GlfwWindowGLTest, SameImageAsHeadless) {
         GTEST_SKIP() << "no DISPLAY: the windowed path runs in the Xvfb test";
     }
     TempDir dir("glfw");
-    writeTestImage(dir / "on.tif", 96, 64, testGeoref(0.5), false, 1);
-    writeTestImage(dir / "off.tif", 96, 64, testGeoref(0.5), false, 2);
-    SceneSources s;
-    s.leafon = dir / "on.tif";
-    s.leafoff = dir / "off.tif";
-    auto scene = loadScene(s, dir / "cache");
+    auto scene = writeTestPair(dir.path(), 96, 64, 0.5);
     ASSERT_TRUE(scene.ok()) << scene.message();
     Camera cam;
     cam.position = {0, -40, 25};

@@ -14,22 +14,7 @@ using namespace seasonview::test;
 
 namespace {
 
-gl::GlContext* context() {
-    static std::unique_ptr<gl::GlContext> ctx = [] {
-        auto c = gl::createHeadlessContext();
-        EXPECT_TRUE(c.ok()) << c.message();
-        return c.ok() ? std::move(*c) : nullptr;
-    }();
-    if (ctx) ctx->makeCurrent();
-    return ctx.get();
-}
-
-std::vector<std::uint8_t> rgbOf(const std::vector<std::uint8_t>& rgba) {
-    std::vector<std::uint8_t> rgb;
-    rgb.reserve(rgba.size() / 4 * 3);
-    for (size_t i = 0; i < rgba.size(); i += 4) rgb.insert(rgb.end(), {rgba[i], rgba[i + 1], rgba[i + 2]});
-    return rgb;
-}
+gl::GlContext* context() { return headlessContext(); }
 
 std::vector<std::uint8_t> render(const Scene& scene, const Camera& cam, Season season, int w, int h,
                                  const ReferenceOptions& o = {}) {
@@ -56,12 +41,7 @@ Camera exactTopDown(double w, double h, double gsd) {
 TEST(ReferenceRendererGLTest, TopDownReproducesTheImageNorthUp) {
     ASSERT_TRUE(context());
     TempDir dir("ref-topdown");
-    writeTestImage(dir / "on.tif", 64, 48, testGeoref(0.5), false, 1);
-    writeTestImage(dir / "off.tif", 64, 48, testGeoref(0.5), false, 5);
-    SceneSources s;
-    s.leafon = dir / "on.tif";
-    s.leafoff = dir / "off.tif";
-    auto scene = loadScene(s, dir / "cache");
+    auto scene = writeTestPair(dir.path(), 64, 48, 0.5);
     ASSERT_TRUE(scene.ok()) << scene.message();
     const int errors = gl::debugErrorCount();
     for (Season season : {Season::LeafOn, Season::LeafOff}) {
@@ -82,12 +62,7 @@ TEST(ReferenceRendererGLTest, TopDownReproducesTheImageNorthUp) {
 TEST(ReferenceRendererGLTest, SixteenBitIsStretched) {
     ASSERT_TRUE(context());
     TempDir dir("ref-16bit");
-    writeTestImage(dir / "on.tif", 64, 48, testGeoref(0.5), true, 1);
-    writeTestImage(dir / "off.tif", 64, 48, testGeoref(0.5), true, 2);
-    SceneSources s;
-    s.leafon = dir / "on.tif";
-    s.leafoff = dir / "off.tif";
-    auto scene = loadScene(s, dir / "cache");
+    auto scene = writeTestPair(dir.path(), 64, 48, 0.5, true);
     ASSERT_TRUE(scene.ok()) << scene.message();
     const auto img = render(*scene, exactTopDown(64, 48, 0.5), Season::LeafOn, 64, 48);
     ASSERT_FALSE(img.empty());
@@ -104,12 +79,7 @@ TEST(ReferenceRendererGLTest, SixteenBitIsStretched) {
 TEST(ReferenceRendererGLTest, TiledTexturesMatchOneTexture) {
     ASSERT_TRUE(context());
     TempDir dir("ref-tiled");
-    writeTestImage(dir / "on.tif", 200, 150, testGeoref(0.5), false, 1);
-    writeTestImage(dir / "off.tif", 200, 150, testGeoref(0.5), false, 2);
-    SceneSources s;
-    s.leafon = dir / "on.tif";
-    s.leafoff = dir / "off.tif";
-    auto scene = loadScene(s, dir / "cache");
+    auto scene = writeTestPair(dir.path(), 200, 150, 0.5);
     ASSERT_TRUE(scene.ok()) << scene.message();
     ReferenceOptions one;
     one.anisotropy = 1.0f;

@@ -67,6 +67,32 @@ void writeTestImage(const std::filesystem::path& path, int w, int h, const Geore
     ASSERT_TRUE(st.ok()) << st.message();
 }
 
+Result<Scene> writeTestPair(const std::filesystem::path& dir, int w, int h, double gsd, bool sixteenBit) {
+    writeTestImage(dir / "on.tif", w, h, testGeoref(gsd), sixteenBit, 1);
+    writeTestImage(dir / "off.tif", w, h, testGeoref(gsd), sixteenBit, 2);
+    SceneSources s;
+    s.leafon = dir / "on.tif";
+    s.leafoff = dir / "off.tif";
+    return loadScene(s, dir / "cache");
+}
+
+gl::GlContext* headlessContext() {
+    static std::unique_ptr<gl::GlContext> ctx = [] {
+        auto c = gl::createHeadlessContext();
+        EXPECT_TRUE(c.ok()) << c.message();
+        return c.ok() ? std::move(*c) : nullptr;
+    }();
+    if (ctx) ctx->makeCurrent();
+    return ctx.get();
+}
+
+std::vector<std::uint8_t> rgbOf(const std::vector<std::uint8_t>& rgba) {
+    std::vector<std::uint8_t> rgb;
+    rgb.reserve(rgba.size() / 4 * 3);
+    for (size_t i = 0; i < rgba.size(); i += 4) rgb.insert(rgb.end(), {rgba[i], rgba[i + 1], rgba[i + 2]});
+    return rgb;
+}
+
 ImageDiff compareRgb(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b, int w, int h,
                      int channels) {
     ImageDiff d;

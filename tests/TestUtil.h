@@ -1,6 +1,9 @@
 #pragma once
-// Shared test helpers: temp folders, small georeferenced test rasters, golden-image comparison, running the CLI.
+// Shared test helpers: temp folders, small georeferenced test rasters, golden-image comparison, running the CLI,
+// one headless GL context per test process.
 #include "Raster.h"
+#include "Scene.h"
+#include "gl/GlContext.h"
 
 #include <cstdint>
 #include <filesystem>
@@ -36,6 +39,16 @@ Georef testGeoref(double gsd = 1.0, double easting = 405000.0, double northing =
 /// Writes a w×h RGB test image (8- or 16-bit) with a smooth pattern seeded by `seed`.
 void writeTestImage(const std::filesystem::path& path, int w, int h, const Georef& g, bool sixteenBit = false,
                     int seed = 0);
+
+/// Writes on.tif and off.tif (w×h, `gsd` m/px, UTM 32N, seeds 1 and 2) into `dir` and loads them as a flat scene
+/// (stretch cache in dir/cache).
+Result<Scene> writeTestPair(const std::filesystem::path& dir, int w, int h, double gsd, bool sixteenBit = false);
+
+/// The process's headless GL context, made current (nullptr, with a test failure, when EGL is unusable).
+gl::GlContext* headlessContext();
+
+/// RGBA rows -> RGB rows.
+std::vector<std::uint8_t> rgbOf(const std::vector<std::uint8_t>& rgba);
 
 struct ImageDiff {
     int maxDelta = 0;      // largest per-channel difference, 0..255
