@@ -16,6 +16,7 @@ Runner addSynthCommand(CLI::App& app);
 Runner addRenderCommand(CLI::App& app);
 Runner addDemoCommand(CLI::App& app);
 Runner addPrepareCommand(CLI::App& app);
+Runner addBenchCommand(CLI::App& app);
 
 /// Reads a synthetic-scene preset (data/presets/*.json: size_m, gsd, seed).
 Result<SynthOptions> loadSynthPreset(const std::filesystem::path& path);

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
     add(seasonview::app::addRenderCommand);
     add(seasonview::app::addDemoCommand);
     add(seasonview::app::addPrepareCommand);
+    add(seasonview::app::addBenchCommand);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
