@@ -1,0 +1,56 @@
+#include "GeometryClipmapLayout.h"
+
+#include <cassert>
+
+namespace seasonview {
+
+RingLayout RingLayout::make(int n) {
+    assert(n >= 7 && ((n + 1) & n) == 0 && "RingLayout::make(): n must be 2^k - 1, k >= 3");
+    return RingLayout{n, (n + 1) / 4};
+}
+
+std::vector<GridRect> RingLayout::ringBlocks() const {
+    std::vector<GridRect> out;
+    for (int j = 0; j < 4; ++j)
+        for (int i = 0; i < 4; ++i) {
+            if ((i == 1 || i == 2) && (j == 1 || j == 2)) continue; // the hole
+            out.push_back({blockOffset(i), blockOffset(j), blockOffset(i) + m - 1, blockOffset(j) + m - 1});
+        }
+    return out;
+}
+
+std::vector<GridRect> RingLayout::fixups() const {
+    const int c = 2 * (m - 1); // the gap between blocks 1 and 2
+    const int far = blockOffset(3);
+    return {{c, 0, c + 2, m - 1}, {c, far, c + 2, far + m - 1}, {0, c, m - 1, c + 2}, {far, c, far + m - 1, c + 2}};
+}
+
+GridRect RingLayout::finerLevel(TrimSide x, TrimSide y) const {
+    const int lo = m - 1;         // the hole starts here and spans 2m cells
+    const int size = (n - 1) / 2; // 2m - 1 cells: one less than the hole, the trim takes the rest
+    const int fx = x == TrimSide::Low ? lo + 1 : lo, fy = y == TrimSide::Low ? lo + 1 : lo;
+    return {fx, fy, fx + size, fy + size};
+}
+
+std::vector<GridRect> RingLayout::trim(TrimSide x, TrimSide y) const {
+    const int lo = m - 1, hi = 3 * m - 1;
+    const int col = x == TrimSide::Low ? lo : hi - 1; // the 1-cell column, full height of the hole
+    const int row = y == TrimSide::Low ? lo : hi - 1;
+    const GridRect column{col, lo, col + 1, hi};
+    const GridRect rowRect = x == TrimSide::Low ? GridRect{lo + 1, row, hi, row + 1} : GridRect{lo, row, hi - 1, row + 1};
+    return {column, rowRect};
+}
+
+std::vector<GridRect> RingLayout::finestPieces() const {
+    std::vector<GridRect> out;
+    for (int j = 0; j < 4; ++j)
+        for (int i = 0; i < 4; ++i)
+            out.push_back({blockOffset(i), blockOffset(j), blockOffset(i) + m - 1, blockOffset(j) + m - 1});
+    const int c = 2 * (m - 1);
+    out.push_back({c, 0, c + 2, n - 1});     // vertical bar of the cross, full height
+    out.push_back({0, c, c, c + 2});         // horizontal bar, west of it
+    out.push_back({c + 2, c, n - 1, c + 2}); // and east of it
+    return out;
+}
+
+} // namespace seasonview
