@@ -135,7 +135,10 @@ Result<Image<std::uint8_t>> readDisplayRgba(const RasterInfo& info, const Stretc
                 int src = img.channels >= 3 ? c : 0; // grey -> RGB
                 if (c == 3) {
                     if (img.channels != 4 && img.channels != 2) break;
-                    src = img.channels - 1;
+                    // Alpha is coverage, not reflectance: scaled to 8 bits, never stretched.
+                    const auto a = img.pixels[i * size_t(img.channels) + size_t(img.channels - 1)];
+                    out.pixels[i * 4 + 3] = std::uint8_t(info.type == SampleType::U16 ? a >> 8 : a);
+                    break;
                 }
                 out.pixels[i * 4 + size_t(c)] =
                     stretch.apply(src, float(img.pixels[i * size_t(img.channels) + size_t(src)]));

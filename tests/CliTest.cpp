@@ -47,6 +47,13 @@ TEST_F(CliFixture, RenderWritesAnImage) {
     ASSERT_TRUE(img.ok()) << img.message();
     EXPECT_EQ(img->width, 64);
     EXPECT_EQ(img->height, 48);
+    // TIFF output too, same pixels.
+    const CliResult t = runCli(render(pair(), "out.tif"));
+    ASSERT_EQ(t.exitCode, 0) << t.err;
+    auto a = readImageU8(dir / "out.png");
+    auto b = readImageU8(dir / "out.tif");
+    ASSERT_TRUE(a.ok() && b.ok());
+    EXPECT_EQ(a->pixels, b->pixels);
 }
 
 TEST_F(CliFixture, HelpForEverySubcommand) {

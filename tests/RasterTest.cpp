@@ -209,3 +209,20 @@ TEST(StretchTest, StoredInCacheNotRecomputed) {
     auto i8 = readRasterInfo(dir / "s8.tif");
     EXPECT_TRUE(stretchFor(*i8, dir / "cache")->identity);
 }
+
+TEST(StretchTest, SixteenBitRgbaKeepsAlpha) {
+    TempDir dir("rgba16");
+    std::vector<std::uint16_t> px;
+    for (int i = 0; i < 16 * 8; ++i) px.insert(px.end(), {std::uint16_t(300 + i * 10), 900, 1500, std::uint16_t(i % 2 ? 65535 : 0)});
+    ASSERT_TRUE(writeGeoTiff(dir / "rgba.tif", px.data(), SampleType::U16, 16, 8, 4, testGeoref()).ok());
+    auto info = readRasterInfo(dir / "rgba.tif");
+    ASSERT_TRUE(info.ok()) << info.message();
+    EXPECT_EQ(info->channels, 4);
+    auto stretch = stretchFor(*info, dir / "cache");
+    ASSERT_TRUE(stretch.ok()) << stretch.message();
+    auto rgba = readDisplayRgba(*info, *stretch);
+    ASSERT_TRUE(rgba.ok()) << rgba.message();
+    EXPECT_EQ(rgba->at(0, 0, 3), 0);
+    EXPECT_EQ(rgba->at(1, 0, 3), 255);
+    EXPECT_LT(rgba->at(0, 0, 0), rgba->at(15, 7, 0)) << "red rises with the index: the stretch keeps the order";
+}
