@@ -1,149 +1,43 @@
-// `seasonview bench`: headless frame benchmark along a camera path, with per-frame counters, a summary, an
-// interleaved comparison of modes and a plot of frame time and coverage over the path.
+// `seasonview bench`: headless frame benchmark along a camera path (see Bench.h).
+#include "Bench.h"
+#include "CameraPath.h"
+#include "ClipmapCenters.h"
 #include "Commands.h"
-#include "Plot.h"
 #include "RenderJob.h"
 
-#include "AtomicFile.h"
-#include "CameraPath.h"
-#include "gl/GlDebug.h"
-
-#include <nlohmann/json.hpp>
-
-#include <algorithm>
-#include <chrono>
-#include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <map>
 #include <memory>
-#include <sstream>
-
-#include <unistd.h>
 
 namespace seasonview::app {
 
-namespace {
-
-struct BenchArgs {
-    SceneArgs scene;
-    std::string path = "flyover", size = "1920x1080", out, compare, renderer = "clipmap", centers = "footprint",
-                view = "leafon";
-    int frames = 300, warmup = 10, coverageEvery = 1, clipSize = 2048;
-    std::uint64_t seed = 1;
-    std::int64_t budget = std::int64_t(1) << 20;
-};
-
-struct FrameRow {
-    int frame = 0;
-    Camera camera;
-    double cpuMs = 0, gpuMs = 0, frameMs = 0;
-    int drawCalls = 1;
-    std::int64_t triangles = 0, texelsUploaded = 0, exposedTexels = 0, residentBytes = 0, loaderCacheBytes = 0,
-                 rssBytes = 0;
-    int blocksMissing = 0;
-    double coverage = NAN;
-};
-
-struct Mode {
-    std::string label;
-    RendererKind renderer = RendererKind::Clipmap;
-    CenterPlacement centers = CenterPlacement::Footprint;
-    std::unique_ptr<ClipmapGL> clipmap;
-    std::unique_ptr<ClipmapTerrainRendererGL> clipRenderer;
-    std::unique_ptr<ReferenceRendererGL> reference;
-    std::vector<FrameRow> rows;
-};
-
-std::int64_t residentSetBytes() {
-    std::ifstream f("/proc/self/statm");
-    std::int64_t pages = 0, rss = 0;
-    f >> pages >> rss;
-    return rss * std::int64_t(::sysconf(_SC_PAGESIZE));
-}
-
-double percentile(std::vector<double> v, double p) {
-    v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
-    if (v.empty()) return NAN;
-    std::sort(v.begin(), v.end());
-    const double r = p / 100.0 * double(v.size() - 1);
-    const size_t i = size_t(r);
-    return i + 1 < v.size() ? v[i] + (v[i + 1] - v[i]) * (r - double(i)) : v[i];
-}
-
-nlohmann::json figure(const std::vector<double>& v) {
-    auto num = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
-    return {{"median", num(percentile(v, 50))}, {"p95", num(percentile(v, 95))}, {"max", num(percentile(v, 100))}};
-}
-
-// "centers=concentric,offset,footprint" or "renderer=clipmap,reference" -> modes.
-Result<std::vector<Mode>> parseModes(const BenchArgs& a) {
-    std::vector<Mode> modes;
-    auto base = [&]() -> Result<Mode> {
-        Mode m;
-        if (a.renderer == "reference") m.renderer = RendererKind::Reference;
-        else if (a.renderer != "clipmap") return Error{"--renderer '" + a.renderer + "': expected clipmap|reference"};
-        auto c = parsePlacement(a.centers);
-        if (!c) return Error{"--centers '" + a.centers + "': expected " + placementNames()};
-        m.centers = *c;
-        return m;
-    };
-    if (a.compare.empty()) {
-        auto m = base();
-        if (!m) return m.error();
-        m->label = m->renderer == RendererKind::Reference ? "reference" : placementName(m->centers);
-        modes.push_back(std::move(*m));
-        return modes;
-    }
-    const size_t eq = a.compare.find('=');
-    const std::string key = a.compare.substr(0, eq);
-    if (eq == std::string::npos || (key != "centers" && key != "renderer"))
-        return Error{"--compare '" + a.compare + "': expected centers=A,B,... or renderer=clipmap,reference"};
-    std::stringstream list(a.compare.substr(eq + 1));
-    std::string v;
-    while (std::getline(list, v, ',')) {
-        auto m = base();
-        if (!m) return m.error();
-        if (key == "centers") {
-            auto c = parsePlacement(v);
-            if (!c) return Error{"--compare: unknown centers '" + v + "' (expected " + placementNames() + ")"};
-            m->centers = *c;
-        } else if (v == "reference") {
-            m->renderer = RendererKind::Reference;
-        } else if (v != "clipmap") {
-            return Error{"--compare: unknown renderer '" + v + "' (expected clipmap|reference)"};
-        }
-        m->label = key + "=" + v;
-        modes.push_back(std::move(*m));
-    }
-    if (modes.size() < 2) return Error{"--compare '" + a.compare + "': give at least two values"};
-    return modes;
-}
-
-} // namespace
-
 Runner addBenchCommand(CLI::App& app) {
-    auto a = std::make_shared<BenchArgs>();
+    struct Args {
+        SceneArgs scene;
+        BenchSettings b;
+        std::string size = "1920x1080", out;
+    };
+    auto a = std::make_shared<Args>();
     CLI::App* cmd = app.add_subcommand("bench", "Headless frame benchmark along a camera path (frames.csv, summary.json, "
                                                 "compare.json, plot.png)");
     a->scene.addTo(*cmd);
-    cmd->add_option("--path", a->path, "Camera path: " + CameraPath::namedPaths() + " or a keyframe JSON file")
+    cmd->add_option("--path", a->b.path, "Camera path: " + CameraPath::namedPaths() + " or a keyframe JSON file")
         ->capture_default_str();
-    cmd->add_option("--frames", a->frames, "Frames measured")->capture_default_str()->check(CLI::Range(2, 10000000));
-    cmd->add_option("--warmup", a->warmup, "Frames run at the path's start before measuring")->capture_default_str();
+    cmd->add_option("--frames", a->b.frames, "Frames measured")->capture_default_str()->check(CLI::Range(2, 10000000));
+    cmd->add_option("--warmup", a->b.warmup, "Frames run at the path's start before measuring")->capture_default_str();
     cmd->add_option("--size", a->size, "Frame size WxH")->capture_default_str();
     cmd->add_option("--out", a->out, "Output folder")->required();
-    cmd->add_option("--compare", a->compare,
-                    "Modes run interleaved over the same path: \"centers=concentric,offset,footprint\" or "
-                    "\"renderer=clipmap,reference\"");
-    cmd->add_option("--renderer", a->renderer, "clipmap|reference")->capture_default_str();
-    cmd->add_option("--centers", a->centers, "Clipmap level centres: " + placementNames())->capture_default_str();
-    cmd->add_option("--view", a->view, "leafon|leafoff|blend|swipe|lod")->capture_default_str();
-    cmd->add_option("--clip-size", a->clipSize, "Clipmap level size N (256..4096)")->capture_default_str();
-    cmd->add_option("--upload-budget", a->budget, "Clipmap texels uploaded per frame and layer")->capture_default_str();
-    cmd->add_option("--coverage-every", a->coverageEvery, "Measure coverage every K frames (0: never)")
+    cmd->add_option("--compare", a->b.compare,
+                    "Modes run interleaved over the same path: \"centers=" + placementNames() +
+                        "\" (comma-separated) or \"renderer=clipmap,reference\"");
+    cmd->add_option("--renderer", a->b.renderer, "clipmap|reference")->capture_default_str();
+    cmd->add_option("--centers", a->b.centers, "Clipmap level centres: " + placementNames())->capture_default_str();
+    cmd->add_option("--view", a->b.view, "leafon|leafoff|blend|swipe|lod")->capture_default_str();
+    cmd->add_option("--clip-size", a->b.clipSize, "Clipmap level size N (256..4096)")->capture_default_str();
+    cmd->add_option("--upload-budget", a->b.uploadBudget, "Clipmap texels uploaded per frame and layer")
         ->capture_default_str();
-    cmd->add_option("--seed", a->seed, "Seed of the random path")->capture_default_str();
+    cmd->add_option("--coverage-every", a->b.coverageEvery, "Measure coverage every K frames (0: never)")
+        ->capture_default_str();
+    cmd->add_option("--seed", a->b.seed, "Seed of the random path")->capture_default_str();
     return [a]() -> int {
         auto fail = [](const std::string& m) {
             std::fprintf(stderr, "seasonview bench: %s\n", m.c_str());
@@ -151,215 +45,18 @@ Runner addBenchCommand(CLI::App& app) {
         };
         auto size = parseSize(a->size);
         if (!size) return fail(size.message());
-        const auto [w, h] = *size;
-        auto view = parseImageryView(a->view);
-        if (!view) return fail("--view '" + a->view + "': expected leafon|leafoff|blend|swipe|lod");
-        if (a->clipSize < 256 || a->clipSize > 4096 || a->clipSize % 64 != 0)
-            return fail("--clip-size " + std::to_string(a->clipSize) + ": expected 256..4096, a multiple of 64");
-        auto modes = parseModes(*a);
-        if (!modes) return fail(modes.message());
+        a->b.width = size->first;
+        a->b.height = size->second;
+        a->b.cacheDir = a->scene.cache;
         auto scene = a->scene.load();
         if (!scene) return fail(scene.message());
         printSceneNotes(*scene);
-        const auto terrain = [&](double x, double y) { return scene->terrainHeight(x, y); };
-        PathScene ps{scene->localMin, scene->localMax, terrain};
-        std::error_code ec;
-        auto path = std::filesystem::exists(a->path, ec) ? CameraPath::fromJson(a->path) : CameraPath::named(a->path, ps, a->seed);
-        if (!path) return fail(path.message());
-        const std::filesystem::path out = a->out;
-        std::filesystem::create_directories(out, ec);
-        if (ec) return fail(out.string() + ": cannot create folder (" + ec.message() + ")");
-        const std::filesystem::path cache = a->scene.cache.empty() ? defaultCacheDir() : std::filesystem::path(a->scene.cache);
-
-        const bool anyClipmap = std::any_of(modes->begin(), modes->end(),
-                                            [](const Mode& m) { return m.renderer == RendererKind::Clipmap; });
-        std::vector<ImagePyramid> pyramids;
-        if (anyClipmap) {
-            auto p = preparePyramids(*scene, cache);
-            if (!p) return fail(p.message());
-            pyramids = std::move(*p);
-        }
-        auto ctx = gl::createHeadlessContext();
-        if (!ctx) return fail(ctx.message());
-        // The modes' GL objects must die while the context lives (it was created after them).
-        struct ReleaseFirst {
-            std::vector<Mode>& modes;
-            ~ReleaseFirst() { modes.clear(); }
-        } releaseFirst{*modes};
-        const int glErrors = gl::debugErrorCount();
-        ClipmapOptions co;
-        co.size = a->clipSize;
-        co.uploadBudgetTexels = a->budget;
-        for (Mode& m : *modes) {
-            if (m.renderer == RendererKind::Reference) {
-                auto r = ReferenceRendererGL::create(*scene);
-                if (!r) return fail(r.message());
-                m.reference = std::move(*r);
-            } else {
-                auto c = ClipmapGL::create(pyramids, co);
-                if (!c) return fail(c.message());
-                m.clipmap = std::move(*c);
-                auto r = ClipmapTerrainRendererGL::create(*scene, *m.clipmap);
-                if (!r) return fail(r.message());
-                m.clipRenderer = std::move(*r);
-            }
-        }
-        gl::RenderTarget target(w, h), scratch(w, h);
-        gl::Query timer = gl::Query::create(GL_TIME_ELAPSED);
-        ImagerySettings imagery;
-        imagery.view = *view;
-        using clock = std::chrono::steady_clock;
-        auto ms = [](clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
-
-        auto runFrame = [&](Mode& m, const Camera& cam, int frame, bool record) {
-            FrameRow row;
-            row.frame = frame;
-            row.camera = cam;
-            const auto t0 = clock::now();
-            ClipmapFrameStats cs;
-            if (m.clipmap) {
-                const ClipmapGeometry g = clipmapGeometry(*scene, m.clipmap->schedule().layout());
-                cs = m.clipmap->update(clipmapCentres(*scene, cam, w, h, m.centers, g));
-            }
-            glBeginQuery(GL_TIME_ELAPSED, timer.id());
-            if (m.clipmap) m.clipRenderer->render(cam, imagery, target);
-            else m.reference->render(cam, imagery.view == ImageryView::LeafOff ? Season::LeafOff : Season::LeafOn, target);
-            glEndQuery(GL_TIME_ELAPSED);
-            const auto t1 = clock::now();
-            glFinish();
-            const auto t2 = clock::now();
-            GLuint64 ns = 0;
-            glGetQueryObjectui64v(timer.id(), GL_QUERY_RESULT, &ns);
-            if (!record) return;
-            row.cpuMs = ms(t1 - t0);
-            row.frameMs = ms(t2 - t0);
-            row.gpuMs = double(ns) * 1e-6;
-            row.triangles = m.clipmap ? m.clipRenderer->triangles() : m.reference->stats().triangles;
-            row.texelsUploaded = cs.texelsUploaded;
-            row.exposedTexels = cs.exposedTexels;
-            row.blocksMissing = cs.blocksMissing;
-            row.residentBytes = m.clipmap ? m.clipmap->residentBytes() : 0;
-            row.loaderCacheBytes = m.clipmap ? m.clipmap->loaderCacheBytes() : 0;
-            row.rssBytes = residentSetBytes();
-            if (m.clipmap && a->coverageEvery > 0 && frame % a->coverageEvery == 0)
-                row.coverage = m.clipRenderer->measureLevels(cam, scratch).coverage;
-            m.rows.push_back(row);
-        };
-        const auto start = clock::now();
-        for (int i = 0; i < a->warmup; ++i)
-            for (Mode& m : *modes) runFrame(m, path->at(0.0, terrain), -1, false);
-        for (int f = 0; f < a->frames; ++f) {
-            const Camera cam = path->at(double(f) / double(a->frames - 1), terrain);
-            for (Mode& m : *modes) runFrame(m, cam, f, true); // interleaved: every mode sees the same load
-        }
-        const double seconds = ms(clock::now() - start) / 1000.0;
-        if (const std::string e = gl::drainErrors(); !e.empty() || gl::debugErrorCount() != glErrors)
-            return fail("OpenGL error during the benchmark " + e);
-
-        // frames.csv
-        std::ostringstream csv;
-        csv << "mode,frame,x,y,z,yaw,pitch,cpu_ms,gpu_ms,frame_ms,draw_calls,triangles,texels_uploaded,exposed_texels,"
-               "blocks_missing,resident_texture_bytes,loader_cache_bytes,rss_bytes,coverage\n";
-        for (const Mode& m : *modes)
-            for (const FrameRow& r : m.rows) {
-                char line[512];
-                std::snprintf(line, sizeof line,
-                              "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s\n",
-                              m.label.c_str(), r.frame, r.camera.position.x, r.camera.position.y, r.camera.position.z,
-                              r.camera.yawDeg, r.camera.pitchDeg, r.cpuMs, r.gpuMs, r.frameMs, r.drawCalls,
-                              (long long)r.triangles, (long long)r.texelsUploaded, (long long)r.exposedTexels,
-                              r.blocksMissing, (long long)r.residentBytes, (long long)r.loaderCacheBytes,
-                              (long long)r.rssBytes, std::isfinite(r.coverage) ? std::to_string(r.coverage).c_str() : "");
-                csv << line;
-            }
-        std::string err;
-        if (!writeTextAtomic(out / "frames.csv", csv.str(), err)) return fail((out / "frames.csv").string() + ": " + err);
-
-        // summary.json (+ compare.json)
-        nlohmann::json summary = {{"device", {{"platform", (*ctx)->info().platform},
-                                              {"renderer", (*ctx)->info().renderer},
-                                              {"version", (*ctx)->info().version}}},
-                                  {"scene", scene->sources.manifest.empty() ? scene->sources.leafon.string()
-                                                                             : scene->sources.manifest.string()},
-                                  {"image_size", {scene->leafon.info.width, scene->leafon.info.height}},
-                                  {"size", {w, h}},
-                                  {"path", a->path},
-                                  {"frames", a->frames},
-                                  {"warmup", a->warmup},
-                                  {"settings", {{"clip_size", a->clipSize}, {"upload_budget_texels", a->budget},
-                                                {"view", a->view}, {"coverage_every", a->coverageEvery}}},
-                                  {"wall_seconds", seconds}};
-        nlohmann::json compare = nlohmann::json::array();
-        double baseMedian = NAN;
-        std::vector<PlotPanel> panels(3);
-        panels[0].title = "frame time (ms)";
-        panels[1].title = "coverage";
-        panels[1].yMin = 0.0;
-        panels[1].yMax = 1.0;
-        panels[2].title = "texels uploaded per frame";
-        std::printf("%-24s %12s %10s %10s %10s %12s %10s\n", "mode", "median ms", "p95 ms", "max ms", "ratio",
-                    "coverage", "upload/min");
-        for (const Mode& m : *modes) {
-            std::vector<double> cpu, gpu, frame, texels, cov, rss, resident;
-            std::int64_t uploaded = 0, exposed = 0;
-            for (const FrameRow& r : m.rows) {
-                cpu.push_back(r.cpuMs);
-                gpu.push_back(r.gpuMs);
-                frame.push_back(r.frameMs);
-                texels.push_back(double(r.texelsUploaded));
-                cov.push_back(r.coverage);
-                rss.push_back(double(r.rssBytes));
-                resident.push_back(double(r.residentBytes));
-                uploaded += r.texelsUploaded;
-                exposed += r.exposedTexels;
-            }
-            const int layers = m.clipmap ? m.clipmap->layers() : 1;
-            const double uploadRatio = exposed > 0 ? double(uploaded) / double(layers) / double(exposed) : NAN;
-            double covMean = 0;
-            int covN = 0;
-            for (double c : cov)
-                if (std::isfinite(c)) {
-                    covMean += c;
-                    ++covN;
-                }
-            covMean = covN ? covMean / covN : NAN;
-            const double median = percentile(frame, 50);
-            if (!std::isfinite(baseMedian)) baseMedian = median;
-            auto num = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
-            summary["modes"][m.label] = {
-                {"frame_ms", figure(frame)},
-                {"cpu_ms", figure(cpu)},
-                {"gpu_ms", figure(gpu)},
-                {"texels_uploaded", figure(texels)},
-                {"coverage", figure(cov)},
-                {"coverage_mean", num(covMean)},
-                {"rss_bytes", figure(rss)},
-                {"resident_texture_bytes", figure(resident)},
-                {"rss_bytes_start", m.rows.front().rssBytes},
-                {"rss_bytes_end", m.rows.back().rssBytes},
-                {"resident_texture_bytes_start", m.rows.front().residentBytes},
-                {"resident_texture_bytes_end", m.rows.back().residentBytes},
-                {"worst_frame_over_median", num(percentile(frame, 100) / median)},
-                {"totals", {{"texels_uploaded", uploaded}, {"exposed_texels_per_layer", exposed},
-                            {"upload_over_geometric_minimum", num(uploadRatio)},
-                            {"triangles_per_frame", m.rows.front().triangles}}}};
-            compare.push_back({{"mode", m.label}, {"median_frame_ms", median}, {"ratio_to_first", median / baseMedian},
-                               {"median_gpu_ms", num(percentile(gpu, 50))}, {"coverage_mean", num(covMean)},
-                               {"texels_uploaded", uploaded}});
-            std::printf("%-24s %12.2f %10.2f %10.2f %10.3f %12.4f %10.3f\n", m.label.c_str(), median,
-                        percentile(frame, 95), percentile(frame, 100), median / baseMedian, covMean, uploadRatio);
-            panels[0].series.push_back({m.label, frame});
-            panels[1].series.push_back({m.label, cov});
-            panels[2].series.push_back({m.label, texels});
-        }
-        if (!writeTextAtomic(out / "summary.json", summary.dump(2) + "\n", err))
-            return fail((out / "summary.json").string() + ": " + err);
-        if (modes->size() > 1 && !writeTextAtomic(out / "compare.json", compare.dump(2) + "\n", err))
-            return fail((out / "compare.json").string() + ": " + err);
-        if (auto st = writeLinePlot(out / "plot.png", panels, "frame"); !st) return fail(st.message());
+        auto r = runBench(*scene, a->b, a->out);
+        if (!r) return fail(r.message());
+        std::printf("%s", r->table.c_str());
         std::printf("wrote %s/{frames.csv,summary.json%s,plot.png}: %d frames x %zu modes at %dx%d on %s in %.1f s\n",
-                    out.c_str(), modes->size() > 1 ? ",compare.json" : "", a->frames, modes->size(), w, h,
-                    (*ctx)->info().renderer.c_str(), seconds);
+                    a->out.c_str(), r->modes.size() > 1 ? ",compare.json" : "", a->b.frames, r->modes.size(),
+                    a->b.width, a->b.height, r->device.c_str(), r->seconds);
         return 0;
     };
 }

@@ -1,4 +1,5 @@
 // `seasonview demo`: generates (once, cached) the synthetic scene and writes stills plus an index.html.
+#include "Bench.h"
 #include "Commands.h"
 #include "RenderJob.h"
 
@@ -11,6 +12,7 @@
 #include <cstdio>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 namespace seasonview::app {
@@ -21,6 +23,7 @@ struct DemoArgs {
     std::string out = "out/demo", size = "1280x720", cache, preset;
     SynthOptions synth;
     bool window = false;
+    int benchFrames = 24;
 };
 
 // True when `dir` holds a complete scene generated with the same options.
@@ -59,6 +62,8 @@ Runner addDemoCommand(CLI::App& app) {
     cmd->add_option("--gsd", args->synth.gsd, "Synthetic scene resolution, metres per pixel")->capture_default_str();
     cmd->add_option("--seed", args->synth.seed, "Synthetic scene seed")->capture_default_str();
     cmd->add_option("--cache", args->cache, "Cache folder (default $SEASONVIEW_CACHE or ~/.cache/seasonview)");
+    cmd->add_option("--bench-frames", args->benchFrames, "Frames of the demo's flyover benchmark (0: skip it)")
+        ->capture_default_str();
     cmd->add_flag("--window", args->window, "Render through a hidden GLFW window instead of headless EGL");
     return [args, cmd]() -> int {
         auto fail = [](const std::string& m) {
@@ -134,6 +139,25 @@ Runner addDemoCommand(CLI::App& app) {
         if (!info) return fail(info.message());
         const double renderSeconds = std::chrono::duration<double>(clock::now() - tr).count();
 
+        // A short interleaved benchmark of the three level-centre placements along a flyover.
+        std::optional<BenchResult> bench;
+        BenchSettings bs;
+        if (args->benchFrames >= 2) {
+            bs.path = "flyover";
+            bs.width = 640;
+            bs.height = 360;
+            bs.frames = args->benchFrames;
+            bs.warmup = 2;
+            bs.clipSize = 1024;
+            bs.compare = "centers=concentric,offset,footprint";
+            bs.cacheDir = settings.cacheDir;
+            std::printf("benchmarking a flyover (%d frames, 3 placements interleaved) ...\n", bs.frames);
+            std::fflush(stdout);
+            auto r = runBench(*scene, bs, out / "bench");
+            if (!r) return fail(r.message());
+            bench = std::move(*r);
+        }
+
         std::ostringstream html;
         html << "<!doctype html><html><head><meta charset=\"utf-8\"><title>seasonview demo</title><style>"
                 "body{font-family:sans-serif;margin:2em;max-width:1400px}figure{display:inline-block;margin:0 1em 1em 0}"
@@ -160,6 +184,21 @@ Runner addDemoCommand(CLI::App& app) {
         for (const Still& s : stills)
             html << "<figure><img src=\"" << s.file << "\" alt=\"" << s.caption << "\"><figcaption>" << s.caption
                  << " &mdash; camera <code>" << s.camera.toString() << "</code></figcaption></figure>\n";
+        if (bench) {
+            html << "<h2>Benchmark</h2>\n<p>Flyover, " << bs.frames << " frames of " << bs.width << "&times;" << bs.height
+                 << ", clipmap levels of " << bs.clipSize << "&sup2;, the three level-centre placements run interleaved on "
+                 << htmlEscape(bench->device) << " (<a href=\"bench/summary.json\">summary.json</a>, "
+                 << "<a href=\"bench/frames.csv\">frames.csv</a>). Ratios, not absolute times, are comparable across "
+                    "machines.</p>\n<table><tr><th>centers</th><th>median frame ms</th><th>ratio</th><th>mean coverage</th>"
+                    "<th>uploaded &divide; geometric minimum</th></tr>\n";
+            for (const BenchModeResult& m : bench->modes) {
+                char cells[256];
+                std::snprintf(cells, sizeof cells, "<td>%.1f</td><td>%.3f</td><td>%.4f</td><td>%.3f</td>",
+                              m.medianFrameMs, m.ratioToFirst, m.coverageMean, m.uploadOverMinimum);
+                html << "<tr><td>" << htmlEscape(m.mode) << "</td>" << cells << "</tr>\n";
+            }
+            html << "</table>\n<figure><img src=\"bench/plot.png\" alt=\"frame time and coverage\"></figure>\n";
+        }
         html << "<h2>Ground truth</h2>\n<figure><img src=\"scene/truth_deciduous.png\"><figcaption>Deciduous crowns"
                 "</figcaption></figure><figure><img src=\"scene/truth_conifer.png\"><figcaption>Conifers</figcaption>"
                 "</figure>\n</body></html>\n";
@@ -172,6 +211,7 @@ Runner addDemoCommand(CLI::App& app) {
                     scene->leafon.info.height, scene->frame.crs().name().c_str());
         for (const Still& s : stills) std::printf("  still     %s\n", (out / s.file).c_str());
         std::printf("  device    %s: %s\n", info->platform.c_str(), info->renderer.c_str());
+        if (bench) std::printf("  bench     %s/bench (%s)\n%s", out.c_str(), bench->device.c_str(), bench->table.c_str());
         std::printf("  time      %.1f s total (synth %.1f s, render %.1f s)\n", total, synthSeconds, renderSeconds);
         return 0;
     };

@@ -1,0 +1,41 @@
+#pragma once
+// The frame benchmark shared by `seasonview bench` and `seasonview demo`: runs one or more modes interleaved along
+// a camera path and writes frames.csv, summary.json, compare.json (several modes) and plot.png.
+#include "Result.h"
+#include "Scene.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace seasonview::app {
+
+struct BenchSettings {
+    std::string path = "flyover"; // named path or keyframe JSON file
+    int width = 1920, height = 1080;
+    int frames = 300, warmup = 10, coverageEvery = 1, clipSize = 2048;
+    std::string compare;          // "centers=a,b,..." or "renderer=clipmap,reference"; empty: one mode
+    std::string renderer = "clipmap", centers = "footprint", view = "leafon";
+    std::uint64_t seed = 1;
+    std::int64_t uploadBudget = std::int64_t(1) << 20;
+    std::filesystem::path cacheDir;
+};
+
+struct BenchModeResult {
+    std::string mode;
+    double medianFrameMs = 0, p95FrameMs = 0, maxFrameMs = 0, ratioToFirst = 1, coverageMean = 0,
+           uploadOverMinimum = 0;
+};
+
+struct BenchResult {
+    std::vector<BenchModeResult> modes;
+    std::string device;
+    double seconds = 0;
+    std::string table; // the printed comparison table
+};
+
+/// Validates the settings (errors: one line), runs the benchmark headless, writes its files into `out`.
+Result<BenchResult> runBench(const Scene& scene, const BenchSettings& settings, const std::filesystem::path& out);
+
+} // namespace seasonview::app
