@@ -58,6 +58,10 @@ Runner addSynthCommand(CLI::App& app) {
     cmd->add_option("--seed", args->o.seed, "Random seed (same seed -> identical files)")->capture_default_str();
     cmd->add_option("--dem", args->dem, "Real DEM GeoTIFF: terrain is a crop around its centre instead of fBm");
     cmd->add_option("--threads", args->o.threads, "Worker threads (0 = all cores; output does not depend on it)");
+    cmd->add_option("--band-rows", args->o.bandRows,
+                    "Imagery rows generated at a time (0 = " + std::to_string(kDefaultSynthBandRows) +
+                        "); memory grows with it, the output does not depend on it")
+        ->check(CLI::NonNegativeNumber);
     return [args, cmd]() -> int {
         if (!args->preset.empty()) {
             auto preset = loadSynthPreset(args->preset);
@@ -71,8 +75,9 @@ Runner addSynthCommand(CLI::App& app) {
         }
         args->o.dem = args->dem;
         const double pixels = args->o.sizeM / args->o.gsd;
-        if (pixels > 32768.0) {
-            std::fprintf(stderr, "seasonview synth: --size-m/--gsd gives %.0f pixels per side (max 32768)\n", pixels);
+        if (pixels > double(kMaxSynthPixels)) {
+            std::fprintf(stderr, "seasonview synth: --size-m/--gsd gives %.0f pixels per side (max %d)\n", pixels,
+                         kMaxSynthPixels);
             return 1;
         }
         auto report = generateSyntheticScene(args->o, args->out, terminalProgress("synth"));

@@ -1,9 +1,7 @@
 #include "PyramidBuilder.h"
 
 #include "BandReader.h"
-
-#include "TiledTiffWriter.h"
-
+#include "GeoTiffStreamWriter.h"
 
 #include <algorithm>
 #include <cassert>
@@ -20,7 +18,8 @@ constexpr size_t kRgb = 3;
 
 /// One level being written: the rows of its current tile row, and the writer they go to when it is full.
 struct LevelStream {
-    TiledTiffWriter writer;
+    GeoTiffStreamWriter writer;
+    int tileSize = 0;
     std::vector<std::uint8_t> band;   // tileSize rows of width×3 bytes
     std::vector<std::uint8_t> halved; // the next level's row made from this level's last row pair
     int bandRows = 0;                 // rows of the current tile row filled
@@ -43,8 +42,8 @@ Status pushRow(std::vector<LevelStream>& levels, size_t k, const std::uint8_t* r
         const bool emit = k + 1 < levels.size() && (l.bandRows % 2 == 0 || last);
         if (emit) downsampleRow(l.bandRows % 2 == 0 ? dst - rowBytes : dst, l.bandRows % 2 == 0 ? dst : nullptr, width,
                                 l.halved.data());
-        if (l.bandRows == l.writer.tileSize() || last) {
-            if (auto st = l.writer.writeTileRow(l.band.data(), l.bandRows); !st) return st;
+        if (l.bandRows == l.tileSize || last) {
+            if (auto st = l.writer.writeRows(l.rowsPushed - l.bandRows, l.bandRows, l.band.data()); !st) return st;
             l.bandRows = 0;
         }
         if (!emit) return Ok{};
@@ -147,9 +146,11 @@ Result<std::vector<PyramidLevel>> buildPyramidLevels(const ImageryLayer& layer, 
     for (size_t k = 0; k < sizes.size(); ++k) {
         const auto [w, h] = sizes[k];
         PyramidLevel level{folder / pyramidLevelFileName(int(k)), w, h};
-        auto writer = TiledTiffWriter::create(level.file, w, h, tileSize);
+        GeoTiffWriteOptions options;
+        options.tileSize = tileSize;
+        auto writer = GeoTiffStreamWriter::open(level.file, w, h, int(kRgb), SampleType::U8, std::nullopt, options);
         if (!writer) return writer.error();
-        LevelStream s{std::move(*writer), {}, {}, 0, 0};
+        LevelStream s{std::move(*writer), tileSize, {}, {}, 0, 0};
         s.band.resize(size_t(w) * kRgb * size_t(std::min(tileSize, h)));
         if (k + 1 < sizes.size()) s.halved.resize(size_t(sizes[k + 1].first) * kRgb);
         streams.push_back(std::move(s));
@@ -193,7 +194,7 @@ Result<std::vector<PyramidLevel>> buildPyramidLevels(const ImageryLayer& layer, 
         if (progress) progress(0.99 * double(y1) / double(src.height), "building pyramid");
     }
     for (auto& s : streams)
-        if (auto st = s.writer.close(); !st) return st.error();
+        if (auto st = s.writer.finish(); !st) return st.error();
     if (progress) progress(1.0, "done");
     return levels;
 }

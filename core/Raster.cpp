@@ -1,50 +1,22 @@
 #include "Raster.h"
 
-#include "AtomicFile.h"
+#include "GeoTiffStreamWriter.h"
+#include "ImageStreamWriter.h"
+#include "TiffSupport.h"
 
 #include <OpenImageIO/imageio.h>
 #include <geokeys.h>
 #include <geotiffio.h>
-#include <xtiffio.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
-#include <cstdarg>
-#include <cstring>
-#include <mutex>
+#include <cstdlib>
+#include <memory>
 
 namespace seasonview {
 
 namespace {
-
-constexpr ttag_t kTagGdalNodata = 42113;
-
-thread_local std::string t_tiffError;
-
-void tiffErrorHandler(const char* module, const char* fmt, va_list ap) {
-    char buf[512];
-    std::vsnprintf(buf, sizeof buf, fmt, ap);
-    t_tiffError = (module ? std::string(module) + ": " : std::string()) + buf;
-}
-void tiffWarningHandler(const char*, const char*, va_list) {} // unknown private tags etc.: not the user's problem
-
-TIFFExtendProc g_parentExtender = nullptr;
-void gdalTagExtender(TIFF* tif) {
-    static const TIFFFieldInfo info[] = {
-        {kTagGdalNodata, -1, -1, TIFF_ASCII, FIELD_CUSTOM, 1, 0, const_cast<char*>("GDALNoDataValue")}};
-    TIFFMergeFieldInfo(tif, info, 1);
-    if (g_parentExtender) g_parentExtender(tif);
-}
-
-void initTiff() {
-    static std::once_flag once;
-    std::call_once(once, [] {
-        TIFFSetErrorHandler(tiffErrorHandler);
-        TIFFSetWarningHandler(tiffWarningHandler);
-        XTIFFInitialize(); // registers the GeoTIFF tags
-        g_parentExtender = TIFFSetTagExtender(gdalTagExtender);
-    });
-}
 
 std::string firstLine(std::string s) {
     auto nl = s.find('\n');
@@ -60,7 +32,7 @@ bool isTiffExtension(const std::filesystem::path& p) {
 }
 
 struct TiffCloser {
-    void operator()(TIFF* t) const { XTIFFClose(t); }
+    void operator()(TIFF* t) const { TIFFClose(t); }
 };
 struct GtifCloser {
     void operator()(GTIF* g) const { GTIFFree(g); }
@@ -68,11 +40,11 @@ struct GtifCloser {
 
 // Reads GeoTIFF tags. Returns an empty optional when the file has none; an error for unsupported CRS.
 Result<std::optional<Georef>> readGeoTags(const std::filesystem::path& path, std::optional<double>& nodata) {
-    initTiff();
-    std::unique_ptr<TIFF, TiffCloser> tif(XTIFFOpen(path.c_str(), "r"));
+    std::string tiffError;
+    std::unique_ptr<TIFF, TiffCloser> tif(tiff::open(path, "r", &tiffError));
     if (!tif) return std::optional<Georef>{};
     char* nodataText = nullptr;
-    if (TIFFGetField(tif.get(), kTagGdalNodata, &nodataText) && nodataText) {
+    if (TIFFGetField(tif.get(), tiff::kTagGdalNodata, &nodataText) && nodataText) {
         char* end = nullptr;
         double v = std::strtod(nodataText, &end);
         if (end != nodataText) nodata = v;
@@ -236,107 +208,17 @@ Result<Image<float>> readImageF32(const std::filesystem::path& path, int maxChan
 Status writeGeoTiff(const std::filesystem::path& path, const void* data, SampleType type, int width, int height,
                     int channels, const Georef& georef, const GeoTiffWriteOptions& options) {
     assert(width > 0 && height > 0 && channels > 0 && "writeGeoTiff(): empty raster");
-    initTiff();
-    const int bytesPerSample = type == SampleType::U8 ? 1 : type == SampleType::F32 ? 4 : 2;
-    const std::uint64_t rawBytes = std::uint64_t(width) * std::uint64_t(height) * std::uint64_t(channels) *
-                                   std::uint64_t(bytesPerSample);
-    std::filesystem::path tmp = temporaryPathFor(path);
-    t_tiffError.clear();
-    // BigTIFF past 2 GB of raw samples: deflate may not shrink noisy imagery below the classic 4 GB limit.
-    TIFF* tif = XTIFFOpen(tmp.c_str(), rawBytes > (std::uint64_t(2) << 30) ? "w8" : "w");
-    if (!tif) return fileError(path.string(), "cannot create file (" + t_tiffError + ")");
-    auto fail = [&](const std::string& what) {
-        XTIFFClose(tif);
-        discardTemporary(tmp);
-        return fileError(path.string(), what + (t_tiffError.empty() ? "" : " (" + t_tiffError + ")"));
-    };
-    TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, std::uint32_t(width));
-    TIFFSetField(tif, TIFFTAG_IMAGELENGTH, std::uint32_t(height));
-    TIFFSetField(tif, TIFFTAG_SAMPLESPERPIXEL, std::uint16_t(channels));
-    TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, std::uint16_t(bytesPerSample * 8));
-    TIFFSetField(tif, TIFFTAG_SAMPLEFORMAT,
-                 type == SampleType::F32 ? SAMPLEFORMAT_IEEEFP : type == SampleType::I16 ? SAMPLEFORMAT_INT
-                                                                                          : SAMPLEFORMAT_UINT);
-    TIFFSetField(tif, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
-    TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, channels >= 3 ? PHOTOMETRIC_RGB : PHOTOMETRIC_MINISBLACK);
-    if (channels == 4 || channels == 2) {
-        std::uint16_t extra = EXTRASAMPLE_UNASSALPHA;
-        TIFFSetField(tif, TIFFTAG_EXTRASAMPLES, std::uint16_t(1), &extra);
-    }
-    TIFFSetField(tif, TIFFTAG_COMPRESSION, COMPRESSION_ADOBE_DEFLATE);
-    TIFFSetField(tif, TIFFTAG_ZIPQUALITY, std::clamp(options.deflateLevel, 1, 9));
-    TIFFSetField(tif, TIFFTAG_PREDICTOR, type == SampleType::F32 ? PREDICTOR_FLOATINGPOINT : PREDICTOR_HORIZONTAL);
-    if (options.nodata) {
-        char text[64];
-        std::snprintf(text, sizeof text, "%.17g", *options.nodata);
-        TIFFSetField(tif, kTagGdalNodata, text);
-    }
-    double scale[3] = {georef.pixelSize.x, georef.pixelSize.y, 0.0};
-    double tie[6] = {0.0, 0.0, 0.0, georef.origin.x, georef.origin.y, 0.0};
-    TIFFSetField(tif, TIFFTAG_GEOPIXELSCALE, 3, scale);
-    TIFFSetField(tif, TIFFTAG_GEOTIEPOINTS, 6, tie);
-    GTIF* gt = GTIFNew(tif);
-    if (!gt) return fail("cannot write GeoTIFF keys");
-    GTIFKeySet(gt, GTModelTypeGeoKey, TYPE_SHORT, 1, georef.crs.isGeographic() ? ModelTypeGeographic : ModelTypeProjected);
-    GTIFKeySet(gt, GTRasterTypeGeoKey, TYPE_SHORT, 1, RasterPixelIsArea);
-    if (georef.crs.isGeographic()) GTIFKeySet(gt, GeographicTypeGeoKey, TYPE_SHORT, 1, georef.crs.epsg);
-    else GTIFKeySet(gt, ProjectedCSTypeGeoKey, TYPE_SHORT, 1, georef.crs.epsg);
-    GTIFWriteKeys(gt);
-    GTIFFree(gt);
-
-    const auto* src = static_cast<const std::uint8_t*>(data);
-    const size_t pixelBytes = size_t(channels) * size_t(bytesPerSample);
-    if (options.tileSize > 0) {
-        const int ts = options.tileSize;
-        TIFFSetField(tif, TIFFTAG_TILEWIDTH, std::uint32_t(ts));
-        TIFFSetField(tif, TIFFTAG_TILELENGTH, std::uint32_t(ts));
-        std::vector<std::uint8_t> tile(size_t(ts) * size_t(ts) * pixelBytes);
-        for (int ty = 0; ty < height; ty += ts)
-            for (int tx = 0; tx < width; tx += ts) {
-                std::fill(tile.begin(), tile.end(), std::uint8_t(0));
-                const int w = std::min(ts, width - tx), h = std::min(ts, height - ty);
-                for (int y = 0; y < h; ++y)
-                    std::memcpy(&tile[size_t(y) * size_t(ts) * pixelBytes],
-                                src + (size_t(ty + y) * size_t(width) + size_t(tx)) * pixelBytes, size_t(w) * pixelBytes);
-                if (TIFFWriteEncodedTile(tif, TIFFComputeTile(tif, std::uint32_t(tx), std::uint32_t(ty), 0, 0),
-                                         tile.data(), tmsize_t(tile.size())) < 0)
-                    return fail("write failed");
-            }
-    } else {
-        TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP, std::uint32_t(16));
-        // libtiff's predictor works in place: hand it a copy, never the caller's const buffer.
-        std::vector<std::uint8_t> row(size_t(width) * pixelBytes);
-        for (int y = 0; y < height; ++y) {
-            std::memcpy(row.data(), src + size_t(y) * size_t(width) * pixelBytes, row.size());
-            if (TIFFWriteScanline(tif, row.data(), std::uint32_t(y), 0) < 0) return fail("write failed");
-        }
-    }
-    if (!TIFFWriteDirectory(tif)) return fail("write failed");
-    XTIFFClose(tif);
-    std::string err;
-    if (!commitTemporary(tmp, path, err)) return fileError(path.string(), err);
-    return Ok{};
+    auto writer = GeoTiffStreamWriter::open(path, width, height, channels, type, georef, options);
+    if (!writer) return writer.error();
+    if (auto st = writer->writeRows(0, height, data); !st) return st;
+    return writer->finish();
 }
 
 Status writeImageAtomic(const std::filesystem::path& path, const std::uint8_t* data, int width, int height, int channels) {
-    std::filesystem::path tmp = temporaryPathFor(path);
-    auto out = OIIO::ImageOutput::create(path.string());
-    if (!out) return fileError(path.string(), "unsupported output image format (use .png or .tif)");
-    OIIO::ImageSpec spec(width, height, channels, OIIO::TypeDesc::UINT8);
-    if (!out->open(tmp.string(), spec)) {
-        std::string e = firstLine(out->geterror());
-        return fileError(path.string(), "cannot create file" + (e.empty() ? std::string() : " (" + e + ")"));
-    }
-    if (!out->write_image(OIIO::TypeDesc::UINT8, data) || !out->close()) {
-        std::string e = firstLine(out->geterror());
-        out.reset();
-        discardTemporary(tmp);
-        return fileError(path.string(), "write failed" + (e.empty() ? std::string() : " (" + e + ")"));
-    }
-    out.reset();
-    std::string err;
-    if (!commitTemporary(tmp, path, err)) return fileError(path.string(), err);
-    return Ok{};
+    auto writer = ImageStreamWriter::open(path, width, height, channels);
+    if (!writer) return writer.error();
+    if (auto st = writer->writeRows(0, height, data); !st) return st;
+    return writer->finish();
 }
 
 } // namespace seasonview

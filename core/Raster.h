@@ -1,6 +1,7 @@
 #pragma once
 // Raster IO: GeoTIFF georeferencing through libgeotiff (Debian's OpenImageIO 2.4 does not expose the GeoTIFF tags),
-// pixels through OpenImageIO. Writing georeferenced tiled GeoTIFFs goes through libtiff + libgeotiff.
+// pixels through OpenImageIO. Writing georeferenced tiled GeoTIFFs goes through libtiff + libgeotiff
+// (GeoTiffStreamWriter.h, which also streams rasters too large to hold).
 #include "Crs.h"
 #include "Result.h"
 
@@ -58,16 +59,18 @@ Result<Image<std::uint8_t>> readImageU8(const std::filesystem::path& path, int m
 Result<Image<std::uint16_t>> readImageU16(const std::filesystem::path& path, int maxChannels = 4);
 Result<Image<float>> readImageF32(const std::filesystem::path& path, int maxChannels = 1);
 
-/// Options for writing a GeoTIFF.
+/// Options for writing a GeoTIFF (writeGeoTiff, GeoTiffStreamWriter).
 struct GeoTiffWriteOptions {
-    int tileSize = 256;        // tiled TIFF, tileSize² tiles (0 = strips)
-    int deflateLevel = 1;      // zlib level 1..9; 1 is ~3x faster than 6 for ~10% larger files
+    int tileSize = 256;        // tiled TIFF, tileSize² tiles, a multiple of 16 (0 = strips of 16 rows)
+    int deflateLevel = 1;      // libdeflate level 1..12; 1 is ~3x faster than 6 for ~10% larger files
     std::optional<double> nodata;
+    int threads = 0;           // compression threads (0 = hardware concurrency); the bytes do not depend on it
+    std::uint64_t bigTiffAbove = std::uint64_t(2) << 30; // BigTIFF when the raw samples exceed this many bytes
 };
 
-/// Writes an interleaved raster as a tiled, deflate-compressed GeoTIFF (UTM or geographic, PixelIsArea).
-/// Atomic: written to a temporary name in the same folder, renamed on success. `data` holds width*height*channels
-/// samples of the given type.
+/// Writes an interleaved raster as a tiled, deflate-compressed GeoTIFF (UTM or geographic, PixelIsArea) through
+/// GeoTiffStreamWriter. Atomic: written to a temporary name in the same folder, renamed on success. `data` holds
+/// width*height*channels samples of the given type.
 Status writeGeoTiff(const std::filesystem::path& path, const void* data, SampleType type, int width, int height,
                     int channels, const Georef& georef, const GeoTiffWriteOptions& options = {});
 

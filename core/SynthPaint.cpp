@@ -9,6 +9,7 @@
 #include <glm/geometric.hpp>
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 
 namespace seasonview::synth {
@@ -191,42 +192,47 @@ struct Painter {
 
 } // namespace
 
-void paintSeason(const PaintInput& in, const SeasonLook& look, std::vector<std::uint8_t>& rgb, int threads) {
-    const SceneMaps& m = in.maps;
-    const PixelGrid& g = m.grid;
-    const int w = g.size, e = g.extSize();
-    rgb.assign(size_t(w) * size_t(w) * 3, 0);
+void paintRows(const PaintInput& in, const SeasonLook& look, std::vector<std::uint8_t>& rgb, int threads) {
+    const ObjectIds& m = in.ids;
+    const ObjectRows& objects = in.objectRows;
+    const PixelGrid& g = in.grid;
+    const int w = g.size;
+    assert(objects.row0 <= in.row0 + g.margin && in.row0 + in.rows + g.margin <= objects.row0 + objects.rows &&
+           "paintRows(): the object rows do not cover the band");
+    rgb.assign(size_t(in.rows) * size_t(w) * 3, 0);
     const ToneCurve tone;
     const Painter painter{in, look, Light{look.sun, look.sky}, g.gsd};
     const Terrain& t = in.terrain;
 
-    parallelChunks(w, 16, threads, [&](int r0, int r1) {
-        for (int r = r0; r < r1; ++r) {
+    parallelChunks(in.rows, 16, threads, [&](int b0, int b1) {
+        for (int br = b0; br < b1; ++br) {
+            const int r = in.row0 + br; // imagery row
             const float y = g.centreExt(0, r + g.margin).y;
             const float strip = stripGain(look, y);
             const float fy = (t.halfExtent - y) / t.spacing - 0.5f;
             for (int c = 0; c < w; ++c) {
-                const size_t pi = size_t(r) * size_t(w) + size_t(c);
-                const size_t ei = size_t(r + g.margin) * size_t(e) + size_t(c + g.margin);
+                const size_t pi = size_t(r) * size_t(w) + size_t(c); // global: seeds the per-pixel hashes
+                const size_t bi = size_t(br) * size_t(w) + size_t(c);
                 const glm::vec2 p = g.centreExt(c + g.margin, r + g.margin);
                 const glm::vec2 q = in.layout.warp.toLayout(p);
                 const std::uint32_t pixelHash = hash32(static_cast<std::uint32_t>(pi) ^ 0x5BD1E995u);
-                const std::uint8_t bits = in.shadow[pi];
+                const std::uint8_t bits = in.shadow[bi];
                 const bool opaque = (bits & kShadowOpaque) != 0;
-                const float cosT = t.bilinear(in.terrainShade, (p.x + t.halfExtent) / t.spacing - 0.5f, fy);
-                const std::uint32_t id = m.object[ei];
+                const float cosT = t.bilinearRows(in.terrainShade.data(), in.shadeRow0,
+                                                  (p.x + t.halfExtent) / t.spacing - 0.5f, fy);
+                const std::uint32_t id = objects.object[objects.at(c + g.margin, r + g.margin)];
                 vec3 rad;
                 if (m.isTree(id)) {
                     const Tree& tree = in.objects.trees[id - 1];
                     if (tree.conifer) rad = painter.conifer(tree, p, opaque);
                     else if (look.leafOn) rad = painter.deciduous(tree, p, opaque);
-                    else rad = painter.leafless(tree, p, painter.ground(m.ground[pi], q, p, pixelHash, cosT, bits), opaque);
+                    else rad = painter.leafless(tree, p, painter.ground(in.ground[bi], q, p, pixelHash, cosT, bits), opaque);
                 } else if (m.isBuilding(id)) {
                     rad = painter.roof(in.objects.buildings[id - m.firstBuilding], q, pixelHash, opaque);
                 } else if (m.isCar(id) && (in.objects.cars[id - m.firstCar].seasons & (look.leafOn ? 1 : 2))) {
                     rad = painter.car(in.objects.cars[id - m.firstCar], q, opaque);
                 } else {
-                    rad = painter.ground(m.ground[pi], q, p, pixelHash, cosT, bits);
+                    rad = painter.ground(in.ground[bi], q, p, pixelHash, cosT, bits);
                 }
 
                 // Camera: haze (patchy), exposure with flight-strip steps, white balance, tone curve, sensor noise.
@@ -237,7 +243,7 @@ void paintSeason(const PaintInput& in, const SeasonLook& look, std::vector<std::
                     const std::uint32_t nh = hash32(static_cast<std::uint32_t>(pi * 3 + size_t(k)) ^ look.seed);
                     const float tri = (float(nh & 0xFFFFu) + float(nh >> 16)) * (1.0f / 65536.0f) - 1.0f; // triangular
                     const float v = dn + tri * 2.449f * look.noiseDn * (0.7f + 0.6f * dn / 255.0f);
-                    rgb[pi * 3 + size_t(k)] = static_cast<std::uint8_t>(std::clamp(v + 0.5f, 0.0f, 255.0f));
+                    rgb[bi * 3 + size_t(k)] = static_cast<std::uint8_t>(std::clamp(v + 0.5f, 0.0f, 255.0f));
                 }
             }
         }

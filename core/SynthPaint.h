@@ -13,17 +13,24 @@
 
 namespace seasonview::synth {
 
+/// What one band of imagery rows is painted from. The maps are band-sized; pixel hashes use global pixel indices,
+/// so a band's pixels are the same whatever the band split.
 struct PaintInput {
     const Layout& layout;
     const Objects& objects;
-    const SceneMaps& maps;
+    const ObjectIds& ids;
+    const PixelGrid& grid;
     const Terrain& terrain;
-    const std::vector<float>& terrainShade;   // per terrain sample, terrainShading() for this season's sun
-    const std::vector<std::uint8_t>& shadow;  // per imagery pixel, castShadows() for this season
+    int row0 = 0, rows = 0;                   // the band: imagery rows [row0, row0 + rows)
+    const std::vector<std::uint32_t>& ground; // rows × size: rasterizeGround() of the band
+    const ObjectRows& objectRows;             // covers extended rows [row0 + margin, row0 + rows + margin)
+    const std::vector<float>& terrainShade;   // terrainShadingRows() for this season's sun, from sample row shadeRow0,
+    int shadeRow0 = 0;                        // covering every row Terrain::rowsRead() gives for the band's pixels
+    const std::vector<std::uint8_t>& shadow;  // rows × size: this season's ShadowSweep bits of the band
 };
 
-/// Paints the season into `rgb` (size² * 3 bytes, interleaved, row 0 north). Each pixel is a pure function of
-/// the inputs and its position, so the result does not depend on `threads`.
-void paintSeason(const PaintInput& in, const SeasonLook& look, std::vector<std::uint8_t>& rgb, int threads);
+/// Paints the band of the season into `rgb` (rows × size × 3 bytes, interleaved, first band row first). Each pixel
+/// is a pure function of the inputs and its position, so the result does not depend on `threads` or the band split.
+void paintRows(const PaintInput& in, const SeasonLook& look, std::vector<std::uint8_t>& rgb, int threads);
 
 } // namespace seasonview::synth

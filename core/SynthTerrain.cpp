@@ -7,21 +7,16 @@
 #include <glm/geometric.hpp>
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <limits>
 
 namespace seasonview::synth {
 
-float Terrain::bilinear(const std::vector<float>& f, float fx, float fy) const {
-    fx = std::clamp(fx, 0.0f, float(width - 1));
+void Terrain::rowsRead(float fy, int& first, int& last) const {
     fy = std::clamp(fy, 0.0f, float(height - 1));
-    const int i = std::min(int(fx), width - 2 < 0 ? 0 : width - 2), j = std::min(int(fy), height - 2 < 0 ? 0 : height - 2);
-    const int i1 = std::min(i + 1, width - 1), j1 = std::min(j + 1, height - 1);
-    const float tx = fx - float(i), ty = fy - float(j);
-    const size_t w = size_t(width);
-    const float a = f[size_t(j) * w + size_t(i)], b = f[size_t(j) * w + size_t(i1)];
-    const float c = f[size_t(j1) * w + size_t(i)], d = f[size_t(j1) * w + size_t(i1)];
-    return (a + (b - a) * tx) + ((c + (d - c) * tx) - (a + (b - a) * tx)) * ty;
+    first = std::min(int(fy), height - 2 < 0 ? 0 : height - 2);
+    last = std::min(first + 1, height - 1);
 }
 
 Terrain makeFbmTerrain(int samples, float spacing, const Layout& layout, std::uint64_t seed, int threads) {
@@ -218,28 +213,30 @@ std::vector<float> smoothed(const std::vector<float>& z, int w, int h, int r, in
 
 } // namespace
 
-std::vector<float> terrainShading(const Terrain& terrain, glm::vec3 sun, int threads) {
-    Terrain t;
-    t.width = terrain.width;
-    t.height = terrain.height;
-    t.spacing = terrain.spacing;
-    t.z = terrain.shadeBlur > 0 ? smoothed(terrain.z, t.width, t.height, terrain.shadeBlur, threads) : terrain.z;
-    std::vector<float> shade(t.z.size());
+std::vector<float> shadingHeights(const Terrain& terrain, int threads) {
+    if (terrain.shadeBlur <= 0) return {};
+    return smoothed(terrain.z, terrain.width, terrain.height, terrain.shadeBlur, threads);
+}
+
+void terrainShadingRows(const Terrain& t, const std::vector<float>& heights, glm::vec3 sun, int j0, int j1,
+                        std::vector<float>& out, int threads) {
+    assert(0 <= j0 && j0 < j1 && j1 <= t.height && "terrainShadingRows(): rows outside the grid");
+    const std::vector<float>& z = heights.empty() ? t.z : heights;
     const int w = t.width, h = t.height;
-    parallelChunks(h, 32, threads, [&](int j0, int j1) {
-        for (int j = j0; j < j1; ++j)
+    out.resize(size_t(j1 - j0) * size_t(w));
+    parallelChunks(j1 - j0, 32, threads, [&](int a, int b) {
+        for (int j = j0 + a; j < j0 + b; ++j)
             for (int i = 0; i < w; ++i) {
                 const int il = std::max(i - 1, 0), ir = std::min(i + 1, w - 1);
                 const int jn = std::max(j - 1, 0), js = std::min(j + 1, h - 1);
-                const float dzdx = (t.z[size_t(j) * size_t(w) + size_t(ir)] - t.z[size_t(j) * size_t(w) + size_t(il)]) /
+                const float dzdx = (z[size_t(j) * size_t(w) + size_t(ir)] - z[size_t(j) * size_t(w) + size_t(il)]) /
                                    (float(std::max(ir - il, 1)) * t.spacing);
-                const float dzdy = (t.z[size_t(jn) * size_t(w) + size_t(i)] - t.z[size_t(js) * size_t(w) + size_t(i)]) /
+                const float dzdy = (z[size_t(jn) * size_t(w) + size_t(i)] - z[size_t(js) * size_t(w) + size_t(i)]) /
                                    (float(std::max(js - jn, 1)) * t.spacing);
                 const glm::vec3 nrm = glm::normalize(glm::vec3(-dzdx, -dzdy, 1.0f));
-                shade[size_t(j) * size_t(w) + size_t(i)] = std::max(0.0f, glm::dot(nrm, sun));
+                out[size_t(j - j0) * size_t(w) + size_t(i)] = std::max(0.0f, glm::dot(nrm, sun));
             }
     });
-    return shade;
 }
 
 } // namespace seasonview::synth

@@ -3,18 +3,21 @@
 //   SynthSettlement  houses, farmsteads, sports ground, parking, cars
 //   SynthVegetation  trees
 //   SynthTerrain     fBm or real DEM elevation
-//   SynthRaster      ground and object maps (shared by both seasons)
-//   SynthShadow      cast shadows per season
+//   SynthRaster      ground and object maps of a band of rows (shared by both seasons)
+//   SynthShadow      cast shadows per season, swept band by band
 //   SynthCamera      sun, sky, exposure, haze, noise per season
 //   SynthMaterials / SynthPaint  pixel colours
 #include "SyntheticScene.h"
 
 #include "AtomicFile.h"
+#include "GeoTiffStreamWriter.h"
+#include "ImageStreamWriter.h"
 #include "Raster.h"
 #include "SynthCamera.h"
 #include "SynthLayout.h"
 #include "SynthObjects.h"
 #include "SynthPaint.h"
+#include "SynthParallel.h"
 #include "SynthRandom.h"
 #include "SynthRaster.h"
 #include "SynthShadow.h"
@@ -40,29 +43,84 @@ using namespace synth;
 // objects that far outside the scene still shadow it.
 constexpr double kMaxCasterHeight = 35.0;
 
-std::string treesCsv(const Objects& o, float half, glm::dvec2 centre, double& meanDeciduousHeight, int& nd, int& nc) {
-    std::string s = "id,type,x,y,easting,northing,radius_m,height_m\n";
+// Every tree whose crown disc reaches into the scene (its centre may lie just outside), streamed to `path`
+// atomically.
+Status writeTreesCsv(const std::filesystem::path& path, const Objects& o, float half, glm::dvec2 centre,
+                     double& meanDeciduousHeight, int& nd, int& nc) {
+    const std::filesystem::path tmp = temporaryPathFor(path);
+    std::FILE* f = std::fopen(tmp.c_str(), "wb");
+    if (!f) return fileError(path.string(), "cannot create file");
+    std::vector<char> buffer(1 << 20);
+    std::setvbuf(f, buffer.data(), _IOFBF, buffer.size());
+    bool ok = std::fputs("id,type,x,y,easting,northing,radius_m,height_m\n", f) >= 0;
     double sum = 0.0;
     nd = nc = 0;
-    char line[256];
-    for (size_t i = 0; i < o.trees.size(); ++i) {
+    for (size_t i = 0; i < o.trees.size() && ok; ++i) {
         const Tree& t = o.trees[i];
-        // Every tree whose crown disc reaches into the scene (its centre may lie just outside).
         const float dx = std::max(std::abs(t.centre.x) - half, 0.0f), dy = std::max(std::abs(t.centre.y) - half, 0.0f);
         if (dx * dx + dy * dy >= t.radius * t.radius) continue;
-        std::snprintf(line, sizeof line, "%zu,%s,%.3f,%.3f,%.3f,%.3f,%.3f,%.2f\n", i + 1, t.conifer ? "conifer" : "deciduous",
-                      double(t.centre.x), double(t.centre.y), centre.x + double(t.centre.x), centre.y + double(t.centre.y),
-                      double(t.radius), double(t.height));
-        s += line;
+        ok = std::fprintf(f, "%zu,%s,%.3f,%.3f,%.3f,%.3f,%.3f,%.2f\n", i + 1, t.conifer ? "conifer" : "deciduous",
+                          double(t.centre.x), double(t.centre.y), centre.x + double(t.centre.x),
+                          centre.y + double(t.centre.y), double(t.radius), double(t.height)) > 0;
         if (t.conifer) ++nc;
         else {
             ++nd;
             sum += double(t.height);
         }
     }
+    ok = std::fclose(f) == 0 && ok;
+    if (!ok) {
+        discardTemporary(tmp);
+        return fileError(path.string(), "write failed (disk full?)");
+    }
     meanDeciduousHeight = nd > 0 ? sum / nd : 0.0;
-    return s;
+    std::string err;
+    if (!commitTemporary(tmp, path, err)) return fileError(path.string(), err);
+    return Ok{};
 }
+
+// The two truth masks, streamed band by band: PNGs up to SynthOptions::pngMasksUpTo pixels per side (PNG readers
+// decode whole images), tiled 8-bit GeoTIFFs beyond.
+class TruthWriters {
+public:
+    Status open(const std::filesystem::path& dir, int size, int pngUpTo, const Georef& georef, int threads) {
+        m_png = size <= pngUpTo;
+        for (int k = 0; k < 2; ++k) {
+            std::error_code ec; // a mask in the other format from an earlier run would contradict scene.json
+            std::filesystem::remove(dir / (std::string(kStems[k]) + (m_png ? ".tif" : ".png")), ec);
+            const std::filesystem::path path = dir / fileName(k);
+            if (m_png) {
+                auto w = ImageStreamWriter::open(path, size, size, 1);
+                if (!w) return w.error();
+                m_pngs[k] = std::move(*w);
+            } else {
+                GeoTiffWriteOptions options;
+                options.threads = threads;
+                auto w = GeoTiffStreamWriter::open(path, size, size, 1, SampleType::U8, georef, options);
+                if (!w) return w.error();
+                m_tiffs[k] = std::move(*w);
+            }
+        }
+        return Ok{};
+    }
+    /// File name of mask k (0 deciduous, 1 conifer).
+    std::string fileName(int k) const { return std::string(kStems[k]) + (m_png ? ".png" : ".tif"); }
+    /// Mask k (0 deciduous, 1 conifer) rows [y0, y0 + rows).
+    Status write(int k, int y0, int rows, const std::vector<std::uint8_t>& mask) {
+        return m_png ? m_pngs[k]->writeRows(y0, rows, mask.data()) : m_tiffs[k]->writeRows(y0, rows, mask.data());
+    }
+    Status finish() {
+        for (int k = 0; k < 2; ++k)
+            if (auto st = m_png ? m_pngs[k]->finish() : m_tiffs[k]->finish(); !st) return st;
+        return Ok{};
+    }
+
+private:
+    static constexpr const char* kStems[2] = {"truth_deciduous", "truth_conifer"};
+    bool m_png = true;
+    std::optional<ImageStreamWriter> m_pngs[2];
+    std::optional<GeoTiffStreamWriter> m_tiffs[2];
+};
 
 } // namespace
 
@@ -77,8 +135,11 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
     if (!std::isfinite(options.gsd) || options.gsd <= 0.0)
         return Error{"synth: the ground sample distance must be a positive number of metres"};
     const double pixels = options.sizeM / options.gsd;
-    if (!(pixels >= 16.0 && pixels <= 32768.0))
-        return Error{"synth: size / gsd must give 16 to 32768 pixels per side (got " + std::to_string(std::lround(pixels)) + ")"};
+    if (!(pixels >= 16.0 && pixels <= double(kMaxSynthPixels)))
+        return Error{"synth: size / gsd must give 16 to " + std::to_string(kMaxSynthPixels) + " pixels per side (got " +
+                     std::to_string(std::lround(pixels)) + ")"};
+    if (options.bandRows < 0)
+        return Error{"synth: the band height must be a positive number of rows (or 0 for the default)"};
     const int size = static_cast<int>(std::lround(pixels));
     const int threads = options.threads > 0 ? options.threads : std::max(1, int(std::thread::hardware_concurrency()));
     const double gsd = options.gsd, extent = double(size) * gsd;
@@ -134,54 +195,129 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
         !s)
         return s.error();
 
-    stage(0.15, "rasterising");
-    SceneMaps maps;
-    maps.grid = PixelGrid{size, static_cast<int>(std::ceil(marginM / gsd)), static_cast<float>(gsd), half};
-    rasterizeGround(layout, maps, threads);
-    rasterizeObjects(layout, objects, maps, threads);
+    // The imagery, band by band. Each band rasterises its objects (bucketed by rows, so only the objects that
+    // touch it are visited) and ground, sweeps each season's shadows, shades the terrain rows under it, paints both
+    // seasons and writes their tiles and the truth masks' rows.
+    const PixelGrid grid{size, static_cast<int>(std::ceil(marginM / gsd)), static_cast<float>(gsd), half};
+    const int e = grid.extSize(), m = grid.margin;
+    const int bandRows = options.bandRows > 0 ? options.bandRows : kDefaultSynthBandRows;
+    const int bands = (size + bandRows - 1) / bandRows;
+    auto bandBegin = [&](int b) { return b * bandRows; };
+    auto bandEnd = [&](int b) { return std::min(size, (b + 1) * bandRows); };
 
-    std::vector<std::uint8_t> rgb, shadow;
+    const ObjectRasterizer raster(layout, objects, grid);
+    ShadowSweep sweeps[2] = {ShadowSweep(grid, raster.ids(), objects, terrain, looks[0].towardSun, looks[0].leafOn),
+                             ShadowSweep(grid, raster.ids(), objects, terrain, looks[1].towardSun, looks[1].leafOn)};
+    ObjectRows objectRows;
+    // Sweeps extended rows [r0, r1) (no output) for the seasons whose sweep runs forward (top down) or backward.
+    auto sweepOnly = [&](int r0, int r1, bool forward) {
+        raster.rasterize(r0, r1, objectRows, threads);
+        for (ShadowSweep& sw : sweeps)
+            if (sw.increasingRows() == forward) sw.sweep(objectRows, nullptr, threads);
+    };
+    // A sweep that runs top down (sun in the north) first crosses the top margin, then follows the bands. One that
+    // runs bottom up (sun in the south, the usual case) is run once from the bottom margin to the top beforehand,
+    // leaving a checkpoint of its rays at the start of every band: shadows then come out exactly as in one sweep,
+    // however long they are, in memory that does not grow with the height.
+    const bool anyForward = sweeps[0].increasingRows() || sweeps[1].increasingRows();
+    const bool anyBackward = !sweeps[0].increasingRows() || !sweeps[1].increasingRows();
+    std::vector<ShadowSweep::Checkpoint> checkpoints[2];
+    stage(0.15, "shadows");
+    if (anyForward)
+        for (int r = 0; r < m; r += bandRows) sweepOnly(r, std::min(m, r + bandRows), true);
+    if (anyBackward) {
+        for (int s = 0; s < 2; ++s)
+            if (!sweeps[s].increasingRows()) checkpoints[s].resize(size_t(bands));
+        for (int r1 = e; r1 > size + m; r1 -= bandRows) sweepOnly(std::max(size + m, r1 - bandRows), r1, false);
+        for (int b = bands - 1; b >= 0; --b) {
+            for (int s = 0; s < 2; ++s)
+                if (!sweeps[s].increasingRows())
+                    checkpoints[s][size_t(b)] = sweeps[s].save(bandBegin(b) + m, bandEnd(b) + m);
+            if (b > 0) sweepOnly(bandBegin(b) + m, bandEnd(b) + m, false);
+            stage(0.15 + 0.1 * double(bands - b) / bands, "shadows");
+        }
+    }
+
+    const std::vector<float> shadeHeights = shadingHeights(terrain, threads);
+    std::optional<GeoTiffStreamWriter> imagery[2];
     for (int s = 0; s < 2; ++s) {
-        const SeasonLook& look = looks[s];
-        stage(0.25 + 0.3 * s, look.leafOn ? "leaf-on" : "leaf-off");
-        const std::vector<float> shade = terrainShading(terrain, look.towardSun, threads);
-        castShadows(maps, objects, terrain, look.towardSun, look.leafOn, shadow);
-        paintSeason(PaintInput{layout, objects, maps, terrain, shade, shadow}, look, rgb, threads);
-        const char* name = look.leafOn ? "leafon.tif" : "leafoff.tif";
-        if (auto w = writeGeoTiff(outDir / name, rgb.data(), SampleType::U8, size, size, 3, georef); !w) return w.error();
+        GeoTiffWriteOptions o;
+        o.threads = threads;
+        auto w = GeoTiffStreamWriter::open(outDir / (looks[s].leafOn ? "leafon.tif" : "leafoff.tif"), size, size, 3,
+                                           SampleType::U8, georef, o);
+        if (!w) return w.error();
+        imagery[s] = std::move(*w);
     }
-    rgb = {};
-    shadow = {};
+    TruthWriters truth;
+    if (auto st = truth.open(outDir, size, options.pngMasksUpTo, georef, threads); !st) return st.error();
 
-    stage(0.85, "truth");
-    {
-        const size_t n = size_t(size), e = size_t(maps.grid.extSize()), m = size_t(maps.grid.margin);
-        std::vector<std::uint8_t> deciduous(n * n, 0), conifer(n * n, 0);
-        for (size_t r = 0; r < n; ++r)
-            for (size_t c = 0; c < n; ++c) {
-                const std::uint32_t id = maps.object[(r + m) * e + c + m];
-                if (!maps.isTree(id)) continue;
-                (objects.trees[id - 1].conifer ? conifer : deciduous)[r * n + c] = 255;
+    std::vector<std::uint32_t> ground;
+    std::vector<std::uint8_t> shadow, rgb, masks[2];
+    std::vector<float> shade;
+    for (int b = 0; b < bands; ++b) {
+        const int y0 = bandBegin(b), rows = bandEnd(b) - y0;
+        const size_t n = size_t(rows) * size_t(size);
+        raster.rasterize(y0 + m, y0 + rows + m, objectRows, threads);
+        rasterizeGround(layout, grid, y0, rows, ground, threads);
+
+        for (auto& mask : masks) mask.assign(n, 0);
+        parallelChunks(rows, 64, threads, [&](int r0, int r1) {
+            for (int r = r0; r < r1; ++r)
+                for (int c = 0; c < size; ++c) {
+                    const std::uint32_t id = objectRows.object[objectRows.at(c + m, y0 + r + m)];
+                    if (!raster.ids().isTree(id)) continue;
+                    masks[objects.trees[id - 1].conifer ? 1 : 0][size_t(r) * size_t(size) + size_t(c)] = 255;
+                }
+        });
+        for (int k = 0; k < 2; ++k)
+            if (auto st = truth.write(k, y0, rows, masks[k]); !st) return st.error();
+
+        // Terrain sample rows under the band (bilinear reads a row and the next).
+        int shade0 = terrain.height, shade1 = -1;
+        for (int r = y0; r < y0 + rows; ++r) {
+            int first = 0, last = 0;
+            terrain.rowsRead((terrain.halfExtent - grid.centreExt(0, r + m).y) / terrain.spacing - 0.5f, first, last);
+            shade0 = std::min(shade0, first);
+            shade1 = std::max(shade1, last);
+        }
+        shadow.resize(n);
+        for (int s = 0; s < 2; ++s) {
+            ShadowSweep& sw = sweeps[s];
+            if (!sw.increasingRows()) {
+                sw.restore(checkpoints[s][size_t(b)]);
+                checkpoints[s][size_t(b)] = {};
             }
-        if (auto w = writeImageAtomic(outDir / "truth_deciduous.png", deciduous.data(), size, size, 1); !w) return w.error();
-        if (auto w = writeImageAtomic(outDir / "truth_conifer.png", conifer.data(), size, size, 1); !w) return w.error();
+            sw.sweep(objectRows, shadow.data(), threads);
+            terrainShadingRows(terrain, shadeHeights, looks[s].towardSun, shade0, shade1 + 1, shade, threads);
+            const PaintInput in{layout, objects,    raster.ids(), grid,   terrain, y0,
+                                rows,   ground,     objectRows,   shade,  shade0,  shadow};
+            paintRows(in, looks[s], rgb, threads);
+            if (auto w = imagery[s]->writeRows(y0, rows, rgb.data()); !w) return w.error();
+        }
+        stage(0.25 + 0.7 * double(b + 1) / bands, "painting");
     }
+    for (auto& w : imagery)
+        if (auto st = w->finish(); !st) return st.error();
+    if (auto st = truth.finish(); !st) return st.error();
 
+    stage(0.95, "trees");
     SynthReport report;
     double meanHeight = 0.0;
-    const std::string csv = treesCsv(objects, half, centre, meanHeight, report.deciduousTrees, report.conifers);
-    std::string err;
-    if (!writeTextAtomic(outDir / "trees.csv", csv, err)) return fileError((outDir / "trees.csv").string(), err);
+    if (auto st = writeTreesCsv(outDir / "trees.csv", objects, half, centre, meanHeight, report.deciduousTrees,
+                                report.conifers);
+        !st)
+        return st.error();
 
     nlohmann::ordered_json j;
     j["name"] = "synthetic seed " + std::to_string(options.seed) + (options.dem.empty() ? "" : " on " + options.dem.stem().string());
     j["leafon"] = "leafon.tif";
     j["leafoff"] = "leafoff.tif";
     j["elevation"] = "dem.tif";
-    j["truth"] = {{"deciduous", "truth_deciduous.png"}, {"conifer", "truth_conifer.png"}, {"trees", "trees.csv"}};
+    j["truth"] = {{"deciduous", truth.fileName(0)}, {"conifer", truth.fileName(1)}, {"trees", "trees.csv"}};
     j["parameters"] = {{"tree_height_m", std::round(meanHeight * 100.0) / 100.0}};
     j["generator"] = {{"program", "seasonview synth"}, {"version", 1},      {"seed", options.seed},
                       {"size_m", options.sizeM},       {"gsd", options.gsd}, {"dem", options.dem.string()}};
+    std::string err;
     if (!writeTextAtomic(outDir / "scene.json", j.dump(2) + "\n", err))
         return fileError((outDir / "scene.json").string(), err);
 

@@ -9,12 +9,25 @@
 
 namespace seasonview {
 
+/// Band height of SynthOptions::bandRows = 0: ~1.2 GB of band buffers at 65536 pixels per side, a few hundred MB at
+/// 8192, and bands long enough that per-band costs (thread start-up, the tiles of a row) do not show.
+constexpr int kDefaultSynthBandRows = 1024;
+
+/// Largest supported size / gsd: memory is bounded by the band buffers and the whole DEM (4 GB at 131072).
+constexpr int kMaxSynthPixels = 131072;
+
+/// Above this many pixels per side the truth masks are tiled GeoTIFFs (truth_*.tif) instead of PNGs.
+constexpr int kMaxSynthPngPixels = 32768;
+
 struct SynthOptions {
     double sizeM = 2048.0;             // side of the square scene, metres
     double gsd = 0.25;                 // imagery ground sample distance, metres per pixel
     std::uint64_t seed = 1;
     std::filesystem::path dem;         // optional real DEM: a crop of the scene's extent around its centre
     int threads = 0;                   // 0 = hardware concurrency; the output does not depend on it
+    int bandRows = 0;                  // imagery rows generated at a time (0 = kDefaultSynthBandRows); memory grows
+                                       // with it (~18 bytes per pixel of the band), the output does not depend on it
+    int pngMasksUpTo = kMaxSynthPngPixels; // larger scenes get GeoTIFF truth masks (a parameter for the tests)
 };
 
 /// What was generated, for the CLI summary.
@@ -29,9 +42,12 @@ struct SynthReport {
 /// Progress callback: fraction done in [0,1] and a short stage name.
 using ProgressFn = std::function<void(double fraction, const char* stage)>;
 
-/// Generates the scene into `outDir` (created if needed): leafon.tif, leafoff.tif (8-bit RGB tiled UTM GeoTIFFs),
-/// dem.tif (float32 UTM GeoTIFF), truth_deciduous.png, truth_conifer.png (8-bit, 255 = class, on the imagery grid),
-/// trees.csv and scene.json (written last). Same options -> byte-identical files. Files appear atomically.
+/// Generates the scene into `outDir` (created if needed): leafon.tif, leafoff.tif (8-bit RGB tiled UTM GeoTIFFs,
+/// BigTIFF past 2 GiB), dem.tif (float32 UTM GeoTIFF), truth_deciduous.png, truth_conifer.png (8-bit, 255 = class,
+/// on the imagery grid; tiled 8-bit GeoTIFFs truth_deciduous.tif, truth_conifer.tif above pngMasksUpTo pixels),
+/// trees.csv and scene.json (written last, naming the files). Same options -> byte-identical files, whatever
+/// `threads` and `bandRows`. The imagery is generated and written in bands of rows, so memory does not grow with
+/// the height; the layout (a list of objects) and the DEM are whole. Files appear atomically.
 Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const std::filesystem::path& outDir,
                                            const ProgressFn& progress = {});
 

@@ -183,6 +183,14 @@ TEST_F(CliFixture, SynthRejectsBadDem) {
     EXPECT_FALSE(std::filesystem::exists(dir / "s" / "scene.json"));
 }
 
+TEST_F(CliFixture, SynthRejectsScenesAboveTheLimit) {
+    const CliResult r = runCli({"synth", "--out", (dir / "s").string(), "--size-m", "140000", "--gsd", "1"});
+    EXPECT_EQ(r.exitCode, 1);
+    EXPECT_NE(r.err.find("max 131072"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir / "s" / "scene.json"));
+}
+
 TEST_F(CliFixture, UnknownOptionIsExitOne) {
     const CliResult r = runCli({"render", "--frobnicate"});
     EXPECT_EQ(r.exitCode, 1);

@@ -36,11 +36,32 @@ SynthOptions smallScene(std::uint64_t seed, int threads = 0) {
     return o;
 }
 
-void generate(const SynthOptions& o, const std::filesystem::path& dir) {
+void generate(const SynthOptions& o, const std::filesystem::path& dir, int pixels = 256) {
     auto r = generateSyntheticScene(o, dir);
     ASSERT_TRUE(r.ok()) << r.message();
-    EXPECT_EQ(r->width, 256);
-    EXPECT_EQ(r->height, 256);
+    EXPECT_EQ(r->width, pixels);
+    EXPECT_EQ(r->height, pixels);
+}
+
+// A geographic DEM (64² samples, ~2 km) around (lon, lat): smooth hills and a slope.
+void writeDem(const std::filesystem::path& path, double lon, double lat) {
+    const int n = 64;
+    const double step = 0.0003;
+    std::vector<float> z(size_t(n) * n);
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i)
+            z[size_t(j) * n + size_t(i)] =
+                300.0f + 80.0f * std::sin(float(i) * 0.2f) * std::cos(float(j) * 0.15f) + 2.0f * float(i);
+    const Georef g{Crs::geographic(), glm::dvec2(lon - 0.5 * n * step, lat + 0.5 * n * step), glm::dvec2(step)};
+    ASSERT_TRUE(writeGeoTiff(path, z.data(), SampleType::F32, n, n, 1, g).ok());
+}
+
+void expectSameFiles(const std::filesystem::path& a, const std::filesystem::path& b, const std::string& what) {
+    for (const char* f : kFiles) {
+        const std::string x = readBytes(a / f);
+        EXPECT_FALSE(x.empty()) << f;
+        EXPECT_TRUE(x == readBytes(b / f)) << f << ": " << what;
+    }
 }
 
 struct TreeRow {
@@ -107,6 +128,75 @@ TEST(SyntheticSceneTest, ThreadCountDoesNotChangeTheOutput) {
     }
 }
 
+TEST(SyntheticSceneTest, BandHeightDoesNotChangeTheOutput) {
+    // 384² pixels. One band; bands of 100 rows (they split the 256-pixel tiles, the 32-row object slabs and the
+    // shadow sweep, which runs bottom up here, against the writing order); bands of 256 rows on tile boundaries.
+    SynthOptions o = smallScene(9);
+    o.sizeM = 192.0;
+    TempDir whole("synth-band-whole"), b100("synth-band-100"), b256("synth-band-256");
+    generate(o, whole.path(), 384);
+    o.bandRows = 100;
+    generate(o, b100.path(), 384);
+    o.bandRows = 256;
+    o.threads = 1;
+    generate(o, b256.path(), 384);
+    expectSameFiles(whole.path(), b100.path(), "one band vs bands of 100 rows");
+    expectSameFiles(whole.path(), b256.path(), "one band vs bands of 256 rows on one thread");
+}
+
+TEST(SyntheticSceneTest, BandHeightDoesNotChangeTheOutputSouthOfTheEquator) {
+    // In the southern hemisphere the sun is in the north: the shadow sweep runs top down, with the bands.
+    TempDir d("synth-south"), a("synth-south-a"), b("synth-south-b");
+    writeDem(d / "dem.tif", 18.4, -33.9);
+    SynthOptions o = smallScene(4);
+    o.sizeM = 160.0;
+    o.dem = d / "dem.tif";
+    auto r = generateSyntheticScene(o, a.path());
+    ASSERT_TRUE(r.ok()) << r.message();
+    EXPECT_EQ(r->crs, Crs::utm(34, false).name());
+    o.bandRows = 48;
+    o.threads = 3;
+    generate(o, b.path(), 320);
+    expectSameFiles(a.path(), b.path(), "one band vs bands of 48 rows");
+}
+
+TEST(SyntheticSceneTest, LargeScenesGetGeoTiffTruthMasks) {
+    // The switch to GeoTIFF masks happens at 32768 pixels; a low threshold tests it on a small scene.
+    TempDir png("synth-mask-png"), tif("synth-mask-tif");
+    SynthOptions o = smallScene(3);
+    generate(o, png.path());
+    std::ofstream(tif / "truth_conifer.png") << "stale mask of an earlier run";
+    o.pngMasksUpTo = 128;
+    o.bandRows = 96;
+    generate(o, tif.path());
+    const auto j = nlohmann::json::parse(readBytes(tif / "scene.json"));
+    EXPECT_EQ(j["truth"]["deciduous"], "truth_deciduous.tif");
+    EXPECT_EQ(j["truth"]["conifer"], "truth_conifer.tif");
+    EXPECT_FALSE(std::filesystem::exists(tif / "truth_conifer.png"));
+    auto src = parseManifest(tif / "scene.json");
+    ASSERT_TRUE(src.ok()) << src.message();
+    EXPECT_TRUE(readBytes(png / "leafon.tif") == readBytes(tif / "leafon.tif"));
+    auto imagery = readRasterInfo(tif / "leafon.tif");
+    ASSERT_TRUE(imagery.ok() && imagery->georef);
+    for (const char* kind : {"deciduous", "conifer"}) {
+        const std::string name = std::string("truth_") + kind;
+        auto info = readRasterInfo(tif / (name + ".tif"));
+        ASSERT_TRUE(info.ok()) << info.message();
+        EXPECT_EQ(info->channels, 1);
+        EXPECT_EQ(info->type, SampleType::U8);
+        EXPECT_TRUE(info->tiled);
+        ASSERT_TRUE(info->georef);
+        EXPECT_EQ(info->georef->crs.epsg, imagery->georef->crs.epsg);
+        EXPECT_DOUBLE_EQ(info->georef->origin.x, imagery->georef->origin.x);
+        EXPECT_DOUBLE_EQ(info->georef->origin.y, imagery->georef->origin.y);
+        EXPECT_DOUBLE_EQ(info->georef->pixelSize.x, imagery->georef->pixelSize.x);
+        auto a = readImageU8(png / (name + ".png"), 1);
+        auto b = readImageU8(tif / (name + ".tif"), 1);
+        ASSERT_TRUE(a.ok() && b.ok());
+        EXPECT_TRUE(a->pixels == b->pixels) << kind;
+    }
+}
+
 TEST(SyntheticSceneTest, DifferentSeedGivesDifferentScene) {
     TempDir a("synth-s1"), b("synth-s2");
     generate(smallScene(7), a.path());
@@ -122,6 +212,9 @@ TEST(SyntheticSceneTest, RejectsBadOptions) {
     EXPECT_FALSE(generateSyntheticScene(o, d.path()).ok());
     o = smallScene(1);
     o.sizeM = 4.0; // 8 pixels: too small
+    EXPECT_FALSE(generateSyntheticScene(o, d.path()).ok());
+    o = smallScene(1);
+    o.bandRows = -1;
     EXPECT_FALSE(generateSyntheticScene(o, d.path()).ok());
     o = smallScene(1);
     o.dem = d / "missing.tif";

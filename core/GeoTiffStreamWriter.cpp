@@ -1,0 +1,293 @@
+#include "GeoTiffStreamWriter.h"
+
+#include "AtomicFile.h"
+#include "TiffSupport.h"
+
+#include <libdeflate.h>
+
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <cassert>
+#include <cstring>
+#include <thread>
+#include <utility>
+
+namespace seasonview {
+
+namespace {
+
+constexpr int kRowsPerStrip = 16;
+
+int bytesOf(SampleType t) { return t == SampleType::U8 ? 1 : t == SampleType::F32 ? 4 : 2; }
+
+/// Calls fn(index, worker) for every index in [0, count) on up to `threads` threads; worker < threads identifies
+/// the calling thread (for per-thread scratch). Returns when all are done.
+template <class Fn> void parallelIndices(int count, int threads, const Fn& fn) {
+    const int n = std::clamp(threads, 1, std::max(count, 1));
+    if (n == 1) {
+        for (int i = 0; i < count; ++i) fn(i, 0);
+        return;
+    }
+    std::atomic<int> next{0};
+    auto worker = [&](int w) {
+        for (int i = next.fetch_add(1); i < count; i = next.fetch_add(1)) fn(i, w);
+    };
+    std::vector<std::thread> pool;
+    pool.reserve(size_t(n - 1));
+    for (int w = 1; w < n; ++w) pool.emplace_back(worker, w);
+    worker(0);
+    for (auto& t : pool) t.join();
+}
+
+// The TIFF predictors, applied in place to one row of a tile or strip exactly as libtiff's encoder would
+// (tif_predict.c), so that readers undo them and the files match what libtiff writes itself.
+
+// Predictor 2 on 8-bit samples: each byte minus the same channel of the pixel to its left, modulo 256.
+void horizontalDiff8(std::uint8_t* row, size_t bytes, size_t stride) {
+    for (size_t k = bytes - 1; k >= stride; --k) row[k] = std::uint8_t(row[k] - row[k - stride]);
+}
+
+// Predictor 2 on 16-bit samples (native byte order, as libtiff writes them), modulo 65536.
+void horizontalDiff16(std::uint8_t* row, size_t bytes, size_t stride) {
+    const size_t n = bytes / 2;
+    for (size_t k = n - 1; k >= stride; --k) {
+        std::uint16_t a, b;
+        std::memcpy(&a, row + 2 * k, 2);
+        std::memcpy(&b, row + 2 * (k - stride), 2);
+        a = std::uint16_t(a - b);
+        std::memcpy(row + 2 * k, &a, 2);
+    }
+}
+
+// Predictor 3 (floating point, Adobe TIFF tech note 3): the row's samples split into byte planes, most significant
+// byte first, then byte differences across the whole row with the pixel's channel count as stride.
+void floatingPointDiff(std::uint8_t* row, size_t bytes, size_t stride, std::vector<std::uint8_t>& tmp) {
+    constexpr size_t bps = 4;
+    const size_t wc = bytes / bps;
+    tmp.assign(row, row + bytes);
+    for (size_t count = 0; count < wc; ++count)
+        for (size_t byte = 0; byte < bps; ++byte) {
+            const size_t plane = std::endian::native == std::endian::big ? byte : bps - byte - 1;
+            row[plane * wc + count] = tmp[bps * count + byte];
+        }
+    horizontalDiff8(row, bytes, stride);
+}
+
+struct CompressorDeleter {
+    void operator()(libdeflate_compressor* c) const { libdeflate_free_compressor(c); }
+};
+
+} // namespace
+
+struct GeoTiffStreamWriter::Encoder {
+    std::vector<std::unique_ptr<libdeflate_compressor, CompressorDeleter>> compressors; // per thread
+    std::vector<std::vector<std::uint8_t>> block, planes;                                 // per thread
+    std::vector<std::vector<std::uint8_t>> compressed; // per block of a chunk, in order, reused across block rows
+};
+
+GeoTiffStreamWriter::GeoTiffStreamWriter() = default;
+
+Result<GeoTiffStreamWriter> GeoTiffStreamWriter::open(const std::filesystem::path& path, int width, int height,
+                                                      int channels, SampleType type,
+                                                      const std::optional<Georef>& georef,
+                                                      const GeoTiffWriteOptions& options) {
+    assert(width > 0 && height > 0 && channels > 0 && "GeoTiffStreamWriter::open(): empty raster");
+    assert(options.tileSize >= 0 && options.tileSize % 16 == 0 &&
+           "GeoTiffStreamWriter::open(): the tile size must be 0 (strips) or a positive multiple of 16");
+    GeoTiffStreamWriter w;
+    w.m_path = path;
+    w.m_tmp = temporaryPathFor(path);
+    w.m_width = width;
+    w.m_height = height;
+    w.m_channels = channels;
+    w.m_type = type;
+    w.m_sampleBytes = bytesOf(type);
+    w.m_threads = options.threads > 0 ? options.threads : std::max(1, int(std::thread::hardware_concurrency()));
+    w.m_tiled = options.tileSize > 0;
+    w.m_blockWidth = w.m_tiled ? options.tileSize : width;
+    w.m_blockHeight = w.m_tiled ? options.tileSize : kRowsPerStrip;
+    w.m_error = std::make_unique<std::string>();
+    const std::uint64_t rawBytes =
+        std::uint64_t(width) * std::uint64_t(height) * std::uint64_t(channels) * std::uint64_t(w.m_sampleBytes);
+    // BigTIFF past 2 GiB of raw samples by default: deflate may not bring noisy imagery under the classic 4 GiB
+    // offset limit.
+    w.m_bigTiff = rawBytes > options.bigTiffAbove;
+    w.m_tif = tiff::open(w.m_tmp, w.m_bigTiff ? "w8" : "w", w.m_error.get());
+    if (!w.m_tif) return fileError(path.string(), "cannot create file (" + *w.m_error + ")");
+
+    TIFF* t = w.m_tif;
+    TIFFSetField(t, TIFFTAG_IMAGEWIDTH, std::uint32_t(width));
+    TIFFSetField(t, TIFFTAG_IMAGELENGTH, std::uint32_t(height));
+    TIFFSetField(t, TIFFTAG_SAMPLESPERPIXEL, std::uint16_t(channels));
+    TIFFSetField(t, TIFFTAG_BITSPERSAMPLE, std::uint16_t(w.m_sampleBytes * 8));
+    TIFFSetField(t, TIFFTAG_SAMPLEFORMAT,
+                 type == SampleType::F32 ? SAMPLEFORMAT_IEEEFP : type == SampleType::I16 ? SAMPLEFORMAT_INT
+                                                                                          : SAMPLEFORMAT_UINT);
+    TIFFSetField(t, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+    TIFFSetField(t, TIFFTAG_PHOTOMETRIC, channels >= 3 ? PHOTOMETRIC_RGB : PHOTOMETRIC_MINISBLACK);
+    if (channels == 4 || channels == 2) {
+        std::uint16_t extra = EXTRASAMPLE_UNASSALPHA;
+        TIFFSetField(t, TIFFTAG_EXTRASAMPLES, std::uint16_t(1), &extra);
+    }
+    TIFFSetField(t, TIFFTAG_COMPRESSION, COMPRESSION_ADOBE_DEFLATE);
+    TIFFSetField(t, TIFFTAG_PREDICTOR, type == SampleType::F32 ? PREDICTOR_FLOATINGPOINT : PREDICTOR_HORIZONTAL);
+    if (georef && !tiff::writeGeoTags(t, *georef, options.nodata)) return w.fail("cannot write GeoTIFF keys").error();
+    if (w.m_tiled) {
+        TIFFSetField(t, TIFFTAG_TILEWIDTH, std::uint32_t(options.tileSize));
+        TIFFSetField(t, TIFFTAG_TILELENGTH, std::uint32_t(options.tileSize));
+    } else {
+        TIFFSetField(t, TIFFTAG_ROWSPERSTRIP, std::uint32_t(kRowsPerStrip));
+    }
+
+    w.m_encoder = std::make_unique<Encoder>();
+    const size_t blockBytes =
+        size_t(w.m_blockWidth) * size_t(w.m_blockHeight) * size_t(channels) * size_t(w.m_sampleBytes);
+    for (int i = 0; i < w.m_threads; ++i) {
+        w.m_encoder->compressors.emplace_back(libdeflate_alloc_compressor(std::clamp(options.deflateLevel, 1, 12)));
+        if (!w.m_encoder->compressors.back()) return w.fail("out of memory for the compressor").error();
+        w.m_encoder->block.emplace_back(blockBytes);
+        w.m_encoder->planes.emplace_back();
+    }
+    return w;
+}
+
+GeoTiffStreamWriter::GeoTiffStreamWriter(GeoTiffStreamWriter&& other) noexcept { *this = std::move(other); }
+
+GeoTiffStreamWriter& GeoTiffStreamWriter::operator=(GeoTiffStreamWriter&& other) noexcept {
+    if (this != &other) {
+        abandon();
+        m_path = std::move(other.m_path);
+        m_tmp = std::move(other.m_tmp);
+        m_tif = std::exchange(other.m_tif, nullptr);
+        m_width = other.m_width;
+        m_height = other.m_height;
+        m_channels = other.m_channels;
+        m_sampleBytes = other.m_sampleBytes;
+        m_threads = other.m_threads;
+        m_type = other.m_type;
+        m_blockWidth = other.m_blockWidth;
+        m_blockHeight = other.m_blockHeight;
+        m_tiled = other.m_tiled;
+        m_bigTiff = other.m_bigTiff;
+        m_rowsWritten = other.m_rowsWritten;
+        m_error = std::move(other.m_error);
+        m_encoder = std::move(other.m_encoder);
+        m_pending = std::move(other.m_pending);
+        m_pendingRows = other.m_pendingRows;
+    }
+    return *this;
+}
+
+GeoTiffStreamWriter::~GeoTiffStreamWriter() { abandon(); }
+
+void GeoTiffStreamWriter::abandon() {
+    if (!m_tif) return;
+    TIFFClose(m_tif);
+    m_tif = nullptr;
+    discardTemporary(m_tmp);
+}
+
+Status GeoTiffStreamWriter::fail(const std::string& what) {
+    abandon();
+    return fileError(m_path.string(), what + (m_error->empty() ? std::string() : " (" + *m_error + ")"));
+}
+
+Status GeoTiffStreamWriter::writeRows(int y0, int rows, const void* data) {
+    assert(m_tif && "GeoTiffStreamWriter::writeRows(): the file is finished or failed");
+    assert(y0 == m_rowsWritten && rows >= 0 && y0 + rows <= m_height &&
+           "GeoTiffStreamWriter::writeRows(): rows must follow the rows written so far, within the image");
+    (void)y0;
+    const size_t rowBytes = size_t(m_width) * size_t(m_channels) * size_t(m_sampleBytes);
+    const auto* src = static_cast<const std::uint8_t*>(data);
+    while (rows > 0) {
+        const int blockY = m_rowsWritten - m_pendingRows;
+        const int need = std::min(m_blockHeight, m_height - blockY);
+        if (m_pendingRows == 0 && rows >= need) { // a whole block row in the caller's buffer: no copy
+            if (auto st = encodeBlockRow(src, blockY, need); !st) return st;
+            src += size_t(need) * rowBytes;
+            rows -= need;
+            m_rowsWritten += need;
+            continue;
+        }
+        const int take = std::min(rows, need - m_pendingRows);
+        m_pending.resize(size_t(m_blockHeight) * rowBytes);
+        std::memcpy(m_pending.data() + size_t(m_pendingRows) * rowBytes, src, size_t(take) * rowBytes);
+        src += size_t(take) * rowBytes;
+        rows -= take;
+        m_pendingRows += take;
+        m_rowsWritten += take;
+        if (m_pendingRows == need) {
+            m_pendingRows = 0;
+            if (auto st = encodeBlockRow(m_pending.data(), blockY, need); !st) return st;
+        }
+    }
+    return Ok{};
+}
+
+Status GeoTiffStreamWriter::encodeBlockRow(const std::uint8_t* rows, int y0, int rowCount) {
+    Encoder& enc = *m_encoder;
+    const size_t pixelBytes = size_t(m_channels) * size_t(m_sampleBytes);
+    const size_t blockRowBytes = size_t(m_blockWidth) * pixelBytes;
+    // Tiles are always whole (padded with zeros); the last strip holds only the rows that remain.
+    const int blockRows = m_tiled ? m_blockHeight : rowCount;
+    const size_t blockBytes = blockRowBytes * size_t(blockRows);
+    const size_t srcRowBytes = size_t(m_width) * pixelBytes;
+    const int across = (m_width + m_blockWidth - 1) / m_blockWidth;
+    // Compress a bounded chunk of tiles at a time so a very wide row never holds all its compressed tiles at once.
+    const int chunk = std::max(16, m_threads * 8);
+    enc.compressed.resize(size_t(std::min(chunk, across)));
+    for (int first = 0; first < across; first += chunk) {
+        const int count = std::min(chunk, across - first);
+        parallelIndices(count, m_threads, [&](int i, int worker) {
+            const int x0 = (first + i) * m_blockWidth;
+            const size_t used = size_t(std::min(m_blockWidth, m_width - x0)) * pixelBytes;
+            std::uint8_t* block = enc.block[size_t(worker)].data();
+            for (int y = 0; y < blockRows; ++y) {
+                std::uint8_t* dst = block + size_t(y) * blockRowBytes;
+                const size_t copied = y < rowCount ? used : 0;
+                if (copied) std::memcpy(dst, rows + size_t(y) * srcRowBytes + size_t(x0) * pixelBytes, copied);
+                std::memset(dst + copied, 0, blockRowBytes - copied); // edge tiles: zero padding
+                switch (m_type) {
+                case SampleType::U8: horizontalDiff8(dst, blockRowBytes, size_t(m_channels)); break;
+                case SampleType::U16:
+                case SampleType::I16: horizontalDiff16(dst, blockRowBytes, size_t(m_channels)); break;
+                case SampleType::F32:
+                    floatingPointDiff(dst, blockRowBytes, size_t(m_channels), enc.planes[size_t(worker)]);
+                    break;
+                }
+            }
+            libdeflate_compressor* c = enc.compressors[size_t(worker)].get();
+            std::vector<std::uint8_t>& out = enc.compressed[size_t(i)];
+            out.resize(libdeflate_zlib_compress_bound(c, blockBytes));
+            out.resize(libdeflate_zlib_compress(c, block, blockBytes, out.data(), out.size()));
+        });
+        for (int i = 0; i < count; ++i) {
+            std::vector<std::uint8_t>& out = enc.compressed[size_t(i)];
+            const std::uint32_t x = std::uint32_t((first + i) * m_blockWidth);
+            const tmsize_t written =
+                out.empty() ? -1
+                : m_tiled   ? TIFFWriteRawTile(m_tif, TIFFComputeTile(m_tif, x, std::uint32_t(y0), 0, 0), out.data(),
+                                               tmsize_t(out.size()))
+                            : TIFFWriteRawStrip(m_tif, TIFFComputeStrip(m_tif, std::uint32_t(y0), 0), out.data(),
+                                                tmsize_t(out.size()));
+            if (written < 0) return fail("cannot write " + std::string(m_tiled ? "tile" : "strip") + " (disk full?)");
+        }
+    }
+    return Ok{};
+}
+
+Status GeoTiffStreamWriter::finish() {
+    assert(m_tif && "GeoTiffStreamWriter::finish(): already finished or failed");
+    assert(m_rowsWritten == m_height && "GeoTiffStreamWriter::finish(): rows missing");
+    if (!TIFFWriteDirectory(m_tif)) return fail("cannot write the TIFF directory (disk full?)");
+    TIFFClose(m_tif);
+    m_tif = nullptr;
+    m_encoder.reset();
+    m_pending = {};
+    std::string err;
+    if (!commitTemporary(m_tmp, m_path, err)) return fileError(m_path.string(), err);
+    return Ok{};
+}
+
+} // namespace seasonview

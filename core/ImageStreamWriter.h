@@ -1,0 +1,46 @@
+#pragma once
+// Streams an 8-bit image through OpenImageIO (format by extension: PNG, TIFF, ...) top to bottom, a band of rows at
+// a time, so that an image larger than memory can be written. Written to a temporary name next to the target and
+// renamed by finish(): a failed or abandoned image never appears under its final name. For PNG the file does not
+// depend on how the rows are split between writeRows() calls.
+#include "Result.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+
+namespace seasonview {
+
+class ImageStreamWriter {
+public:
+    /// Creates the temporary file for a width×height image of `channels` 8-bit channels. Errors name the file
+    /// (unsupported extension, cannot create).
+    static Result<ImageStreamWriter> open(const std::filesystem::path& path, int width, int height, int channels);
+
+    ImageStreamWriter(ImageStreamWriter&& other) noexcept;
+    ImageStreamWriter& operator=(ImageStreamWriter&& other) noexcept;
+    ImageStreamWriter(const ImageStreamWriter&) = delete;
+    ImageStreamWriter& operator=(const ImageStreamWriter&) = delete;
+    /// Without finish(), closes and deletes the temporary file.
+    ~ImageStreamWriter();
+
+    /// Appends rows [y0, y0 + rows): y0 must be rowsWritten(), y0 + rows at most the height. `data` holds rows ×
+    /// width × channels bytes, row 0 of the band first.
+    Status writeRows(int y0, int rows, const std::uint8_t* data);
+
+    /// Closes the file and renames it to its final name. Call once, after all rows.
+    Status finish();
+
+    int rowsWritten() const { return m_rowsWritten; }
+
+private:
+    struct Impl; // the OpenImageIO output, kept out of this header
+    ImageStreamWriter();
+    Status fail(const std::string& what);
+    void abandon();
+
+    std::unique_ptr<Impl> m_impl;
+    int m_width = 0, m_height = 0, m_channels = 0, m_rowsWritten = 0;
+};
+
+} // namespace seasonview
