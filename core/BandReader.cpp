@@ -14,13 +14,6 @@ BandReader::BandReader(BandReader&&) noexcept = default;
 BandReader& BandReader::operator=(BandReader&&) noexcept = default;
 BandReader::~BandReader() = default;
 
-namespace {
-std::string firstLine(std::string s) {
-    if (auto nl = s.find('\n'); nl != std::string::npos) s.resize(nl);
-    return s;
-}
-} // namespace
-
 Result<BandReader> BandReader::open(const std::filesystem::path& path, int preferredRows) {
     BandReader r;
     r.m_path = path;

@@ -8,17 +8,6 @@
 
 namespace seasonview {
 
-namespace {
-
-std::string firstLine(std::string s) {
-    auto nl = s.find('\n');
-    if (nl != std::string::npos) s.resize(nl);
-    while (!s.empty() && (s.back() == ' ' || s.back() == '.')) s.pop_back();
-    return s;
-}
-
-} // namespace
-
 struct ImageStreamWriter::Impl {
     std::filesystem::path path, tmp;
     std::unique_ptr<OIIO::ImageOutput> out;

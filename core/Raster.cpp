@@ -18,13 +18,6 @@ namespace seasonview {
 
 namespace {
 
-std::string firstLine(std::string s) {
-    auto nl = s.find('\n');
-    if (nl != std::string::npos) s.resize(nl);
-    while (!s.empty() && (s.back() == ' ' || s.back() == '.')) s.pop_back();
-    return s;
-}
-
 bool isTiffExtension(const std::filesystem::path& p) {
     std::string e = p.extension().string();
     std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return char(std::tolower(c)); });

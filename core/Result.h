@@ -13,6 +13,13 @@ struct Error {
     std::string message;
 };
 
+/// The first line of a library's error text, without trailing spaces and dots (error messages are one line).
+inline std::string firstLine(std::string s) {
+    if (const auto nl = s.find('\n'); nl != std::string::npos) s.resize(nl);
+    while (!s.empty() && (s.back() == ' ' || s.back() == '.')) s.pop_back();
+    return s;
+}
+
 /// Builds an Error "PATH: problem".
 inline Error fileError(const std::string& path, const std::string& problem) { return Error{path + ": " + problem}; }
 
