@@ -16,10 +16,6 @@ using namespace seasonview::test;
 
 namespace {
 
-std::string readBytes(const std::filesystem::path& p) {
-    std::ifstream f(p, std::ios::binary);
-    return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
-}
 
 // Noisy RGB so that compression does not hide mistakes in the predictor.
 std::vector<std::uint8_t> testRgb(int w, int h) {

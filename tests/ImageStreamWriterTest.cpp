@@ -13,10 +13,6 @@ using namespace seasonview::test;
 
 namespace {
 
-std::string readBytes(const std::filesystem::path& p) {
-    std::ifstream f(p, std::ios::binary);
-    return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
-}
 
 } // namespace
 

@@ -22,10 +22,6 @@ namespace {
 const char* const kFiles[] = {"leafon.tif", "leafoff.tif",  "dem.tif",  "truth_deciduous.png",
                               "truth_conifer.png", "trees.csv", "scene.json"};
 
-std::string readBytes(const std::filesystem::path& p) {
-    std::ifstream f(p, std::ios::binary);
-    return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
-}
 
 SynthOptions smallScene(std::uint64_t seed, int threads = 0) {
     SynthOptions o;

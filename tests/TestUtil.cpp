@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 
 #include <sys/wait.h>
@@ -84,6 +85,11 @@ gl::GlContext* headlessContext() {
     }();
     if (ctx) ctx->makeCurrent();
     return ctx.get();
+}
+
+std::string readBytes(const std::filesystem::path& p) {
+    std::ifstream f(p, std::ios::binary);
+    return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
 }
 
 std::vector<std::uint8_t> rgbOf(const std::vector<std::uint8_t>& rgba) {

@@ -47,6 +47,9 @@ Result<Scene> writeTestPair(const std::filesystem::path& dir, int w, int h, doub
 /// The process's headless GL context, made current (nullptr, with a test failure, when EGL is unusable).
 gl::GlContext* headlessContext();
 
+/// The whole file as bytes ("" when unreadable).
+std::string readBytes(const std::filesystem::path& p);
+
 /// RGBA rows -> RGB rows.
 std::vector<std::uint8_t> rgbOf(const std::vector<std::uint8_t>& rgba);
 
