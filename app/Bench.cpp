@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <fstream>
 #include <map>
@@ -40,6 +41,7 @@ struct Mode {
     std::string label;
     RendererKind renderer = RendererKind::Clipmap;
     CenterPlacement centers = CenterPlacement::Footprint;
+    float anisotropy = 8.0f;
     std::unique_ptr<ClipmapGL> clipmap;
     std::unique_ptr<ClipmapTerrainRendererGL> clipRenderer;
     std::unique_ptr<ReferenceRendererGL> reference;
@@ -81,6 +83,9 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
         if (!c)
             return Error{"--centers '" + a.centers + "': expected " + placementNames()};
         m.centers = *c;
+        if (!(a.anisotropy >= 1.0f && a.anisotropy <= kMaxAnisotropy))
+            return Error{"--aniso: expected 1..16"};
+        m.anisotropy = a.anisotropy;
         return m;
     };
     if (a.compare.empty()) {
@@ -93,8 +98,9 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     }
     const size_t eq = a.compare.find('=');
     const std::string key = a.compare.substr(0, eq);
-    if (eq == std::string::npos || (key != "centers" && key != "renderer"))
-        return Error{"--compare '" + a.compare + "': expected centers=A,B,... or renderer=clipmap,reference"};
+    if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso"))
+        return Error{"--compare '" + a.compare +
+                     "': expected centers=A,B,..., renderer=clipmap,reference or aniso=A,B,..."};
     std::stringstream list(a.compare.substr(eq + 1));
     std::string v;
     while (std::getline(list, v, ',')) {
@@ -106,6 +112,12 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
             if (!c)
                 return Error{"--compare: unknown centers '" + v + "' (expected " + placementNames() + ")"};
             m->centers = *c;
+        } else if (key == "aniso") {
+            char* end = nullptr;
+            const float x = std::strtof(v.c_str(), &end);
+            if (v.empty() || *end != '\0' || !(x >= 1.0f && x <= kMaxAnisotropy))
+                return Error{"--compare: aniso '" + v + "' is not a number in 1..16"};
+            m->anisotropy = x;
         } else if (v == "reference") {
             m->renderer = RendererKind::Reference;
         } else if (v != "clipmap") {
@@ -173,7 +185,9 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     co.uploadBudgetTexels = a->uploadBudget;
     for (Mode& m : *modes) {
         if (m.renderer == RendererKind::Reference) {
-            auto r = ReferenceRendererGL::create(*scene);
+            ReferenceOptions ro;
+            ro.anisotropy = m.anisotropy;
+            auto r = ReferenceRendererGL::create(*scene, ro);
             if (!r)
                 return fail(r.message());
             m.reference = std::move(*r);
@@ -206,6 +220,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
             cs = m.clipmap->update(clipmapCentres(*scene, cam, w, h, m.centers, g));
         }
         glBeginQuery(GL_TIME_ELAPSED, timer.id());
+        imagery.anisotropy = m.anisotropy;
         if (m.clipmap)
             m.clipRenderer->render(cam, imagery, target);
         else
@@ -284,6 +299,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
          {{"clip_size", a->clipSize},
           {"upload_budget_texels", a->uploadBudget},
           {"view", a->view},
+          {"aniso", a->anisotropy},
           {"coverage_every", a->coverageEvery}}},
         {"wall_seconds", seconds}};
     nlohmann::json compare = nlohmann::json::array();

@@ -15,9 +15,10 @@ struct BenchSettings {
     std::string path = "flyover"; // named path or keyframe JSON file
     int width = 1920, height = 1080;
     int frames = 300, warmup = 10, coverageEvery = 1, clipSize = 2048;
-    std::string compare;          // "centers=a,b,..." or "renderer=clipmap,reference"; empty: one mode
+    std::string compare;          // "centers=a,b,...", "renderer=clipmap,reference" or "aniso=1,8"; empty: one mode
     std::string renderer = "clipmap", centers = "footprint", view = "leafon";
     std::uint64_t seed = 1;
+    float anisotropy = 8.0f;      // clipmap footprint filter / reference sampler (1 = isotropic)
     std::int64_t uploadBudget = std::int64_t(1) << 20;
     std::filesystem::path cacheDir;
 };

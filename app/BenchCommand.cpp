@@ -28,7 +28,8 @@ Runner addBenchCommand(CLI::App& app) {
     cmd->add_option("--out", a->out, "Output folder")->required();
     cmd->add_option("--compare", a->b.compare,
                     "Modes run interleaved over the same path: \"centers=" + placementNames() +
-                        "\" (comma-separated) or \"renderer=clipmap,reference\"");
+                        "\" (comma-separated), \"renderer=clipmap,reference\" or \"aniso=1,8,...\"");
+    cmd->add_option("--aniso", a->b.anisotropy, "Maximum anisotropy 1..16 (1 = isotropic)")->capture_default_str();
     cmd->add_option("--renderer", a->b.renderer, "clipmap|reference")->capture_default_str();
     cmd->add_option("--centers", a->b.centers, "Clipmap level centres: " + placementNames())->capture_default_str();
     cmd->add_option("--view", a->b.view, "leafon|leafoff|blend|swipe|lod")->capture_default_str();

@@ -12,7 +12,7 @@ namespace {
 struct RenderArgs {
     SceneArgs scene;
     std::string camera, size = "1280x720", view = "leafon", out, renderer = "clipmap", centers = "footprint", stats;
-    float blend = 0.5f, swipe = 0.5f;
+    float blend = 0.5f, swipe = 0.5f, aniso = 8.0f;
     int clipSize = 2048;
     bool window = false;
 };
@@ -30,6 +30,11 @@ Runner addRenderCommand(CLI::App& app) {
     cmd->add_option("--view", args->view, "What to show: leafon|leafoff|blend|swipe|lod")->capture_default_str();
     cmd->add_option("--blend", args->blend, "blend view: 0 = leaf-on .. 1 = leaf-off")->capture_default_str();
     cmd->add_option("--swipe", args->swipe, "swipe view: fraction of the width showing leaf-on")->capture_default_str();
+    cmd->add_option("--aniso", args->aniso,
+                    "Maximum anisotropy, 1..16 (1 = isotropic): probes per pixel of the clipmap's footprint filter; "
+                    "the reference renderer's sampler anisotropy")
+        ->check(CLI::Range(1.0f, kMaxAnisotropy))
+        ->capture_default_str();
     cmd->add_option("--renderer", args->renderer,
                     "Renderer: clipmap (streamed texture clipmaps) | reference (brute force, full-resolution textures)")
         ->capture_default_str();
@@ -52,6 +57,8 @@ Runner addRenderCommand(CLI::App& app) {
         imagery.view = *view;
         imagery.blend = args->blend;
         imagery.swipe = args->swipe;
+        imagery.anisotropy = args->aniso;
+        settings.referenceAnisotropy = args->aniso;
         if (args->renderer == "reference") settings.renderer = RendererKind::Reference;
         else if (args->renderer != "clipmap") return fail("--renderer '" + args->renderer + "': expected clipmap|reference");
         const auto centers = parsePlacement(args->centers);

@@ -170,7 +170,9 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
         (*ctx)->swapBuffers();
     };
     if (settings.renderer == RendererKind::Reference) {
-        auto renderer = ReferenceRendererGL::create(scene);
+        ReferenceOptions options;
+        options.anisotropy = settings.referenceAnisotropy;
+        auto renderer = ReferenceRendererGL::create(scene, options);
         if (!renderer) return renderer.error();
         for (const StillRequest& s : stills) {
             const ImageryView v = s.imagery.view;

@@ -55,6 +55,7 @@ struct RenderSettings {
     ClipmapOptions clipmap;
     std::filesystem::path cacheDir; // pyramids (prepared implicitly when missing or stale)
     bool windowed = false;          // a hidden GLFW window instead of EGL (same renderer code)
+    float referenceAnisotropy = 16.0f; // reference renderer: the sampler's maximum anisotropy
 };
 
 /// Makes sure both seasons' pyramids are prepared (building them when needed, with a progress bar on a terminal;

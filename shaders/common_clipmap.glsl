@@ -29,30 +29,75 @@ vec4 coarseSample(sampler2D coarse, vec2 p, float level) {
     return textureLod(coarse, uv, max(level - float(uClipLevels), 0.0));
 }
 
-// The finest valid level at p, no finer than the level the pixel's footprint asks for; trilinear between it and
-// the next level. `lambda`: log2 of level-0 texels per pixel. `usedLevel` receives the level actually used
-// (uClipLevels or more: the coarse pyramid).
-vec4 sampleClipmap(sampler2DArray clip, sampler2D coarse, vec2 p, float lambda, out int usedLevel) {
-    lambda = max(lambda, 0.0);
-    int l0 = int(floor(lambda));
-    float f = lambda - float(l0);
-    for (int l = l0; l < uClipLevels; ++l) {
-        vec2 q = p / exp2(float(l));
-        if (!clipBlockValid(l, q)) continue;
-        usedLevel = l;
-        vec4 a = clipLevelSample(clip, l, p);
-        if (l != l0 || f <= 0.0) return a;
-        int n = l + 1;
-        vec4 b = (n < uClipLevels && clipBlockValid(n, p / exp2(float(n)))) ? clipLevelSample(clip, n, p)
-                                                                           : coarseSample(coarse, p, float(n));
-        return mix(a, b, f);
-    }
-    usedLevel = max(l0, uClipLevels);
-    return coarseSample(coarse, p, max(lambda, float(uClipLevels)));
+// A pixel's footprint in level-0 texels: the ellipse spanned by the screen-space derivatives (Heckbert 1989).
+// Anisotropic filtering by footprint assembly: `probes` bilinear probes spread along the major axis, each at the
+// level the footprint's length / probes asks for, so a grazing pixel is sharp across and smooth along the view.
+// Done in the shader rather than by the sampler so that every probe checks its own block's tag: hardware
+// anisotropic taps would reach into neighbouring slots whose data may be stale.
+struct ClipFootprint {
+    vec2 axis;          // major axis, full length, level-0 texels
+    int probes;         // 1 = isotropic
+    float lambda;       // log2 of level-0 texels per probe across the view: the level to sample
+    float lambdaIso;    // log2 of level-0 texels per pixel, isotropic (GL's own LOD; what the statistics use)
+};
+
+uniform float uClipAniso;   // maximum anisotropy (probes per pixel); 1 = off
+
+ClipFootprint clipmapFootprint(vec2 p) {
+    vec2 dx = dFdx(p), dy = dFdy(p);
+    // Eigen-decomposition of J Jᵀ, J = [dx dy]: the footprint ellipse's squared semi-axes and the major direction.
+    float a = dx.x * dx.x + dy.x * dy.x, b = dx.x * dx.y + dy.x * dy.y, c = dx.y * dx.y + dy.y * dy.y;
+    float h = 0.5 * (a + c), d = sqrt(max(h * h - (a * c - b * b), 0.0));
+    float major = sqrt(h + d), minor = sqrt(max(h - d, 0.0));
+    vec2 e1 = vec2(b, h + d - a), e2 = vec2(h + d - c, b);
+    vec2 dir = dot(e1, e1) > dot(e2, e2) ? e1 : e2;
+    dir = dot(dir, dir) > 1e-20 ? normalize(dir) : vec2(1.0, 0.0);
+    ClipFootprint f;
+    float ratio = clamp(major / max(minor, 1e-8), 1.0, max(uClipAniso, 1.0));
+    f.probes = int(ceil(ratio - 1e-3));
+    f.axis = f.probes > 1 ? dir * major : vec2(0.0);
+    // The level of the minor axis (of major / max anisotropy when clamped); not major / probes as GL allows,
+    // which would undersample when the ratio is just above an integer.
+    f.lambda = log2(max(major / ratio, 1e-8));
+    f.lambdaIso = log2(max(max(length(dx), length(dy)), 1e-8));
+    return f;
 }
 
-// log2 of level-0 texels per pixel from screen-space derivatives (isotropic, like GL's own LOD).
-float clipmapLambda(vec2 p) {
-    vec2 dx = dFdx(p), dy = dFdy(p);
-    return log2(max(max(length(dx), length(dy)), 1e-8));
+// The mean of the footprint's probes at one level; false if any probe's block is not valid.
+bool clipLevelProbes(sampler2DArray clip, int level, vec2 p, ClipFootprint f, out vec4 colour) {
+    float s = exp2(float(level));
+    colour = vec4(0.0);
+    for (int i = 0; i < f.probes; ++i) {
+        vec2 pi = clamp(p + f.axis * ((float(i) + 0.5) / float(f.probes) - 0.5), vec2(0.0), uLevel0Size);
+        if (!clipBlockValid(level, pi / s)) return false;
+        colour += clipLevelSample(clip, level, pi);
+    }
+    colour /= float(f.probes);
+    return true;
+}
+
+vec4 coarseProbes(sampler2D coarse, vec2 p, float level, ClipFootprint f) {
+    vec4 colour = vec4(0.0);
+    for (int i = 0; i < f.probes; ++i)
+        colour += coarseSample(coarse, p + f.axis * ((float(i) + 0.5) / float(f.probes) - 0.5), level);
+    return colour / float(f.probes);
+}
+
+// The finest valid level at p, no finer than the level the footprint asks for; trilinear between it and the next
+// level. `usedLevel` receives the level actually used (uClipLevels or more: the coarse pyramid).
+vec4 sampleClipmap(sampler2DArray clip, sampler2D coarse, vec2 p, ClipFootprint f, out int usedLevel) {
+    float lambda = max(f.lambda, 0.0);
+    int l0 = int(floor(lambda));
+    float t = lambda - float(l0);
+    vec4 a, b;
+    for (int l = l0; l < uClipLevels; ++l) {
+        if (!clipLevelProbes(clip, l, p, f, a)) continue;
+        usedLevel = l;
+        if (l != l0 || t <= 0.0) return a;
+        int n = l + 1;
+        if (n >= uClipLevels || !clipLevelProbes(clip, n, p, f, b)) b = coarseProbes(coarse, p, float(n), f);
+        return mix(a, b, t);
+    }
+    usedLevel = max(l0, uClipLevels);
+    return coarseProbes(coarse, p, max(lambda, float(uClipLevels)), f);
 }

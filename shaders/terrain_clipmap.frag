@@ -17,34 +17,34 @@ out vec4 fragColor;
 void main() {
     if (any(lessThan(vImageUv, vec2(0.0))) || any(greaterThan(vImageUv, vec2(1.0)))) discard;
     vec2 p = vImageUv * uLevel0Size;
-    float lambda = clipmapLambda(p);
+    ClipFootprint f = clipmapFootprint(p);
     int used;
 #ifdef LEVEL_STATS
-    sampleClipmap(uClip0, uCoarse0, p, lambda, used);
-    float needed = clamp(floor(max(lambda, 0.0)), 0.0, 254.0);
+    sampleClipmap(uClip0, uCoarse0, p, f, used);
+    float needed = clamp(floor(max(f.lambdaIso, 0.0)), 0.0, 254.0);
     fragColor = vec4(needed / 255.0, float(min(used, 254)) / 255.0, 0.0, 1.0);
 #else
     vec3 c;
     if (uView == 0) {
-        c = sampleClipmap(uClip0, uCoarse0, p, lambda, used).rgb;
+        c = sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
     } else if (uView == 1) {
-        c = sampleClipmap(uClip1, uCoarse1, p, lambda, used).rgb;
+        c = sampleClipmap(uClip1, uCoarse1, p, f, used).rgb;
     } else if (uView == 2) {
         int u1;
-        c = mix(sampleClipmap(uClip0, uCoarse0, p, lambda, used).rgb, sampleClipmap(uClip1, uCoarse1, p, lambda, u1).rgb,
+        c = mix(sampleClipmap(uClip0, uCoarse0, p, f, used).rgb, sampleClipmap(uClip1, uCoarse1, p, f, u1).rgb,
                 uBlend);
     } else if (uView == 3) {
         // Split screen: leaf-on left of uSwipeX, leaf-off right, a 2-pixel white divider.
         if (abs(gl_FragCoord.x - uSwipeX) < 1.0) {
             c = vec3(1.0);
         } else if (gl_FragCoord.x < uSwipeX) {
-            c = sampleClipmap(uClip0, uCoarse0, p, lambda, used).rgb;
+            c = sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
         } else {
-            c = sampleClipmap(uClip1, uCoarse1, p, lambda, used).rgb;
+            c = sampleClipmap(uClip1, uCoarse1, p, f, used).rgb;
         }
     } else {
         // Level colours (Ropinski 2007 Fig. 2) over the imagery's brightness.
-        vec3 img = sampleClipmap(uClip0, uCoarse0, p, lambda, used).rgb;
+        vec3 img = sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
         float luma = dot(img, vec3(0.299, 0.587, 0.114));
         c = uLevelColors[min(used, 7)] * (0.45 + 0.55 * luma);
     }

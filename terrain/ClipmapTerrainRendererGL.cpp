@@ -61,6 +61,7 @@ void ClipmapTerrainRendererGL::render(const Camera& camera, const ImagerySetting
     m_program.set("uView", int(s.view));
     m_program.set("uBlend", std::clamp(s.blend, 0.0f, 1.0f));
     m_program.set("uSwipeX", std::clamp(s.swipe, 0.0f, 1.0f) * float(target.width()));
+    m_program.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
     for (int i = 0; i < 8; ++i)
         m_program.set(("uLevelColors[" + std::to_string(i) + "]").c_str(),
                       glm::vec3(kLevelColors[i][0], kLevelColors[i][1], kLevelColors[i][2]));
@@ -70,6 +71,8 @@ void ClipmapTerrainRendererGL::render(const Camera& camera, const ImagerySetting
 FrameLevelStats ClipmapTerrainRendererGL::measureLevels(const Camera& camera, const gl::RenderTarget& scratch) const {
     scratch.bind();
     beginTerrainPass(0, 0, 0, 0);
+    // Isotropic: the statistics compare levels with the footprint's isotropic level, like the CPU estimate.
+    m_statsProgram.set("uClipAniso", 1.0f);
     draw(m_statsProgram, camera, scratch);
     const std::vector<std::uint8_t> px = scratch.readRgba();
     FrameLevelStats st;

@@ -26,7 +26,10 @@ struct ImagerySettings {
     ImageryView view = ImageryView::LeafOn;
     float blend = 0.5f; // blend: 0 = leaf-on, 1 = leaf-off
     float swipe = 0.5f; // swipe: fraction of the width showing leaf-on (left), the rest leaf-off
+    // Maximum anisotropy of the clipmap's own footprint-assembly filter (probes per pixel, 1 = isotropic).
+    float anisotropy = 8.0f;
 };
+inline constexpr float kMaxAnisotropy = 16.0f;
 
 /// The colours of `--view lod`, level 0 first (paper Fig. 2: red, green, blue, ...).
 extern const float kLevelColors[8][3];

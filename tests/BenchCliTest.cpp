@@ -43,7 +43,8 @@ TEST(BenchCli, BadPathAndCompareAreOneLineErrors) {
     TempDir dir("bench-bad");
     ASSERT_TRUE(writeTestPair(dir.path(), 64, 48, 1.0).ok());
     for (auto extra : std::vector<std::vector<std::string>>{{"--path", "spiral"}, {"--compare", "canopy"},
-                                                            {"--compare", "centers=offset,diagonal"}}) {
+                                                            {"--compare", "centers=offset,diagonal"},
+                                                            {"--compare", "aniso=1,99"}}) {
         std::vector<std::string> args = {"bench", "--leafon", (dir / "on.tif").string(), "--leafoff",
                                          (dir / "off.tif").string(), "--cache", (dir / "cache").string(), "--out",
                                          (dir / "out").string()};
