@@ -144,6 +144,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         return fail("--view '" + a->view + "': expected leafon|leafoff|blend|swipe|lod");
     if (a->clipSize < 256 || a->clipSize > 4096 || a->clipSize % 64 != 0)
         return fail("--clip-size " + std::to_string(a->clipSize) + ": expected 256..4096, a multiple of 64");
+    if (a->gridSize < 31 || a->gridSize > 1023 || ((a->gridSize + 1) & a->gridSize) != 0)
+        return fail("--grid-size " + std::to_string(a->gridSize) + ": expected 2^k - 1 in 31..1023");
     if (a->frames < 2)
         return fail("--frames must be at least 2");
     auto modes = parseModes(*a);
@@ -165,11 +167,16 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     const bool anyClipmap =
         std::any_of(modes->begin(), modes->end(), [](const Mode& m) { return m.renderer == RendererKind::Clipmap; });
     std::vector<ImagePyramid> pyramids;
+    std::optional<ImagePyramid> elevation;
     if (anyClipmap) {
         auto p = preparePyramids(*scene, cache);
         if (!p)
             return fail(p.message());
         pyramids = std::move(*p);
+        auto e = prepareElevation(*scene, cache);
+        if (!e)
+            return fail(e.message());
+        elevation = std::move(*e);
     }
     auto ctx = gl::createHeadlessContext();
     if (!ctx)
@@ -196,7 +203,9 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
             if (!c)
                 return fail(c.message());
             m.clipmap = std::move(*c);
-            auto r = ClipmapTerrainRendererGL::create(*scene, *m.clipmap);
+            GeometryClipmapOptions go;
+            go.n = a->gridSize;
+            auto r = ClipmapTerrainRendererGL::create(*scene, *m.clipmap, elevation ? &*elevation : nullptr, go);
             if (!r)
                 return fail(r.message());
             m.clipRenderer = std::move(*r);
@@ -218,6 +227,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         if (m.clipmap) {
             const ClipmapGeometry g = clipmapGeometry(*scene, m.clipmap->schedule().layout());
             cs = m.clipmap->update(clipmapCentres(*scene, cam, w, h, m.centers, g));
+            m.clipRenderer->updateGeometry(cam, h);
         }
         glBeginQuery(GL_TIME_ELAPSED, timer.id());
         imagery.anisotropy = m.anisotropy;
@@ -253,7 +263,10 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
             runFrame(m, path->at(0.0, terrain), -1, false);
     // Measuring starts from a fully loaded view, so uploads compare with the texels the path's moves expose.
     for (Mode& m : *modes)
-        if (m.clipmap) m.clipmap->completeSynchronously();
+        if (m.clipmap) {
+            m.clipmap->completeSynchronously();
+            m.clipRenderer->completeGeometry();
+        }
     for (int f = 0; f < a->frames; ++f) {
         const Camera cam = path->at(double(f) / double(a->frames - 1), terrain);
         for (Mode& m : *modes)

@@ -124,12 +124,15 @@ Runner addDemoCommand(CLI::App& app) {
              ImageryView::Lod},
             {"leafoff_oblique.png", "Leaf-off, oblique 3D view (35 deg down)", oblique, ImageryView::LeafOff},
             {"leafon_low.png", "Leaf-on, low view towards the horizon (12 deg down)", low, ImageryView::LeafOn},
+            {"terrain_levels.png", "Terrain geometry clipmap levels (one colour per level: red finest, then green, "
+                                   "blue, yellow, ...)", oblique, ImageryView::Levels},
+            {"terrain_wireframe.png", "Terrain geometry clipmap triangles, low view", low, ImageryView::Wireframe},
         };
         std::vector<StillRequest> requests;
         for (const Still& s : stills) {
             ImagerySettings im;
             im.view = s.view;
-            requests.push_back({s.camera, im, out / s.file, {}});
+            requests.push_back({s.camera, im, out / s.file, {}, {}});
         }
         RenderSettings settings;
         settings.windowed = args->window;

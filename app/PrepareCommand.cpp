@@ -1,5 +1,6 @@
 // `seasonview prepare`: builds (or checks) the tiled mip pyramid of each imagery layer in the cache.
 #include "Commands.h"
+#include "ElevationPyramid.h"
 #include "ImagePyramid.h"
 #include "RenderJob.h"
 
@@ -45,6 +46,18 @@ Runner addPrepareCommand(CLI::App& app) {
             else
                 std::printf("%s: up to date: %dx%d, %zu levels, %s\n", name, p.width(), p.height(), p.levels.size(),
                             p.folder.c_str());
+            std::fflush(stdout);
+        }
+        if (scene->elevation) {
+            const ElevationGrid grid = elevationGrid(*scene);
+            options.progress = terminalProgress("elevation");
+            auto report = preparePyramid(elevationPyramidSource(*scene, grid), options);
+            if (!report) return fail(report.message());
+            const ImagePyramid& p = report->pyramid;
+            std::printf("elevation: %s: %dx%d samples at %.2f m, %zu levels, %s\n",
+                        report->built ? ("built in " + std::to_string(report->seconds) + " s (" + report->reason + ")").c_str()
+                                      : "up to date",
+                        p.width(), p.height(), grid.spacing, p.levels.size(), p.folder.c_str());
             std::fflush(stdout);
         }
         return 0;

@@ -11,9 +11,9 @@ namespace seasonview::app {
 namespace {
 struct RenderArgs {
     SceneArgs scene;
-    std::string camera, size = "1280x720", view = "leafon", out, renderer = "clipmap", centers = "footprint", stats;
-    float blend = 0.5f, swipe = 0.5f, aniso = 8.0f;
-    int clipSize = 2048;
+    std::string camera, size = "1280x720", view = "leafon", out, renderer = "clipmap", centers = "footprint", stats, accuracy;
+    float blend = 0.5f, swipe = 0.5f, aniso = 8.0f, shade = 0.0f;
+    int clipSize = 2048, gridSize = 255;
     bool window = false;
 };
 } // namespace
@@ -27,7 +27,7 @@ Runner addRenderCommand(CLI::App& app) {
                     "terrain), yaw = heading in degrees (0 north, clockwise), pitch in degrees (-90 down), fov "
                     "vertical degrees (default 60). Default: straight down over the whole scene");
     cmd->add_option("--size", args->size, "Image size WxH")->capture_default_str();
-    cmd->add_option("--view", args->view, "What to show: leafon|leafoff|blend|swipe|lod")->capture_default_str();
+    cmd->add_option("--view", args->view, "What to show: leafon|leafoff|blend|swipe|lod|wireframe|levels")->capture_default_str();
     cmd->add_option("--blend", args->blend, "blend view: 0 = leaf-on .. 1 = leaf-off")->capture_default_str();
     cmd->add_option("--swipe", args->swipe, "swipe view: fraction of the width showing leaf-on")->capture_default_str();
     cmd->add_option("--aniso", args->aniso,
@@ -35,12 +35,21 @@ Runner addRenderCommand(CLI::App& app) {
                     "the reference renderer's sampler anisotropy")
         ->check(CLI::Range(1.0f, kMaxAnisotropy))
         ->capture_default_str();
+    cmd->add_option("--shade", args->shade, "Lambert shading of the relief from the elevation's normals, 0..1")
+        ->check(CLI::Range(0.0f, 1.0f))
+        ->capture_default_str();
+    cmd->add_option("--grid-size", args->gridSize,
+                    "Geometry clipmap: vertices per level side n = 2^k - 1 (31..1023)")
+        ->capture_default_str();
     cmd->add_option("--renderer", args->renderer,
                     "Renderer: clipmap (streamed texture clipmaps) | reference (brute force, full-resolution textures)")
         ->capture_default_str();
     cmd->add_option("--centers", args->centers, "Clipmap level centres: " + placementNames())->capture_default_str();
     cmd->add_option("--clip-size", args->clipSize, "Clipmap level size N, texels (256..4096, multiple of 64)")
         ->capture_default_str();
+    cmd->add_option("--accuracy", args->accuracy,
+                    "Also render the reference and write PSNR and geometric accuracy (mean depth difference in "
+                    "screen pixels) to this JSON file");
     cmd->add_option("--stats", args->stats, "Write level statistics (coverage, uploads, memory) to this JSON file");
     cmd->add_option("--out", args->out, "Output image (.png or .tif)")->required();
     cmd->add_flag("--window", args->window, "Render through a hidden GLFW window instead of headless EGL");
@@ -58,6 +67,10 @@ Runner addRenderCommand(CLI::App& app) {
         imagery.blend = args->blend;
         imagery.swipe = args->swipe;
         imagery.anisotropy = args->aniso;
+        imagery.shading = args->shade;
+        if (args->gridSize < 31 || args->gridSize > 1023 || ((args->gridSize + 1) & args->gridSize) != 0)
+            return fail("--grid-size " + std::to_string(args->gridSize) + ": expected 2^k - 1 in 31..1023");
+        settings.geometry.n = args->gridSize;
         settings.referenceAnisotropy = args->aniso;
         if (args->renderer == "reference") settings.renderer = RendererKind::Reference;
         else if (args->renderer != "clipmap") return fail("--renderer '" + args->renderer + "': expected clipmap|reference");
@@ -73,6 +86,8 @@ Runner addRenderCommand(CLI::App& app) {
             return fail("--view " + args->view + " needs --renderer clipmap");
         if (!args->stats.empty() && settings.renderer == RendererKind::Reference)
             return fail("--stats needs --renderer clipmap");
+        if (!args->accuracy.empty() && settings.renderer == RendererKind::Reference)
+            return fail("--accuracy needs --renderer clipmap");
         auto size = parseSize(args->size);
         if (!size) return fail(size.message());
         if (auto st = checkImageOutput(args->out); !st) return fail(st.message());
@@ -88,7 +103,7 @@ Runner addRenderCommand(CLI::App& app) {
         const auto [w, h] = *size;
         const Camera camera = spec ? spec->resolve([&](double x, double y) { return scene->terrainHeight(x, y); })
                                    : overviewCamera(*scene, double(w) / double(h));
-        auto info = renderStills(*scene, w, h, {{camera, imagery, args->out, args->stats}}, settings);
+        auto info = renderStills(*scene, w, h, {{camera, imagery, args->out, args->stats, args->accuracy}}, settings);
         if (!info) return fail(info.message());
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         std::printf("wrote %s (%dx%d, %s, %s renderer%s, %s: %s) camera %s in %.2f s\n", args->out.c_str(), w, h,

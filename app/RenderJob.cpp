@@ -1,5 +1,8 @@
 #include "RenderJob.h"
 
+#include "DepthAccuracy.h"
+#include "ElevationPyramid.h"
+
 #include "AtomicFile.h"
 #include "Commands.h"
 #include "gl/GlDebug.h"
@@ -110,6 +113,21 @@ Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std:
     return out;
 }
 
+Result<std::optional<ImagePyramid>> prepareElevation(const Scene& scene, const std::filesystem::path& cacheDir) {
+    if (!scene.elevation) return std::optional<ImagePyramid>();
+    PrepareOptions o;
+    o.cacheDir = cacheDir;
+    o.progress = terminalProgress("elevation");
+    const PyramidSource source = elevationPyramidSource(scene, elevationGrid(scene));
+    auto report = preparePyramid(source, o);
+    if (!report) return report.error();
+    if (report->built) {
+        std::printf("prepared elevation pyramid in %.2f s (%s)\n", report->seconds, report->reason.c_str());
+        std::fflush(stdout);
+    }
+    return std::optional<ImagePyramid>(std::move(report->pyramid));
+}
+
 ClipmapGeometry clipmapGeometry(const Scene& scene, const ClipmapLayout& layout) {
     ClipmapGeometry g;
     g.levels = layout.clipLevels();
@@ -187,17 +205,68 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
     }
     auto clipmap = ClipmapGL::create(pyramids, settings.clipmap);
     if (!clipmap) return clipmap.error();
-    auto renderer = ClipmapTerrainRendererGL::create(scene, **clipmap);
+    auto elevation = prepareElevation(scene, settings.cacheDir);
+    if (!elevation) return elevation.error();
+    auto renderer = ClipmapTerrainRendererGL::create(scene, **clipmap, *elevation ? &**elevation : nullptr,
+                                                     settings.geometry);
     if (!renderer) return renderer.error();
     const ClipmapGeometry geometry = clipmapGeometry(scene, (*clipmap)->schedule().layout());
     std::unique_ptr<gl::RenderTarget> scratch;
+    std::unique_ptr<ReferenceRendererGL> reference;
+    auto m_lastGeometry = [](const ClipmapTerrainRendererGL& r) {
+        GeometryFrameStats g;
+        g.triangles = r.triangles();
+        return g;
+    };
     for (const StillRequest& s : stills) {
         (*clipmap)->update(clipmapCentres(scene, s.camera, width, height, settings.centers, geometry));
         const ClipmapFrameStats loaded = (*clipmap)->completeSynchronously(); // a still waits for its texels
+        (*renderer)->updateGeometry(s.camera, height);
+        (*renderer)->completeGeometry();
         (*renderer)->render(s.camera, s.imagery, target);
         if (auto st = checkGl(s.out); !st) return st.error();
         if (auto st = writeRgb(target, s.out); !st) return st.error();
         present();
+        const GeometryFrameStats drawn = m_lastGeometry(**renderer);
+        if (!s.accuracyOut.empty()) {
+            // The same camera through the brute-force renderer: colour PSNR and geometric accuracy.
+            const std::vector<std::uint8_t> mine = target.readRgba();
+            const std::vector<float> mineDepth = target.readDepth();
+            if (!reference) {
+                ReferenceOptions ro;
+                ro.anisotropy = s.imagery.anisotropy;
+                auto r = ReferenceRendererGL::create(scene, ro);
+                if (!r) return r.error();
+                reference = std::move(*r);
+            }
+            const ImageryView v = s.imagery.view == ImageryView::LeafOff ? ImageryView::LeafOff : ImageryView::LeafOn;
+            reference->render(s.camera, v == ImageryView::LeafOn ? Season::LeafOn : Season::LeafOff, target);
+            const std::vector<std::uint8_t> ref = target.readRgba();
+            const DepthAccuracy acc = compareDepth(target.readDepth(), mineDepth, width, height, kNearPlane);
+            double sq = 0;
+            for (size_t i = 0; i < ref.size(); i += 4)
+                for (size_t c = 0; c < 3; ++c) {
+                    const double d = double(ref[i + c]) - double(mine[i + c]);
+                    sq += d * d;
+                }
+            const double mse = sq / double(ref.size() / 4 * 3);
+            nlohmann::json j = {{"camera", s.camera.toString()},
+                                {"size", {width, height}},
+                                {"view", imageryViewName(v)},
+                                {"psnr_db", mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 999.0},
+                                {"mean_depth_error_px", acc.meanErrorPx},
+                                {"p95_depth_error_px", acc.p95ErrorPx},
+                                {"mean_abs_depth_difference_m", acc.meanAbsDepthM},
+                                {"terrain_pixels_compared", acc.pixels},
+                                {"pixels_terrain_in_one_only", acc.onlyOne},
+                                {"triangles", drawn.triangles},
+                                {"reference_triangles", reference->stats().triangles},
+                                {"grid_size", settings.geometry.n},
+                                {"device", (*ctx)->info().renderer}};
+            std::string err;
+            if (!writeTextAtomic(s.accuracyOut, j.dump(2) + "\n", err)) return fileError(s.accuracyOut.string(), err);
+            if (auto st = checkGl(s.accuracyOut); !st) return st.error();
+        }
         if (!s.statsOut.empty()) {
             if (!scratch) scratch = std::make_unique<gl::RenderTarget>(width, height);
             const FrameLevelStats ls = (*renderer)->measureLevels(s.camera, *scratch);
@@ -216,6 +285,8 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
                                 {"blocks_missing", loaded.blocksMissing},
                                 {"resident_texture_bytes", (*clipmap)->residentBytes()},
                                 {"loader_cache_bytes", (*clipmap)->loaderCacheBytes()},
+                                {"triangles", drawn.triangles},
+                                {"elevation_resident_bytes", (*renderer)->geometry().residentBytes()},
                                 {"device", (*ctx)->info().renderer}};
             std::string err;
             if (!writeTextAtomic(s.statsOut, j.dump(2) + "\n", err)) return fileError(s.statsOut.string(), err);

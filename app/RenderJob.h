@@ -12,6 +12,7 @@
 #include <CLI/CLI.hpp>
 
 #include <filesystem>
+#include <optional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -45,6 +46,7 @@ struct StillRequest {
     ImagerySettings imagery;
     std::filesystem::path out;
     std::filesystem::path statsOut; // optional: level statistics JSON (clipmap renderer)
+    std::filesystem::path accuracyOut; // optional: PSNR and depth accuracy against the reference renderer (JSON)
 };
 
 enum class RendererKind { Clipmap, Reference };
@@ -56,11 +58,15 @@ struct RenderSettings {
     std::filesystem::path cacheDir; // pyramids (prepared implicitly when missing or stale)
     bool windowed = false;          // a hidden GLFW window instead of EGL (same renderer code)
     float referenceAnisotropy = 16.0f; // reference renderer: the sampler's maximum anisotropy
+    GeometryClipmapOptions geometry;   // terrain: the geometry clipmaps' n and elevation streaming
 };
 
 /// Makes sure both seasons' pyramids are prepared (building them when needed, with a progress bar on a terminal;
 /// says so on stdout when it built one). Returns leaf-on, leaf-off.
 Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std::filesystem::path& cacheDir);
+
+/// Makes sure the DEM's elevation pyramid (terrain/ElevationPyramid.h) is prepared; nullopt for a flat scene.
+Result<std::optional<ImagePyramid>> prepareElevation(const Scene& scene, const std::filesystem::path& cacheDir);
 
 /// Level-0 clipmap centres (leaf-on image pixels) of the toroidal levels for a camera.
 std::vector<glm::dvec2> clipmapCentres(const Scene& scene, const Camera& camera, int width, int height,

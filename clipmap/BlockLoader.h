@@ -3,6 +3,7 @@
 // layer (leaf-on, leaf-off, ...) at once, from a BlockSource; the render thread takes finished blocks within its
 // per-frame budget and uploads them. Nothing on the render thread ever waits for disk.
 #include "ClipmapSchedule.h"
+#include "ImagePyramid.h"
 #include "Result.h"
 
 #include <atomic>
@@ -23,8 +24,8 @@ class BlockSource {
 public:
     virtual ~BlockSource() = default;
     virtual int layers() const = 0;
-    /// Reads `texels` (level texel coordinates, inside the level's image) of `layer` at `level` as RGBA8 rows of
-    /// `texels.width()` pixels into `rgba`. Errors name the file.
+    /// Reads `texels` (level texel coordinates, inside the level's image) of `layer` at `level` as rows of
+    /// `texels.width()` 4-byte texels (RGBA8, or one float for elevation) into `rgba`. Errors name the file.
     virtual Status read(int layer, int level, const TexelRect& texels, std::uint8_t* rgba) = 0;
     /// Bytes the source holds in its own cache (0 when it has none).
     virtual std::int64_t cacheBytes() const { return 0; }
@@ -34,7 +35,9 @@ public:
 class PyramidBlockSource final : public BlockSource {
 public:
     /// levelFiles[layer][level]: the tiled TIFF of that pyramid level. `cacheMegabytes` bounds the tile cache.
-    PyramidBlockSource(std::vector<std::vector<std::filesystem::path>> levelFiles, int cacheMegabytes = 256);
+    /// `format`: Rgb8 files are widened to RGBA8, R32F files read as floats.
+    PyramidBlockSource(std::vector<std::vector<std::filesystem::path>> levelFiles, int cacheMegabytes = 256,
+                       TexelFormat format = TexelFormat::Rgb8);
     ~PyramidBlockSource() override;
     int layers() const override { return int(m_files.size()); }
     Status read(int layer, int level, const TexelRect& texels, std::uint8_t* rgba) override;
@@ -42,11 +45,12 @@ public:
 
 private:
     std::vector<std::vector<std::filesystem::path>> m_files;
+    TexelFormat m_format;
     struct Cache;
     std::unique_ptr<Cache> m_cache;
 };
 
-/// A loaded block: RGBA8 texels of every layer, rows of `texels.width()`.
+/// A loaded block: 4-byte texels of every layer, rows of `texels.width()`.
 struct LoadedBlock {
     BlockKey key;
     TexelRect texels;

@@ -30,7 +30,12 @@ Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyra
             if (glm::ivec2(p.levels[l].width, p.levels[l].height) != layout.levelSizes[l])
                 return fileError(p.levels[l].file.string(), "pyramid level has an unexpected size");
     }
+    for (const ImagePyramid& p : layers)
+        if (p.format != layers[0].format)
+            return fileError(p.folder.string(), "pyramid texel format differs from the other layers'");
     auto c = std::unique_ptr<ClipmapGL>(new ClipmapGL(std::move(layout), options));
+    c->m_format = layers[0].format;
+    const bool heights = c->m_format == TexelFormat::R32F;
     const ClipmapLayout& L = c->m_schedule.layout();
     const int clipLevels = L.clipLevels();
     const int arrayLayers = std::max(1, clipLevels);
@@ -43,7 +48,7 @@ Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyra
         files.push_back(std::move(f));
     }
     if (source) c->m_source = std::move(source);
-    else c->m_source = std::make_unique<PyramidBlockSource>(std::move(files), options.cacheMegabytes);
+    else c->m_source = std::make_unique<PyramidBlockSource>(std::move(files), options.cacheMegabytes, c->m_format);
 
     c->m_tags = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
     glTextureStorage3D(c->m_tags.id(), 1, GL_R32I, slots, slots, arrayLayers);
@@ -53,19 +58,36 @@ Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyra
     glTextureParameteri(c->m_tags.id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
 
     c->m_coarseSize = L.levelSizes[size_t(clipLevels)];
-    c->m_coarseLevels = 1 + int(std::floor(std::log2(double(std::max(c->m_coarseSize.x, c->m_coarseSize.y)))));
+    c->m_coarseLevels = heights ? int(L.levelSizes.size()) - clipLevels
+                                : 1 + int(std::floor(std::log2(double(std::max(c->m_coarseSize.x, c->m_coarseSize.y)))));
     for (const ImagePyramid& p : layers) {
         gl::Texture clip = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
-        glTextureStorage3D(clip.id(), 1, GL_RGBA8, options.size, options.size, arrayLayers);
-        const GLubyte zero[4] = {0, 0, 0, 0};
-        glClearTexImage(clip.id(), 0, GL_RGBA, GL_UNSIGNED_BYTE, zero);
+        glTextureStorage3D(clip.id(), 1, heights ? GL_R32F : GL_RGBA8, options.size, options.size, arrayLayers);
+        const GLfloat zero[4] = {0, 0, 0, 0};
+        glClearTexImage(clip.id(), 0, heights ? GL_RED : GL_RGBA, GL_FLOAT, zero);
         // GL_REPEAT does the toroidal modulo for texture coordinates q / N, bilinear taps included.
         glTextureParameteri(clip.id(), GL_TEXTURE_WRAP_S, GL_REPEAT);
         glTextureParameteri(clip.id(), GL_TEXTURE_WRAP_T, GL_REPEAT);
-        glTextureParameteri(clip.id(), GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-        glTextureParameteri(clip.id(), GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        glTextureParameteri(clip.id(), GL_TEXTURE_MIN_FILTER, heights ? GL_NEAREST : GL_LINEAR);
+        glTextureParameteri(clip.id(), GL_TEXTURE_MAG_FILTER, heights ? GL_NEAREST : GL_LINEAR);
         c->m_clip.push_back(std::move(clip));
+        glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
 
+        if (heights) {
+            // The resident levels, exact, one array layer each.
+            gl::Texture coarse = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
+            glTextureStorage3D(coarse.id(), 1, GL_R32F, c->m_coarseSize.x, c->m_coarseSize.y, c->m_coarseLevels);
+            for (int k = 0; k < c->m_coarseLevels; ++k) {
+                auto level = readImageF32(p.levels[size_t(clipLevels + k)].file, 1);
+                if (!level) return level.error();
+                glTextureSubImage3D(coarse.id(), 0, 0, 0, k, level->width, level->height, 1, GL_RED, GL_FLOAT,
+                                    level->pixels.data());
+            }
+            glTextureParameteri(coarse.id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+            glTextureParameteri(coarse.id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+            c->m_coarse.push_back(std::move(coarse));
+            continue;
+        }
         // The resident coarse pyramid: the first level that fits, mipmapped down to 1×1.
         auto base = readImageU8(p.levels[size_t(clipLevels)].file, 4);
         if (!base) return base.error();
@@ -75,7 +97,6 @@ Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyra
                 rgba[i * 4 + size_t(ch)] = base->pixels[i * size_t(base->channels) + size_t(std::min(ch, base->channels - 1))];
         gl::Texture coarse = gl::Texture::create(GL_TEXTURE_2D);
         glTextureStorage2D(coarse.id(), c->m_coarseLevels, GL_RGBA8, base->width, base->height);
-        glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
         glTextureSubImage2D(coarse.id(), 0, 0, 0, base->width, base->height, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
         glGenerateTextureMipmap(coarse.id());
         glTextureParameteri(coarse.id(), GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
@@ -101,7 +122,8 @@ int ClipmapGL::uploadReady(std::int64_t budget, ClipmapFrameStats& stats) {
         const int dx = wrapTexel(blk.key.bx, slots) * b, dy = wrapTexel(blk.key.by, slots) * b;
         for (size_t layer = 0; layer < m_clip.size(); ++layer)
             glTextureSubImage3D(m_clip[layer].id(), 0, dx, dy, blk.key.level, blk.texels.width(), blk.texels.height(), 1,
-                                GL_RGBA, GL_UNSIGNED_BYTE, blk.layers[layer].data());
+                                m_format == TexelFormat::R32F ? GL_RED : GL_RGBA,
+                                m_format == TexelFormat::R32F ? GL_FLOAT : GL_UNSIGNED_BYTE, blk.layers[layer].data());
         m_schedule.markStored(blk.key);
         touched[size_t(blk.key.level)] = 1;
         stats.texelsUploaded += blk.texels.area() * std::int64_t(m_clip.size());
@@ -139,30 +161,33 @@ ClipmapFrameStats ClipmapGL::completeSynchronously() {
     return stats;
 }
 
-void ClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit) const {
+void ClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit, const std::string& prefix) const {
+    auto name = [&](const std::string& n) { return prefix + n; };
     const int n = int(m_clip.size());
     for (int i = 0; i < n; ++i) {
         glBindTextureUnit(GLuint(firstUnit + i), m_clip[size_t(i)].id());
         glBindTextureUnit(GLuint(firstUnit + n + i), m_coarse[size_t(i)].id());
-        program.set(("uClip" + std::to_string(i)).c_str(), firstUnit + i);
-        program.set(("uCoarse" + std::to_string(i)).c_str(), firstUnit + n + i);
+        program.set(name("Clip" + std::to_string(i)).c_str(), firstUnit + i);
+        program.set(name("Coarse" + std::to_string(i)).c_str(), firstUnit + n + i);
     }
     glBindTextureUnit(GLuint(firstUnit + 2 * n), m_tags.id());
-    program.set("uClipTags", firstUnit + 2 * n);
+    program.set(name("ClipTags").c_str(), firstUnit + 2 * n);
     const ClipmapLayout& L = m_schedule.layout();
-    program.set("uClipLevels", L.clipLevels());
-    program.set("uClipSize", float(L.size));
-    program.set("uBlockSize", L.block);
-    program.set("uSlotsPerSide", m_schedule.slotsPerSide());
-    program.set("uLevel0Size", glm::vec2(L.levelSizes[0]));
-    program.set("uCoarseSize", glm::vec2(m_coarseSize));
+    program.set(name("ClipLevels").c_str(), L.clipLevels());
+    program.set(name("ClipSize").c_str(), float(L.size));
+    program.set(name("BlockSize").c_str(), L.block);
+    program.set(name("SlotsPerSide").c_str(), m_schedule.slotsPerSide());
+    program.set(name("Level0Size").c_str(), glm::vec2(L.levelSizes[0]));
+    program.set(name("CoarseSize").c_str(), glm::vec2(m_coarseSize));
 }
 
 std::int64_t ClipmapGL::residentBytes() const {
     const ClipmapLayout& L = m_schedule.layout();
     const std::int64_t arrayLayers = std::max(1, L.clipLevels());
     const std::int64_t clip = std::int64_t(L.size) * L.size * 4 * arrayLayers;
-    const std::int64_t coarse = std::int64_t(m_coarseSize.x) * m_coarseSize.y * 4 * 4 / 3;
+    const std::int64_t coarse = m_format == TexelFormat::R32F
+                                    ? std::int64_t(m_coarseSize.x) * m_coarseSize.y * 4 * m_coarseLevels
+                                    : std::int64_t(m_coarseSize.x) * m_coarseSize.y * 4 * 4 / 3;
     const std::int64_t tags = std::int64_t(m_schedule.slotsPerSide()) * m_schedule.slotsPerSide() * 4 * arrayLayers;
     return std::int64_t(m_clip.size()) * (clip + coarse) + tags;
 }

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace seasonview {
@@ -52,8 +53,14 @@ public:
 
     /// Binds layer textures to units firstUnit + layer (sampler2DArray), their coarse textures to units after
     /// those, the tag texture after that, and sets the clipmap uniforms of common_clipmap.glsl. Layer sampler
-    /// names: uClip0, uClip1, ..., uCoarse0, uCoarse1, ...
-    void bind(const gl::ShaderProgram& program, int firstUnit = 0) const;
+    /// names: uClip0, uClip1, ..., uCoarse0, uCoarse1, ... With a `prefix` ("uElev") every name's leading "u" is
+    /// replaced by it (uElevClip0, uElevClipTags, uElevLevel0Size, ...), so two clipmaps can feed one program.
+    /// Units used: 2 × layers + 1.
+    void bind(const gl::ShaderProgram& program, int firstUnit = 0, const std::string& prefix = "u") const;
+    /// Rgb8 pyramids: RGBA8 levels, a mipmapped coarse 2D texture. R32F (elevation): R32F levels read with
+    /// texelFetch, and the coarse pyramid's exact levels as the layers of a 2D array texture (level k at layer
+    /// k - clip levels, stored from texel 0,0), since mipmaps would round sizes down where the pyramid rounds up.
+    TexelFormat format() const { return m_format; }
 
     const ClipmapSchedule& schedule() const { return m_schedule; }
     int layers() const { return int(m_clip.size()); }
@@ -73,7 +80,8 @@ private:
     std::unique_ptr<BlockLoader> m_loader;
     std::vector<gl::Texture> m_clip, m_coarse;
     gl::Texture m_tags;
-    int m_coarseLevels = 0; // mip levels of each coarse texture
+    TexelFormat m_format = TexelFormat::Rgb8;
+    int m_coarseLevels = 0; // mip levels (Rgb8) or array layers (R32F) of each coarse texture
     glm::ivec2 m_coarseSize{0};
     std::int64_t m_totalUploaded = 0;
 };

@@ -41,8 +41,19 @@ struct SourceId {
     std::string key;  // path | size | mtime | stretch | format version
 };
 
-Result<SourceId> sourceId(const ImageryLayer& layer) {
-    const fs::path& p = layer.info.path;
+std::string stretchKey(const Stretch& stretch) {
+    if (stretch.identity) return "identity";
+    std::string key;
+    char v[64];
+    for (size_t c = 0; c < size_t(stretch.channels) && c < 4; ++c) {
+        std::snprintf(v, sizeof v, "%s%.9g:%.9g", c ? "," : "", double(stretch.low[c]), double(stretch.high[c]));
+        key += v;
+    }
+    return key;
+}
+
+Result<SourceId> sourceId(const PyramidSource& source) {
+    const fs::path& p = source.file;
     std::error_code ec;
     if (!fs::is_regular_file(p, ec)) return fileError(p.string(), fs::exists(p, ec) ? "not a file" : "file not found");
     SourceId id;
@@ -51,19 +62,22 @@ Result<SourceId> sourceId(const ImageryLayer& layer) {
     if (ec) return fileError(p.string(), "cannot read file size (" + ec.message() + ")");
     const auto mtime = fs::last_write_time(p, ec).time_since_epoch().count();
     if (ec) return fileError(p.string(), "cannot read modification time (" + ec.message() + ")");
-    std::string stretch = "identity";
-    if (!layer.stretch.identity) {
-        stretch.clear();
-        char v[64];
-        for (size_t c = 0; c < size_t(layer.stretch.channels) && c < 4; ++c) {
-            std::snprintf(v, sizeof v, "%s%.9g:%.9g", c ? "," : "", double(layer.stretch.low[c]),
-                          double(layer.stretch.high[c]));
-            stretch += v;
-        }
-    }
-    id.key = id.path + "|" + std::to_string(size) + "|" + std::to_string(mtime) + "|" + stretch + "|v" +
+    id.key = id.path + "|" + std::to_string(size) + "|" + std::to_string(mtime) + "|" + source.params + "|v" +
              std::to_string(kPyramidFormatVersion);
     return id;
+}
+
+PyramidSource imagerySource(const ImageryLayer& layer) {
+    PyramidSource s;
+    s.file = layer.info.path;
+    s.params = stretchKey(layer.stretch);
+    s.width = layer.info.width;
+    s.height = layer.info.height;
+    s.format = TexelFormat::Rgb8;
+    s.build = [&layer](const fs::path& folder, int tileSize, const ProgressFn& progress) {
+        return buildPyramidLevels(layer, folder, tileSize, progress);
+    };
+    return s;
 }
 
 fs::path pyramidsDir(const fs::path& cacheDir) { return cacheDir / "pyramids"; }
@@ -83,7 +97,8 @@ std::optional<nlohmann::json> readManifest(const fs::path& folder) {
 }
 
 /// Checks one level file against the manifest and the expected size; "" when it is fine.
-std::string checkLevelFile(const fs::path& file, std::uintmax_t bytes, int width, int height, int tileSize) {
+std::string checkLevelFile(const fs::path& file, std::uintmax_t bytes, int width, int height, int tileSize,
+                           TexelFormat format) {
     const std::string name = file.filename().string();
     std::error_code ec;
     if (!fs::is_regular_file(file, ec)) return name + " missing";
@@ -96,12 +111,15 @@ std::string checkLevelFile(const fs::path& file, std::uintmax_t bytes, int width
         return name + " unreadable";
     }
     const OIIO::ImageSpec& s = in->spec();
-    if (s.width != width || s.height != height || s.nchannels != 3 || s.format != OIIO::TypeDesc::UINT8 ||
+    const int channels = format == TexelFormat::Rgb8 ? 3 : 1;
+    const OIIO::TypeDesc type = format == TexelFormat::Rgb8 ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT;
+    if (s.width != width || s.height != height || s.nchannels != channels || s.format != type ||
         s.tile_width != tileSize || s.tile_height != tileSize)
         return name + " is " + std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +
                std::to_string(s.nchannels) + " " + s.format.c_str() + " in " + std::to_string(s.tile_width) + "x" +
                std::to_string(s.tile_height) + " tiles, expected " + std::to_string(width) + "x" +
-               std::to_string(height) + "x3 uint8 in " + std::to_string(tileSize) + "x" + std::to_string(tileSize) + " tiles";
+               std::to_string(height) + "x" + std::to_string(channels) + " " + type.c_str() + " in " +
+               std::to_string(tileSize) + "x" + std::to_string(tileSize) + " tiles";
     return {};
 }
 
@@ -112,7 +130,7 @@ struct Validation {
     std::string reason;
 };
 
-Validation validate(const fs::path& folder, const SourceId& id, const ImageryLayer& layer) {
+Validation validate(const fs::path& folder, const SourceId& id, const PyramidSource& source) {
     Validation v;
     std::error_code ec;
     if (!fs::exists(folder, ec)) {
@@ -127,6 +145,7 @@ Validation validate(const fs::path& folder, const SourceId& id, const ImageryLay
     const nlohmann::json& j = *manifest;
     ImagePyramid p;
     p.folder = folder;
+    p.format = source.format;
     std::vector<std::uintmax_t> bytes;
     try {
         if (!j.is_object()) throw std::runtime_error("not an object");
@@ -149,7 +168,7 @@ Validation validate(const fs::path& folder, const SourceId& id, const ImageryLay
         v.reason = "cache corrupt: pyramid.json has tile size " + std::to_string(p.tileSize);
         return v;
     }
-    const auto sizes = pyramidLevelSizes(layer.info.width, layer.info.height);
+    const auto sizes = pyramidLevelSizes(source.width, source.height);
     if (p.levels.size() != sizes.size()) {
         v.reason = "cache corrupt: pyramid.json lists " + std::to_string(p.levels.size()) + " levels, expected " +
                    std::to_string(sizes.size());
@@ -162,7 +181,8 @@ Validation validate(const fs::path& folder, const SourceId& id, const ImageryLay
             v.reason = "cache corrupt: pyramid.json level " + std::to_string(k) + " is wrong";
             return v;
         }
-        if (std::string e = checkLevelFile(l.file, bytes[k], l.width, l.height, p.tileSize); !e.empty()) {
+        if (std::string e = checkLevelFile(l.file, bytes[k], l.width, l.height, p.tileSize, p.format);
+            !e.empty()) {
             v.reason = "cache corrupt: " + e;
             return v;
         }
@@ -223,17 +243,25 @@ Status writeManifest(const fs::path& folder, const SourceId& id, int tileSize, c
 } // namespace
 
 Result<ImagePyramid> openPyramid(const ImageryLayer& layer, const std::filesystem::path& cacheDir) {
+    return openPyramid(imagerySource(layer), cacheDir);
+}
+
+Result<PrepareReport> preparePyramid(const ImageryLayer& layer, const PrepareOptions& options) {
+    return preparePyramid(imagerySource(layer), options);
+}
+
+Result<ImagePyramid> openPyramid(const PyramidSource& layer, const std::filesystem::path& cacheDir) {
     auto id = sourceId(layer);
     if (!id) return id.error();
     const fs::path folder = folderFor(cacheDir, *id);
     Validation v = validate(folder, *id, layer);
     if (v.pyramid) return std::move(*v.pyramid);
     if (v.reason == "not prepared yet" && !siblingsOf(cacheDir, folder, *id).empty()) v.reason = "source changed";
-    return fileError(folder.string(), "no valid pyramid for " + layer.info.path.string() + ": " + v.reason +
+    return fileError(folder.string(), "no valid pyramid for " + layer.file.string() + ": " + v.reason +
                                           " (run seasonview prepare)");
 }
 
-Result<PrepareReport> preparePyramid(const ImageryLayer& layer, const PrepareOptions& options) {
+Result<PrepareReport> preparePyramid(const PyramidSource& layer, const PrepareOptions& options) {
     assert(options.tileSize >= 16 && options.tileSize % 16 == 0 &&
            "preparePyramid(): tile size must be a positive multiple of 16 (TIFF tiles)");
     const auto t0 = std::chrono::steady_clock::now();
@@ -271,7 +299,7 @@ Result<PrepareReport> preparePyramid(const ImageryLayer& layer, const PrepareOpt
         return e;
     };
 
-    auto levels = buildPyramidLevels(layer, tmp, options.tileSize, options.progress);
+    auto levels = layer.build(tmp, options.tileSize, options.progress);
     if (!levels) return fail(levels.error());
     if (auto st = writeManifest(tmp, *id, options.tileSize, *levels); !st) return fail(st.error());
     // rename() cannot replace a non-empty folder: remove the old pyramid first. Between the two steps there is no
@@ -286,6 +314,7 @@ Result<PrepareReport> preparePyramid(const ImageryLayer& layer, const PrepareOpt
     report.pyramid.folder = folder;
     report.pyramid.sourceKey = id->key;
     report.pyramid.tileSize = options.tileSize;
+    report.pyramid.format = layer.format;
     report.pyramid.levels = std::move(*levels);
     for (PyramidLevel& l : report.pyramid.levels) l.file = folder / l.file.filename();
     report.seconds = seconds();

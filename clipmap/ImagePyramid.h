@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -19,10 +20,14 @@ struct PyramidLevel {
     int width = 0, height = 0;  // level 0 = the source size; level k = ceil(level k-1 / 2), down to 1x1
 };
 
+/// What a pyramid's texels are: display RGB (imagery) or float heights (elevation, terrain/ElevationPyramid.h).
+enum class TexelFormat { Rgb8, R32F };
+
 struct ImagePyramid {
     std::filesystem::path folder;   // <cache>/pyramids/<key hash>
     std::string sourceKey;          // canonical source path | size | mtime | stretch: what the cache belongs to
     int tileSize = 256;
+    TexelFormat format = TexelFormat::Rgb8;
     std::vector<PyramidLevel> levels;
     int width() const { return levels.empty() ? 0 : levels[0].width; }
     int height() const { return levels.empty() ? 0 : levels[0].height; }
@@ -42,6 +47,22 @@ struct PrepareReport {
     std::string reason;              // "not prepared yet", "source changed", "cache corrupt: ...", "forced"
     double seconds = 0.0;
 };
+
+/// Any pyramid's recipe: the source file (its path, size and mtime key the cache), the rest of the key, the level-0
+/// size and format, and the builder that writes the level files (level_LL.tif, sizes pyramidLevelSizes()) into a
+/// folder. The imagery overloads below fill it for an ImageryLayer.
+struct PyramidSource {
+    std::filesystem::path file;
+    std::string params; // appended to the key: anything else the texels depend on
+    int width = 0, height = 0;
+    TexelFormat format = TexelFormat::Rgb8;
+    std::function<Result<std::vector<PyramidLevel>>(const std::filesystem::path& folder, int tileSize,
+                                                    const ProgressFn& progress)>
+        build;
+};
+
+Result<PrepareReport> preparePyramid(const PyramidSource& source, const PrepareOptions& options);
+Result<ImagePyramid> openPyramid(const PyramidSource& source, const std::filesystem::path& cacheDir);
 
 /// Makes sure `layer` has an up-to-date, valid pyramid in the cache and returns it. Idempotent (an up-to-date
 /// pyramid is only validated, not rebuilt) and atomic (built in a temporary folder, renamed into place, so a crash

@@ -6,16 +6,27 @@ uniform sampler2DArray uClip0;
 uniform sampler2DArray uClip1;
 uniform sampler2D uCoarse0;
 uniform sampler2D uCoarse1;
-uniform int uView;       // ImageryView: 0 leafon, 1 leafoff, 2 blend, 3 swipe, 4 lod
+uniform int uView;       // ImageryView: 0 leafon, 1 leafoff, 2 blend, 3 swipe, 4 lod, 5 wireframe, 6 levels
+uniform int uWirePass;   // wireframe view, second pass: the lines in their level's colour
+uniform float uShade;    // 0..1: Lambert shading from the terrain's normals (0 = the orthophoto as it is)
+uniform vec3 uSunDir;
 uniform float uBlend;
 uniform float uSwipeX;   // pixels
 uniform vec3 uLevelColors[8];
 
 in vec2 vImageUv;
+in vec3 vNormal;
+flat in int vLevel;
 out vec4 fragColor;
 
 void main() {
     if (any(lessThan(vImageUv, vec2(0.0))) || any(greaterThan(vImageUv, vec2(1.0)))) discard;
+#ifndef LEVEL_STATS
+    if (uWirePass != 0) {
+        fragColor = vec4(uLevelColors[min(vLevel, 7)], 1.0);
+        return;
+    }
+#endif
     vec2 p = vImageUv * uLevel0Size;
     ClipFootprint f = clipmapFootprint(p);
     int used;
@@ -42,12 +53,17 @@ void main() {
         } else {
             c = sampleClipmap(uClip1, uCoarse1, p, f, used).rgb;
         }
-    } else {
-        // Level colours (Ropinski 2007 Fig. 2) over the imagery's brightness.
+    } else if (uView == 4 || uView == 6) {
+        // Level colours over the imagery's brightness: the imagery level used (lod, Ropinski 2007 Fig. 2) or
+        // the geometry level drawn (levels).
         vec3 img = sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
         float luma = dot(img, vec3(0.299, 0.587, 0.114));
-        c = uLevelColors[min(used, 7)] * (0.45 + 0.55 * luma);
+        c = uLevelColors[min(uView == 4 ? used : vLevel, 7)] * (0.45 + 0.55 * luma);
+    } else {
+        // Wireframe, first pass: the leaf-on imagery dimmed under the lines.
+        c = 0.55 * sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
     }
+    if (uShade > 0.0) c *= mix(1.0, 0.25 + 0.75 * max(dot(normalize(vNormal), uSunDir), 0.0), uShade);
     fragColor = vec4(c, 1.0);
 #endif
 }

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 
+#include <glm/geometric.hpp>
+
 namespace seasonview {
 
 const float kLevelColors[8][3] = {{1.0f, 0.15f, 0.1f}, {0.1f, 0.85f, 0.2f}, {0.15f, 0.3f, 1.0f}, {1.0f, 0.9f, 0.1f},
@@ -11,7 +13,7 @@ const float kLevelColors[8][3] = {{1.0f, 0.15f, 0.1f}, {0.1f, 0.85f, 0.2f}, {0.1
 
 namespace {
 constexpr ImageryView kViews[] = {ImageryView::LeafOn, ImageryView::LeafOff, ImageryView::Blend, ImageryView::Swipe,
-                                  ImageryView::Lod};
+                                  ImageryView::Lod,    ImageryView::Wireframe, ImageryView::Levels};
 } // namespace
 
 const char* imageryViewName(ImageryView v) {
@@ -21,6 +23,8 @@ const char* imageryViewName(ImageryView v) {
     case ImageryView::Blend: return "blend";
     case ImageryView::Swipe: return "swipe";
     case ImageryView::Lod: return "lod";
+    case ImageryView::Wireframe: return "wireframe";
+    case ImageryView::Levels: return "levels";
     }
     return "?";
 }
@@ -31,41 +35,73 @@ std::optional<ImageryView> parseImageryView(const std::string& name) {
     return std::nullopt;
 }
 
-Result<std::unique_ptr<ClipmapTerrainRendererGL>> ClipmapTerrainRendererGL::create(const Scene& scene,
-                                                                                   const ClipmapGL& clipmap) {
+Result<std::unique_ptr<ClipmapTerrainRendererGL>> ClipmapTerrainRendererGL::create(
+    const Scene& scene, const ClipmapGL& clipmap, const ImagePyramid* elevation, const GeometryClipmapOptions& options) {
     assert(clipmap.layers() >= 2 && "ClipmapTerrainRendererGL::create(): needs leaf-on and leaf-off layers");
     auto r = std::unique_ptr<ClipmapTerrainRendererGL>(new ClipmapTerrainRendererGL(clipmap));
-    auto p = gl::ShaderProgram::build("terrain_reference.vert", "terrain_clipmap.frag");
+    auto p = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag");
     if (!p) return p.error();
     r->m_program = std::move(*p);
-    auto s = gl::ShaderProgram::build("terrain_reference.vert", "terrain_clipmap.frag", {"LEVEL_STATS"});
+    auto s = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag", {"LEVEL_STATS"});
     if (!s) return s.error();
     r->m_statsProgram = std::move(*s);
-    r->m_mesh = std::make_unique<TerrainMeshGL>(buildReferenceMesh(scene));
+    auto g = GeometryClipmapGL::create(scene, elevationGrid(scene), elevation, options);
+    if (!g) return g.error();
+    r->m_geometry = std::move(*g);
     return r;
 }
 
-void ClipmapTerrainRendererGL::draw(const gl::ShaderProgram& program, const Camera& camera,
-                                    const gl::RenderTarget& target) const {
-    const double aspect = double(target.width()) / double(target.height());
-    program.set("uViewProj", glm::mat4(camera.projectionMatrix(aspect, 0.05) * camera.viewMatrix()));
-    m_clipmap.bind(program, 0);
-    program.use();
-    m_mesh->draw();
+ClipmapFrameStats ClipmapTerrainRendererGL::updateGeometry(const Camera& camera, int viewportHeight) {
+    return m_geometry->update(camera, viewportHeight);
 }
 
-void ClipmapTerrainRendererGL::render(const Camera& camera, const ImagerySettings& s,
-                                      const gl::RenderTarget& target) const {
+ClipmapFrameStats ClipmapTerrainRendererGL::completeGeometry() { return m_geometry->completeSynchronously(); }
+
+GeometryFrameStats ClipmapTerrainRendererGL::draw(const gl::ShaderProgram& program, const Camera& camera,
+                                                  const gl::RenderTarget& target) const {
+    const double aspect = double(target.width()) / double(target.height());
+    const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
+    program.set("uViewProj", glm::mat4(viewProj));
+    m_clipmap.bind(program, 0);
+    m_geometry->bind(program, 8);
+    program.use();
+    m_last = m_geometry->draw(program, viewProj);
+    return m_last;
+}
+
+GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const ImagerySettings& s,
+                                                    const gl::RenderTarget& target) const {
     target.bind();
     beginTerrainPass(kBackgroundColor.r, kBackgroundColor.g, kBackgroundColor.b, kBackgroundColor.a);
     m_program.set("uView", int(s.view));
     m_program.set("uBlend", std::clamp(s.blend, 0.0f, 1.0f));
     m_program.set("uSwipeX", std::clamp(s.swipe, 0.0f, 1.0f) * float(target.width()));
     m_program.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
+    const float shade = std::clamp(s.shading, 0.0f, 1.0f);
+    m_program.set("uShade", shade);
+    m_program.set("uNormals", shade > 0.0f ? 1 : 0);
+    m_program.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75)))); // from the north-west, high
+    m_program.set("uWirePass", 0);
     for (int i = 0; i < 8; ++i)
         m_program.set(("uLevelColors[" + std::to_string(i) + "]").c_str(),
                       glm::vec3(kLevelColors[i][0], kLevelColors[i][1], kLevelColors[i][2]));
-    draw(m_program, camera, target);
+    GeometryFrameStats st = draw(m_program, camera, target);
+    if (s.view == ImageryView::Wireframe) {
+        // The triangle edges over the filled terrain: drawn again as lines, pulled towards the viewer (reversed
+        // Z: larger depth is nearer) so they win the depth test against their own faces.
+        glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);
+        glEnable(GL_POLYGON_OFFSET_LINE);
+        glPolygonOffset(1.0f, 1.0f);
+        glDepthFunc(GL_GEQUAL);
+        m_program.set("uWirePass", 1);
+        draw(m_program, camera, target);
+        m_program.set("uWirePass", 0);
+        glDepthFunc(GL_GREATER);
+        glDisable(GL_POLYGON_OFFSET_LINE);
+        glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
+    }
+    m_last = st;
+    return st;
 }
 
 FrameLevelStats ClipmapTerrainRendererGL::measureLevels(const Camera& camera, const gl::RenderTarget& scratch) const {
@@ -73,6 +109,7 @@ FrameLevelStats ClipmapTerrainRendererGL::measureLevels(const Camera& camera, co
     beginTerrainPass(0, 0, 0, 0);
     // Isotropic: the statistics compare levels with the footprint's isotropic level, like the CPU estimate.
     m_statsProgram.set("uClipAniso", 1.0f);
+    m_statsProgram.set("uNormals", 0);
     draw(m_statsProgram, camera, scratch);
     const std::vector<std::uint8_t> px = scratch.readRgba();
     FrameLevelStats st;

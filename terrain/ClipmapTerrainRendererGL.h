@@ -1,10 +1,11 @@
 #pragma once
 // The terrain draped with the imagery clipmaps (Ropinski et al. 2007 §2): every fragment picks its clipmap level
-// from screen-space derivatives and falls back to coarser levels where blocks are not loaded yet. Geometry is the
-// full-resolution mesh until the geometry clipmaps land.
+// from screen-space derivatives and falls back to coarser levels where blocks are not loaded yet. Geometry: the GPU
+// geometry clipmaps (GeometryClipmapGL.h); imagery is draped by world position, so imagery and geometry LOD are
+// independent.
 #include "Camera.h"
 #include "ClipmapGL.h"
-#include "ReferenceMesh.h"
+#include "GeometryClipmapGL.h"
 #include "Scene.h"
 #include "TerrainMeshGL.h"
 #include "gl/RenderTarget.h"
@@ -17,8 +18,9 @@
 
 namespace seasonview {
 
-/// What the imagery shows. CLI names: leafon, leafoff, blend, swipe, lod.
-enum class ImageryView { LeafOn, LeafOff, Blend, Swipe, Lod };
+/// What the imagery shows. CLI names: leafon, leafoff, blend, swipe, lod (imagery clipmap level colours), wireframe
+/// (geometry clipmap triangles in their level's colour over the dimmed leaf-on), levels (geometry level colours).
+enum class ImageryView { LeafOn, LeafOff, Blend, Swipe, Lod, Wireframe, Levels };
 std::optional<ImageryView> parseImageryView(const std::string& name);
 const char* imageryViewName(ImageryView v);
 
@@ -28,6 +30,7 @@ struct ImagerySettings {
     float swipe = 0.5f; // swipe: fraction of the width showing leaf-on (left), the rest leaf-off
     // Maximum anisotropy of the clipmap's own footprint-assembly filter (probes per pixel, 1 = isotropic).
     float anisotropy = 8.0f;
+    float shading = 0.0f; // 0..1: Lambert shading from the elevation clipmap's normals
 };
 inline constexpr float kMaxAnisotropy = 16.0f;
 
@@ -44,22 +47,33 @@ struct FrameLevelStats {
 
 class ClipmapTerrainRendererGL {
 public:
-    /// `clipmap` layers: 0 = leaf-on, 1 = leaf-off. Keeps a reference to it.
-    static Result<std::unique_ptr<ClipmapTerrainRendererGL>> create(const Scene& scene, const ClipmapGL& clipmap);
+    /// `clipmap` layers: 0 = leaf-on, 1 = leaf-off. Keeps a reference to it and to `scene`. `elevation`: the DEM's
+    /// pyramid (null: a flat scene).
+    static Result<std::unique_ptr<ClipmapTerrainRendererGL>> create(const Scene& scene, const ClipmapGL& clipmap,
+                                                                    const ImagePyramid* elevation,
+                                                                    const GeometryClipmapOptions& options = {});
 
-    void render(const Camera& camera, const ImagerySettings& settings, const gl::RenderTarget& target) const;
+    /// Places the geometry levels around the camera and streams their elevation (within the budget).
+    ClipmapFrameStats updateGeometry(const Camera& camera, int viewportHeight);
+    /// Waits for the elevation blocks of the current placement (stills).
+    ClipmapFrameStats completeGeometry();
+
+    GeometryFrameStats render(const Camera& camera, const ImagerySettings& settings, const gl::RenderTarget& target) const;
 
     /// Renders the level-statistics pass into `scratch` (same size as the frame) and reduces it.
     FrameLevelStats measureLevels(const Camera& camera, const gl::RenderTarget& scratch) const;
 
-    std::int64_t triangles() const { return m_mesh->triangles(); }
+    /// Triangles drawn by the last frame (after culling).
+    std::int64_t triangles() const { return m_last.triangles; }
+    const GeometryClipmapGL& geometry() const { return *m_geometry; }
 
 private:
     ClipmapTerrainRendererGL(const ClipmapGL& clipmap) : m_clipmap(clipmap) {}
-    void draw(const gl::ShaderProgram& program, const Camera& camera, const gl::RenderTarget& target) const;
+    GeometryFrameStats draw(const gl::ShaderProgram& program, const Camera& camera, const gl::RenderTarget& target) const;
 
     const ClipmapGL& m_clipmap;
-    std::unique_ptr<TerrainMeshGL> m_mesh;
+    std::unique_ptr<GeometryClipmapGL> m_geometry;
+    mutable GeometryFrameStats m_last;
     gl::ShaderProgram m_program, m_statsProgram;
 };
 

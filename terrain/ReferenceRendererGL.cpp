@@ -83,7 +83,7 @@ void ReferenceRendererGL::render(const Camera& camera, Season season, const gl::
     beginTerrainPass(kBackgroundColor.r, kBackgroundColor.g, kBackgroundColor.b, kBackgroundColor.a);
     const double aspect = double(target.width()) / double(target.height());
     glm::dmat4 view = camera.viewMatrix();
-    const glm::mat4 viewProj = glm::mat4(camera.projectionMatrix(aspect, 0.05) * view);
+    const glm::mat4 viewProj = glm::mat4(camera.projectionMatrix(aspect, kNearPlane) * view);
     const SeasonTexture& st = m_seasons[season == Season::LeafOn ? 0 : 1];
     const TileLayout& L = st.layout;
     m_program.set("uViewProj", viewProj);

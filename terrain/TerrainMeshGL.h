@@ -20,6 +20,9 @@ private:
     GLsizei m_indexCount = 0;
 };
 
+/// Near plane distance of every terrain pass (metres); with reversed Z, depth = kNearPlane / eye depth.
+inline constexpr double kNearPlane = 0.05;
+
 /// Clears the bound framebuffer (colour to r,g,b,a; depth for reversed Z) and sets the depth state every terrain pass
 /// uses (glClipControl zero-to-one, GL_GREATER).
 void beginTerrainPass(float r, float g, float b, float a);

@@ -34,6 +34,17 @@ std::vector<std::uint8_t> RenderTarget::readRgba() const {
     return out;
 }
 
+std::vector<float> RenderTarget::readDepth() const {
+    const size_t row = size_t(m_width);
+    std::vector<float> gl(row * size_t(m_height)), out(gl.size());
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, m_fbo.id());
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glReadPixels(0, 0, m_width, m_height, GL_DEPTH_COMPONENT, GL_FLOAT, gl.data());
+    for (int y = 0; y < m_height; ++y)
+        std::memcpy(&out[size_t(y) * row], &gl[size_t(m_height - 1 - y) * row], row * sizeof(float));
+    return out;
+}
+
 void RenderTarget::blitToDefault(int windowWidth, int windowHeight) const {
     glBlitNamedFramebuffer(m_fbo.id(), 0, 0, 0, m_width, m_height, 0, 0, windowWidth, windowHeight,
                            GL_COLOR_BUFFER_BIT, GL_LINEAR);

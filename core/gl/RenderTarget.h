@@ -17,6 +17,8 @@ public:
     void bind() const;
     /// RGBA8 pixels, row 0 = top of the image (GL's bottom-up rows flipped).
     std::vector<std::uint8_t> readRgba() const;
+    /// Depth-buffer values (reversed Z: 0 = infinitely far / nothing drawn), row 0 = top.
+    std::vector<float> readDepth() const;
     /// Copies the colour buffer to the default framebuffer of a window of the given size.
     void blitToDefault(int windowWidth, int windowHeight) const;
     GLuint framebuffer() const { return m_fbo.id(); }

@@ -1,0 +1,223 @@
+#include "GeometryClipmapGL.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <string>
+
+namespace seasonview {
+
+namespace {
+constexpr int kLookupSize = 129; // local -> image lattice, per side
+constexpr int kMaxElevationLevels = 24;
+} // namespace
+
+Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene& scene, const ElevationGrid& grid,
+                                                                     const ImagePyramid* elevation,
+                                                                     const GeometryClipmapOptions& options) {
+    assert(options.n >= 7 && ((options.n + 1) & options.n) == 0 && "GeometryClipmapGL: n must be 2^k - 1");
+    auto g = std::unique_ptr<GeometryClipmapGL>(new GeometryClipmapGL());
+    g->m_scene = &scene;
+    g->m_grid = grid;
+    g->m_options = options;
+    g->m_ring = RingLayout::make(options.n);
+    g->m_levels = geometryLevelCount(options.n, std::max(grid.width, grid.height));
+    if (scene.elevation) {
+        g->m_minHeight = scene.elevation->minHeight;
+        g->m_maxHeight = scene.elevation->maxHeight;
+    }
+    if (elevation) {
+        if (elevation->format != TexelFormat::R32F || elevation->width() != grid.width ||
+            elevation->height() != grid.height)
+            return fileError(elevation->folder.string(), "elevation pyramid does not match the scene's elevation grid");
+        if (elevation->levels.size() > size_t(kMaxElevationLevels))
+            return fileError(elevation->folder.string(), "elevation pyramid has too many levels");
+        ClipmapOptions co;
+        co.size = std::max(256, options.elevationClipSize);
+        co.uploadBudgetTexels = options.uploadBudgetTexels;
+        co.cacheMegabytes = 64;
+        auto clip = ClipmapGL::create({*elevation}, co);
+        if (!clip) return clip.error();
+        g->m_elevation = std::move(*clip);
+        for (const PyramidLevel& l : elevation->levels) g->m_elevationLevelSizes.emplace_back(l.width, l.height);
+    }
+
+    // Local -> leaf-on image coordinates on a lattice reaching 1/8 of the extent past the imagery, so every
+    // triangle touching the imagery interpolates between exact values (affine for UTM scenes, smooth otherwise).
+    const glm::dvec2 extent = scene.localMax - scene.localMin;
+    g->m_lookupMin = scene.localMin - extent / 8.0;
+    g->m_lookupSize = extent * 1.25;
+    std::vector<float> uv(size_t(kLookupSize) * kLookupSize * 2);
+    const glm::dvec2 image(scene.leafon.info.width, scene.leafon.info.height);
+    for (int j = 0; j < kLookupSize; ++j)
+        for (int i = 0; i < kLookupSize; ++i) {
+            const glm::dvec2 local = g->m_lookupMin + g->m_lookupSize * glm::dvec2(i, j) / double(kLookupSize - 1);
+            const glm::dvec2 px = scene.localToImagePixel(local) / image;
+            uv[(size_t(j) * kLookupSize + size_t(i)) * 2] = float(px.x);
+            uv[(size_t(j) * kLookupSize + size_t(i)) * 2 + 1] = float(px.y);
+        }
+    g->m_localToImage = gl::Texture::create(GL_TEXTURE_2D);
+    glTextureStorage2D(g->m_localToImage.id(), 1, GL_RG32F, kLookupSize, kLookupSize);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glTextureSubImage2D(g->m_localToImage.id(), 0, 0, 0, kLookupSize, kLookupSize, GL_RG, GL_FLOAT, uv.data());
+    glTextureParameteri(g->m_localToImage.id(), GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTextureParameteri(g->m_localToImage.id(), GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTextureParameteri(g->m_localToImage.id(), GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTextureParameteri(g->m_localToImage.id(), GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+
+    // The outer edge: per side (n - 1) / 2 zero-area triangles (even, odd, even vertex), in the level's cells.
+    const int n = options.n;
+    std::vector<float> ev;
+    std::vector<std::uint32_t> ei;
+    auto vtx = [&](int x, int y) {
+        ev.push_back(float(x));
+        ev.push_back(float(y));
+        return std::uint32_t(ev.size() / 2 - 1);
+    };
+    for (int k = 0; k + 2 < n; k += 2) {
+        for (auto [ax, ay, bx, by, cx, cy] : {std::array<int, 6>{k, 0, k + 1, 0, k + 2, 0},
+                                              std::array<int, 6>{k, n - 1, k + 1, n - 1, k + 2, n - 1},
+                                              std::array<int, 6>{0, k, 0, k + 1, 0, k + 2},
+                                              std::array<int, 6>{n - 1, k, n - 1, k + 1, n - 1, k + 2}}) {
+            ei.push_back(vtx(ax, ay));
+            ei.push_back(vtx(bx, by));
+            ei.push_back(vtx(cx, cy));
+        }
+    }
+    auto upload = [](Mesh& m, const std::vector<float>& v, const std::vector<std::uint32_t>& idx) {
+        m.vertices = gl::Buffer::create();
+        m.indices = gl::Buffer::create();
+        m.vao = gl::VertexArray::create();
+        glNamedBufferStorage(m.vertices.id(), GLsizeiptr(v.size() * sizeof(float)), v.data(), 0);
+        glNamedBufferStorage(m.indices.id(), GLsizeiptr(idx.size() * sizeof(std::uint32_t)), idx.data(), 0);
+        m.indexCount = GLsizei(idx.size());
+        glVertexArrayVertexBuffer(m.vao.id(), 0, m.vertices.id(), 0, 2 * sizeof(float));
+        glVertexArrayElementBuffer(m.vao.id(), m.indices.id());
+        glEnableVertexArrayAttrib(m.vao.id(), 0);
+        glVertexArrayAttribFormat(m.vao.id(), 0, 2, GL_FLOAT, GL_FALSE, 0);
+        glVertexArrayAttribBinding(m.vao.id(), 0, 0);
+    };
+    upload(g->m_edge, ev, ei);
+    // One mesh per piece shape (blocks, fix-ups, trims, the finest level's cross), made up front.
+    GeometryPlacement probe = placeGeometryLevels(glm::dvec2(0.0), n, 2, 0);
+    for (TrimSide tx : {TrimSide::Low, TrimSide::High})
+        for (TrimSide ty : {TrimSide::Low, TrimSide::High}) {
+            probe.levels[1].trimX = tx;
+            probe.levels[1].trimY = ty;
+            for (int level : {0, 1})
+                for (const GridRect& r : levelPieces(g->m_ring, probe, level)) {
+                    const auto key = std::make_pair(r.cellsX(), r.cellsY());
+                    if (g->m_meshes.count(key)) continue;
+                    std::vector<float> v;
+                    std::vector<std::uint32_t> idx;
+                    const int w = r.cellsX() + 1;
+                    for (int y = 0; y <= r.cellsY(); ++y)
+                        for (int x = 0; x < w; ++x) {
+                            v.push_back(float(x));
+                            v.push_back(float(y));
+                        }
+                    for (int y = 0; y < r.cellsY(); ++y)
+                        for (int x = 0; x < r.cellsX(); ++x) {
+                            const std::uint32_t a = std::uint32_t(y * w + x), b = a + 1, c = a + std::uint32_t(w),
+                                                d = c + 1;
+                            // Diagonals alternate so the mesh is symmetric (no directional bias in relief).
+                            if ((x + y) % 2 == 0) idx.insert(idx.end(), {a, b, d, a, d, c});
+                            else idx.insert(idx.end(), {a, b, c, b, d, c});
+                        }
+                    upload(g->m_meshes[key], v, idx);
+                }
+        }
+    return g;
+}
+
+ClipmapFrameStats GeometryClipmapGL::update(const Camera& camera, int viewportHeight) {
+    const glm::dvec2 viewer = m_grid.sampleCoords({camera.position.x, camera.position.y});
+    const double above = camera.position.z - m_scene->terrainHeight(camera.position.x, camera.position.y);
+    const double pixelsPerRadian = double(viewportHeight) / (2.0 * std::tan(camera.fovYDeg * M_PI / 360.0));
+    const int finest = finestActiveLevel(m_levels, m_grid.spacing, above, pixelsPerRadian);
+    m_placement = placeGeometryLevels(viewer, m_options.n, m_levels, finest);
+    if (!m_elevation) return {};
+    const int clipLevels = m_elevation->schedule().layout().clipLevels();
+    std::vector<glm::dvec2> centres;
+    const double half = double(m_options.n - 1) / 2.0;
+    for (int l = 0; l < clipLevels; ++l) {
+        const GeometryLevel& g = m_placement.levels[size_t(std::min(l, m_levels - 1))];
+        centres.push_back(glm::dvec2(g.origin) + half * double(g.cell) + 0.5);
+    }
+    return m_elevation->update(centres);
+}
+
+ClipmapFrameStats GeometryClipmapGL::completeSynchronously() {
+    return m_elevation ? m_elevation->completeSynchronously() : ClipmapFrameStats{};
+}
+
+void GeometryClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit) const {
+    program.set("uHasElevation", m_elevation ? 1 : 0);
+    if (m_elevation) {
+        m_elevation->bind(program, firstUnit, "uElev");
+        program.set("uElevLevels", int(m_elevationLevelSizes.size()));
+        for (size_t k = 0; k < m_elevationLevelSizes.size(); ++k)
+            program.set(("uElevLevelSize[" + std::to_string(k) + "]").c_str(), glm::vec2(m_elevationLevelSizes[k]));
+    }
+    glBindTextureUnit(GLuint(firstUnit + 4), m_localToImage.id());
+    program.set("uLocalToImage", firstUnit + 4);
+    program.set("uLookupMin", glm::vec2(m_lookupMin));
+    program.set("uLookupSize", glm::vec2(m_lookupSize));
+    program.set("uLookupTexels", float(kLookupSize));
+    program.set("uGridOrigin", glm::vec2(m_grid.origin));
+    program.set("uGridSpacing", float(m_grid.spacing));
+    program.set("uHalfCells", float(m_options.n - 1) / 2.0f);
+    program.set("uTransitionWidth", float(std::max(2, m_options.n / 10)));
+}
+
+void GeometryClipmapGL::drawMesh(const Mesh& mesh) const {
+    glBindVertexArray(mesh.vao.id());
+    glDrawElements(GL_TRIANGLES, mesh.indexCount, GL_UNSIGNED_INT, nullptr);
+}
+
+GeometryFrameStats GeometryClipmapGL::draw(const gl::ShaderProgram& program, const glm::dmat4& viewProj) const {
+    GeometryFrameStats st;
+    const FrustumPlanes frustum = FrustumPlanes::fromViewProj(viewProj);
+    const double s = m_grid.spacing;
+    const double zlo = double(m_minHeight) - 1.0, zhi = double(m_maxHeight) + 1.0;
+    const double half = double(m_options.n - 1) / 2.0;
+    for (int l = m_placement.finest; l < m_levels; ++l) {
+        const GeometryLevel& g = m_placement.levels[size_t(l)];
+        program.set("uLevel", l);
+        program.set("uLevelOrigin", glm::vec2(g.origin));
+        program.set("uCell", float(g.cell));
+        program.set("uLevelCentre", glm::vec2(glm::dvec2(g.origin) + half * double(g.cell)));
+        program.set("uBlendToCoarser", m_options.stitchLevels && l + 1 < m_levels ? 1 : 0);
+        bool any = false;
+        auto visible = [&](int x0, int y0, int x1, int y1) {
+            // Sample coordinates -> local box (j runs south).
+            const glm::dvec2 a = m_grid.samplePosition(double(g.origin.x + x0 * g.cell), double(g.origin.y + y1 * g.cell));
+            const glm::dvec2 b = m_grid.samplePosition(double(g.origin.x + x1 * g.cell), double(g.origin.y + y0 * g.cell));
+            return !frustum.outside({a.x - s, a.y - s, zlo}, {b.x + s, b.y + s, zhi});
+        };
+        for (const GridRect& r : levelPieces(m_ring, m_placement, l)) {
+            if (!visible(r.x0, r.y0, r.x1, r.y1)) {
+                ++st.piecesCulled;
+                continue;
+            }
+            const auto it = m_meshes.find({r.cellsX(), r.cellsY()});
+            assert(it != m_meshes.end() && "GeometryClipmapGL: piece shape without a mesh");
+            program.set("uPieceOffset", glm::vec2(float(r.x0), float(r.y0)));
+            drawMesh(it->second);
+            st.triangles += it->second.indexCount / 3;
+            ++st.drawCalls;
+            any = true;
+        }
+        if (m_options.stitchLevels && l + 1 < m_levels && visible(0, 0, m_options.n - 1, m_options.n - 1)) {
+            program.set("uPieceOffset", glm::vec2(0.0f));
+            drawMesh(m_edge);
+            st.triangles += m_edge.indexCount / 3;
+            ++st.drawCalls;
+        }
+        st.levelsDrawn += any ? 1 : 0;
+    }
+    glBindVertexArray(0);
+    return st;
+}
+
+} // namespace seasonview

@@ -1,0 +1,88 @@
+#pragma once
+// GPU geometry clipmaps (Asirvatham & Hoppe 2005, GPU Gems 2 ch. 2): nested rings of n×n vertices around the
+// viewer, drawn from a few static vertex/index buffers (one per piece shape: m×m block, fix-ups, trims, the outer
+// edge's degenerate triangles), heights fetched in the vertex shader from an elevation clipmap (an R32F ClipmapGL
+// streamed from the DEM's pyramid like the imagery), transition regions blending heights and normals towards the
+// coarser level, per-piece view-frustum culling. Triangles drawn do not depend on the DEM's size.
+#include "Camera.h"
+#include "ClipmapGL.h"
+#include "ElevationPyramid.h"
+#include "GeometryClipmap.h"
+#include "Scene.h"
+#include "gl/GlObjects.h"
+#include "gl/ShaderProgram.h"
+
+#include <glm/mat4x4.hpp>
+
+#include <map>
+#include <memory>
+#include <utility>
+
+namespace seasonview {
+
+struct GeometryClipmapOptions {
+    int n = 255;                             // vertices per level side, 2^k − 1
+    int elevationClipSize = 512;             // texels per toroidal elevation level (>= n + 2 block margins)
+    std::int64_t uploadBudgetTexels = 1 << 18; // elevation texels per frame
+    // false: no transition blending and no edge triangles between levels, for showing the cracks they close
+    // (tests); never for rendering.
+    bool stitchLevels = true;
+};
+
+struct GeometryFrameStats {
+    std::int64_t triangles = 0; // drawn this frame (after culling), degenerate ones included
+    int drawCalls = 0;
+    int piecesCulled = 0;
+    int levelsDrawn = 0;
+};
+
+class GeometryClipmapGL {
+public:
+    /// `elevation`: the DEM's pyramid (prepareElevation...), or null for a flat scene. Needs a GL 4.5 context.
+    static Result<std::unique_ptr<GeometryClipmapGL>> create(const Scene& scene, const ElevationGrid& grid,
+                                                             const ImagePyramid* elevation,
+                                                             const GeometryClipmapOptions& options = {});
+
+    /// Places the levels around the camera and moves the elevation clipmap with them (uploads within budget).
+    ClipmapFrameStats update(const Camera& camera, int viewportHeight);
+    /// Waits for every elevation block the current placement needs (stills, tests).
+    ClipmapFrameStats completeSynchronously();
+
+    /// Binds the elevation clipmap (units firstUnit .. firstUnit + 3) and the local->image lookup
+    /// (firstUnit + 4) and sets the uniforms of terrain_geometry.vert.
+    void bind(const gl::ShaderProgram& program, int firstUnit) const;
+    /// Draws the pieces inside the frustum with `program` (bound by the caller, bind() called).
+    GeometryFrameStats draw(const gl::ShaderProgram& program, const glm::dmat4& viewProj) const;
+
+    const GeometryPlacement& placement() const { return m_placement; }
+    int levelCount() const { return m_levels; }
+    const ElevationGrid& grid() const { return m_grid; }
+    std::int64_t residentBytes() const { return m_elevation ? m_elevation->residentBytes() : 0; }
+    std::int64_t totalTexelsUploaded() const { return m_elevation ? m_elevation->totalTexelsUploaded() : 0; }
+
+private:
+    struct Mesh {
+        gl::Buffer vertices, indices;
+        gl::VertexArray vao;
+        GLsizei indexCount = 0;
+    };
+    GeometryClipmapGL() = default;
+    const Mesh& meshFor(int cellsX, int cellsY);
+    void drawMesh(const Mesh& mesh) const;
+
+    const Scene* m_scene = nullptr;
+    ElevationGrid m_grid;
+    GeometryClipmapOptions m_options;
+    RingLayout m_ring;
+    int m_levels = 1;
+    float m_minHeight = 0, m_maxHeight = 0;
+    std::unique_ptr<ClipmapGL> m_elevation;
+    std::vector<glm::ivec2> m_elevationLevelSizes;
+    std::map<std::pair<int, int>, Mesh> m_meshes;
+    Mesh m_edge; // degenerate triangles along a level's outer edge
+    gl::Texture m_localToImage;
+    glm::dvec2 m_lookupMin{0.0}, m_lookupSize{1.0};
+    GeometryPlacement m_placement;
+};
+
+} // namespace seasonview
