@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
     add(seasonview::app::addDemoCommand);
     add(seasonview::app::addPrepareCommand);
     add(seasonview::app::addBenchCommand);
+    add(seasonview::app::addSegmentCommand);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

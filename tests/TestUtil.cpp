@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdlib>
@@ -75,6 +76,64 @@ Result<Scene> writeTestPair(const std::filesystem::path& dir, int w, int h, doub
     s.leafon = dir / "on.tif";
     s.leafoff = dir / "off.tif";
     return loadScene(s, dir / "cache");
+}
+
+TreePair makeTreePair(int w, int h, int seed) {
+    TreePair p;
+    for (Image<std::uint8_t>* img : {&p.on, &p.off, &p.truth}) {
+        img->width = w;
+        img->height = h;
+        img->channels = img == &p.truth ? 1 : 3;
+        img->pixels.assign(size_t(w) * size_t(h) * size_t(img->channels), 0);
+    }
+    // Deterministic per-pixel noise in [-1, 1].
+    auto noise = [seed](int x, int y, int salt) {
+        std::uint32_t v =
+            std::uint32_t(x) * 73856093u ^ std::uint32_t(y) * 19349663u ^ std::uint32_t(seed + salt) * 83492791u;
+        v ^= v >> 13;
+        v *= 0x5bd1e995u;
+        v ^= v >> 15;
+        return double(v & 0xFFFF) / 32767.5 - 1.0;
+    };
+    const int cropX = w * 2 / 3;
+    const double r0 = std::max(3.0, std::min(h / 9.0, cropX / 12.0)); // crowns keep clear of the crop field
+    for (int i = 0; i < 3; ++i) {
+        const double r = r0 * (1.0 + 0.25 * i);
+        p.crowns.push_back({(i + 0.5) * cropX / 3.0 + 0.5, h * (0.3 + 0.2 * i) + 0.5, r});
+    }
+    auto put = [](Image<std::uint8_t>& img, int x, int y, double r, double g, double b) {
+        const double c[3] = {r, g, b};
+        for (int k = 0; k < 3; ++k) img.at(x, y, k) = std::uint8_t(std::clamp(c[k] + 0.5, 0.0, 255.0));
+    };
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const double n = noise(x, y, 1), m = noise(x, y, 2);
+            if (x >= cropX) { // crop: smooth green in summer, bare soil in winter
+                put(p.on, x, y, 55 * (1 + 0.01 * n), 120 * (1 + 0.01 * n), 40 * (1 + 0.01 * n));
+                put(p.off, x, y, 120 * (1 + 0.01 * m), 95 * (1 + 0.01 * m), 75 * (1 + 0.01 * m));
+                continue;
+            }
+            bool crown = false;
+            double shade = 1.0;
+            for (const auto& c : p.crowns) {
+                const double dx = x + 0.5 - c[0], dy = y + 0.5 - c[1];
+                if (dx * dx + dy * dy <= c[2] * c[2]) {
+                    crown = true;
+                    shade = 1.0 + 0.35 * (-dx - dy) / (2.0 * c[2]); // lit from the top left
+                }
+            }
+            if (crown) {
+                p.truth.at(x, y) = 255;
+                const double t = shade * (1.0 + 0.25 * n);
+                put(p.on, x, y, 60 * t, 110 * t, 40 * t);
+                const double u = 1.0 + 0.2 * m;
+                put(p.off, x, y, 100 * u, 92 * u, 85 * u);
+            } else { // meadow: green in both seasons
+                put(p.on, x, y, 70 * (1 + 0.03 * n), 100 * (1 + 0.03 * n), 50 * (1 + 0.03 * n));
+                put(p.off, x, y, 72 * (1 + 0.03 * m), 98 * (1 + 0.03 * m), 52 * (1 + 0.03 * m));
+            }
+        }
+    return p;
 }
 
 gl::GlContext* headlessContext() {

@@ -5,6 +5,7 @@
 #include "Scene.h"
 #include "gl/GlContext.h"
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -43,6 +44,17 @@ void writeTestImage(const std::filesystem::path& path, int w, int h, const Geore
 /// Writes on.tif and off.tif (w×h, `gsd` m/px, UTM 32N, seeds 1 and 2) into `dir` and loads them as a flat scene
 /// (stretch cache in dir/cache).
 Result<Scene> writeTestPair(const std::filesystem::path& dir, int w, int h, double gsd, bool sixteenBit = false);
+
+/// A hand-made season pair (8-bit RGB, row 0 on top) with its ground truth, for the segmentation tests. Leaf-on:
+/// textured green crowns (lit and shaded sides, leaf clumps) on a meadow, and on the right a smooth crop field;
+/// leaf-off: the crowns are grey-brown twigs, the meadow is still green, the crop field is bare brown soil (a
+/// seasonal change that is no tree). `truth` is 255 on the crowns; `crowns` holds (centre x, centre y, radius) in
+/// pixels, centres at pixel centres (x + 0.5).
+struct TreePair {
+    Image<std::uint8_t> on, off, truth;
+    std::vector<std::array<double, 3>> crowns;
+};
+TreePair makeTreePair(int w, int h, int seed = 0);
 
 /// The process's headless GL context, made current (nullptr, with a test failure, when EGL is unusable).
 gl::GlContext* headlessContext();

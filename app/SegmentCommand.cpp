@@ -1,0 +1,192 @@
+// `seasonview segment`: the offline (CPU) deciduous-treetop segmentation of a season pair and its quality check
+// against ground truth (foliage/SegmentFiles.h).
+#include "AtomicFile.h"
+#include "Commands.h"
+#include "RenderJob.h"
+#include "SegmentFiles.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <thread>
+
+namespace seasonview::app {
+
+namespace {
+
+struct SegmentArgs {
+    std::string manifest, leafon, leafoff, cache;
+    std::string method = "default";
+    int k = kSegDefaultK;
+    std::string truth, truthTrees, out, metrics, overlay, trees;
+    int bandRows = 256;
+};
+
+// Below this many pixels no progress bar: it would only flicker.
+constexpr double kProgressPixels = 4096.0 * 4096.0;
+
+Status checkTextOutput(const std::filesystem::path& out) {
+    std::error_code ec;
+    const std::filesystem::path dir = out.parent_path();
+    if (!dir.empty() && !std::filesystem::is_directory(dir, ec))
+        return fileError(out.string(), "output folder " + dir.string() + " does not exist");
+    if (std::filesystem::is_directory(out, ec)) return fileError(out.string(), "is a folder, not a file name");
+    return Ok{};
+}
+
+nlohmann::ordered_json metricsJson(const SegmentArgs& a, const Scene& scene, const SegmentJob& job,
+                                   const SegmentReport& r) {
+    using nlohmann::ordered_json;
+    const double pixels = double(r.width) * double(r.height);
+    auto perSecond = [&](double s) { return s > 0.0 ? ordered_json(pixels / 1e6 / s) : ordered_json(nullptr); };
+    auto orNull = [](bool has, double v) { return has ? ordered_json(v) : ordered_json(nullptr); };
+    const bool t = r.confusion.has_value();
+    const Confusion c = r.confusion.value_or(Confusion{});
+    ordered_json j;
+    j["method"] = std::string(segmentationMethodName(job.params.method));
+    j["k"] = effectiveK(job.params);
+    j["leafon"] = scene.leafon.info.path.string();
+    j["leafoff"] = scene.leafoff.info.path.string();
+    j["truth"] = job.truth.empty() ? ordered_json(nullptr) : ordered_json(job.truth.string());
+    j["width"] = r.width;
+    j["height"] = r.height;
+    j["pixels"] = std::uint64_t(r.width) * std::uint64_t(r.height);
+    j["precision"] = orNull(t, c.precision());
+    j["recall"] = orNull(t, c.recall());
+    j["f1"] = orNull(t, c.f1());
+    j["iou"] = orNull(t, c.iou());
+    auto count = [t](std::uint64_t v) { return t ? ordered_json(v) : ordered_json(nullptr); };
+    j["tp"] = count(c.tp);
+    j["fp"] = count(c.fp);
+    j["fn"] = count(c.fn);
+    j["tn"] = count(c.tn);
+    if (job.params.method == SegmentationMethod::Default)
+        j["drop_threshold"] = double(r.stats.dropThreshold) / kSegDropScale;
+    j["seconds"] = r.segmentSeconds;
+    j["megapixels_per_second"] = perSecond(r.segmentSeconds);
+    j["total_seconds"] = r.totalSeconds;
+    j["total_megapixels_per_second"] = perSecond(r.totalSeconds);
+    j["read_seconds"] = r.readSeconds;
+    j["write_seconds"] = r.writeSeconds;
+    j["crown_seconds"] = r.crownSeconds;
+    j["threads"] = std::max(1u, std::thread::hardware_concurrency());
+    j["band_rows"] = a.bandRows;
+    j["crowns"] = r.crowns;
+    if (r.centres) {
+        j["truth_trees"] = job.truthTrees.string();
+        j["trees_truth"] = r.centres->truth;
+        j["centres_matched"] = r.centres->matched;
+        j["centres_precision"] = r.centres->precision();
+        j["centres_recall"] = r.centres->recall();
+    }
+    return j;
+}
+
+} // namespace
+
+Runner addSegmentCommand(CLI::App& app) {
+    auto args = std::make_shared<SegmentArgs>();
+    CLI::App* cmd = app.add_subcommand(
+        "segment", "Segment deciduous treetops from the seasons (CPU) and check them against ground truth");
+    cmd->add_option("scene", args->manifest,
+                    "Scene manifest (scene.json; its truth.deciduous and truth.trees are used unless --truth is "
+                    "given); or give --leafon/--leafoff");
+    cmd->add_option("--leafon", args->leafon, "Leaf-on (summer) GeoTIFF, 8- or 16-bit RGB");
+    cmd->add_option("--leafoff", args->leafoff, "Leaf-off (winter) GeoTIFF on the same grid");
+    cmd->add_option("--method", args->method, "pixel | neighborhood | equalized | default")->capture_default_str();
+    cmd->add_option("--k", args->k, "Neighbourhood size (odd, 1.." + std::to_string(kSegMaxK) + "; pixel ignores it)")
+        ->capture_default_str();
+    cmd->add_option("--truth", args->truth, "Truth mask on the imagery grid (non-zero = deciduous treetop)");
+    cmd->add_option("--truth-trees", args->truthTrees,
+                    "True trees CSV (x, y, radius_m[, type]); default: trees.csv next to --truth when present");
+    cmd->add_option("--out", args->out, "Mask image to write (.png or .tif; 255 = treetop)")->required();
+    cmd->add_option("--metrics", args->metrics, "Metrics JSON: precision, recall, f1, iou, pixels, seconds, ...");
+    cmd->add_option("--overlay", args->overlay,
+                    "Leaf-on with the result drawn over it: yellow true positive (or detected), magenta false "
+                    "positive, blue false negative");
+    cmd->add_option("--trees", args->trees, "Crown centres CSV to write: id,x,y,easting,northing,radius_m");
+    cmd->add_option("--band-rows", args->bandRows,
+                    "Rows segmented at a time (memory; the output does not depend on it)")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 20));
+    cmd->add_option("--cache", args->cache, "Cache folder for the 16-bit stretch (default $SEASONVIEW_CACHE or "
+                                            "~/.cache/seasonview)");
+    return [args]() -> int {
+        auto fail = [](const std::string& m) {
+            std::fprintf(stderr, "seasonview segment: %s\n", m.c_str());
+            return 1;
+        };
+        const auto method = parseSegmentationMethod(args->method);
+        if (!method) return fail("--method '" + args->method + "': expected pixel, neighborhood, equalized or default");
+        if (args->k < 1 || args->k > kSegMaxK || args->k % 2 == 0)
+            return fail("--k " + std::to_string(args->k) + ": must be odd, 1.." + std::to_string(kSegMaxK));
+
+        SceneSources src;
+        if (!args->manifest.empty()) {
+            if (!args->leafon.empty() || !args->leafoff.empty())
+                return fail("scene: give either a manifest or --leafon/--leafoff, not both");
+            auto parsed = parseManifest(args->manifest);
+            if (!parsed) return fail(parsed.message());
+            src = std::move(*parsed);
+        } else {
+            if (args->leafon.empty() || args->leafoff.empty())
+                return fail("scene: give a manifest (scene.json) or both --leafon and --leafoff");
+            src.leafon = args->leafon;
+            src.leafoff = args->leafoff;
+        }
+        src.elevation.clear(); // segmentation needs no DEM: do not load one
+
+        SegmentJob job;
+        job.params = {*method, args->k};
+        job.mask = args->out;
+        job.overlay = args->overlay;
+        job.trees = args->trees;
+        job.bandRows = args->bandRows;
+        job.truth = !args->truth.empty() ? std::filesystem::path(args->truth) : src.truthDeciduous;
+        if (!args->truthTrees.empty()) job.truthTrees = args->truthTrees;
+        else if (!args->truth.empty()) {
+            const std::filesystem::path next = std::filesystem::path(args->truth).parent_path() / "trees.csv";
+            std::error_code ec;
+            if (std::filesystem::is_regular_file(next, ec)) job.truthTrees = next;
+        } else job.truthTrees = src.truthTrees;
+
+        for (const std::string* image : {&args->out, &args->overlay})
+            if (!image->empty())
+                if (auto st = checkImageOutput(*image); !st) return fail(st.message());
+        for (const std::string* text : {&args->metrics, &args->trees})
+            if (!text->empty())
+                if (auto st = checkTextOutput(*text); !st) return fail(st.message());
+
+        auto scene = loadScene(src, args->cache.empty() ? defaultCacheDir() : std::filesystem::path(args->cache));
+        if (!scene) return fail(scene.message());
+        printSceneNotes(*scene);
+        if (double(scene->leafon.info.width) * scene->leafon.info.height >= kProgressPixels)
+            job.progress = terminalProgress("segment");
+
+        auto report = segmentScene(*scene, job);
+        if (!report) return fail(report.message());
+        if (!args->metrics.empty()) {
+            std::string err;
+            if (!writeTextAtomic(args->metrics, metricsJson(*args, *scene, job, *report).dump(2) + "\n", err))
+                return fail(fileError(args->metrics, err).message);
+        }
+        const SegmentReport& r = *report;
+        const double mp = double(r.width) * r.height / 1e6;
+        std::printf("wrote %s: %dx%d, %s (k %d)", args->out.c_str(), r.width, r.height,
+                    std::string(segmentationMethodName(job.params.method)).c_str(), effectiveK(job.params));
+        if (r.confusion)
+            std::printf(", precision %.3f recall %.3f F1 %.3f IoU %.3f", r.confusion->precision(),
+                        r.confusion->recall(), r.confusion->f1(), r.confusion->iou());
+        if (r.centres)
+            std::printf(", centres precision %.3f recall %.3f (%d crowns, %d trees)", r.centres->precision(),
+                        r.centres->recall(), r.centres->detected, r.centres->truth);
+        std::printf("; segmentation %.3f s (%.0f MP/s), total %.2f s (%.0f MP/s)\n", r.segmentSeconds,
+                    r.segmentSeconds > 0.0 ? mp / r.segmentSeconds : 0.0, r.totalSeconds,
+                    r.totalSeconds > 0.0 ? mp / r.totalSeconds : 0.0);
+        return 0;
+    };
+}
+
+} // namespace seasonview::app

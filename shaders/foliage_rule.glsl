@@ -1,0 +1,39 @@
+// The seasonal treetop rule per texel, the GPU copy of foliage/SegmentationRule.h: the same constants (checked by
+// SegmentationRuleTest, which parses the `const int SV_SEG_*` lines below) and the same integer arithmetic, on 8-bit
+// colour (ivec3 0..255, after the stretch and, for `equalized`, the equalisation table). FoliageRuleGLTest runs
+// these functions on the GPU against the C++ ones. Texels outside the image come from clamp-to-edge fetches.
+
+const int SV_SEG_DEFAULT_K = 5;
+const int SV_SEG_MAX_K = 15;
+const int SV_SEG_DROP_SCALE = 256;
+const int SV_SEG_DROP_BINS = 512;
+const int SV_SEG_MIN_DROP = 13;
+const int SV_SEG_TEXTURE_PREFILTER = 3;
+const int SV_SEG_TEXTURE_WINDOW = 5;
+const int SV_SEG_TEXTURE_NUM = 9;
+const int SV_SEG_TEXTURE_DEN = 10000;
+const int SV_SEG_TEXTURE_HALO = 3; // SV_SEG_TEXTURE_PREFILTER / 2 + SV_SEG_TEXTURE_WINDOW / 2
+
+// maxchannel(c) = g (Ropinski et al. 2007 §4.1): green strictly brighter than red and blue.
+bool svGreenIsMax(ivec3 c) { return c.g > c.r && c.g > c.b; }
+
+// More than half of the k×k votes (§4.1: |{...}| > k²/2).
+bool svIsMajority(int count, int k) { return 2 * count > k * k; }
+
+int svExgNumerator(ivec3 c) { return 2 * c.g - c.r - c.b; }
+int svExgDenominator(ivec3 c) { return c.r + c.g + c.b + 1; }
+
+// ExG(on) - ExG(off) >= t / SV_SEG_DROP_SCALE, exact in 32-bit integers.
+bool svDropAtLeast(ivec3 on, ivec3 off, int t) {
+    int dOn = svExgDenominator(on), dOff = svExgDenominator(off);
+    int num = svExgNumerator(on) * dOff - svExgNumerator(off) * dOn;
+    return SV_SEG_DROP_SCALE * num >= t * dOn * dOff;
+}
+
+// Standard deviation of n smoothed brightness values > 0.03 × their mean: DEN (n sumSq - sum²) > NUM sum², rearranged
+// as on the CPU; exact in double (every product an integer below 2^53).
+bool svTextured(double n, double sum, double sumSq) {
+    return double(SV_SEG_TEXTURE_DEN) * n * sumSq > double(SV_SEG_TEXTURE_DEN + SV_SEG_TEXTURE_NUM) * sum * sum;
+}
+
+bool svDefaultTexel(bool dropAboveThreshold, bool isTextured) { return dropAboveThreshold && isTextured; }
