@@ -190,6 +190,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     ClipmapOptions co;
     co.size = a->clipSize;
     co.uploadBudgetTexels = a->uploadBudget;
+    co.minClipLevels = std::clamp(a->clipLevels, 0, 16);
     for (Mode& m : *modes) {
         if (m.renderer == RendererKind::Reference) {
             ReferenceOptions ro;
@@ -232,7 +233,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         glBeginQuery(GL_TIME_ELAPSED, timer.id());
         imagery.anisotropy = m.anisotropy;
         if (m.clipmap)
-            m.clipRenderer->render(cam, imagery, target);
+            row.drawCalls = m.clipRenderer->render(cam, imagery, target).drawCalls;
         else
             m.reference->render(cam, imagery.view == ImageryView::LeafOff ? Season::LeafOff : Season::LeafOn, target);
         glEndQuery(GL_TIME_ELAPSED);
@@ -313,6 +314,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
           {"upload_budget_texels", a->uploadBudget},
           {"view", a->view},
           {"aniso", a->anisotropy},
+          {"clip_levels_min", a->clipLevels},
+          {"grid_size", a->gridSize},
           {"coverage_every", a->coverageEvery}}},
         {"wall_seconds", seconds}};
     nlohmann::json compare = nlohmann::json::array();

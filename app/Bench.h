@@ -19,7 +19,8 @@ struct BenchSettings {
     std::string renderer = "clipmap", centers = "footprint", view = "leafon";
     std::uint64_t seed = 1;
     float anisotropy = 8.0f;      // clipmap footprint filter / reference sampler (1 = isotropic)
-    int gridSize = 255;           // geometry clipmap n (vertices per level side, 2^k - 1)
+    int gridSize = 255;
+    int clipLevels = 0;           // toroidal levels allocated at least (ClipmapOptions::minClipLevels)           // geometry clipmap n (vertices per level side, 2^k - 1)
     std::int64_t uploadBudget = std::int64_t(1) << 20;
     std::filesystem::path cacheDir;
 };

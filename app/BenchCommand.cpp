@@ -30,10 +30,13 @@ Runner addBenchCommand(CLI::App& app) {
                     "Modes run interleaved over the same path: \"centers=" + placementNames() +
                         "\" (comma-separated), \"renderer=clipmap,reference\" or \"aniso=1,8,...\"");
     cmd->add_option("--aniso", a->b.anisotropy, "Maximum anisotropy 1..16 (1 = isotropic)")->capture_default_str();
+    cmd->add_option("--clip-levels", a->b.clipLevels, "Toroidal clipmap levels allocated at least (0 = as needed)")
+        ->check(CLI::Range(0, 16))
+        ->capture_default_str();
     cmd->add_option("--grid-size", a->b.gridSize, "Geometry clipmap n = 2^k - 1 (31..1023)")->capture_default_str();
     cmd->add_option("--renderer", a->b.renderer, "clipmap|reference")->capture_default_str();
     cmd->add_option("--centers", a->b.centers, "Clipmap level centres: " + placementNames())->capture_default_str();
-    cmd->add_option("--view", a->b.view, "leafon|leafoff|blend|swipe|lod|wireframe|levels")->capture_default_str();
+    cmd->add_option("--view", a->b.view, "leafon|leafoff|blend|swipe|lod|wireframe|levels|relief")->capture_default_str();
     cmd->add_option("--clip-size", a->b.clipSize, "Clipmap level size N (256..4096)")->capture_default_str();
     cmd->add_option("--upload-budget", a->b.uploadBudget, "Clipmap texels uploaded per frame and layer")
         ->capture_default_str();

@@ -13,7 +13,7 @@ struct RenderArgs {
     SceneArgs scene;
     std::string camera, size = "1280x720", view = "leafon", out, renderer = "clipmap", centers = "footprint", stats, accuracy;
     float blend = 0.5f, swipe = 0.5f, aniso = 8.0f, shade = 0.0f;
-    int clipSize = 2048, gridSize = 255;
+    int clipSize = 2048, gridSize = 255, clipLevels = 0;
     bool window = false;
 };
 } // namespace
@@ -27,7 +27,7 @@ Runner addRenderCommand(CLI::App& app) {
                     "terrain), yaw = heading in degrees (0 north, clockwise), pitch in degrees (-90 down), fov "
                     "vertical degrees (default 60). Default: straight down over the whole scene");
     cmd->add_option("--size", args->size, "Image size WxH")->capture_default_str();
-    cmd->add_option("--view", args->view, "What to show: leafon|leafoff|blend|swipe|lod|wireframe|levels")->capture_default_str();
+    cmd->add_option("--view", args->view, "What to show: leafon|leafoff|blend|swipe|lod|wireframe|levels|relief")->capture_default_str();
     cmd->add_option("--blend", args->blend, "blend view: 0 = leaf-on .. 1 = leaf-off")->capture_default_str();
     cmd->add_option("--swipe", args->swipe, "swipe view: fraction of the width showing leaf-on")->capture_default_str();
     cmd->add_option("--aniso", args->aniso,
@@ -50,6 +50,11 @@ Runner addRenderCommand(CLI::App& app) {
     cmd->add_option("--accuracy", args->accuracy,
                     "Also render the reference and write PSNR and geometric accuracy (mean depth difference in "
                     "screen pixels) to this JSON file");
+    cmd->add_option("--clip-levels", args->clipLevels,
+                    "Toroidal clipmap levels allocated at least (0 = as the image needs; fixed = same memory for "
+                    "every image)")
+        ->check(CLI::Range(0, 16))
+        ->capture_default_str();
     cmd->add_option("--stats", args->stats, "Write level statistics (coverage, uploads, memory) to this JSON file");
     cmd->add_option("--out", args->out, "Output image (.png or .tif)")->required();
     cmd->add_flag("--window", args->window, "Render through a hidden GLFW window instead of headless EGL");
@@ -80,6 +85,7 @@ Runner addRenderCommand(CLI::App& app) {
         if (args->clipSize < 256 || args->clipSize > 4096 || args->clipSize % 64 != 0)
             return fail("--clip-size " + std::to_string(args->clipSize) + ": expected 256..4096, a multiple of 64");
         settings.clipmap.size = args->clipSize;
+        settings.clipmap.minClipLevels = args->clipLevels;
         settings.windowed = args->window;
         settings.cacheDir = args->scene.cache.empty() ? defaultCacheDir() : std::filesystem::path(args->scene.cache);
         if (settings.renderer == RendererKind::Reference && view != ImageryView::LeafOn && view != ImageryView::LeafOff)

@@ -58,6 +58,9 @@ Runner addSynthCommand(CLI::App& app) {
     cmd->add_option("--seed", args->o.seed, "Random seed (same seed -> identical files)")->capture_default_str();
     cmd->add_option("--dem", args->dem, "Real DEM GeoTIFF: terrain is a crop around its centre instead of fBm");
     cmd->add_option("--threads", args->o.threads, "Worker threads (0 = all cores; output does not depend on it)");
+    cmd->add_option("--dem-spacing", args->o.demSpacing,
+                    "DEM sample spacing in metres (0 = max(1, 4 x gsd)); with --dem the real DEM is resampled to it")
+        ->capture_default_str();
     cmd->add_option("--band-rows", args->o.bandRows,
                     "Imagery rows generated at a time (0 = " + std::to_string(kDefaultSynthBandRows) +
                         "); memory grows with it, the output does not depend on it")

@@ -38,7 +38,7 @@ Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyra
     const bool heights = c->m_format == TexelFormat::R32F;
     const ClipmapLayout& L = c->m_schedule.layout();
     const int clipLevels = L.clipLevels();
-    const int arrayLayers = std::max(1, clipLevels);
+    const int arrayLayers = std::max({1, clipLevels, options.minClipLevels});
     const int slots = c->m_schedule.slotsPerSide();
 
     std::vector<std::vector<std::filesystem::path>> files;
@@ -183,7 +183,7 @@ void ClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit, const std:
 
 std::int64_t ClipmapGL::residentBytes() const {
     const ClipmapLayout& L = m_schedule.layout();
-    const std::int64_t arrayLayers = std::max(1, L.clipLevels());
+    const std::int64_t arrayLayers = std::max({1, L.clipLevels(), m_options.minClipLevels});
     const std::int64_t clip = std::int64_t(L.size) * L.size * 4 * arrayLayers;
     const std::int64_t coarse = m_format == TexelFormat::R32F
                                     ? std::int64_t(m_coarseSize.x) * m_coarseSize.y * 4 * m_coarseLevels

@@ -25,6 +25,10 @@ struct ClipmapOptions {
     int block = 64;                           // upload/validity block, texels
     std::int64_t uploadBudgetTexels = 1 << 20; // per frame (per layer): 4 MiB of RGBA8 per layer
     int cacheMegabytes = 256;                 // loader's OpenImageIO tile cache bound
+    // Toroidal levels allocated at least (0 = as many as the image needs: one per pyramid level wider than N). A
+    // fixed stack makes GPU memory identical for every image up to N · 2^levels; smaller images leave the extra
+    // layers unused.
+    int minClipLevels = 0;
 };
 
 struct ClipmapFrameStats {

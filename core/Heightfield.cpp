@@ -18,6 +18,18 @@ double Heightfield::sampleCrs(glm::dvec2 p) const {
     return a * (1 - fy) + b * fy;
 }
 
+double Heightfield::sampleCrsTriangulated(glm::dvec2 p) const {
+    const glm::dvec2 px = georef.crsToPixel(p) - 0.5; // pixel centres
+    const double x = std::clamp(px.x, 0.0, double(heights.width - 1));
+    const double y = std::clamp(px.y, 0.0, double(heights.height - 1));
+    const int x0 = std::min(int(x), heights.width - 1), y0 = std::min(int(y), heights.height - 1);
+    const int x1 = std::min(x0 + 1, heights.width - 1), y1 = std::min(y0 + 1, heights.height - 1);
+    const double fx = x - x0, fy = y - y0;
+    const double h00 = heights.at(x0, y0), h10 = heights.at(x1, y0), h01 = heights.at(x0, y1), h11 = heights.at(x1, y1);
+    if (fx + fy <= 1.0) return h00 + fx * (h10 - h00) + fy * (h01 - h00);
+    return h11 + (1.0 - fx) * (h01 - h11) + (1.0 - fy) * (h10 - h11);
+}
+
 int fillHoles(Image<float>& img) {
     const int w = img.width, h = img.height;
     int holes = 0;

@@ -18,6 +18,10 @@ struct Heightfield {
 
     /// Bilinear height at a point in the DEM's CRS (clamped to the grid's edge samples).
     double sampleCrs(glm::dvec2 p) const;
+    /// The height of the DEM's triangulated surface at a point in its CRS: each cell between four sample centres
+    /// split along its north-east to south-west diagonal, the surface the reference mesh draws
+    /// (terrain/ReferenceMesh.h). Clamped to the grid's edge samples.
+    double sampleCrsTriangulated(glm::dvec2 p) const;
     /// Bilinear height under a local-frame point (metres) of `frame`.
     double sampleLocal(const GeoFrame& frame, glm::dvec2 local) const {
         return sampleCrs(frame.fromLocal(georef.crs, local));

@@ -143,8 +143,13 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
     const int size = static_cast<int>(std::lround(pixels));
     const int threads = options.threads > 0 ? options.threads : std::max(1, int(std::thread::hardware_concurrency()));
     const double gsd = options.gsd, extent = double(size) * gsd;
-    // DEM spacing max(1 m, 4 gsd), adjusted to a whole number of samples covering exactly the imagery's extent.
-    const int demSamples = std::max(2, static_cast<int>(std::lround(extent / std::max(1.0, 4.0 * gsd))));
+    // DEM spacing --dem-spacing or max(1 m, 4 gsd), adjusted to a whole number of samples covering exactly the imagery's extent.
+    if (!(options.demSpacing >= 0.0) || !std::isfinite(options.demSpacing))
+        return Error{"synth: the DEM spacing must be a positive number of metres (or 0 for the default)"};
+    const double wantSpacing = options.demSpacing > 0.0 ? options.demSpacing : std::max(1.0, 4.0 * gsd);
+    if (extent / wantSpacing > 65536.0)
+        return Error{"synth: the DEM spacing gives more than 65536 samples per side"};
+    const int demSamples = std::max(2, static_cast<int>(std::lround(extent / wantSpacing)));
     const double demSpacing = extent / demSamples;
     const std::uint64_t seed = mixSeed(options.seed, 0x5EA50F5EEDull);
 

@@ -24,6 +24,8 @@ struct SynthOptions {
     double gsd = 0.25;                 // imagery ground sample distance, metres per pixel
     std::uint64_t seed = 1;
     std::filesystem::path dem;         // optional real DEM: a crop of the scene's extent around its centre
+    double demSpacing = 0.0;           // DEM sample spacing, metres (0 = max(1 m, 4 gsd)); a real DEM is resampled
+                                       // (bilinear) to it, so a fine spacing makes an upsampled DEM
     int threads = 0;                   // 0 = hardware concurrency; the output does not depend on it
     int bandRows = 0;                  // imagery rows generated at a time (0 = kDefaultSynthBandRows); memory grows
                                        // with it (~18 bytes per pixel of the band), the output does not depend on it

@@ -6,7 +6,7 @@ uniform sampler2DArray uClip0;
 uniform sampler2DArray uClip1;
 uniform sampler2D uCoarse0;
 uniform sampler2D uCoarse1;
-uniform int uView;       // ImageryView: 0 leafon, 1 leafoff, 2 blend, 3 swipe, 4 lod, 5 wireframe, 6 levels
+uniform int uView;       // ImageryView: 0 leafon, 1 leafoff, 2 blend, 3 swipe, 4 lod, 5 wireframe, 6 levels, 7 relief
 uniform int uWirePass;   // wireframe view, second pass: the lines in their level's colour
 uniform float uShade;    // 0..1: Lambert shading from the terrain's normals (0 = the orthophoto as it is)
 uniform vec3 uSunDir;
@@ -36,6 +36,11 @@ void main() {
     fragColor = vec4(needed / 255.0, float(min(used, 254)) / 255.0, 0.0, 1.0);
 #else
     vec3 c;
+    if (uView == 7) {
+        // Terrain only: grey Lambert shading, no imagery fetched.
+        fragColor = vec4(vec3(0.15 + 0.8 * max(dot(normalize(vNormal), uSunDir), 0.0)), 1.0);
+        return;
+    }
     if (uView == 0) {
         c = sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
     } else if (uView == 1) {

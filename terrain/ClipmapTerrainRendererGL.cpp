@@ -13,7 +13,7 @@ const float kLevelColors[8][3] = {{1.0f, 0.15f, 0.1f}, {0.1f, 0.85f, 0.2f}, {0.1
 
 namespace {
 constexpr ImageryView kViews[] = {ImageryView::LeafOn, ImageryView::LeafOff, ImageryView::Blend, ImageryView::Swipe,
-                                  ImageryView::Lod,    ImageryView::Wireframe, ImageryView::Levels};
+                                  ImageryView::Lod,    ImageryView::Wireframe, ImageryView::Levels, ImageryView::Relief};
 } // namespace
 
 const char* imageryViewName(ImageryView v) {
@@ -25,6 +25,7 @@ const char* imageryViewName(ImageryView v) {
     case ImageryView::Lod: return "lod";
     case ImageryView::Wireframe: return "wireframe";
     case ImageryView::Levels: return "levels";
+    case ImageryView::Relief: return "relief";
     }
     return "?";
 }
@@ -79,7 +80,7 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
     m_program.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
     const float shade = std::clamp(s.shading, 0.0f, 1.0f);
     m_program.set("uShade", shade);
-    m_program.set("uNormals", shade > 0.0f ? 1 : 0);
+    m_program.set("uNormals", shade > 0.0f || s.view == ImageryView::Relief ? 1 : 0);
     m_program.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75)))); // from the north-west, high
     m_program.set("uWirePass", 0);
     for (int i = 0; i < 8; ++i)

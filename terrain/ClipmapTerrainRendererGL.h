@@ -19,8 +19,9 @@
 namespace seasonview {
 
 /// What the imagery shows. CLI names: leafon, leafoff, blend, swipe, lod (imagery clipmap level colours), wireframe
-/// (geometry clipmap triangles in their level's colour over the dimmed leaf-on), levels (geometry level colours).
-enum class ImageryView { LeafOn, LeafOff, Blend, Swipe, Lod, Wireframe, Levels };
+/// (geometry clipmap triangles in their level's colour over the dimmed leaf-on), levels (geometry level colours),
+/// relief (the terrain alone, shaded grey from its normals: no imagery fetched).
+enum class ImageryView { LeafOn, LeafOff, Blend, Swipe, Lod, Wireframe, Levels, Relief };
 std::optional<ImageryView> parseImageryView(const std::string& name);
 const char* imageryViewName(ImageryView v);
 

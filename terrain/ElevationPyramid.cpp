@@ -33,19 +33,40 @@ Status writeLevel(const std::filesystem::path& file, const std::vector<float>& h
 ElevationGrid elevationGrid(const Scene& scene) {
     ElevationGrid g;
     const glm::dvec2 extent = scene.localMax - scene.localMin;
+    double margin = 0.0;
     if (scene.elevation) {
         const Heightfield& dem = *scene.elevation;
-        const glm::dvec2 c(double(dem.heights.width) / 2.0, double(dem.heights.height) / 2.0);
-        auto local = [&](glm::dvec2 px) { return glm::dvec2(scene.frame.toLocal(dem.georef.crs, dem.georef.pixelToCrs(px))); };
-        const glm::dvec2 p0 = local(c);
-        g.spacing = std::min(glm::length(local(c + glm::dvec2(1, 0)) - p0), glm::length(local(c + glm::dvec2(0, 1)) - p0));
+        const Georef& r = dem.georef;
+        if (!scene.frame.crs().isGeographic() && r.crs.sameSpace(scene.frame.crs()) && r.pixelSize.x == r.pixelSize.y) {
+            // A UTM DEM in the frame's own zone: the grid is the DEM's own samples (the local frame is a
+            // translation), so heights are taken as they are, not interpolated.
+            g.spacing = r.pixelSize.x;
+            margin = 2.0 * g.spacing;
+            const glm::dvec2 centre0 = glm::dvec2(scene.frame.toLocal(r.crs, r.pixelToCrs({0.5, 0.5})));
+            const double i0 = std::floor((scene.localMin.x - margin - centre0.x) / g.spacing);
+            const double j0 = std::floor((centre0.y - (scene.localMax.y + margin)) / g.spacing);
+            g.origin = {centre0.x + i0 * g.spacing, centre0.y - j0 * g.spacing};
+        } else {
+            // Another CRS (EPSG:4326, another zone): the grid cannot follow the DEM's samples, so it takes half the
+            // DEM's finest spacing (measured in local metres at its centre) to keep the resampled surface close to
+            // the DEM's own bilinear one, as long as the grid stays within 16384 samples per side.
+            const glm::dvec2 c(double(dem.heights.width) / 2.0, double(dem.heights.height) / 2.0);
+            auto local = [&](glm::dvec2 px) { return glm::dvec2(scene.frame.toLocal(r.crs, r.pixelToCrs(px))); };
+            const glm::dvec2 p0 = local(c);
+            const double native = std::min(glm::length(local(c + glm::dvec2(1, 0)) - p0),
+                                           glm::length(local(c + glm::dvec2(0, 1)) - p0));
+            const double widest = std::max(extent.x, extent.y) + 4.0 * native;
+            g.spacing = widest / (native / 2.0) <= 16384.0 ? native / 2.0 : native;
+            margin = 2.0 * native;
+            g.origin = {scene.localMin.x - margin, scene.localMax.y + margin};
+        }
     } else {
         g.spacing = std::max(scene.gsd, std::max(extent.x, extent.y) / 2048.0);
+        margin = 2.0 * g.spacing;
+        g.origin = {scene.localMin.x - margin, scene.localMax.y + margin};
     }
-    const double margin = 2.0 * g.spacing;
-    g.origin = {scene.localMin.x - margin, scene.localMax.y + margin};
-    g.width = int(std::ceil((extent.x + 2.0 * margin) / g.spacing)) + 1;
-    g.height = int(std::ceil((extent.y + 2.0 * margin) / g.spacing)) + 1;
+    g.width = int(std::ceil((scene.localMax.x + margin - g.origin.x) / g.spacing)) + 1;
+    g.height = int(std::ceil((g.origin.y - (scene.localMin.y - margin)) / g.spacing)) + 1;
     return g;
 }
 
@@ -68,7 +89,7 @@ std::vector<float> resampleElevation(const Scene& scene, const ElevationGrid& gr
             const double fx = double(x % kStep) / kStep;
             auto at = [&](int i, int j) { return lattice[size_t(ly + j) * size_t(lw) + size_t(lx + i)]; };
             const glm::dvec2 p = (at(0, 0) * (1 - fx) + at(1, 0) * fx) * (1 - fy) + (at(0, 1) * (1 - fx) + at(1, 1) * fx) * fy;
-            out[size_t(y) * size_t(grid.width) + size_t(x)] = float(dem.sampleCrs(p));
+            out[size_t(y) * size_t(grid.width) + size_t(x)] = float(dem.sampleCrsTriangulated(p));
         }
     }
     return out;
@@ -79,7 +100,7 @@ PyramidSource elevationPyramidSource(const Scene& scene, const ElevationGrid& gr
     PyramidSource s;
     s.file = scene.sources.elevation;
     char params[160];
-    std::snprintf(params, sizeof params, "elevation r32f|%.9g|%.6f,%.6f|%dx%d|%s", grid.spacing, grid.origin.x,
+    std::snprintf(params, sizeof params, "elevation r32f triangulated|%.9g|%.6f,%.6f|%dx%d|%s", grid.spacing, grid.origin.x,
                   grid.origin.y, grid.width, grid.height, scene.frame.crs().name().c_str());
     s.params = params;
     s.width = grid.width;

@@ -25,16 +25,18 @@ struct ElevationGrid {
     }
 };
 
-/// The grid of `scene`: the DEM's own finest sample spacing (measured in local metres at the DEM's centre) over the
-/// imagery extent plus two samples of margin. A flat scene (no DEM) gets a grid for the geometry alone: spacing
-/// max(gsd, extent / 2048).
+/// The grid of `scene` over the imagery extent plus two DEM samples of margin: a UTM DEM in the frame's zone keeps
+/// its own samples (aligned, not interpolated); other DEMs (EPSG:4326, other zones) are resampled at half their
+/// finest spacing in local metres (at most 16384 samples per side). A flat scene (no DEM) gets a grid for the
+/// geometry alone: spacing max(gsd, extent / 2048).
 ElevationGrid elevationGrid(const Scene& scene);
 
 /// The recipe of the elevation pyramid (cache key: DEM file, its size and mtime, the grid). Needs scene.elevation.
-/// The builder resamples the DEM bilinearly (holes were filled when it was loaded) and writes every level.
+/// The builder resamples the DEM's triangulated surface (Heightfield::sampleCrsTriangulated, the surface of the
+/// reference mesh; holes were filled when it was loaded) and writes every level.
 PyramidSource elevationPyramidSource(const Scene& scene, const ElevationGrid& grid);
 
-/// Level-0 heights of `grid` from the scene's DEM (row 0 north), CRS positions exact every 16 samples and
+/// Level-0 heights of `grid` from the scene's DEM (row 0 north, its triangulated surface), CRS positions exact every 16 samples and
 /// interpolated in between (GeographicLib per sample would dominate on large grids; the error is far below a
 /// millimetre at 16 samples).
 std::vector<float> resampleElevation(const Scene& scene, const ElevationGrid& grid);

@@ -21,7 +21,7 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
     g->m_grid = grid;
     g->m_options = options;
     g->m_ring = RingLayout::make(options.n);
-    g->m_levels = geometryLevelCount(options.n, std::max(grid.width, grid.height));
+    g->m_levels = std::max(options.levels, geometryLevelCount(options.n, std::max(grid.width, grid.height)));
     if (scene.elevation) {
         g->m_minHeight = scene.elevation->minHeight;
         g->m_maxHeight = scene.elevation->maxHeight;

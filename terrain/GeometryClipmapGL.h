@@ -22,6 +22,10 @@ namespace seasonview {
 
 struct GeometryClipmapOptions {
     int n = 255;                             // vertices per level side, 2^k − 1
+    // Levels, fixed (GPU Gems 2 ch. 2 §2.1: n and the level count set the triangle budget, whatever the DEM): at
+    // least this many, more only when the grid needs them to be covered from anywhere in it. 10 levels of 255
+    // cover (n − 1) · 2^9 = 130 048 DEM samples.
+    int levels = 10;
     int elevationClipSize = 512;             // texels per toroidal elevation level (>= n + 2 block margins)
     std::int64_t uploadBudgetTexels = 1 << 18; // elevation texels per frame
     // false: no transition blending and no edge triangles between levels, for showing the cracks they close

@@ -273,3 +273,19 @@ TEST(ClipmapGLTest, ResidentMemoryDoesNotDependOnTheView) {
         EXPECT_EQ((*clip)->residentBytes(), bytes);
     }
 }
+
+// A fixed stack depth: the same bytes as a larger image that needs every level (--clip-levels).
+TEST(ClipmapGLTest, FixedStackDepthGivesTheSameMemoryForEveryImage) {
+    ASSERT_TRUE(context());
+    SceneFixture& f = fixture();
+    ClipmapOptions o = smallClipmap();
+    o.minClipLevels = 5; // this 2048² image needs 3 levels of 256²; an 8192² image would need 5
+    auto clip = ClipmapGL::create(f.pyramids, o);
+    ASSERT_TRUE(clip.ok());
+    EXPECT_EQ((*clip)->schedule().layout().clipLevels(), 3);
+    EXPECT_EQ((*clip)->residentBytes(), 2 * (5 * 256 * 256 * 4 + 256 * 256 * 4 * 4 / 3) + 4 * 4 * 4 * 5);
+    (*clip)->update(app::clipmapCentres(f.scene, app::overviewCamera(f.scene, 1.0), 256, 256, CenterPlacement::Concentric,
+                                        app::clipmapGeometry(f.scene, (*clip)->schedule().layout())));
+    (*clip)->completeSynchronously();
+    EXPECT_EQ(gl::drainErrors(), "");
+}
