@@ -24,7 +24,7 @@ struct ClipmapOptions {
     int size = 2048;
     int block = 64;                           // upload/validity block, texels
     std::int64_t uploadBudgetTexels = 1 << 20; // per frame (per layer): 4 MiB of RGBA8 per layer
-    int cacheMegabytes = 256;                 // loader's OpenImageIO tile cache bound
+    int cacheMegabytes = 128;                 // loader's OpenImageIO tile cache bound
     // Toroidal levels allocated at least (0 = as many as the image needs: one per pyramid level wider than N). A
     // fixed stack makes GPU memory identical for every image up to N · 2^levels; smaller images leave the extra
     // layers unused.
