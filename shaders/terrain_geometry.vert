@@ -18,6 +18,7 @@ uniform float uGridSpacing;  // metres per sample
 uniform sampler2D uLocalToImage; // RG32F: local -> leaf-on image coordinates in [0,1]
 uniform vec2 uLookupMin, uLookupSize; // lattice point i of K at uLookupMin + uLookupSize * i / (K - 1)
 uniform float uLookupTexels;          // K
+uniform mat2 uLookupSlope;            // d(image uv) / d(t) over the whole lattice: extrapolates past its edge
 
 uniform int uNormals;        // 0: skip the normals (no view needs them)
 uniform int uHasElevation;
@@ -97,7 +98,12 @@ void main() {
     vLocal = vec3(local, z);
     vNormal = normalize(n);
     vLevel = uLevel;
-    vec2 t = (local - uLookupMin) / uLookupSize; // 0..1 across the lattice; texel centres at (i + 0.5) / K
-    vImageUv = textureLod(uLocalToImage, (t * (uLookupTexels - 1.0) + 0.5) / uLookupTexels, 0.0).xy;
+    // 0..1 across the lattice; texel centres at (i + 0.5) / K. Past the lattice the map is extended linearly, not
+    // clamped: a coarse triangle reaching far outside must still interpolate image coordinates that cross the
+    // image's edge where the edge is, or the discard would cut it in the wrong place.
+    vec2 t = (local - uLookupMin) / uLookupSize;
+    vec2 tc = clamp(t, 0.0, 1.0);
+    vImageUv = textureLod(uLocalToImage, (tc * (uLookupTexels - 1.0) + 0.5) / uLookupTexels, 0.0).xy +
+               uLookupSlope * (t - tc);
     gl_Position = uViewProj * vec4(local, z, 1.0);
 }

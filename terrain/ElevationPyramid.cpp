@@ -37,29 +37,20 @@ ElevationGrid elevationGrid(const Scene& scene) {
     if (scene.elevation) {
         const Heightfield& dem = *scene.elevation;
         const Georef& r = dem.georef;
-        if (!scene.frame.crs().isGeographic() && r.crs.sameSpace(scene.frame.crs()) && r.pixelSize.x == r.pixelSize.y) {
-            // A UTM DEM in the frame's own zone: the grid is the DEM's own samples (the local frame is a
-            // translation), so heights are taken as they are, not interpolated.
-            g.spacing = r.pixelSize.x;
-            margin = 2.0 * g.spacing;
-            const glm::dvec2 centre0 = glm::dvec2(scene.frame.toLocal(r.crs, r.pixelToCrs({0.5, 0.5})));
-            const double i0 = std::floor((scene.localMin.x - margin - centre0.x) / g.spacing);
-            const double j0 = std::floor((centre0.y - (scene.localMax.y + margin)) / g.spacing);
-            g.origin = {centre0.x + i0 * g.spacing, centre0.y - j0 * g.spacing};
-        } else {
-            // Another CRS (EPSG:4326, another zone): the grid cannot follow the DEM's samples, so it takes half the
-            // DEM's finest spacing (measured in local metres at its centre) to keep the resampled surface close to
-            // the DEM's own bilinear one, as long as the grid stays within 16384 samples per side.
-            const glm::dvec2 c(double(dem.heights.width) / 2.0, double(dem.heights.height) / 2.0);
-            auto local = [&](glm::dvec2 px) { return glm::dvec2(scene.frame.toLocal(r.crs, r.pixelToCrs(px))); };
-            const glm::dvec2 p0 = local(c);
-            const double native = std::min(glm::length(local(c + glm::dvec2(1, 0)) - p0),
-                                           glm::length(local(c + glm::dvec2(0, 1)) - p0));
-            const double widest = std::max(extent.x, extent.y) + 4.0 * native;
-            g.spacing = widest / (native / 2.0) <= 16384.0 ? native / 2.0 : native;
-            margin = 2.0 * native;
-            g.origin = {scene.localMin.x - margin, scene.localMax.y + margin};
-        }
+        // The grid starts at the imagery's corner, so it rarely falls on the DEM's own samples: it takes the DEM's
+        // finest spacing (measured in local metres at its centre) for a DEM in the frame's own UTM zone, and half
+        // of it for other CRSs (EPSG:4326, other zones), keeping the resampled surface close to the DEM's own
+        // triangulated one, as long as the grid stays within 16384 samples per side.
+        const bool sameSpace = !scene.frame.crs().isGeographic() && r.crs.sameSpace(scene.frame.crs());
+        const glm::dvec2 c(double(dem.heights.width) / 2.0, double(dem.heights.height) / 2.0);
+        auto local = [&](glm::dvec2 px) { return glm::dvec2(scene.frame.toLocal(r.crs, r.pixelToCrs(px))); };
+        const glm::dvec2 p0 = local(c);
+        const double native = std::min(glm::length(local(c + glm::dvec2(1, 0)) - p0),
+                                       glm::length(local(c + glm::dvec2(0, 1)) - p0));
+        const double widest = std::max(extent.x, extent.y) + 4.0 * native;
+        g.spacing = !sameSpace && widest / (native / 2.0) <= 16384.0 ? native / 2.0 : native;
+        margin = 2.0 * native;
+        g.origin = {scene.localMin.x - margin, scene.localMax.y + margin};
     } else {
         g.spacing = std::max(scene.gsd, std::max(extent.x, extent.y) / 2048.0);
         margin = 2.0 * g.spacing;

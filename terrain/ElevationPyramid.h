@@ -25,9 +25,9 @@ struct ElevationGrid {
     }
 };
 
-/// The grid of `scene` over the imagery extent plus two DEM samples of margin: a UTM DEM in the frame's zone keeps
-/// its own samples (aligned, not interpolated); other DEMs (EPSG:4326, other zones) are resampled at half their
-/// finest spacing in local metres (at most 16384 samples per side). A flat scene (no DEM) gets a grid for the
+/// The grid of `scene` over the imagery extent plus two DEM samples of margin, from its north-west corner: a UTM DEM
+/// in the frame's zone at its own spacing; other DEMs (EPSG:4326, other zones) at half their finest spacing in
+/// local metres (at most 16384 samples per side). A flat scene (no DEM) gets a grid for the
 /// geometry alone: spacing max(gsd, extent / 2048).
 ElevationGrid elevationGrid(const Scene& scene);
 

@@ -56,6 +56,11 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
             uv[(size_t(j) * kLookupSize + size_t(i)) * 2] = float(px.x);
             uv[(size_t(j) * kLookupSize + size_t(i)) * 2 + 1] = float(px.y);
         }
+    auto uvAt = [&](int i, int j) {
+        const size_t k = (size_t(j) * kLookupSize + size_t(i)) * 2;
+        return glm::vec2(uv[k], uv[k + 1]);
+    };
+    g->m_lookupSlope = glm::mat2(uvAt(kLookupSize - 1, 0) - uvAt(0, 0), uvAt(0, kLookupSize - 1) - uvAt(0, 0));
     g->m_localToImage = gl::Texture::create(GL_TEXTURE_2D);
     glTextureStorage2D(g->m_localToImage.id(), 1, GL_RG32F, kLookupSize, kLookupSize);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
@@ -164,6 +169,8 @@ void GeometryClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit) co
     program.set("uLookupMin", glm::vec2(m_lookupMin));
     program.set("uLookupSize", glm::vec2(m_lookupSize));
     program.set("uLookupTexels", float(kLookupSize));
+    glProgramUniformMatrix2fv(program.id(), glGetUniformLocation(program.id(), "uLookupSlope"), 1, GL_FALSE,
+                              &m_lookupSlope[0][0]);
     program.set("uGridOrigin", glm::vec2(m_grid.origin));
     program.set("uGridSpacing", float(m_grid.spacing));
     program.set("uHalfCells", float(m_options.n - 1) / 2.0f);

@@ -12,6 +12,7 @@
 #include "gl/GlObjects.h"
 #include "gl/ShaderProgram.h"
 
+#include <glm/mat2x2.hpp>
 #include <glm/mat4x4.hpp>
 
 #include <map>
@@ -86,6 +87,7 @@ private:
     Mesh m_edge; // degenerate triangles along a level's outer edge
     gl::Texture m_localToImage;
     glm::dvec2 m_lookupMin{0.0}, m_lookupSize{1.0};
+    glm::mat2 m_lookupSlope{1.0f};
     GeometryPlacement m_placement;
 };
 
