@@ -6,28 +6,35 @@
 
 namespace seasonview {
 
+namespace {
+
+/// The four samples around a point (pixel-centre convention, clamped to the grid) and its position between them.
+struct Cell {
+    double h00, h10, h01, h11, fx, fy;
+};
+
+Cell cellAt(const Heightfield& f, glm::dvec2 p) {
+    const glm::dvec2 px = f.georef.crsToPixel(p) - 0.5; // pixel centres
+    const double x = std::clamp(px.x, 0.0, double(f.heights.width - 1));
+    const double y = std::clamp(px.y, 0.0, double(f.heights.height - 1));
+    const int x0 = std::min(int(x), f.heights.width - 1), y0 = std::min(int(y), f.heights.height - 1);
+    const int x1 = std::min(x0 + 1, f.heights.width - 1), y1 = std::min(y0 + 1, f.heights.height - 1);
+    return {f.heights.at(x0, y0), f.heights.at(x1, y0), f.heights.at(x0, y1), f.heights.at(x1, y1), x - x0, y - y0};
+}
+
+} // namespace
+
 double Heightfield::sampleCrs(glm::dvec2 p) const {
-    const glm::dvec2 px = georef.crsToPixel(p) - 0.5; // pixel centres
-    const double x = std::clamp(px.x, 0.0, double(heights.width - 1));
-    const double y = std::clamp(px.y, 0.0, double(heights.height - 1));
-    const int x0 = std::min(int(x), heights.width - 1), y0 = std::min(int(y), heights.height - 1);
-    const int x1 = std::min(x0 + 1, heights.width - 1), y1 = std::min(y0 + 1, heights.height - 1);
-    const double fx = x - x0, fy = y - y0;
-    const double a = heights.at(x0, y0) * (1 - fx) + heights.at(x1, y0) * fx;
-    const double b = heights.at(x0, y1) * (1 - fx) + heights.at(x1, y1) * fx;
-    return a * (1 - fy) + b * fy;
+    const Cell c = cellAt(*this, p);
+    const double a = c.h00 * (1 - c.fx) + c.h10 * c.fx;
+    const double b = c.h01 * (1 - c.fx) + c.h11 * c.fx;
+    return a * (1 - c.fy) + b * c.fy;
 }
 
 double Heightfield::sampleCrsTriangulated(glm::dvec2 p) const {
-    const glm::dvec2 px = georef.crsToPixel(p) - 0.5; // pixel centres
-    const double x = std::clamp(px.x, 0.0, double(heights.width - 1));
-    const double y = std::clamp(px.y, 0.0, double(heights.height - 1));
-    const int x0 = std::min(int(x), heights.width - 1), y0 = std::min(int(y), heights.height - 1);
-    const int x1 = std::min(x0 + 1, heights.width - 1), y1 = std::min(y0 + 1, heights.height - 1);
-    const double fx = x - x0, fy = y - y0;
-    const double h00 = heights.at(x0, y0), h10 = heights.at(x1, y0), h01 = heights.at(x0, y1), h11 = heights.at(x1, y1);
-    if (fx + fy <= 1.0) return h00 + fx * (h10 - h00) + fy * (h01 - h00);
-    return h11 + (1.0 - fx) * (h01 - h11) + (1.0 - fy) * (h10 - h11);
+    const Cell c = cellAt(*this, p);
+    if (c.fx + c.fy <= 1.0) return c.h00 + c.fx * (c.h10 - c.h00) + c.fy * (c.h01 - c.h00);
+    return c.h11 + (1.0 - c.fx) * (c.h01 - c.h11) + (1.0 - c.fy) * (c.h10 - c.h11);
 }
 
 int fillHoles(Image<float>& img) {

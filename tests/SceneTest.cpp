@@ -230,3 +230,22 @@ TEST(ReferenceMeshTest, TileLayout) {
     EXPECT_EQ(many.tilesY, 3); // 3 * 254 >= 700
     EXPECT_LT((many.tilesX - 1) * many.step, 1000);
 }
+
+// The triangulated surface is the reference mesh's: exact at samples, planar on each side of the NE-SW diagonal,
+// where it differs from the bilinear one.
+TEST(HeightfieldTest, TriangulatedSurfaceSplitsCellsAlongTheReferenceDiagonal) {
+    Heightfield f;
+    f.heights.width = f.heights.height = 2;
+    f.heights.channels = 1;
+    f.heights.pixels = {0.0f, 10.0f, 20.0f, 0.0f}; // h00 (NW), h10 (NE), h01 (SW), h11 (SE)
+    f.georef = testGeoref(1.0);
+    auto at = [&](double fx, double fy) { return f.georef.pixelToCrs({0.5 + fx, 0.5 + fy}); };
+    EXPECT_DOUBLE_EQ(f.sampleCrsTriangulated(at(0, 0)), 0.0);
+    EXPECT_DOUBLE_EQ(f.sampleCrsTriangulated(at(1, 0)), 10.0);
+    EXPECT_DOUBLE_EQ(f.sampleCrsTriangulated(at(0, 1)), 20.0);
+    EXPECT_DOUBLE_EQ(f.sampleCrsTriangulated(at(1, 1)), 0.0);
+    EXPECT_DOUBLE_EQ(f.sampleCrsTriangulated(at(0.5, 0.5)), 15.0); // on the NE-SW diagonal: mean of NE and SW
+    EXPECT_DOUBLE_EQ(f.sampleCrs(at(0.5, 0.5)), 7.5);               // bilinear: mean of all four
+    EXPECT_DOUBLE_EQ(f.sampleCrsTriangulated(at(0.25, 0.25)), 7.5); // NW triangle: 0 + 0.25*10 + 0.25*20
+    EXPECT_DOUBLE_EQ(f.sampleCrsTriangulated(at(0.75, 0.75)), 7.5); // SE triangle: 0 + 0.25*20 + 0.25*10
+}
