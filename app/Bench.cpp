@@ -141,7 +141,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     const int w = a->width, h = a->height;
     auto view = parseImageryView(a->view);
     if (!view)
-        return fail("--view '" + a->view + "': expected leafon|leafoff|blend|swipe|lod");
+        return fail("--view '" + a->view + "': expected leafon|leafoff|blend|swipe|lod|wireframe|levels|relief");
     if (a->clipSize < 256 || a->clipSize > 4096 || a->clipSize % 64 != 0)
         return fail("--clip-size " + std::to_string(a->clipSize) + ": expected 256..4096, a multiple of 64");
     if (a->gridSize < 31 || a->gridSize > 1023 || ((a->gridSize + 1) & a->gridSize) != 0)

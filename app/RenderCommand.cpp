@@ -67,7 +67,7 @@ Runner addRenderCommand(CLI::App& app) {
         RenderSettings settings;
         ImagerySettings imagery;
         const auto view = parseImageryView(args->view);
-        if (!view) return fail("--view '" + args->view + "': expected leafon|leafoff|blend|swipe|lod");
+        if (!view) return fail("--view '" + args->view + "': expected leafon|leafoff|blend|swipe|lod|wireframe|levels|relief");
         imagery.view = *view;
         imagery.blend = args->blend;
         imagery.swipe = args->swipe;

@@ -2,6 +2,7 @@
 #include "TestUtil.h"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <fstream>
 #include <limits>
@@ -171,6 +172,32 @@ TEST_F(CliFixture, BadSizeViewAndOutput) {
     b.insert(b.end(), {"--view", "autumn"});
     expectOneLineError(b, "--view 'autumn'");
     expectOneLineError(render(pair(), "out.jpgx"), "output must be a .png or .tif", "out.jpgx");
+    auto c = render(pair());
+    c.insert(c.end(), {"--grid-size", "100"});
+    expectOneLineError(c, "--grid-size 100: expected 2^k - 1");
+    auto d = render(pair());
+    d.insert(d.end(), {"--view", "levels", "--renderer", "reference"});
+    expectOneLineError(d, "--view levels needs --renderer clipmap");
+}
+
+// The terrain inspection views and --accuracy write what they promise.
+TEST_F(CliFixture, TerrainViewsAndAccuracy) {
+    for (const char* view : {"wireframe", "levels", "relief"}) {
+        auto a = render(pair(), std::string(view) + ".png");
+        a.insert(a.end(), {"--view", view, "--camera", "0,-20,+20,0,-35"});
+        const CliResult r = runCli(a);
+        ASSERT_EQ(r.exitCode, 0) << view << ": " << r.err;
+        EXPECT_TRUE(std::filesystem::exists(dir / (std::string(view) + ".png"))) << view;
+    }
+    auto a = render(pair(), "acc.png");
+    a.insert(a.end(), {"--camera", "0,-20,+20,0,-35", "--accuracy", (dir / "acc.json").string()});
+    const CliResult r = runCli(a);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::ifstream f(dir / "acc.json");
+    const auto j = nlohmann::json::parse(f);
+    EXPECT_GE(j["psnr_db"].get<double>(), 35.0); // flat pair: geometry identical, imagery nearly so
+    EXPECT_LT(j["mean_depth_error_px"].get<double>(), 0.1);
+    EXPECT_GT(j["triangles"].get<int>(), 0);
 }
 
 TEST_F(CliFixture, SynthRejectsBadDem) {
