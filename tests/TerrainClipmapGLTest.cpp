@@ -87,7 +87,11 @@ int skyBelowTerrain(const std::vector<float>& depth, int w, int h) {
     for (int x = 0; x < w; ++x) {
         bool terrainAbove = false;
         for (int y = 0; y < h; ++y) {
-            const bool terrain = depth[size_t(y) * size_t(w) + size_t(x)] > 0.0f;
+            // Depth 1 is the near plane, 5 cm from the eye: never terrain seen from above it. (llvmpipe draws one
+            // stray fragment there from 15 m looking at the scene's north-east corner; it is not a crack, and is
+            // left for issue 4 to explain.)
+            const float d = depth[size_t(y) * size_t(w) + size_t(x)];
+            const bool terrain = d > 0.0f && d < 0.999f;
             if (terrain) terrainAbove = true;
             else if (terrainAbove) ++holes;
         }
@@ -99,7 +103,7 @@ int countSky(const std::vector<float>& depth) {
     return int(std::count(depth.begin(), depth.end(), 0.0f));
 }
 
-// Background pixels below terrain over 16 level, grazing views (pitch 0) of a spiky DEM, n = 31 so many level
+// Background pixels below terrain over 24 level, grazing views (pitch 0) of a spiky DEM, n = 31 so many level
 // borders are in view. At pitch 0 every image column is a vertical plane, where a heightfield seen from above it
 // can show the background only above its silhouette: any background pixel below terrain is a crack. The lower
 // half of the (120 degree) view looks down at up to 60 degrees, so rays through a crack go under the surface and
@@ -120,9 +124,7 @@ int cracksOnSpikyDem(bool stitch) {
     gl::RenderTarget target(w, h);
     int cracks = 0;
     for (double yaw = 0.0; yaw < 360.0; yaw += 45.0)
-        // Not lower: from 15 m, looking at the scene's north-east corner (yaw 45), one column shows 5 background
-        // pixels under a lone far-away terrain pixel at the horizon, cause not yet found (open in issue 4).
-        for (double z : {40.0, 120.0}) {
+        for (double z : {15.0, 40.0, 120.0}) {
             Camera cam;
             cam.position = {0.0, 0.0, z};
             cam.yawDeg = yaw;
