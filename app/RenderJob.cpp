@@ -213,21 +213,15 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
     const ClipmapGeometry geometry = clipmapGeometry(scene, (*clipmap)->schedule().layout());
     std::unique_ptr<gl::RenderTarget> scratch;
     std::unique_ptr<ReferenceRendererGL> reference;
-    auto m_lastGeometry = [](const ClipmapTerrainRendererGL& r) {
-        GeometryFrameStats g;
-        g.triangles = r.triangles();
-        return g;
-    };
     for (const StillRequest& s : stills) {
         (*clipmap)->update(clipmapCentres(scene, s.camera, width, height, settings.centers, geometry));
         const ClipmapFrameStats loaded = (*clipmap)->completeSynchronously(); // a still waits for its texels
         (*renderer)->updateGeometry(s.camera, height);
         (*renderer)->completeGeometry();
-        (*renderer)->render(s.camera, s.imagery, target);
+        const GeometryFrameStats drawn = (*renderer)->render(s.camera, s.imagery, target);
         if (auto st = checkGl(s.out); !st) return st.error();
         if (auto st = writeRgb(target, s.out); !st) return st.error();
         present();
-        const GeometryFrameStats drawn = m_lastGeometry(**renderer);
         if (!s.accuracyOut.empty()) {
             // The same camera through the brute-force renderer: colour PSNR and geometric accuracy.
             const std::vector<std::uint8_t> mine = target.readRgba();
