@@ -87,9 +87,12 @@ int skyBelowTerrain(const std::vector<float>& depth, int w, int h) {
     for (int x = 0; x < w; ++x) {
         bool terrainAbove = false;
         for (int y = 0; y < h; ++y) {
-            // Depth 1 is the near plane, 5 cm from the eye: never terrain seen from above it. (llvmpipe draws one
-            // stray fragment there from 15 m looking at the scene's north-east corner; it is not a crack, and is
-            // left for issue 4 to explain.)
+            // Depth 1 is the near plane, 5 cm from the eye: never terrain seen from above it. llvmpipe draws one
+            // stray fragment there in two of these views (15 m, yaw 45 and 180): the levels view shows it comes from
+            // level 5 / level 4 (32 / 16 m cells), whose triangles beside the camera span the eye plane and are
+            // near-clipped; the fragment sits at the clipped vertex's depth, 1.0, six rows above where that
+            // triangle really meets the horizon, and stays at the same pixel with the near plane at 1 m. It is a
+            // clipping artefact of a huge triangle, not a gap between levels.
             const float d = depth[size_t(y) * size_t(w) + size_t(x)];
             const bool terrain = d > 0.0f && d < 0.999f;
             if (terrain) terrainAbove = true;
