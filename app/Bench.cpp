@@ -4,6 +4,9 @@
 #include "Plot.h"
 #include "RenderJob.h"
 
+#include "CanopyClipmapGL.h"
+#include "CanopyRendererGL.h"
+
 #include "AtomicFile.h"
 #include "CameraPath.h"
 #include "gl/GlDebug.h"
@@ -42,7 +45,11 @@ struct Mode {
     RendererKind renderer = RendererKind::Clipmap;
     CenterPlacement centers = CenterPlacement::Footprint;
     float anisotropy = 8.0f;
+    int canopyLayers = -1;        // -1: as --view says; 0: no canopy (leaf-on terrain); N: canopy view, N layers
+    bool perFrameSegmentation = false; // the canopy layer re-derived every frame (the paper's per-frame evaluation)
     std::unique_ptr<ClipmapGL> clipmap;
+    std::unique_ptr<CanopyClipmapGL> canopy;
+    std::unique_ptr<CanopyRendererGL> canopyRenderer;
     std::unique_ptr<ClipmapTerrainRendererGL> clipRenderer;
     std::unique_ptr<ReferenceRendererGL> reference;
     std::vector<FrameRow> rows;
@@ -98,9 +105,11 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     }
     const size_t eq = a.compare.find('=');
     const std::string key = a.compare.substr(0, eq);
-    if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso"))
+    if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso" && key != "canopy" &&
+                                    key != "segmentation"))
         return Error{"--compare '" + a.compare +
-                     "': expected centers=A,B,..., renderer=clipmap,reference or aniso=A,B,..."};
+                     "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,... or "
+                     "segmentation=upload,perframe"};
     std::stringstream list(a.compare.substr(eq + 1));
     std::string v;
     while (std::getline(list, v, ',')) {
@@ -118,6 +127,15 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
             if (v.empty() || *end != '\0' || !(x >= 1.0f && x <= kMaxAnisotropy))
                 return Error{"--compare: aniso '" + v + "' is not a number in 1..16"};
             m->anisotropy = x;
+        } else if (key == "canopy") {
+            auto c = parseCanopyArgs(v, a.method, a.k);
+            if (!c)
+                return Error{"--compare: canopy '" + v + "' is not off or 1..32"};
+            m->canopyLayers = c->layers;
+        } else if (key == "segmentation") {
+            if (v != "upload" && v != "perframe")
+                return Error{"--compare: segmentation '" + v + "' (expected upload|perframe)"};
+            m->perFrameSegmentation = v == "perframe";
         } else if (v == "reference") {
             m->renderer = RendererKind::Reference;
         } else if (v != "clipmap") {
@@ -139,9 +157,13 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     const Scene* scene = &sceneRef;
     auto fail = [](const std::string& m) -> Result<BenchResult> { return Error{m}; };
     const int w = a->width, h = a->height;
+    auto canopyArgs = parseCanopyArgs(a->canopyLayers, a->method, a->k);
+    if (!canopyArgs)
+        return fail(canopyArgs.message());
+    const CanopyRenderSettings canopy = *canopyArgs;
     auto view = parseImageryView(a->view);
     if (!view)
-        return fail("--view '" + a->view + "': expected leafon|leafoff|blend|swipe|lod|wireframe|levels|relief");
+        return fail("--view '" + a->view + "': expected leafon|leafoff|blend|swipe|lod|wireframe|levels|relief|canopy");
     if (a->clipSize < 256 || a->clipSize > 4096 || a->clipSize % 64 != 0)
         return fail("--clip-size " + std::to_string(a->clipSize) + ": expected 256..4096, a multiple of 64");
     if (a->gridSize < 31 || a->gridSize > 1023 || ((a->gridSize + 1) & a->gridSize) != 0)
@@ -210,6 +232,29 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
             if (!r)
                 return fail(r.message());
             m.clipRenderer = std::move(*r);
+            // canopy=off in a comparison: no canopy at all (the leaf-on terrain); --canopy-layers off with --view
+            // canopy: the canopy's ground without layers.
+            const bool fromCompare = m.canopyLayers >= 0;
+            const int layers = fromCompare ? m.canopyLayers : (*view == ImageryView::Canopy ? canopy.layers : 0);
+            const bool wantCanopy = fromCompare ? layers > 0 : *view == ImageryView::Canopy;
+            m.canopyLayers = layers;
+            if (wantCanopy) {
+                auto hist = preparePairStats(*scene, pyramids, cache);
+                if (!hist)
+                    return fail(hist.message());
+                CanopyOptions opt;
+                opt.params = canopy.params;
+                opt.layers = std::max(1, layers);
+                auto cc = CanopyClipmapGL::create(*m.clipmap, statsFromHistograms(*hist, opt.params.method), opt);
+                if (!cc)
+                    return fail(cc.message());
+                m.canopy = std::move(*cc);
+                auto cr = CanopyRendererGL::create();
+                if (!cr)
+                    return fail(cr.message());
+                m.canopyRenderer = std::move(*cr);
+                m.clipRenderer->setCanopy(m.canopy.get());
+            }
         }
     }
     gl::RenderTarget target(w, h), scratch(w, h);
@@ -231,10 +276,32 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
             m.clipRenderer->updateGeometry(cam, h);
         }
         glBeginQuery(GL_TIME_ELAPSED, timer.id());
+        if (m.canopy) {
+            // Upload-time derivation: only blocks newly resident; per-frame: everything resident, every frame.
+            if (m.perFrameSegmentation)
+                m.canopy->rederiveAll();
+            else
+                m.canopy->update();
+        }
         imagery.anisotropy = m.anisotropy;
-        if (m.clipmap)
-            row.drawCalls = m.clipRenderer->render(cam, imagery, target).drawCalls;
-        else
+        ImagerySettings im = imagery;
+        if (m.clipmap && !m.canopy && im.view == ImageryView::Canopy)
+            im.view = ImageryView::LeafOn; // canopy=off: the terrain alone
+        if (m.canopy)
+            im.view = ImageryView::Canopy;
+        if (m.clipmap) {
+            const GeometryFrameStats ground = m.clipRenderer->render(cam, im, target);
+            row.drawCalls = ground.drawCalls;
+            row.triangles = ground.triangles;
+            if (m.canopy && m.canopyLayers > 0) {
+                CanopyDrawSettings cd;
+                cd.treeHeight = scene->sources.treeHeightM;
+                cd.anisotropy = m.anisotropy;
+                const GeometryFrameStats layers = m.canopyRenderer->render(cam, *m.clipRenderer, *m.canopy, cd, target);
+                row.drawCalls += layers.drawCalls;
+                row.triangles += layers.triangles;
+            }
+        } else
             m.reference->render(cam, imagery.view == ImageryView::LeafOff ? Season::LeafOff : Season::LeafOn, target);
         glEndQuery(GL_TIME_ELAPSED);
         const auto t1 = clock::now();
@@ -247,11 +314,12 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         row.cpuMs = ms(t1 - t0);
         row.frameMs = ms(t2 - t0);
         row.gpuMs = double(ns) * 1e-6;
-        row.triangles = m.clipmap ? m.clipRenderer->triangles() : m.reference->stats().triangles;
+        if (!m.clipmap)
+            row.triangles = m.reference->stats().triangles;
         row.texelsUploaded = cs.texelsUploaded;
         row.exposedTexels = cs.exposedTexels;
         row.blocksMissing = cs.blocksMissing;
-        row.residentBytes = m.clipmap ? m.clipmap->residentBytes() : 0;
+        row.residentBytes = (m.clipmap ? m.clipmap->residentBytes() : 0) + (m.canopy ? m.canopy->residentBytes() : 0);
         row.loaderCacheBytes = m.clipmap ? m.clipmap->loaderCacheBytes() : 0;
         row.rssBytes = residentSetBytes();
         if (m.clipmap && a->coverageEvery > 0 && frame % a->coverageEvery == 0)
@@ -316,7 +384,11 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
           {"aniso", a->anisotropy},
           {"clip_levels_min", a->clipLevels},
           {"grid_size", a->gridSize},
-          {"coverage_every", a->coverageEvery}}},
+          {"coverage_every", a->coverageEvery},
+          {"canopy_layers", a->canopyLayers},
+          {"segmentation_method", a->method},
+          {"segmentation_k", a->k},
+          {"tree_height_m", scene->sources.treeHeightM}}},
         {"wall_seconds", seconds}};
     nlohmann::json compare = nlohmann::json::array();
     double baseMedian = NAN;

@@ -15,13 +15,17 @@ struct BenchSettings {
     std::string path = "flyover"; // named path or keyframe JSON file
     int width = 1920, height = 1080;
     int frames = 300, warmup = 10, coverageEvery = 1, clipSize = 2048;
-    std::string compare;          // "centers=a,b,...", "renderer=clipmap,reference" or "aniso=1,8"; empty: one mode
+    std::string compare;          // "centers=a,b,...", "renderer=clipmap,reference", "aniso=1,8", "canopy=off,16" or
+                                  // "segmentation=upload,perframe"; empty: one mode
     std::string renderer = "clipmap", centers = "footprint", view = "leafon";
     std::uint64_t seed = 1;
     float anisotropy = 8.0f;      // clipmap footprint filter / reference sampler (1 = isotropic)
     int gridSize = 255;
     int clipLevels = 0;           // toroidal levels allocated at least (ClipmapOptions::minClipLevels)           // geometry clipmap n (vertices per level side, 2^k - 1)
     std::int64_t uploadBudget = std::int64_t(1) << 20;
+    // canopy view: stacked layers ("off" or 1..32), the canopy layer's segmentation method and k.
+    std::string canopyLayers = "16", method = "default";
+    int k = 5;
     std::filesystem::path cacheDir;
 };
 

@@ -28,7 +28,14 @@ Runner addBenchCommand(CLI::App& app) {
     cmd->add_option("--out", a->out, "Output folder")->required();
     cmd->add_option("--compare", a->b.compare,
                     "Modes run interleaved over the same path: \"centers=" + placementNames() +
-                        "\" (comma-separated), \"renderer=clipmap,reference\" or \"aniso=1,8,...\"");
+                        "\" (comma-separated), \"renderer=clipmap,reference\", \"aniso=1,8,...\", \"canopy=off,16\" "
+                        "(no canopy vs the canopy view with N layers) or \"segmentation=upload,perframe\" (canopy "
+                        "layer derived when blocks arrive vs re-derived every frame)");
+    cmd->add_option("--canopy-layers", a->b.canopyLayers, "canopy view: stacked layers 1..32 or off")
+        ->capture_default_str();
+    cmd->add_option("--method", a->b.method, "canopy view: pixel|neighborhood|equalized|default")->capture_default_str();
+    cmd->add_option("--k", a->b.k, "canopy view: the ground layer's neighbourhood size (odd, 1..15)")
+        ->capture_default_str();
     cmd->add_option("--aniso", a->b.anisotropy, "Maximum anisotropy 1..16 (1 = isotropic)")->capture_default_str();
     cmd->add_option("--clip-levels", a->b.clipLevels, "Toroidal clipmap levels allocated at least (0 = as needed)")
         ->check(CLI::Range(0, 16))
@@ -36,7 +43,7 @@ Runner addBenchCommand(CLI::App& app) {
     cmd->add_option("--grid-size", a->b.gridSize, "Geometry clipmap n = 2^k - 1 (31..1023)")->capture_default_str();
     cmd->add_option("--renderer", a->b.renderer, "clipmap|reference")->capture_default_str();
     cmd->add_option("--centers", a->b.centers, "Clipmap level centres: " + placementNames())->capture_default_str();
-    cmd->add_option("--view", a->b.view, "leafon|leafoff|blend|swipe|lod|wireframe|levels|relief")->capture_default_str();
+    cmd->add_option("--view", a->b.view, "leafon|leafoff|blend|swipe|lod|wireframe|levels|relief|canopy")->capture_default_str();
     cmd->add_option("--clip-size", a->b.clipSize, "Clipmap level size N (256..4096)")->capture_default_str();
     cmd->add_option("--upload-budget", a->b.uploadBudget, "Clipmap texels uploaded per frame and layer")
         ->capture_default_str();

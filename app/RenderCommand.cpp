@@ -15,6 +15,8 @@ struct RenderArgs {
     float blend = 0.5f, swipe = 0.5f, aniso = 8.0f, shade = 0.0f;
     int clipSize = 2048, gridSize = 255, clipLevels = 0;
     bool window = false;
+    std::string canopyLayers = "16", method = "default";
+    int k = kSegDefaultK;
 };
 } // namespace
 
@@ -27,7 +29,7 @@ Runner addRenderCommand(CLI::App& app) {
                     "terrain), yaw = heading in degrees (0 north, clockwise), pitch in degrees (-90 down), fov "
                     "vertical degrees (default 60). Default: straight down over the whole scene");
     cmd->add_option("--size", args->size, "Image size WxH")->capture_default_str();
-    cmd->add_option("--view", args->view, "What to show: leafon|leafoff|blend|swipe|lod|wireframe|levels|relief")->capture_default_str();
+    cmd->add_option("--view", args->view, "What to show: leafon|leafoff|blend|swipe|lod|wireframe|levels|relief|canopy")->capture_default_str();
     cmd->add_option("--blend", args->blend, "blend view: 0 = leaf-on .. 1 = leaf-off")->capture_default_str();
     cmd->add_option("--swipe", args->swipe, "swipe view: fraction of the width showing leaf-on")->capture_default_str();
     cmd->add_option("--aniso", args->aniso,
@@ -55,6 +57,14 @@ Runner addRenderCommand(CLI::App& app) {
                     "every image)")
         ->check(CLI::Range(0, 16))
         ->capture_default_str();
+    cmd->add_option("--canopy-layers", args->canopyLayers,
+                    "canopy view: stacked canopy layers, 1..32, or off (the ground alone: leaf-off under the crowns)")
+        ->capture_default_str();
+    cmd->add_option("--method", args->method,
+                    "canopy view: segmentation method of the canopy layer, pixel|neighborhood|equalized|default")
+        ->capture_default_str();
+    cmd->add_option("--k", args->k, "canopy view: neighbourhood size of the ground layer (odd, 1..15)")
+        ->capture_default_str();
     cmd->add_option("--stats", args->stats, "Write level statistics (coverage, uploads, memory) to this JSON file");
     cmd->add_option("--out", args->out, "Output image (.png or .tif)")->required();
     cmd->add_flag("--window", args->window, "Render through a hidden GLFW window instead of headless EGL");
@@ -67,7 +77,7 @@ Runner addRenderCommand(CLI::App& app) {
         RenderSettings settings;
         ImagerySettings imagery;
         const auto view = parseImageryView(args->view);
-        if (!view) return fail("--view '" + args->view + "': expected leafon|leafoff|blend|swipe|lod|wireframe|levels|relief");
+        if (!view) return fail("--view '" + args->view + "': expected leafon|leafoff|blend|swipe|lod|wireframe|levels|relief|canopy");
         imagery.view = *view;
         imagery.blend = args->blend;
         imagery.swipe = args->swipe;
@@ -87,6 +97,8 @@ Runner addRenderCommand(CLI::App& app) {
         settings.clipmap.size = args->clipSize;
         settings.clipmap.minClipLevels = args->clipLevels;
         settings.windowed = args->window;
+        if (auto c = parseCanopyArgs(args->canopyLayers, args->method, args->k); !c) return fail(c.message());
+        else settings.canopy = *c;
         settings.cacheDir = args->scene.cache.empty() ? defaultCacheDir() : std::filesystem::path(args->scene.cache);
         if (settings.renderer == RendererKind::Reference && view != ImageryView::LeafOn && view != ImageryView::LeafOff)
             return fail("--view " + args->view + " needs --renderer clipmap");

@@ -1,5 +1,8 @@
 #include "RenderJob.h"
 
+#include "CanopyClipmapGL.h"
+#include "CanopyRendererGL.h"
+
 #include "DepthAccuracy.h"
 #include "ElevationPyramid.h"
 
@@ -110,7 +113,24 @@ Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std:
         }
         out.push_back(std::move(report->pyramid));
     }
+    if (auto stats = preparePairStats(scene, out, cacheDir); !stats) return stats.error();
     return out;
+}
+
+Result<SegmentationHistograms> preparePairStats(const Scene& scene, const std::vector<ImagePyramid>& pyramids,
+                                                const std::filesystem::path& cacheDir) {
+    assert(pyramids.size() == 2 && pyramids[0].width() == scene.leafon.info.width &&
+           pyramids[0].height() == scene.leafon.info.height &&
+           "preparePairStats(): the leaf-on and leaf-off pyramids of the scene");
+    (void)scene; // only checked: the pyramids' source keys already name both layers and their stretches
+    PairHistogramsReport report;
+    auto histograms = preparePairHistograms(pyramids[0], pyramids[1], cacheDir, terminalProgress("pair stats"), &report);
+    if (!histograms) return histograms.error();
+    if (report.built) {
+        std::printf("prepared pair statistics in %.2f s (%s)\n", report.seconds, report.reason.c_str());
+        std::fflush(stdout);
+    }
+    return histograms;
 }
 
 Result<std::optional<ImagePyramid>> prepareElevation(const Scene& scene, const std::filesystem::path& cacheDir) {
@@ -162,6 +182,26 @@ Status writeRgb(const gl::RenderTarget& target, const std::filesystem::path& out
 
 } // namespace
 
+Result<CanopyRenderSettings> parseCanopyArgs(const std::string& layers, const std::string& method, int k) {
+    CanopyRenderSettings c;
+    if (layers == "off") {
+        c.layers = 0;
+    } else {
+        int n = 0;
+        const auto [ptr, ec] = std::from_chars(layers.data(), layers.data() + layers.size(), n);
+        if (ec != std::errc() || ptr != layers.data() + layers.size() || n < 1 || n > 32)
+            return Error{"--canopy-layers '" + layers + "': expected 1..32 or off"};
+        c.layers = n;
+    }
+    const auto m = parseSegmentationMethod(method);
+    if (!m) return Error{"--method '" + method + "': expected pixel|neighborhood|equalized|default"};
+    c.params.method = *m;
+    if (k < 1 || k > kSegMaxK || k % 2 == 0)
+        return Error{"--k " + std::to_string(k) + ": expected an odd number in 1.." + std::to_string(kSegMaxK)};
+    c.params.k = k;
+    return c;
+}
+
 Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, const std::vector<StillRequest>& stills,
                                      const RenderSettings& settings) {
     std::vector<ImagePyramid> pyramids;
@@ -211,14 +251,41 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
                                                      settings.geometry);
     if (!renderer) return renderer.error();
     const ClipmapGeometry geometry = clipmapGeometry(scene, (*clipmap)->schedule().layout());
+    // The canopy view's derived layer and stacked layers, made when a still asks for them.
+    std::unique_ptr<CanopyClipmapGL> canopy;
+    std::unique_ptr<CanopyRendererGL> canopyRenderer;
+    if (std::any_of(stills.begin(), stills.end(), [](const StillRequest& s) { return s.imagery.view == ImageryView::Canopy; })) {
+        auto hist = preparePairStats(scene, pyramids, settings.cacheDir);
+        if (!hist) return hist.error();
+        CanopyOptions co;
+        co.params = settings.canopy.params;
+        co.layers = std::max(1, settings.canopy.layers);
+        auto c = CanopyClipmapGL::create(**clipmap, statsFromHistograms(*hist, co.params.method), co);
+        if (!c) return c.error();
+        canopy = std::move(*c);
+        auto cr = CanopyRendererGL::create();
+        if (!cr) return cr.error();
+        canopyRenderer = std::move(*cr);
+        (*renderer)->setCanopy(canopy.get());
+    }
     std::unique_ptr<gl::RenderTarget> scratch;
     std::unique_ptr<ReferenceRendererGL> reference;
     for (const StillRequest& s : stills) {
         (*clipmap)->update(clipmapCentres(scene, s.camera, width, height, settings.centers, geometry));
         const ClipmapFrameStats loaded = (*clipmap)->completeSynchronously(); // a still waits for its texels
+        if (canopy) canopy->completeSynchronously();
         (*renderer)->updateGeometry(s.camera, height);
         (*renderer)->completeGeometry();
-        const GeometryFrameStats drawn = (*renderer)->render(s.camera, s.imagery, target);
+        GeometryFrameStats drawn = (*renderer)->render(s.camera, s.imagery, target);
+        if (s.imagery.view == ImageryView::Canopy && settings.canopy.layers > 0) {
+            CanopyDrawSettings cd;
+            cd.treeHeight = scene.sources.treeHeightM;
+            cd.anisotropy = s.imagery.anisotropy;
+            cd.shading = s.imagery.shading;
+            const GeometryFrameStats layers = canopyRenderer->render(s.camera, **renderer, *canopy, cd, target);
+            drawn.triangles += layers.triangles;
+            drawn.drawCalls += layers.drawCalls;
+        }
         if (auto st = checkGl(s.out); !st) return st.error();
         if (auto st = writeRgb(target, s.out); !st) return st.error();
         present();

@@ -5,6 +5,8 @@
 #include "ClipmapCenters.h"
 #include "ClipmapTerrainRendererGL.h"
 #include "ImagePyramid.h"
+#include "PairStats.h"
+#include "Segmentation.h"
 #include "ReferenceRendererGL.h"
 #include "Scene.h"
 #include "gl/GlContext.h"
@@ -51,6 +53,15 @@ struct StillRequest {
 
 enum class RendererKind { Clipmap, Reference };
 
+/// The `canopy` view: the derived canopy layer's rule and the stacked layers (foliage/CanopyRendererGL.h).
+struct CanopyRenderSettings {
+    SegmentationParams params;  // method and the ground layer's k
+    int layers = 16;            // stacked layers; 0 = off (the ground alone: leaf-off under the crowns)
+};
+
+/// --canopy-layers N|off, --method M, --k K -> canopy settings; errors name the flag.
+Result<CanopyRenderSettings> parseCanopyArgs(const std::string& layers, const std::string& method, int k);
+
 struct RenderSettings {
     RendererKind renderer = RendererKind::Clipmap;
     CenterPlacement centers = CenterPlacement::Footprint;
@@ -59,11 +70,20 @@ struct RenderSettings {
     bool windowed = false;          // a hidden GLFW window instead of EGL (same renderer code)
     float referenceAnisotropy = 16.0f; // reference renderer: the sampler's maximum anisotropy
     GeometryClipmapOptions geometry;   // terrain: the geometry clipmaps' n and elevation streaming
+    CanopyRenderSettings canopy;       // the `canopy` view
 };
 
 /// Makes sure both seasons' pyramids are prepared (building them when needed, with a progress bar on a terminal;
-/// says so on stdout when it built one). Returns leaf-on, leaf-off.
+/// says so on stdout when it built one), and then the pair's segmentation statistics (preparePairStats). Returns
+/// leaf-on, leaf-off.
 Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std::filesystem::path& cacheDir);
+
+/// The pair's segmentation histograms (foliage/PairStats.h) from the prepared pyramids `pyramids` (leaf-on,
+/// leaf-off, as preparePyramids returns them): read from the cache, or computed from both level-0 files and cached
+/// (with a progress bar on a terminal; says so on stdout when it computed them). statsFromHistograms() turns them
+/// into the equalisation tables and drop threshold of a method. Errors name the file.
+Result<SegmentationHistograms> preparePairStats(const Scene& scene, const std::vector<ImagePyramid>& pyramids,
+                                                const std::filesystem::path& cacheDir);
 
 /// Makes sure the DEM's elevation pyramid (terrain/ElevationPyramid.h) is prepared; nullopt for a flat scene.
 Result<std::optional<ImagePyramid>> prepareElevation(const Scene& scene, const std::filesystem::path& cacheDir);

@@ -1,12 +1,19 @@
 // Terrain draped with the imagery clipmaps (layer 0 leaf-on, layer 1 leaf-off). Variant LEVEL_STATS writes
-// (needed level, used level) / 255 for FrameLevelStats instead of a colour.
+// (needed level, used level) / 255 for FrameLevelStats instead of a colour; variant CANOPY_LAYER draws one of the
+// stacked canopy layers (Ropinski et al. 2007 §4.2): a fragment stays only where its texel belongs to the layer.
 #include "common_clipmap.glsl"
+#include "common_canopy.glsl"
 
 uniform sampler2DArray uClip0;
 uniform sampler2DArray uClip1;
 uniform sampler2D uCoarse0;
 uniform sampler2D uCoarse1;
-uniform int uView;       // ImageryView: 0 leafon, 1 leafoff, 2 blend, 3 swipe, 4 lod, 5 wireframe, 6 levels, 7 relief
+uniform int uView;       // ImageryView: 0 leafon, 1 leafoff, 2 blend, 3 swipe, 4 lod, 5 wireframe, 6 levels, 7 relief,
+                         // 8 canopy (ground: uCanopyGround[1] under the canopy, uCanopyGround[0] elsewhere)
+uniform int uCanopyGround[2]; // season (0 leaf-on, 1 leaf-off) of the ground away from / under the canopy
+uniform int uHasCanopy;
+uniform float uCanopyDark;    // colour factor of the lowest layer (the top one is 1)
+uniform vec2 uLayerShift;     // level-0 texels per layer (§4.2: "a slight texture coordinate shift")
 uniform int uWirePass;   // wireframe view, second pass: the lines in their level's colour
 uniform float uShade;    // 0..1: Lambert shading from the terrain's normals (0 = the orthophoto as it is)
 uniform vec3 uSunDir;
@@ -17,6 +24,9 @@ uniform vec3 uLevelColors[8];
 in vec2 vImageUv;
 in vec3 vNormal;
 flat in int vLevel;
+#ifdef CANOPY_LAYER
+flat in int vLayer;
+#endif
 out vec4 fragColor;
 
 void main() {
@@ -28,8 +38,21 @@ void main() {
     }
 #endif
     vec2 p = vImageUv * uLevel0Size;
+#ifdef CANOPY_LAYER
+    p += uLayerShift * float(vLayer);
+#endif
     ClipFootprint f = clipmapFootprint(p);
     int used;
+#ifdef CANOPY_LAYER
+    // The canopy at the level the footprint asks for: one fetch, then the leaf-on colour only for kept fragments,
+    // darker towards the ground (self-shadowing inside the crown).
+    if (canopyAt(p, int(floor(max(f.lambdaIso, 0.0)))) <= vLayer) discard;
+    vec3 lc = sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
+    lc *= mix(uCanopyDark, 1.0, float(vLayer) / float(max(uCanopyLayers - 1, 1)));
+    if (uShade > 0.0) lc *= mix(1.0, 0.25 + 0.75 * max(dot(normalize(vNormal), uSunDir), 0.0), uShade);
+    fragColor = vec4(lc, 1.0);
+    return;
+#endif
 #ifdef LEVEL_STATS
     sampleClipmap(uClip0, uCoarse0, p, f, used);
     float needed = clamp(floor(max(f.lambdaIso, 0.0)), 0.0, 254.0);
@@ -58,6 +81,12 @@ void main() {
         } else {
             c = sampleClipmap(uClip1, uCoarse1, p, f, used).rgb;
         }
+    } else if (uView == 8) {
+        // The ground of the canopy view: leaf-off under the crowns (the trees stand on it as layers), leaf-on
+        // elsewhere; both configurable.
+        bool under = uHasCanopy != 0 && canopyAt(p, int(floor(max(f.lambdaIso, 0.0)))) > 0;
+        c = uCanopyGround[under ? 1 : 0] == 0 ? sampleClipmap(uClip0, uCoarse0, p, f, used).rgb
+                                              : sampleClipmap(uClip1, uCoarse1, p, f, used).rgb;
     } else if (uView == 4 || uView == 6) {
         // Level colours over the imagery's brightness: the imagery level used (lod, Ropinski 2007 Fig. 2) or
         // the geometry level drawn (levels).

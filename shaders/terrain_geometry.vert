@@ -32,6 +32,16 @@ uniform int uElevSlotsPerSide;
 uniform int uElevLevels;
 uniform vec2 uElevLevelSize[24];
 
+#ifdef CANOPY_LAYER
+// Stacked canopy layers (Ropinski et al. 2007 §4.2, foliage/CanopyRendererGL.h): instance i is layer i, lifted to
+// i / (N - 1) of the tree height.
+uniform float uCanopyHeight;
+uniform int uCanopyLayers;
+flat out int vLayer;
+#endif
+
+invariant gl_Position; // layer 0 lies exactly on the ground and must land on the same depth
+
 out vec2 vImageUv;
 out vec3 vNormal;
 out vec3 vLocal;
@@ -94,6 +104,10 @@ void main() {
         z = mix(z, elevationAt(uLevel + 1, s), alpha);
         if (uNormals != 0) n = mix(n, normalAt(uLevel + 1, s, 2.0 * uCell), alpha);
     }
+#ifdef CANOPY_LAYER
+    vLayer = gl_InstanceID;
+    z += uCanopyHeight * float(gl_InstanceID) / float(max(uCanopyLayers - 1, 1));
+#endif
     vec2 local = vec2(uGridOrigin.x + s.x * uGridSpacing, uGridOrigin.y - s.y * uGridSpacing);
     vLocal = vec3(local, z);
     vNormal = normalize(n);

@@ -13,7 +13,8 @@ const float kLevelColors[8][3] = {{1.0f, 0.15f, 0.1f}, {0.1f, 0.85f, 0.2f}, {0.1
 
 namespace {
 constexpr ImageryView kViews[] = {ImageryView::LeafOn, ImageryView::LeafOff, ImageryView::Blend, ImageryView::Swipe,
-                                  ImageryView::Lod,    ImageryView::Wireframe, ImageryView::Levels, ImageryView::Relief};
+                                  ImageryView::Lod,    ImageryView::Wireframe, ImageryView::Levels, ImageryView::Relief,
+                                  ImageryView::Canopy};
 } // namespace
 
 const char* imageryViewName(ImageryView v) {
@@ -26,6 +27,7 @@ const char* imageryViewName(ImageryView v) {
     case ImageryView::Wireframe: return "wireframe";
     case ImageryView::Levels: return "levels";
     case ImageryView::Relief: return "relief";
+    case ImageryView::Canopy: return "canopy";
     }
     return "?";
 }
@@ -58,13 +60,26 @@ ClipmapFrameStats ClipmapTerrainRendererGL::updateGeometry(const Camera& camera,
 
 ClipmapFrameStats ClipmapTerrainRendererGL::completeGeometry() { return m_geometry->completeSynchronously(); }
 
+void ClipmapTerrainRendererGL::bindTerrain(const gl::ShaderProgram& program, const glm::dmat4& viewProj) const {
+    program.set("uViewProj", glm::mat4(viewProj));
+    m_clipmap.bind(program, 0);
+    m_geometry->bind(program, 8);
+    if (m_canopy) {
+        m_canopy->bind(program, kCanopyUnit);
+    } else {
+        // Integer samplers must not share unit 0 with the float clip arrays, even unread.
+        program.set("uCanopyClip", kCanopyUnit);
+        program.set("uCanopyCoarse", kCanopyUnit + 1);
+        program.set("uCanopyTags", kCanopyUnit + 2);
+    }
+    program.set("uHasCanopy", m_canopy ? 1 : 0);
+}
+
 GeometryFrameStats ClipmapTerrainRendererGL::draw(const gl::ShaderProgram& program, const Camera& camera,
                                                   const gl::RenderTarget& target) const {
     const double aspect = double(target.width()) / double(target.height());
     const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
-    program.set("uViewProj", glm::mat4(viewProj));
-    m_clipmap.bind(program, 0);
-    m_geometry->bind(program, 8);
+    bindTerrain(program, viewProj);
     program.use();
     m_last = m_geometry->draw(program, viewProj);
     return m_last;
@@ -83,6 +98,8 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
     m_program.set("uNormals", shade > 0.0f || s.view == ImageryView::Relief ? 1 : 0);
     m_program.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75)))); // from the north-west, high
     m_program.set("uWirePass", 0);
+    m_program.set("uCanopyGround[0]", std::clamp(s.groundElsewhere, 0, 1));
+    m_program.set("uCanopyGround[1]", std::clamp(s.groundUnderCanopy, 0, 1));
     for (int i = 0; i < 8; ++i)
         m_program.set(("uLevelColors[" + std::to_string(i) + "]").c_str(),
                       glm::vec3(kLevelColors[i][0], kLevelColors[i][1], kLevelColors[i][2]));

@@ -20,8 +20,9 @@ namespace seasonview {
 
 /// What the imagery shows. CLI names: leafon, leafoff, blend, swipe, lod (imagery clipmap level colours), wireframe
 /// (geometry clipmap triangles in their level's colour over the dimmed leaf-on), levels (geometry level colours),
-/// relief (the terrain alone, shaded grey from its normals: no imagery fetched).
-enum class ImageryView { LeafOn, LeafOff, Blend, Swipe, Lod, Wireframe, Levels, Relief };
+/// relief (the terrain alone, shaded grey from its normals: no imagery fetched), canopy (the ground of the stacked
+/// canopy: leaf-off under the treetops, leaf-on elsewhere; the layers themselves are foliage/CanopyRendererGL.h).
+enum class ImageryView { LeafOn, LeafOff, Blend, Swipe, Lod, Wireframe, Levels, Relief, Canopy };
 std::optional<ImageryView> parseImageryView(const std::string& name);
 const char* imageryViewName(ImageryView v);
 
@@ -32,7 +33,20 @@ struct ImagerySettings {
     // Maximum anisotropy of the clipmap's own footprint-assembly filter (probes per pixel, 1 = isotropic).
     float anisotropy = 8.0f;
     float shading = 0.0f; // 0..1: Lambert shading from the elevation clipmap's normals
+    // Canopy view: the season of the ground under the treetops and elsewhere (0 leaf-on, 1 leaf-off).
+    int groundUnderCanopy = 1;
+    int groundElsewhere = 0;
 };
+
+/// A per-texel canopy layer the ground pass can read (foliage/CanopyClipmapGL.h implements it): binds the samplers
+/// of shaders/common_canopy.glsl to units firstUnit .. firstUnit + 2.
+class CanopySource {
+public:
+    virtual ~CanopySource() = default;
+    virtual void bind(const gl::ShaderProgram& program, int firstUnit) const = 0;
+};
+/// Texture units of the terrain passes: imagery clipmap 0.., elevation and lookup 8..12, canopy 13..15.
+inline constexpr int kCanopyUnit = 13;
 inline constexpr float kMaxAnisotropy = 16.0f;
 
 /// The colours of `--view lod`, level 0 first (paper Fig. 2: red, green, blue, ...).
@@ -64,6 +78,13 @@ public:
     /// Renders the level-statistics pass into `scratch` (same size as the frame) and reduces it.
     FrameLevelStats measureLevels(const Camera& camera, const gl::RenderTarget& scratch) const;
 
+    /// The canopy the `canopy` view's ground reads (null: none, the ground is all `groundElsewhere`). Kept by
+    /// reference.
+    void setCanopy(const CanopySource* canopy) { m_canopy = canopy; }
+    /// Binds everything terrain_geometry.vert + terrain_clipmap.frag read (clipmap, elevation, canopy) and sets
+    /// uViewProj: for other passes over the same geometry (the canopy layers).
+    void bindTerrain(const gl::ShaderProgram& program, const glm::dmat4& viewProj) const;
+
     /// Triangles drawn by the last frame (after culling).
     std::int64_t triangles() const { return m_last.triangles; }
     const GeometryClipmapGL& geometry() const { return *m_geometry; }
@@ -73,6 +94,7 @@ private:
     GeometryFrameStats draw(const gl::ShaderProgram& program, const Camera& camera, const gl::RenderTarget& target) const;
 
     const ClipmapGL& m_clipmap;
+    const CanopySource* m_canopy = nullptr;
     std::unique_ptr<GeometryClipmapGL> m_geometry;
     mutable GeometryFrameStats m_last;
     gl::ShaderProgram m_program, m_statsProgram;

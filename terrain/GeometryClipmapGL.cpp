@@ -177,16 +177,27 @@ void GeometryClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit) co
     program.set("uTransitionWidth", float(std::max(2, m_options.n / 10)));
 }
 
-void GeometryClipmapGL::drawMesh(const Mesh& mesh) const {
+void GeometryClipmapGL::drawMesh(const Mesh& mesh, int instances) const {
     glBindVertexArray(mesh.vao.id());
-    glDrawElements(GL_TRIANGLES, mesh.indexCount, GL_UNSIGNED_INT, nullptr);
+    if (instances == 1) glDrawElements(GL_TRIANGLES, mesh.indexCount, GL_UNSIGNED_INT, nullptr);
+    else glDrawElementsInstanced(GL_TRIANGLES, mesh.indexCount, GL_UNSIGNED_INT, nullptr, instances);
 }
 
 GeometryFrameStats GeometryClipmapGL::draw(const gl::ShaderProgram& program, const glm::dmat4& viewProj) const {
+    return drawPieces(program, viewProj, 0.0, nullptr);
+}
+
+GeometryFrameStats GeometryClipmapGL::drawInstanced(const gl::ShaderProgram& program, const glm::dmat4& viewProj,
+                                                    double lift, const PieceInstances& instances) const {
+    return drawPieces(program, viewProj, lift, &instances);
+}
+
+GeometryFrameStats GeometryClipmapGL::drawPieces(const gl::ShaderProgram& program, const glm::dmat4& viewProj,
+                                                 double lift, const PieceInstances* instances) const {
     GeometryFrameStats st;
     const FrustumPlanes frustum = FrustumPlanes::fromViewProj(viewProj);
     const double s = m_grid.spacing;
-    const double zlo = double(m_minHeight) - 1.0, zhi = double(m_maxHeight) + 1.0;
+    const double zlo = double(m_minHeight) - 1.0, zhi = double(m_maxHeight) + 1.0 + std::max(lift, 0.0);
     const double half = double(m_options.n - 1) / 2.0;
     for (int l = m_placement.finest; l < m_levels; ++l) {
         const GeometryLevel& g = m_placement.levels[size_t(l)];
@@ -196,10 +207,13 @@ GeometryFrameStats GeometryClipmapGL::draw(const gl::ShaderProgram& program, con
         program.set("uLevelCentre", glm::vec2(glm::dvec2(g.origin) + half * double(g.cell)));
         program.set("uBlendToCoarser", m_options.stitchLevels && l + 1 < m_levels ? 1 : 0);
         bool any = false;
+        // Sample coordinates -> local box (j runs south).
+        auto box = [&](int x0, int y0, int x1, int y1) {
+            return std::pair{m_grid.samplePosition(double(g.origin.x + x0 * g.cell), double(g.origin.y + y1 * g.cell)),
+                             m_grid.samplePosition(double(g.origin.x + x1 * g.cell), double(g.origin.y + y0 * g.cell))};
+        };
         auto visible = [&](int x0, int y0, int x1, int y1) {
-            // Sample coordinates -> local box (j runs south).
-            const glm::dvec2 a = m_grid.samplePosition(double(g.origin.x + x0 * g.cell), double(g.origin.y + y1 * g.cell));
-            const glm::dvec2 b = m_grid.samplePosition(double(g.origin.x + x1 * g.cell), double(g.origin.y + y0 * g.cell));
+            const auto [a, b] = box(x0, y0, x1, y1);
             return !frustum.outside({a.x - s, a.y - s, zlo}, {b.x + s, b.y + s, zhi});
         };
         for (const GridRect& r : levelPieces(m_ring, m_placement, l)) {
@@ -207,15 +221,21 @@ GeometryFrameStats GeometryClipmapGL::draw(const gl::ShaderProgram& program, con
                 ++st.piecesCulled;
                 continue;
             }
+            int count = 1;
+            if (instances) {
+                const auto [a, b] = box(r.x0, r.y0, r.x1, r.y1);
+                count = (*instances)(l, a, b);
+                if (count <= 0) continue;
+            }
             const auto it = m_meshes.find({r.cellsX(), r.cellsY()});
             assert(it != m_meshes.end() && "GeometryClipmapGL: piece shape without a mesh");
             program.set("uPieceOffset", glm::vec2(float(r.x0), float(r.y0)));
-            drawMesh(it->second);
-            st.triangles += it->second.indexCount / 3;
+            drawMesh(it->second, count);
+            st.triangles += std::int64_t(it->second.indexCount / 3) * count;
             ++st.drawCalls;
             any = true;
         }
-        if (m_options.stitchLevels && l + 1 < m_levels && visible(0, 0, m_options.n - 1, m_options.n - 1)) {
+        if (!instances && m_options.stitchLevels && l + 1 < m_levels && visible(0, 0, m_options.n - 1, m_options.n - 1)) {
             program.set("uPieceOffset", glm::vec2(0.0f));
             drawMesh(m_edge);
             st.triangles += m_edge.indexCount / 3;

@@ -15,6 +15,7 @@
 #include <glm/mat2x2.hpp>
 #include <glm/mat4x4.hpp>
 
+#include <functional>
 #include <map>
 #include <memory>
 #include <utility>
@@ -59,6 +60,13 @@ public:
     /// Draws the pieces inside the frustum with `program` (bound by the caller, bind() called).
     GeometryFrameStats draw(const gl::ShaderProgram& program, const glm::dmat4& viewProj) const;
 
+    /// Instances of one piece: level, its box in the local frame (metres, x east, y north). 0 = skip it.
+    using PieceInstances = std::function<int(int level, glm::dvec2 lo, glm::dvec2 hi)>;
+    /// The same pieces drawn as `instances` says (gl_InstanceID tells them apart), culled against the frustum
+    /// with their boxes raised by up to `lift` metres; no edge triangles (stacked layers, foliage/).
+    GeometryFrameStats drawInstanced(const gl::ShaderProgram& program, const glm::dmat4& viewProj, double lift,
+                                     const PieceInstances& instances) const;
+
     const GeometryPlacement& placement() const { return m_placement; }
     int levelCount() const { return m_levels; }
     const ElevationGrid& grid() const { return m_grid; }
@@ -73,7 +81,9 @@ private:
     };
     GeometryClipmapGL() = default;
     const Mesh& meshFor(int cellsX, int cellsY);
-    void drawMesh(const Mesh& mesh) const;
+    void drawMesh(const Mesh& mesh, int instances = 1) const;
+    GeometryFrameStats drawPieces(const gl::ShaderProgram& program, const glm::dmat4& viewProj, double lift,
+                                  const PieceInstances* instances) const;
 
     const Scene* m_scene = nullptr;
     ElevationGrid m_grid;

@@ -85,6 +85,24 @@ Result<ShaderProgram> ShaderProgram::build(std::string_view vertexName, std::str
     return p;
 }
 
+Result<ShaderProgram> ShaderProgram::buildCompute(std::string_view computeName, const std::vector<std::string>& defines) {
+    auto cs = compile(GL_COMPUTE_SHADER, computeName, defines);
+    if (!cs) return cs.error();
+    ShaderProgram p;
+    p.m_program = Program::create();
+    glAttachShader(p.id(), cs->id());
+    glLinkProgram(p.id());
+    GLint ok = 0;
+    glGetProgramiv(p.id(), GL_LINK_STATUS, &ok);
+    if (!ok) {
+        char log[4096] = {};
+        glGetProgramInfoLog(p.id(), sizeof log, nullptr, log);
+        return Error{"program " + std::string(computeName) + ": " + log};
+    }
+    glDetachShader(p.id(), cs->id());
+    return p;
+}
+
 GLint ShaderProgram::location(const char* name) const {
     auto it = m_locations.find(name);
     if (it != m_locations.end()) return it->second;

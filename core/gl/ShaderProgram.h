@@ -23,6 +23,8 @@ public:
     /// ("NAME" or "NAME VALUE"). The error carries the compiler's log: a broken shader is a bug, tests catch it.
     static Result<ShaderProgram> build(std::string_view vertexName, std::string_view fragmentName,
                                        const std::vector<std::string>& defines = {});
+    /// Compiles and links a compute program from `computeName` (a .comp file in shaders/).
+    static Result<ShaderProgram> buildCompute(std::string_view computeName, const std::vector<std::string>& defines = {});
 
     GLuint id() const { return m_program.id(); }
     void use() const { glUseProgram(m_program.id()); }

@@ -1,0 +1,232 @@
+#include "CanopyClipmapGL.h"
+
+#include "ToroidalWindow.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <string>
+
+namespace seasonview {
+
+namespace {
+constexpr int kTile = 32;            // output tile of one work group (canopy_derive.comp)
+constexpr int kMaxDispatchBlocks = 4096;
+constexpr int kMaxLayers = 32;       // uLayerK[32]
+std::int32_t blockTag(int bx, int by) { return bx | (by << 16); }
+} // namespace
+
+Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL& source, const SegmentationStats& stats,
+                                                                 const CanopyOptions& options) {
+    assert(source.layers() >= 2 && source.format() == TexelFormat::Rgb8 && "CanopyClipmapGL: needs two seasons of RGB");
+    if (options.layers < 1 || options.layers > kMaxLayers)
+        return Error{"canopy layers must be 1.." + std::to_string(kMaxLayers) + ", got " + std::to_string(options.layers)};
+    const int k = effectiveK(options.params);
+    if (k < 1 || k > kSegMaxK || k % 2 == 0)
+        return Error{"segmentation k must be odd and 1.." + std::to_string(kSegMaxK) + ", got " + std::to_string(k)};
+    const ClipmapLayout& L = source.schedule().layout();
+    assert(L.block % kTile == 0 && "CanopyClipmapGL: the block must be a multiple of the work group's tile");
+    auto c = std::unique_ptr<CanopyClipmapGL>(new CanopyClipmapGL(source, options));
+    c->m_stats = stats;
+    int top = options.topK > 0 ? options.topK : std::min(kSegMaxK, 3 * k);
+    if (options.params.method == SegmentationMethod::Pixel) top = 1;
+    top = std::clamp(top | 1, k, kSegMaxK);
+    c->m_topK = top;
+
+    auto p = gl::ShaderProgram::buildCompute("canopy_derive.comp");
+    if (!p) return p.error();
+    c->m_program = std::move(*p);
+
+    const int clipLevels = L.clipLevels();
+    const int slots = source.schedule().slotsPerSide();
+    c->m_arrayLayers = std::max(1, clipLevels);
+    c->m_clip = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
+    glTextureStorage3D(c->m_clip.id(), 1, GL_R8UI, L.size, L.size, c->m_arrayLayers);
+    const GLuint zero = 0;
+    glClearTexImage(c->m_clip.id(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+    const glm::ivec2 coarse = L.levelSizes[size_t(clipLevels)];
+    c->m_coarse = gl::Texture::create(GL_TEXTURE_2D);
+    glTextureStorage2D(c->m_coarse.id(), 1, GL_R8UI, coarse.x, coarse.y);
+    glClearTexImage(c->m_coarse.id(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+    c->m_tagTexture = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
+    glTextureStorage3D(c->m_tagTexture.id(), 1, GL_R32I, slots, slots, c->m_arrayLayers);
+    const GLint empty = ClipmapSchedule::kEmptyTag;
+    glClearTexImage(c->m_tagTexture.id(), 0, GL_RED_INTEGER, GL_INT, &empty);
+    for (const gl::Texture* t : {&c->m_clip, &c->m_coarse, &c->m_tagTexture}) {
+        glTextureParameteri(t->id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        glTextureParameteri(t->id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    }
+    c->m_tags.assign(size_t(clipLevels), std::vector<std::int32_t>(size_t(slots) * size_t(slots), ClipmapSchedule::kEmptyTag));
+    c->m_slotMax.assign(size_t(clipLevels), std::vector<std::uint8_t>(size_t(slots) * size_t(slots), 0));
+
+    std::vector<std::uint32_t> luts(6 * 256);
+    for (int ch = 0; ch < 3; ++ch)
+        for (int v = 0; v < 256; ++v) {
+            luts[size_t(ch * 256 + v)] = stats.lutOn[size_t(ch)][size_t(v)];
+            luts[size_t(768 + ch * 256 + v)] = stats.lutOff[size_t(ch)][size_t(v)];
+        }
+    c->m_luts = gl::Buffer::create();
+    glNamedBufferStorage(c->m_luts.id(), GLsizeiptr(luts.size() * 4), luts.data(), 0);
+    c->m_blocks = gl::Buffer::create();
+    glNamedBufferStorage(c->m_blocks.id(), kMaxDispatchBlocks * 16, nullptr, GL_DYNAMIC_STORAGE_BIT);
+    c->m_blockMax = gl::Buffer::create();
+    glNamedBufferStorage(c->m_blockMax.id(), kMaxDispatchBlocks * 4, nullptr, GL_DYNAMIC_STORAGE_BIT);
+
+    // The coarse base is resident whole: derive all of it now.
+    std::vector<glm::ivec2> blocks;
+    for (int by = 0; by * L.block < coarse.y; ++by)
+        for (int bx = 0; bx * L.block < coarse.x; ++bx) blocks.push_back({bx, by});
+    for (std::uint32_t m : c->derive(clipLevels, true, blocks)) c->m_coarseMax = std::max(c->m_coarseMax, std::uint8_t(m));
+    return c;
+}
+
+int CanopyClipmapGL::layerK(int layer, int level) const {
+    const int k = effectiveK(m_options.params), n = m_options.layers;
+    // Ground layer k, top layer m_topK, odd in between (Ropinski et al. 2007 §4.2: k grows with height).
+    const int ki = n > 1 ? k + 2 * int(std::lround(double(m_topK - k) / 2.0 * double(layer) / double(n - 1))) : k;
+    // About the same metres on coarser levels: k / 2^level, rounded down to odd.
+    return 2 * int(std::floor(double(ki) / std::exp2(double(level + 1)))) + 1;
+}
+
+bool CanopyClipmapGL::derivable(int level, int bx, int by) const {
+    const ClipmapSchedule& s = m_source.schedule();
+    const ClipmapLayout& L = s.layout();
+    const glm::ivec2 size = L.levelSizes[size_t(level)];
+    const int nbx = (size.x + L.block - 1) / L.block, nby = (size.y + L.block - 1) / L.block;
+    const int slots = s.slotsPerSide();
+    const auto& tags = s.slotTags(level);
+    for (int y = by - 1; y <= by + 1; ++y)
+        for (int x = bx - 1; x <= bx + 1; ++x) {
+            if (x < 0 || y < 0 || x >= nbx || y >= nby) continue; // outside the image: edge texels, in the block
+            if (tags[size_t(wrapTexel(y, slots)) * size_t(slots) + size_t(wrapTexel(x, slots))] != blockTag(x, y))
+                return false;
+        }
+    return true;
+}
+
+std::vector<std::uint32_t> CanopyClipmapGL::derive(int level, bool coarse, const std::vector<glm::ivec2>& blocks) {
+    std::vector<std::uint32_t> maxima;
+    if (blocks.empty()) return maxima;
+    const ClipmapLayout& L = m_source.schedule().layout();
+    m_source.bind(m_program, 0);
+    m_program.set("uLevel", level);
+    m_program.set("uCoarsePass", coarse ? 1 : 0);
+    m_program.set("uBlockSize", L.block);
+    m_program.set("uMethod", int(m_options.params.method));
+    m_program.set("uDropThreshold", m_stats.dropThreshold);
+    m_program.set("uLayers", m_options.layers);
+    for (int i = 0; i < m_options.layers; ++i)
+        m_program.set(("uLayerK[" + std::to_string(i) + "]").c_str(),
+                      m_options.params.method == SegmentationMethod::Pixel ? 1 : layerK(i, level));
+    glBindImageTexture(0, m_clip.id(), 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_R8UI);
+    glBindImageTexture(1, m_coarse.id(), 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R8UI);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_blocks.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_luts.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, m_blockMax.id());
+    m_program.use();
+    for (size_t first = 0; first < blocks.size(); first += kMaxDispatchBlocks) {
+        const size_t n = std::min(blocks.size() - first, size_t(kMaxDispatchBlocks));
+        std::vector<glm::ivec4> list(n);
+        for (size_t i = 0; i < n; ++i) list[i] = {blocks[first + i].x, blocks[first + i].y, level, 0};
+        glNamedBufferSubData(m_blocks.id(), 0, GLsizeiptr(n * sizeof(glm::ivec4)), list.data());
+        std::vector<std::uint32_t> zeros(n, 0);
+        glNamedBufferSubData(m_blockMax.id(), 0, GLsizeiptr(n * 4), zeros.data());
+        glDispatchCompute(GLuint(L.block / kTile), GLuint(L.block / kTile), GLuint(n));
+        glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT |
+                        GL_TEXTURE_UPDATE_BARRIER_BIT);
+        std::vector<std::uint32_t> m(n);
+        glGetNamedBufferSubData(m_blockMax.id(), 0, GLsizeiptr(n * 4), m.data());
+        maxima.insert(maxima.end(), m.begin(), m.end());
+    }
+    m_totalDerived += std::int64_t(blocks.size());
+    return maxima;
+}
+
+CanopyFrameStats CanopyClipmapGL::run(int budget, bool everything) {
+    CanopyFrameStats st;
+    const ClipmapSchedule& s = m_source.schedule();
+    const ClipmapLayout& L = s.layout();
+    const int slots = s.slotsPerSide();
+    for (int level = 0; level < L.clipLevels(); ++level) {
+        const TexelRect& w = s.window(level);
+        const glm::ivec2 size = L.levelSizes[size_t(level)];
+        const int bx0 = std::max(0, w.x0 / L.block), by0 = std::max(0, w.y0 / L.block);
+        const int bx1 = std::min((size.x + L.block - 1) / L.block, (w.x1 + L.block - 1) / L.block);
+        const int by1 = std::min((size.y + L.block - 1) / L.block, (w.y1 + L.block - 1) / L.block);
+        std::vector<glm::ivec2> todo;
+        for (int by = by0; by < by1; ++by)
+            for (int bx = bx0; bx < bx1; ++bx) {
+                const size_t slot = size_t(wrapTexel(by, slots)) * size_t(slots) + size_t(wrapTexel(bx, slots));
+                if (!everything && m_tags[size_t(level)][slot] == blockTag(bx, by)) continue;
+                if (s.slotTags(level)[slot] != blockTag(bx, by)) continue; // not uploaded yet
+                if (!derivable(level, bx, by) || (!everything && st.blocksDerived + int(todo.size()) >= budget)) {
+                    ++st.blocksPending;
+                    continue;
+                }
+                todo.push_back({bx, by});
+            }
+        if (todo.empty()) continue;
+        const std::vector<std::uint32_t> maxima = derive(level, false, todo);
+        for (size_t i = 0; i < todo.size(); ++i) {
+            const size_t slot = size_t(wrapTexel(todo[i].y, slots)) * size_t(slots) + size_t(wrapTexel(todo[i].x, slots));
+            m_tags[size_t(level)][slot] = blockTag(todo[i].x, todo[i].y);
+            m_slotMax[size_t(level)][slot] = std::uint8_t(maxima[i]);
+        }
+        glTextureSubImage3D(m_tagTexture.id(), 0, 0, 0, level, slots, slots, 1, GL_RED_INTEGER, GL_INT,
+                            m_tags[size_t(level)].data());
+        st.blocksDerived += int(todo.size());
+    }
+    if (everything) {
+        const glm::ivec2 coarse = L.levelSizes[size_t(L.clipLevels())];
+        std::vector<glm::ivec2> blocks;
+        for (int by = 0; by * L.block < coarse.y; ++by)
+            for (int bx = 0; bx * L.block < coarse.x; ++bx) blocks.push_back({bx, by});
+        derive(L.clipLevels(), true, blocks);
+        st.blocksDerived += int(blocks.size());
+    }
+    return st;
+}
+
+CanopyFrameStats CanopyClipmapGL::update() { return run(m_options.blocksPerFrame, false); }
+
+CanopyFrameStats CanopyClipmapGL::completeSynchronously() { return run(1 << 30, false); }
+
+CanopyFrameStats CanopyClipmapGL::rederiveAll() { return run(1 << 30, true); }
+
+void CanopyClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit) const {
+    glBindTextureUnit(GLuint(firstUnit), m_clip.id());
+    glBindTextureUnit(GLuint(firstUnit + 1), m_coarse.id());
+    glBindTextureUnit(GLuint(firstUnit + 2), m_tagTexture.id());
+    program.set("uCanopyClip", firstUnit);
+    program.set("uCanopyCoarse", firstUnit + 1);
+    program.set("uCanopyTags", firstUnit + 2);
+    program.set("uCanopyLayers", m_options.layers);
+}
+
+std::vector<std::uint8_t> CanopyClipmapGL::readClipLevel(int level) const {
+    const int n = m_source.schedule().layout().size;
+    std::vector<std::uint8_t> out(size_t(n) * size_t(n));
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    glGetTextureSubImage(m_clip.id(), 0, 0, 0, level, n, n, 1, GL_RED_INTEGER, GL_UNSIGNED_BYTE, GLsizei(out.size()),
+                         out.data());
+    return out;
+}
+
+std::vector<std::uint8_t> CanopyClipmapGL::readCoarse() const {
+    const ClipmapLayout& L = m_source.schedule().layout();
+    const glm::ivec2 size = L.levelSizes[size_t(L.clipLevels())];
+    std::vector<std::uint8_t> out(size_t(size.x) * size_t(size.y));
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    glGetTextureImage(m_coarse.id(), 0, GL_RED_INTEGER, GL_UNSIGNED_BYTE, GLsizei(out.size()), out.data());
+    return out;
+}
+
+std::int64_t CanopyClipmapGL::residentBytes() const {
+    const ClipmapLayout& L = m_source.schedule().layout();
+    const glm::ivec2 coarse = L.levelSizes[size_t(L.clipLevels())];
+    const std::int64_t slots = m_source.schedule().slotsPerSide();
+    return std::int64_t(L.size) * L.size * m_arrayLayers + std::int64_t(coarse.x) * coarse.y +
+           slots * slots * 4 * m_arrayLayers;
+}
+
+} // namespace seasonview

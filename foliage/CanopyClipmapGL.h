@@ -1,0 +1,88 @@
+#pragma once
+// The derived canopy layer of the imagery clipmaps (Ropinski et al. 2007 §4.1-4.2): for every texel of every clip
+// level (and of the resident coarse pyramid's base), how many of the N stacked canopy layers it belongs to. The
+// seasonal rule (SegmentationRule.h, on the GPU shaders/canopy_derive.comp) runs when a block of both seasons has
+// been uploaded together with its eight neighbours (the vote and the texture test reach into them), only for the
+// blocks newly exposed, so each canopy fragment costs one fetch. Layer i votes over k_i × k_i texels, k growing
+// from the method's k at the ground layer to `topK` at the top (§4.2), so crowns narrow towards their tops; on
+// coarser levels k shrinks with the texel size (about the same metres). Validity per block through its own tag
+// texture, like the imagery: a block not derived yet falls back to the next coarser level.
+#include "ClipmapGL.h"
+#include "ClipmapTerrainRendererGL.h" // CanopySource
+#include "Segmentation.h"
+#include "gl/GlObjects.h"
+#include "gl/ShaderProgram.h"
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace seasonview {
+
+struct CanopyOptions {
+    SegmentationParams params;   // method and the ground layer's k
+    int layers = 16;             // N stacked layers (1..32)
+    int topK = 0;                // k of the top layer (odd, <= kSegMaxK); 0 = min(kSegMaxK, 3 k)
+    int blocksPerFrame = 256;    // derivation budget per update()
+};
+
+struct CanopyFrameStats {
+    int blocksDerived = 0;
+    int blocksPending = 0;       // resident in both seasons but waiting for a neighbour or the budget
+};
+
+class CanopyClipmapGL : public CanopySource {
+public:
+    /// `source`: the imagery clipmap, layer 0 leaf-on, layer 1 leaf-off (kept by reference). `stats`: the pair's
+    /// statistics (tables, drop threshold) for params.method. Derives the coarse base at once.
+    static Result<std::unique_ptr<CanopyClipmapGL>> create(const ClipmapGL& source, const SegmentationStats& stats,
+                                                          const CanopyOptions& options = {});
+
+    /// After the source's update(): derives the blocks that became derivable, finest level first, within the
+    /// budget; blocks whose slot the source reused are invalid at once (their tag no longer matches).
+    CanopyFrameStats update();
+    /// Derives every derivable block (stills, tests).
+    CanopyFrameStats completeSynchronously();
+    /// Re-derives everything resident (the per-frame mode: what evaluating the rule every frame costs).
+    CanopyFrameStats rederiveAll();
+
+    /// Binds uCanopyClip (usampler2DArray), uCanopyCoarse (usampler2D) and uCanopyTags (isampler2DArray) to units
+    /// firstUnit .. firstUnit + 2 and sets uCanopyLayers (common_canopy.glsl).
+    void bind(const gl::ShaderProgram& program, int firstUnit) const override;
+
+    const CanopyOptions& options() const { return m_options; }
+    /// k of layer `layer` on clip level `level` (odd, >= 1; `pixel`: 1).
+    int layerK(int layer, int level) const;
+    /// Largest canopy value in the slot's block (0: no treetop), per clip level, slot row-major; kept to skip
+    /// empty pieces.
+    const std::vector<std::uint8_t>& slotMax(int level) const { return m_slotMax[size_t(level)]; }
+    const std::vector<std::int32_t>& slotTags(int level) const { return m_tags[size_t(level)]; }
+    std::uint8_t coarseMax() const { return m_coarseMax; }
+    /// The toroidal canopy level `level` as stored (N×N, texel q at (q mod N)); tests.
+    std::vector<std::uint8_t> readClipLevel(int level) const;
+    std::vector<std::uint8_t> readCoarse() const;
+    std::int64_t residentBytes() const;
+    std::int64_t totalBlocksDerived() const { return m_totalDerived; }
+
+private:
+    CanopyClipmapGL(const ClipmapGL& source, const CanopyOptions& options) : m_source(source), m_options(options) {}
+    bool derivable(int level, int bx, int by) const;
+    // Runs the compute shader over `blocks` of `level` (coarse: the coarse base); returns each block's max.
+    std::vector<std::uint32_t> derive(int level, bool coarse, const std::vector<glm::ivec2>& blocks);
+    CanopyFrameStats run(int budget, bool everything);
+
+    const ClipmapGL& m_source;
+    CanopyOptions m_options;
+    SegmentationStats m_stats;
+    int m_topK = 0;
+    gl::ShaderProgram m_program;
+    gl::Texture m_clip, m_coarse, m_tagTexture;
+    gl::Buffer m_blocks, m_luts, m_blockMax;
+    std::vector<std::vector<std::int32_t>> m_tags; // per clip level, per slot: the block derived there
+    std::vector<std::vector<std::uint8_t>> m_slotMax;
+    std::uint8_t m_coarseMax = 0;
+    int m_arrayLayers = 1;
+    std::int64_t m_totalDerived = 0;
+};
+
+} // namespace seasonview

@@ -1,0 +1,155 @@
+// The derived canopy layer of the texture clipmaps (foliage/CanopyClipmapGL.h): the seasonal treetop rule
+// (Ropinski et al. 2007 §4.1, foliage_rule.glsl) evaluated once, when a block's texels (and its neighbours') have
+// been uploaded, for every canopy layer at once (§4.2: "alter the size k of the neighborhood area based on the
+// current height", k growing with the layer). Each texel stores how many layers it belongs to: the highest layer i
+// whose k_i × k_i vote is a majority, plus one (0: not a treetop). A canopy fragment then costs one fetch.
+//
+// One work group: a 32×32 output tile of one block, 16×16 invocations with 2×2 outputs each, its input in shared
+// memory with a halo of kSegMaxK / 2 (vote) + kSegTextureHalo (default's texture) texels. Texels outside the level's
+// image are the nearest edge texel, exactly as on the CPU.
+#include "foliage_rule.glsl"
+
+layout(local_size_x = 16, local_size_y = 16) in;
+
+const int TILE = 32;
+const int VOTE_HALO = SV_SEG_MAX_K / 2;              // 7
+const int HALO = VOTE_HALO + SV_SEG_TEXTURE_HALO;    // 10
+const int IN = TILE + 2 * HALO;                      // 52: fetched texels
+const int SM = IN - 2;                               // 50: 3×3 sums of brightness
+const int BITS = TILE + 2 * VOTE_HALO;               // 46: per-texel votes
+
+uniform sampler2DArray uClip0; // leaf-on, leaf-off toroidal levels
+uniform sampler2DArray uClip1;
+uniform sampler2D uCoarse0;    // the resident coarse pyramid's base (level uClipLevels)
+uniform sampler2D uCoarse1;
+uniform float uClipSize;
+uniform vec2 uLevel0Size;
+uniform vec2 uCoarseSize;
+
+layout(r8ui, binding = 0) uniform writeonly uimage2DArray uCanopyClipOut;
+layout(r8ui, binding = 1) uniform writeonly uimage2D uCanopyCoarseOut;
+
+// Blocks of this dispatch: x, y = block coordinates in level texels / block.
+layout(std430, binding = 0) readonly buffer Blocks { ivec4 blocks[]; };
+// Equalisation tables (method equalized): on r, g, b, off r, g, b; 256 entries each.
+layout(std430, binding = 1) readonly buffer Luts { uint luts[]; };
+// Per dispatched block: the largest value written (the renderer skips pieces without canopy).
+layout(std430, binding = 2) buffer BlockMax { uint blockMax[]; };
+
+uniform int uLevel;        // the level derived; uCoarsePass: the coarse base
+uniform int uCoarsePass;   // 1: read the coarse textures' base, write uCanopyCoarseOut
+uniform int uBlockSize;
+uniform int uMethod;       // SegmentationMethod: 0 pixel, 1 neighborhood, 2 equalized, 3 default
+uniform int uDropThreshold;
+uniform int uLayers;
+uniform int uLayerK[32];   // k of each layer at this level, odd, non-decreasing
+
+shared uint sIn[IN * IN];
+shared int sSmooth[SM * SM];
+shared uint sBits[BITS * BITS];
+
+ivec2 levelSize() {
+    if (uCoarsePass != 0) return ivec2(uCoarseSize);
+    return ivec2(ceil(uLevel0Size / exp2(float(uLevel))));
+}
+
+ivec3 fetch8(int season, ivec2 t) {
+    vec4 c;
+    if (uCoarsePass != 0) {
+        c = season == 0 ? texelFetch(uCoarse0, t, 0) : texelFetch(uCoarse1, t, 0);
+    } else {
+        ivec3 q = ivec3(t % int(uClipSize), uLevel);
+        c = season == 0 ? texelFetch(uClip0, q, 0) : texelFetch(uClip1, q, 0);
+    }
+    ivec3 v = ivec3(round(c.rgb * 255.0));
+    if (uMethod == 2) {
+        int o = season * 768;
+        v = ivec3(luts[o + v.r], luts[o + 256 + v.g], luts[o + 512 + v.b]);
+    }
+    return v;
+}
+
+void main() {
+    const ivec4 blk = blocks[gl_WorkGroupID.z];
+    const ivec2 size = levelSize();
+    const ivec2 tileOrigin = blk.xy * uBlockSize + ivec2(gl_WorkGroupID.xy) * TILE;
+    const int lid = int(gl_LocalInvocationIndex);
+    const bool texture = uMethod == 3;
+
+    // 1. Fetch: default keeps brightness r+g+b (bits 0..9) and the drop test (bit 15); the others the two §4.1
+    //    conditions (bit 0: leaf-on green, bit 1: leaf-off not green).
+    for (int i = lid; i < IN * IN; i += 256) {
+        ivec2 t = clamp(tileOrigin - HALO + ivec2(i % IN, i / IN), ivec2(0), size - 1);
+        ivec3 on = fetch8(0, t), off = fetch8(1, t);
+        uint v;
+        if (texture) {
+            v = uint(on.r + on.g + on.b) | (svDropAtLeast(on, off, uDropThreshold) ? 0x8000u : 0u);
+        } else {
+            v = (svGreenIsMax(on) ? 1u : 0u) | (svGreenIsMax(off) ? 0u : 2u);
+        }
+        sIn[i] = v;
+    }
+    barrier();
+    // 2. default: 3×3 sums of brightness.
+    if (texture) {
+        for (int i = lid; i < SM * SM; i += 256) {
+            int x = i % SM, y = i / SM, s = 0;
+            for (int dy = 0; dy < 3; ++dy)
+                for (int dx = 0; dx < 3; ++dx) s += int(sIn[(y + dy) * IN + x + dx] & 0x7FFFu);
+            sSmooth[i] = s;
+        }
+    }
+    barrier();
+    // 3. Per-texel votes (default: drop on a textured canopy, its 5×5 window of 3×3 sums).
+    for (int i = lid; i < BITS * BITS; i += 256) {
+        int x = i % BITS, y = i / BITS;
+        uint centre = sIn[(y + SV_SEG_TEXTURE_HALO) * IN + x + SV_SEG_TEXTURE_HALO];
+        if (texture) {
+            double sum = 0.0, sumSq = 0.0;
+            for (int dy = 0; dy < SV_SEG_TEXTURE_WINDOW; ++dy)
+                for (int dx = 0; dx < SV_SEG_TEXTURE_WINDOW; ++dx) {
+                    int s = sSmooth[(y + dy) * SM + x + dx];
+                    sum += double(s);
+                    sumSq += double(s * s);
+                }
+            bool t = svTextured(double(SV_SEG_TEXTURE_WINDOW * SV_SEG_TEXTURE_WINDOW), sum, sumSq);
+            sBits[i] = svDefaultTexel((centre & 0x8000u) != 0u, t) ? 1u : 0u;
+        } else {
+            sBits[i] = centre;
+        }
+    }
+    barrier();
+    // 4. Votes over growing windows: the highest layer whose k × k window has a majority.
+    uint localMax = 0u;
+    for (int o = 0; o < 4; ++o) {
+        ivec2 out2 = ivec2(gl_LocalInvocationID.xy) * 2 + ivec2(o & 1, o >> 1);
+        ivec2 g = tileOrigin + out2;
+        if (any(greaterThanEqual(g, size))) continue;
+        int a = 0, b = 0; // default: votes; others: leaf-on green, leaf-off not green
+        int top = 0, layer = 0;
+        ivec2 c = out2 + VOTE_HALO;
+        for (int r = 0; r <= VOTE_HALO && layer < uLayers; ++r) {
+            // Ring r of the window around c.
+            for (int dy = -r; dy <= r; ++dy)
+                for (int dx = -r; dx <= r; dx += (abs(dy) == r ? 1 : 2 * r)) {
+                    uint v = sBits[(c.y + dy) * BITS + c.x + dx];
+                    a += int(v & 1u);
+                    b += int((v >> 1) & 1u);
+                    if (r == 0) break;
+                }
+            int k = 2 * r + 1;
+            while (layer < uLayers && uLayerK[layer] == k) {
+                bool yes = texture ? svIsMajority(a, k) : svIsMajority(a, k) && svIsMajority(b, k);
+                if (yes) top = layer + 1;
+                ++layer;
+            }
+        }
+        if (uCoarsePass != 0) {
+            imageStore(uCanopyCoarseOut, g, uvec4(uint(top)));
+        } else {
+            imageStore(uCanopyClipOut, ivec3(g % int(uClipSize), uLevel), uvec4(uint(top)));
+        }
+        localMax = max(localMax, uint(top));
+    }
+    if (localMax > 0u) atomicMax(blockMax[gl_WorkGroupID.z], localMax);
+}

@@ -1,0 +1,195 @@
+// The derived canopy layer (foliage/CanopyClipmapGL.h) against the CPU rule (foliage/Segmentation.h): every texel of
+// every derived block, on every layer (each layer's k), must agree (the issue asks >= 99.9 %; the shared integer
+// rule makes it exact), on a synthetic pair and on the real Sentinel-2 pair.
+#include "CanopyClipmapGL.h"
+#include "ClipmapGL.h"
+#include "RenderJob.h"
+#include "Segmentation.h"
+#include "SyntheticScene.h"
+#include "TestUtil.h"
+#include "ToroidalWindow.h"
+#include "gl/GlDebug.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+using namespace seasonview;
+using namespace seasonview::test;
+
+namespace {
+
+Image<std::uint8_t> readLevel(const ImagePyramid& p, int level) {
+    auto img = readImageU8(p.levels[size_t(level)].file, 3);
+    EXPECT_TRUE(img.ok()) << img.message();
+    return std::move(*img);
+}
+
+// The CPU canopy value of every texel of a level: the highest layer whose k-vote is a majority, plus one.
+std::vector<std::uint8_t> cpuCanopy(const Image<std::uint8_t>& on, const Image<std::uint8_t>& off,
+                                    const CanopyClipmapGL& canopy, const SegmentationStats& stats, int level) {
+    std::vector<std::uint8_t> value(size_t(on.width) * size_t(on.height), 0);
+    std::vector<std::uint8_t> mask(value.size());
+    RgbRows rows{on.pixels.data(), off.pixels.data(), on.width, on.height, 0, on.height};
+    for (int i = 0; i < canopy.options().layers; ++i) {
+        SegmentationParams p = canopy.options().params;
+        p.k = canopy.layerK(i, level);
+        segmentRows(rows, 0, on.height, p, stats, mask.data());
+        for (size_t t = 0; t < value.size(); ++t)
+            if (mask[t]) value[t] = std::uint8_t(i + 1);
+    }
+    return value;
+}
+
+struct Agreement {
+    std::int64_t compared = 0, differing = 0, canopy = 0;
+};
+
+// Compares the derived blocks of clip level `level` (and, with `coarse`, the coarse base) with the CPU.
+Agreement compareLevel(const std::vector<ImagePyramid>& pyr, const ClipmapGL& clip, const CanopyClipmapGL& canopy,
+                       const SegmentationStats& stats, int level, bool coarse) {
+    const Image<std::uint8_t> on = readLevel(pyr[0], level), off = readLevel(pyr[1], level);
+    const std::vector<std::uint8_t> cpu = cpuCanopy(on, off, canopy, stats, level);
+    const ClipmapLayout& L = clip.schedule().layout();
+    Agreement a;
+    if (coarse) {
+        const std::vector<std::uint8_t> gpu = canopy.readCoarse();
+        EXPECT_EQ(gpu.size(), cpu.size());
+        for (size_t t = 0; t < std::min(gpu.size(), cpu.size()); ++t) {
+            ++a.compared;
+            a.differing += gpu[t] != cpu[t] ? 1 : 0;
+            a.canopy += cpu[t] > 0 ? 1 : 0;
+        }
+        return a;
+    }
+    const std::vector<std::uint8_t> gpu = canopy.readClipLevel(level);
+    const int slots = clip.schedule().slotsPerSide();
+    for (int y = 0; y < on.height; ++y)
+        for (int x = 0; x < on.width; ++x) {
+            const int bx = x / L.block, by = y / L.block;
+            const size_t slot = size_t(wrapTexel(by, slots)) * size_t(slots) + size_t(wrapTexel(bx, slots));
+            if (canopy.slotTags(level)[slot] != (bx | (by << 16))) continue; // not derived
+            const std::uint8_t g = gpu[size_t(wrapTexel(y, L.size)) * size_t(L.size) + size_t(wrapTexel(x, L.size))];
+            const std::uint8_t c = cpu[size_t(y) * size_t(on.width) + size_t(x)];
+            ++a.compared;
+            a.differing += g != c ? 1 : 0;
+            a.canopy += c > 0 ? 1 : 0;
+        }
+    return a;
+}
+
+SegmentationStats pairStats(const std::vector<ImagePyramid>& pyr, SegmentationMethod method) {
+    const Image<std::uint8_t> on = readLevel(pyr[0], 0), off = readLevel(pyr[1], 0);
+    return statsFromHistograms(pairHistograms(on, off, true, true), method);
+}
+
+void expectAgreement(const std::vector<ImagePyramid>& pyr, SegmentationMethod method, int clipSize, int layers) {
+    ClipmapOptions co;
+    co.size = clipSize;
+    auto clip = ClipmapGL::create(pyr, co);
+    ASSERT_TRUE(clip.ok()) << clip.message();
+    const ClipmapLayout& L = (*clip)->schedule().layout();
+    ASSERT_GE(L.clipLevels(), 1);
+    // Level windows centred a little off the image centre, so some blocks sit on the image edge.
+    const glm::dvec2 c(pyr[0].width() * 0.4, pyr[0].height() * 0.55);
+    (*clip)->update(std::vector<glm::dvec2>(size_t(L.clipLevels()), c));
+    (*clip)->completeSynchronously();
+    const SegmentationStats stats = pairStats(pyr, method);
+    CanopyOptions o;
+    o.params.method = method;
+    o.layers = layers;
+    auto canopy = CanopyClipmapGL::create(**clip, stats, o);
+    ASSERT_TRUE(canopy.ok()) << canopy.message();
+    const CanopyFrameStats st = (*canopy)->completeSynchronously();
+    EXPECT_GT(st.blocksDerived, 0);
+    EXPECT_EQ(gl::drainErrors(), "");
+    for (int level = 0; level <= L.clipLevels(); ++level) {
+        const bool coarse = level == L.clipLevels();
+        const Agreement a = compareLevel(pyr, **clip, **canopy, stats, level, coarse);
+        SCOPED_TRACE("method " + std::string(segmentationMethodName(method)) + ", level " + std::to_string(level));
+        EXPECT_GT(a.compared, 10000);
+        EXPECT_GT(a.canopy, 0); // the scene has treetops at this level
+        EXPECT_EQ(a.differing, 0) << a.differing << " of " << a.compared << " texels differ";
+    }
+    // Blocks on the window's outer ring wait for neighbours that will never be resident; every interior one is
+    // derived.
+    int derived = 0;
+    for (std::int32_t t : (*canopy)->slotTags(0)) derived += t != ClipmapSchedule::kEmptyTag ? 1 : 0;
+    EXPECT_GE(derived, ((clipSize / L.block) - 2) * ((clipSize / L.block) - 2) / 2);
+}
+
+struct SynthFixture {
+    TempDir dir{"canopy-gl"};
+    std::vector<ImagePyramid> pyramids;
+    SynthFixture() {
+        SynthOptions o;
+        o.sizeM = 256;
+        o.gsd = 0.25; // 1024² per season
+        o.seed = 7;
+        auto rep = generateSyntheticScene(o, dir.path());
+        EXPECT_TRUE(rep.ok()) << rep.message();
+        auto src = parseManifest(dir / "scene.json");
+        auto s = loadScene(*src, dir / "cache");
+        EXPECT_TRUE(s.ok()) << s.message();
+        auto p = app::preparePyramids(*s, dir / "cache");
+        EXPECT_TRUE(p.ok()) << p.message();
+        pyramids = std::move(*p);
+    }
+};
+
+SynthFixture& synth() {
+    static SynthFixture f;
+    return f;
+}
+
+} // namespace
+
+TEST(CanopyClipmapGLTest, DefaultMethodAgreesWithTheCpuOnEveryLayer) {
+    ASSERT_TRUE(headlessContext());
+    expectAgreement(synth().pyramids, SegmentationMethod::Default, 256, 16);
+}
+
+TEST(CanopyClipmapGLTest, PaperMethodsAgreeWithTheCpu) {
+    ASSERT_TRUE(headlessContext());
+    for (SegmentationMethod m : {SegmentationMethod::Pixel, SegmentationMethod::Neighborhood, SegmentationMethod::Equalized})
+        expectAgreement(synth().pyramids, m, 256, 4);
+}
+
+// Layers narrow towards the top: each layer's texels are a subset of... not necessarily (a majority at a larger k
+// need not hold at a smaller one), but the crowns must thin out: fewer texels reach the top layer than the ground.
+TEST(CanopyClipmapGLTest, CrownsThinTowardsTheTopLayer) {
+    ASSERT_TRUE(headlessContext());
+    ClipmapOptions co;
+    co.size = 256;
+    auto clip = ClipmapGL::create(synth().pyramids, co);
+    ASSERT_TRUE(clip.ok());
+    CanopyOptions o;
+    auto canopy = CanopyClipmapGL::create(**clip, pairStats(synth().pyramids, o.params.method), o);
+    ASSERT_TRUE(canopy.ok()) << canopy.message();
+    EXPECT_EQ((*canopy)->layerK(0, 0), 5);
+    EXPECT_EQ((*canopy)->layerK(15, 0), 15);
+    EXPECT_EQ((*canopy)->layerK(15, 1), 7);
+    const std::vector<std::uint8_t> v = (*canopy)->readCoarse();
+    std::int64_t ground = 0, top = 0;
+    for (std::uint8_t x : v) {
+        ground += x >= 1 ? 1 : 0;
+        top += x >= 16 ? 1 : 0;
+    }
+    EXPECT_GT(ground, 0);
+    EXPECT_LT(top, ground);
+}
+
+TEST(CanopyClipmapGLTest, RealSentinelPairAgreesWithTheCpu) {
+    ASSERT_TRUE(headlessContext());
+    const auto data = realDataDir();
+    if (!data || !std::filesystem::exists(*data / "seasons/saclay_w")) GTEST_SKIP() << "real data not found (../shared/data)";
+    TempDir dir("canopy-real");
+    SceneSources src;
+    src.leafon = *data / "seasons/saclay_w/leafon_2017-08-29.tif";
+    src.leafoff = *data / "seasons/saclay_w/leafoff_2016-03-15.tif";
+    auto s = loadScene(src, dir / "cache");
+    ASSERT_TRUE(s.ok()) << s.message();
+    auto p = app::preparePyramids(*s, dir / "cache");
+    ASSERT_TRUE(p.ok()) << p.message();
+    expectAgreement(*p, SegmentationMethod::Default, 256, 16);
+}
