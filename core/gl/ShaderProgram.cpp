@@ -62,6 +62,23 @@ std::string shaderSource(std::string_view name) {
     return raw.empty() ? std::string() : expandIncludes(raw, 0);
 }
 
+namespace {
+// Links the compiled shaders into `program`; the error names `what` and carries the linker's log.
+Status linkProgram(GLuint program, const std::vector<const Shader*>& shaders, const std::string& what) {
+    for (const Shader* s : shaders) glAttachShader(program, s->id());
+    glLinkProgram(program);
+    GLint ok = 0;
+    glGetProgramiv(program, GL_LINK_STATUS, &ok);
+    for (const Shader* s : shaders) glDetachShader(program, s->id());
+    if (!ok) {
+        char log[4096] = {};
+        glGetProgramInfoLog(program, sizeof log, nullptr, log);
+        return Error{"program " + what + ": " + log};
+    }
+    return Ok{};
+}
+} // namespace
+
 Result<ShaderProgram> ShaderProgram::build(std::string_view vertexName, std::string_view fragmentName,
                                            const std::vector<std::string>& defines) {
     auto vs = compile(GL_VERTEX_SHADER, vertexName, defines);
@@ -70,18 +87,8 @@ Result<ShaderProgram> ShaderProgram::build(std::string_view vertexName, std::str
     if (!fs) return fs.error();
     ShaderProgram p;
     p.m_program = Program::create();
-    glAttachShader(p.id(), vs->id());
-    glAttachShader(p.id(), fs->id());
-    glLinkProgram(p.id());
-    GLint ok = 0;
-    glGetProgramiv(p.id(), GL_LINK_STATUS, &ok);
-    if (!ok) {
-        char log[4096] = {};
-        glGetProgramInfoLog(p.id(), sizeof log, nullptr, log);
-        return Error{"program " + std::string(vertexName) + "+" + std::string(fragmentName) + ": " + log};
-    }
-    glDetachShader(p.id(), vs->id());
-    glDetachShader(p.id(), fs->id());
+    if (auto st = linkProgram(p.id(), {&*vs, &*fs}, std::string(vertexName) + "+" + std::string(fragmentName)); !st)
+        return st.error();
     return p;
 }
 
@@ -90,16 +97,7 @@ Result<ShaderProgram> ShaderProgram::buildCompute(std::string_view computeName, 
     if (!cs) return cs.error();
     ShaderProgram p;
     p.m_program = Program::create();
-    glAttachShader(p.id(), cs->id());
-    glLinkProgram(p.id());
-    GLint ok = 0;
-    glGetProgramiv(p.id(), GL_LINK_STATUS, &ok);
-    if (!ok) {
-        char log[4096] = {};
-        glGetProgramInfoLog(p.id(), sizeof log, nullptr, log);
-        return Error{"program " + std::string(computeName) + ": " + log};
-    }
-    glDetachShader(p.id(), cs->id());
+    if (auto st = linkProgram(p.id(), {&*cs}, std::string(computeName)); !st) return st.error();
     return p;
 }
 
