@@ -2,6 +2,7 @@
 #include "ImagePyramid.h"
 
 #include "AtomicFile.h"
+#include "StableHash.h"
 #include "PyramidBuilder.h"
 
 #include <OpenImageIO/imageio.h>
@@ -28,13 +29,6 @@ namespace fs = std::filesystem;
 /// Bumped whenever the level files' content or layout changes: old caches then no longer match any key.
 constexpr int kPyramidFormatVersion = 1;
 constexpr const char* kManifestName = "pyramid.json";
-
-/// 64-bit FNV-1a: stable across compilers and runs, unlike std::hash.
-std::uint64_t fnv1a(const std::string& s) {
-    std::uint64_t h = 0xcbf29ce484222325ull;
-    for (unsigned char c : s) h = (h ^ c) * 0x100000001b3ull;
-    return h;
-}
 
 struct SourceId {
     std::string path; // canonical absolute path
@@ -84,7 +78,7 @@ fs::path pyramidsDir(const fs::path& cacheDir) { return cacheDir / "pyramids"; }
 
 fs::path folderFor(const fs::path& cacheDir, const SourceId& id) {
     char name[32];
-    std::snprintf(name, sizeof name, "%016llx", static_cast<unsigned long long>(fnv1a(id.key)));
+    std::snprintf(name, sizeof name, "%016llx", static_cast<unsigned long long>(stableHash64(id.key)));
     return pyramidsDir(cacheDir) / name;
 }
 

@@ -57,7 +57,6 @@ Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL
         glTextureParameteri(t->id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
     }
     c->m_tags.assign(size_t(clipLevels), std::vector<std::int32_t>(size_t(slots) * size_t(slots), ClipmapSchedule::kEmptyTag));
-    c->m_slotMax.assign(size_t(clipLevels), std::vector<std::uint8_t>(size_t(slots) * size_t(slots), 0));
 
     std::vector<std::uint32_t> luts(6 * 256);
     for (int ch = 0; ch < 3; ++ch)
@@ -69,14 +68,12 @@ Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL
     glNamedBufferStorage(c->m_luts.id(), GLsizeiptr(luts.size() * 4), luts.data(), 0);
     c->m_blocks = gl::Buffer::create();
     glNamedBufferStorage(c->m_blocks.id(), kMaxDispatchBlocks * 16, nullptr, GL_DYNAMIC_STORAGE_BIT);
-    c->m_blockMax = gl::Buffer::create();
-    glNamedBufferStorage(c->m_blockMax.id(), kMaxDispatchBlocks * 4, nullptr, GL_DYNAMIC_STORAGE_BIT);
 
     // The coarse base is resident whole: derive all of it now.
     std::vector<glm::ivec2> blocks;
     for (int by = 0; by * L.block < coarse.y; ++by)
         for (int bx = 0; bx * L.block < coarse.x; ++bx) blocks.push_back({bx, by});
-    for (std::uint32_t m : c->derive(clipLevels, true, blocks)) c->m_coarseMax = std::max(c->m_coarseMax, std::uint8_t(m));
+    c->derive(clipLevels, true, blocks);
     return c;
 }
 
@@ -104,9 +101,8 @@ bool CanopyClipmapGL::derivable(int level, int bx, int by) const {
     return true;
 }
 
-std::vector<std::uint32_t> CanopyClipmapGL::derive(int level, bool coarse, const std::vector<glm::ivec2>& blocks) {
-    std::vector<std::uint32_t> maxima;
-    if (blocks.empty()) return maxima;
+void CanopyClipmapGL::derive(int level, bool coarse, const std::vector<glm::ivec2>& blocks) {
+    if (blocks.empty()) return;
     const ClipmapLayout& L = m_source.schedule().layout();
     m_source.bind(m_program, 0);
     m_program.set("uLevel", level);
@@ -122,24 +118,18 @@ std::vector<std::uint32_t> CanopyClipmapGL::derive(int level, bool coarse, const
     glBindImageTexture(1, m_coarse.id(), 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R8UI);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_blocks.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_luts.id());
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, m_blockMax.id());
     m_program.use();
     for (size_t first = 0; first < blocks.size(); first += kMaxDispatchBlocks) {
         const size_t n = std::min(blocks.size() - first, size_t(kMaxDispatchBlocks));
         std::vector<glm::ivec4> list(n);
         for (size_t i = 0; i < n; ++i) list[i] = {blocks[first + i].x, blocks[first + i].y, level, 0};
         glNamedBufferSubData(m_blocks.id(), 0, GLsizeiptr(n * sizeof(glm::ivec4)), list.data());
-        std::vector<std::uint32_t> zeros(n, 0);
-        glNamedBufferSubData(m_blockMax.id(), 0, GLsizeiptr(n * 4), zeros.data());
         glDispatchCompute(GLuint(L.block / kTile), GLuint(L.block / kTile), GLuint(n));
+        // The next dispatch rewrites the block list; fetches and readbacks must see the stores.
         glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT |
                         GL_TEXTURE_UPDATE_BARRIER_BIT);
-        std::vector<std::uint32_t> m(n);
-        glGetNamedBufferSubData(m_blockMax.id(), 0, GLsizeiptr(n * 4), m.data());
-        maxima.insert(maxima.end(), m.begin(), m.end());
     }
     m_totalDerived += std::int64_t(blocks.size());
-    return maxima;
 }
 
 CanopyFrameStats CanopyClipmapGL::run(int budget, bool everything) {
@@ -166,12 +156,10 @@ CanopyFrameStats CanopyClipmapGL::run(int budget, bool everything) {
                 todo.push_back({bx, by});
             }
         if (todo.empty()) continue;
-        const std::vector<std::uint32_t> maxima = derive(level, false, todo);
-        for (size_t i = 0; i < todo.size(); ++i) {
-            const size_t slot = size_t(wrapTexel(todo[i].y, slots)) * size_t(slots) + size_t(wrapTexel(todo[i].x, slots));
-            m_tags[size_t(level)][slot] = blockTag(todo[i].x, todo[i].y);
-            m_slotMax[size_t(level)][slot] = std::uint8_t(maxima[i]);
-        }
+        derive(level, false, todo);
+        for (const glm::ivec2& b : todo)
+            m_tags[size_t(level)][size_t(wrapTexel(b.y, slots)) * size_t(slots) + size_t(wrapTexel(b.x, slots))] =
+                blockTag(b.x, b.y);
         glTextureSubImage3D(m_tagTexture.id(), 0, 0, 0, level, slots, slots, 1, GL_RED_INTEGER, GL_INT,
                             m_tags[size_t(level)].data());
         st.blocksDerived += int(todo.size());

@@ -53,11 +53,8 @@ public:
     const CanopyOptions& options() const { return m_options; }
     /// k of layer `layer` on clip level `level` (odd, >= 1; `pixel`: 1).
     int layerK(int layer, int level) const;
-    /// Largest canopy value in the slot's block (0: no treetop), per clip level, slot row-major; kept to skip
-    /// empty pieces.
-    const std::vector<std::uint8_t>& slotMax(int level) const { return m_slotMax[size_t(level)]; }
+    /// The block derived in each slot, per clip level, row-major (ClipmapSchedule's tags; kEmptyTag: none).
     const std::vector<std::int32_t>& slotTags(int level) const { return m_tags[size_t(level)]; }
-    std::uint8_t coarseMax() const { return m_coarseMax; }
     /// The toroidal canopy level `level` as stored (N×N, texel q at (q mod N)); tests.
     std::vector<std::uint8_t> readClipLevel(int level) const;
     std::vector<std::uint8_t> readCoarse() const;
@@ -67,8 +64,8 @@ public:
 private:
     CanopyClipmapGL(const ClipmapGL& source, const CanopyOptions& options) : m_source(source), m_options(options) {}
     bool derivable(int level, int bx, int by) const;
-    // Runs the compute shader over `blocks` of `level` (coarse: the coarse base); returns each block's max.
-    std::vector<std::uint32_t> derive(int level, bool coarse, const std::vector<glm::ivec2>& blocks);
+    // Runs the compute shader over `blocks` of `level` (coarse: the coarse base).
+    void derive(int level, bool coarse, const std::vector<glm::ivec2>& blocks);
     CanopyFrameStats run(int budget, bool everything);
 
     const ClipmapGL& m_source;
@@ -77,10 +74,8 @@ private:
     int m_topK = 0;
     gl::ShaderProgram m_program;
     gl::Texture m_clip, m_coarse, m_tagTexture;
-    gl::Buffer m_blocks, m_luts, m_blockMax;
+    gl::Buffer m_blocks, m_luts;
     std::vector<std::vector<std::int32_t>> m_tags; // per clip level, per slot: the block derived there
-    std::vector<std::vector<std::uint8_t>> m_slotMax;
-    std::uint8_t m_coarseMax = 0;
     int m_arrayLayers = 1;
     std::int64_t m_totalDerived = 0;
 };

@@ -1,6 +1,7 @@
 #include "PairStats.h"
 
 #include "AtomicFile.h"
+#include "StableHash.h"
 #include "BandReader.h"
 #include "Segmentation.h"
 
@@ -22,13 +23,6 @@ namespace fs = std::filesystem;
 /// Bumped whenever what the file holds or how the histograms are sampled changes: old files then no longer match.
 constexpr int kPairStatsVersion = 1;
 constexpr const char* kFormatName = "seasonview pair histograms";
-
-/// 64-bit FNV-1a: stable across compilers and runs (as the pyramid folders' names, ImagePyramid.cpp).
-std::uint64_t fnv1a(const std::string& s) {
-    std::uint64_t h = 0xcbf29ce484222325ull;
-    for (unsigned char c : s) h = (h ^ c) * 0x100000001b3ull;
-    return h;
-}
 
 std::string pairKey(const ImagePyramid& on, const ImagePyramid& off) {
     return on.sourceKey + "\n" + off.sourceKey + "\nstep " + std::to_string(kSegHistogramStep) + "\nv" +
@@ -187,7 +181,7 @@ Result<SegmentationHistograms> computeHistograms(const ImagePyramid& on, const I
 fs::path pairHistogramsFile(const ImagePyramid& leafon, const ImagePyramid& leafoff, const fs::path& cacheDir) {
     char name[40];
     std::snprintf(name, sizeof name, "%016llx.json",
-                  static_cast<unsigned long long>(fnv1a(pairKey(leafon, leafoff))));
+                  static_cast<unsigned long long>(stableHash64(pairKey(leafon, leafoff))));
     return cacheDir / "pairstats" / name;
 }
 

@@ -33,8 +33,6 @@ layout(r8ui, binding = 1) uniform writeonly uimage2D uCanopyCoarseOut;
 layout(std430, binding = 0) readonly buffer Blocks { ivec4 blocks[]; };
 // Equalisation tables (method equalized): on r, g, b, off r, g, b; 256 entries each.
 layout(std430, binding = 1) readonly buffer Luts { uint luts[]; };
-// Per dispatched block: the largest value written (the renderer skips pieces without canopy).
-layout(std430, binding = 2) buffer BlockMax { uint blockMax[]; };
 
 uniform int uLevel;        // the level derived; uCoarsePass: the coarse base
 uniform int uCoarsePass;   // 1: read the coarse textures' base, write uCanopyCoarseOut
@@ -120,7 +118,6 @@ void main() {
     }
     barrier();
     // 4. Votes over growing windows: the highest layer whose k × k window has a majority.
-    uint localMax = 0u;
     for (int o = 0; o < 4; ++o) {
         ivec2 out2 = ivec2(gl_LocalInvocationID.xy) * 2 + ivec2(o & 1, o >> 1);
         ivec2 g = tileOrigin + out2;
@@ -149,7 +146,5 @@ void main() {
         } else {
             imageStore(uCanopyClipOut, ivec3(g % int(uClipSize), uLevel), uvec4(uint(top)));
         }
-        localMax = max(localMax, uint(top));
     }
-    if (localMax > 0u) atomicMax(blockMax[gl_WorkGroupID.z], localMax);
 }

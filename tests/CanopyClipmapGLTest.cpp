@@ -155,8 +155,9 @@ TEST(CanopyClipmapGLTest, PaperMethodsAgreeWithTheCpu) {
         expectAgreement(synth().pyramids, m, 256, 4);
 }
 
-// Layers narrow towards the top: each layer's texels are a subset of... not necessarily (a majority at a larger k
-// need not hold at a smaller one), but the crowns must thin out: fewer texels reach the top layer than the ground.
+// k grows with the layer (and shrinks with the level), and crowns thin out towards the top: fewer texels reach the
+// top layer than the ground one. (A layer's texels need not be a subset of the one below: a majority at a larger k
+// need not hold at a smaller one.)
 TEST(CanopyClipmapGLTest, CrownsThinTowardsTheTopLayer) {
     ASSERT_TRUE(headlessContext());
     ClipmapOptions co;
