@@ -1,7 +1,9 @@
-// `seasonview prepare`: builds (or checks) the tiled mip pyramid of each imagery layer in the cache.
+// `seasonview prepare`: builds (or checks) the tiled mip pyramid of each imagery layer in the cache, then the pair's
+// segmentation statistics (foliage/PairStats.h) from them.
 #include "Commands.h"
 #include "ElevationPyramid.h"
 #include "ImagePyramid.h"
+#include "PairStats.h"
 #include "RenderJob.h"
 
 #include <cstdio>
@@ -19,9 +21,10 @@ struct PrepareArgs {
 Runner addPrepareCommand(CLI::App& app) {
     auto args = std::make_shared<PrepareArgs>();
     CLI::App* cmd = app.add_subcommand(
-        "prepare", "Build the tiled mip pyramids of a scene's imagery in the cache (skipped when up to date)");
+        "prepare", "Build the tiled mip pyramids of a scene's imagery and the pair's segmentation statistics in the "
+        "cache (skipped when up to date)");
     args->scene.addTo(*cmd);
-    cmd->add_flag("--force", args->force, "Rebuild the pyramids even when they are up to date");
+    cmd->add_flag("--force", args->force, "Rebuild the pyramids and statistics even when they are up to date");
     return [args]() -> int {
         auto fail = [](const std::string& m) {
             std::fprintf(stderr, "seasonview prepare: %s\n", m.c_str());
@@ -35,6 +38,7 @@ Runner addPrepareCommand(CLI::App& app) {
         options.force = args->force;
         const std::pair<const char*, const ImageryLayer*> layers[] = {{"leafon", &scene->leafon},
                                                                       {"leafoff", &scene->leafoff}};
+        std::vector<ImagePyramid> pyramids;
         for (const auto& [name, layer] : layers) {
             options.progress = terminalProgress(name);
             auto report = preparePyramid(*layer, options);
@@ -46,6 +50,25 @@ Runner addPrepareCommand(CLI::App& app) {
             else
                 std::printf("%s: up to date: %dx%d, %zu levels, %s\n", name, p.width(), p.height(), p.levels.size(),
                             p.folder.c_str());
+            std::fflush(stdout);
+            pyramids.push_back(report->pyramid);
+        }
+        {
+            // The histograms behind the segmentation's equalisation tables and drop threshold, from level 0.
+            if (args->force) {
+                std::error_code ec;
+                std::filesystem::remove(pairHistogramsFile(pyramids[0], pyramids[1], options.cacheDir), ec);
+            }
+            PairHistogramsReport report;
+            auto h = preparePairHistograms(pyramids[0], pyramids[1], options.cacheDir,
+                                           terminalProgress("pair stats"), &report);
+            if (!h) return fail(h.message());
+            const double drop = double(dropThresholdFromHistogram(h->drop)) / kSegDropScale;
+            if (report.built)
+                std::printf("pair statistics: built in %.2f s (%s): drop threshold %.3f, %s\n", report.seconds,
+                            args->force ? "forced" : report.reason.c_str(), drop, report.file.c_str());
+            else
+                std::printf("pair statistics: up to date: drop threshold %.3f, %s\n", drop, report.file.c_str());
             std::fflush(stdout);
         }
         if (scene->elevation) {

@@ -110,7 +110,25 @@ Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std:
         }
         out.push_back(std::move(report->pyramid));
     }
+    if (auto stats = preparePairStats(scene, out, cacheDir); !stats) return stats.error();
     return out;
+}
+
+Result<SegmentationHistograms> preparePairStats(const Scene& scene, const std::vector<ImagePyramid>& pyramids,
+                                                const std::filesystem::path& cacheDir) {
+    assert(pyramids.size() == 2 && pyramids[0].width() == scene.leafon.info.width &&
+           pyramids[0].height() == scene.leafon.info.height &&
+           "preparePairStats(): the leaf-on and leaf-off pyramids of the scene");
+    (void)scene; // only checked: the pyramids' source keys already name both layers and their stretches
+    PairHistogramsReport report;
+    auto histograms =
+        preparePairHistograms(pyramids[0], pyramids[1], cacheDir, terminalProgress("pair stats"), &report);
+    if (!histograms) return histograms.error();
+    if (report.built) {
+        std::printf("prepared pair statistics in %.2f s (%s)\n", report.seconds, report.reason.c_str());
+        std::fflush(stdout);
+    }
+    return histograms;
 }
 
 Result<std::optional<ImagePyramid>> prepareElevation(const Scene& scene, const std::filesystem::path& cacheDir) {

@@ -5,6 +5,7 @@
 #include "ClipmapCenters.h"
 #include "ClipmapTerrainRendererGL.h"
 #include "ImagePyramid.h"
+#include "PairStats.h"
 #include "ReferenceRendererGL.h"
 #include "Scene.h"
 #include "gl/GlContext.h"
@@ -62,8 +63,16 @@ struct RenderSettings {
 };
 
 /// Makes sure both seasons' pyramids are prepared (building them when needed, with a progress bar on a terminal;
-/// says so on stdout when it built one). Returns leaf-on, leaf-off.
+/// says so on stdout when it built one), and then the pair's segmentation statistics (preparePairStats). Returns
+/// leaf-on, leaf-off.
 Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std::filesystem::path& cacheDir);
+
+/// The pair's segmentation histograms (foliage/PairStats.h) from the prepared pyramids `pyramids` (leaf-on,
+/// leaf-off, as preparePyramids returns them): read from the cache, or computed from both level-0 files and cached
+/// (with a progress bar on a terminal; says so on stdout when it computed them). statsFromHistograms() turns them
+/// into the equalisation tables and drop threshold of a method. Errors name the file.
+Result<SegmentationHistograms> preparePairStats(const Scene& scene, const std::vector<ImagePyramid>& pyramids,
+                                                const std::filesystem::path& cacheDir);
 
 /// Makes sure the DEM's elevation pyramid (terrain/ElevationPyramid.h) is prepared; nullopt for a flat scene.
 Result<std::optional<ImagePyramid>> prepareElevation(const Scene& scene, const std::filesystem::path& cacheDir);

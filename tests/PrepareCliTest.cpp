@@ -1,5 +1,5 @@
-// `seasonview prepare` through the binary: builds, then reports up to date, rebuilds on --force, and fails with one
-// line naming the file on bad input.
+// `seasonview prepare` through the binary: builds both pyramids and the pair statistics, then reports them up to
+// date, rebuilds on --force, and fails with one line naming the file on bad input.
 #include "TestUtil.h"
 
 #include <gtest/gtest.h>
@@ -34,23 +34,26 @@ struct PrepareCli : ::testing::Test {
 TEST_F(PrepareCli, BuildsThenUpToDateThenForced) {
     const CliResult first = runCli(prepare("on.tif"));
     ASSERT_EQ(first.exitCode, 0) << first.err;
-    EXPECT_EQ(count(first.out, "built"), 2) << first.out;
+    EXPECT_EQ(count(first.out, "built"), 3) << first.out;
     EXPECT_NE(first.out.find("leafon: built"), std::string::npos) << first.out;
     EXPECT_NE(first.out.find("leafoff: built"), std::string::npos) << first.out;
+    EXPECT_NE(first.out.find("pair statistics: built"), std::string::npos) << first.out;
+    EXPECT_NE(first.out.find("drop threshold"), std::string::npos) << first.out;
     EXPECT_NE(first.out.find("not prepared yet"), std::string::npos) << first.out;
     EXPECT_NE(first.out.find("10 levels"), std::string::npos) << first.out; // 300x200 ... 1x1
 
     const CliResult second = runCli(prepare("on.tif"));
     ASSERT_EQ(second.exitCode, 0) << second.err;
-    EXPECT_EQ(count(second.out, "up to date"), 2) << second.out;
+    EXPECT_EQ(count(second.out, "up to date"), 3) << second.out;
+    EXPECT_NE(second.out.find("pair statistics: up to date"), std::string::npos) << second.out;
     EXPECT_EQ(count(second.out, "built"), 0) << second.out;
 
     std::vector<std::string> force = prepare("on.tif");
     force.push_back("--force");
     const CliResult third = runCli(force);
     ASSERT_EQ(third.exitCode, 0) << third.err;
-    EXPECT_EQ(count(third.out, "built"), 2) << third.out;
-    EXPECT_EQ(count(third.out, "forced"), 2) << third.out;
+    EXPECT_EQ(count(third.out, "built"), 3) << third.out;
+    EXPECT_EQ(count(third.out, "forced"), 3) << third.out;
 }
 
 TEST_F(PrepareCli, MissingSourceIsOneLineNamingIt) {
