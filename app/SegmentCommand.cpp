@@ -2,11 +2,14 @@
 // against ground truth (foliage/SegmentFiles.h).
 #include "AtomicFile.h"
 #include "Commands.h"
+#include "ImagePyramid.h"
+#include "PairStats.h"
 #include "RenderJob.h"
 #include "SegmentFiles.h"
 
 #include <nlohmann/json.hpp>
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -22,6 +25,7 @@ struct SegmentArgs {
     int k = kSegDefaultK;
     std::string truth, truthTrees, out, metrics, overlay, trees;
     int bandRows = 256;
+    double memoryBudgetMb = double(kSegmentMemoryBudget) / (1 << 20);
 };
 
 // Below this many pixels no progress bar: it would only flicker.
@@ -36,8 +40,23 @@ Status checkTextOutput(const std::filesystem::path& out) {
     return Ok{};
 }
 
+// The pair's histograms cached with its prepared pyramids (`seasonview prepare`, render), when the cache holds
+// them for exactly these sources: they spare the segmentation its histogram pass. Never builds anything.
+std::optional<SegmentationHistograms> preparedHistograms(const Scene& scene, const std::filesystem::path& cacheDir) {
+    auto on = openPyramid(scene.leafon, cacheDir);
+    if (!on) return std::nullopt;
+    auto off = openPyramid(scene.leafoff, cacheDir);
+    if (!off) return std::nullopt;
+    return cachedPairHistograms(*on, *off, cacheDir);
+}
+
+// Where the pair statistics came from; the only ones this command gives segmentScene are the cached ones.
+const char* statsFrom(const SegmentReport& r) {
+    return r.statsSource == StatsSource::Given ? "pair statistics cache" : statsSourceName(r.statsSource);
+}
+
 nlohmann::ordered_json metricsJson(const SegmentArgs& a, const Scene& scene, const SegmentJob& job,
-                                   const SegmentReport& r) {
+                                   const SegmentReport& r, double endToEndSeconds) {
     using nlohmann::ordered_json;
     const double pixels = double(r.width) * double(r.height);
     auto perSecond = [&](double s) { return s > 0.0 ? ordered_json(pixels / 1e6 / s) : ordered_json(nullptr); };
@@ -68,11 +87,16 @@ nlohmann::ordered_json metricsJson(const SegmentArgs& a, const Scene& scene, con
     j["megapixels_per_second"] = perSecond(r.segmentSeconds);
     j["total_seconds"] = r.totalSeconds;
     j["total_megapixels_per_second"] = perSecond(r.totalSeconds);
+    j["end_to_end_seconds"] = endToEndSeconds;
+    j["end_to_end_megapixels_per_second"] = perSecond(endToEndSeconds);
     j["read_seconds"] = r.readSeconds;
     j["write_seconds"] = r.writeSeconds;
     j["crown_seconds"] = r.crownSeconds;
     j["threads"] = std::max(1u, std::thread::hardware_concurrency());
     j["band_rows"] = a.bandRows;
+    j["stats_from"] = statsFrom(r);
+    j["pair_in_memory"] = r.heldInMemory;
+    j["input_passes"] = r.inputPasses;
     j["crowns"] = r.crowns;
     if (r.centres) {
         j["truth_trees"] = job.truthTrees.string();
@@ -111,9 +135,16 @@ Runner addSegmentCommand(CLI::App& app) {
                     "Rows segmented at a time (memory; the output does not depend on it)")
         ->capture_default_str()
         ->check(CLI::Range(1, 1 << 20));
-    cmd->add_option("--cache", args->cache, "Cache folder for the 16-bit stretch (default $SEASONVIEW_CACHE or "
-                                            "~/.cache/seasonview)");
+    cmd->add_option("--memory-budget", args->memoryBudgetMb,
+                    "MB the decoded pair may take to be read once (larger pairs are read twice when the method needs "
+                    "histograms; the output does not depend on it)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1e9));
+    cmd->add_option("--cache", args->cache,
+                    "Cache folder: the 16-bit stretch, and the pair statistics of `seasonview prepare` when present "
+                    "(default $SEASONVIEW_CACHE or ~/.cache/seasonview)");
     return [args]() -> int {
+        const auto started = std::chrono::steady_clock::now();
         auto fail = [](const std::string& m) {
             std::fprintf(stderr, "seasonview segment: %s\n", m.c_str());
             return 1;
@@ -144,6 +175,7 @@ Runner addSegmentCommand(CLI::App& app) {
         job.overlay = args->overlay;
         job.trees = args->trees;
         job.bandRows = args->bandRows;
+        job.memoryBudget = std::uint64_t(args->memoryBudgetMb * double(1 << 20));
         job.truth = !args->truth.empty() ? std::filesystem::path(args->truth) : src.truthDeciduous;
         if (!args->truthTrees.empty()) job.truthTrees = args->truthTrees;
         else if (!args->truth.empty()) {
@@ -159,17 +191,23 @@ Runner addSegmentCommand(CLI::App& app) {
             if (!text->empty())
                 if (auto st = checkTextOutput(*text); !st) return fail(st.message());
 
-        auto scene = loadScene(src, args->cache.empty() ? defaultCacheDir() : std::filesystem::path(args->cache));
+        const std::filesystem::path cacheDir =
+            args->cache.empty() ? defaultCacheDir() : std::filesystem::path(args->cache);
+        auto scene = loadScene(src, cacheDir);
         if (!scene) return fail(scene.message());
         printSceneNotes(*scene);
+        if (needsHistograms(job.params.method)) job.histograms = preparedHistograms(*scene, cacheDir);
         if (double(scene->leafon.info.width) * scene->leafon.info.height >= kProgressPixels)
             job.progress = terminalProgress("segment");
 
         auto report = segmentScene(*scene, job);
         if (!report) return fail(report.message());
+        // From the command's start (arguments parsed) to the mask written.
+        const double endToEnd = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
         if (!args->metrics.empty()) {
             std::string err;
-            if (!writeTextAtomic(args->metrics, metricsJson(*args, *scene, job, *report).dump(2) + "\n", err))
+            if (!writeTextAtomic(args->metrics, metricsJson(*args, *scene, job, *report, endToEnd).dump(2) + "\n",
+                                 err))
                 return fail(fileError(args->metrics, err).message);
         }
         const SegmentReport& r = *report;
@@ -182,9 +220,11 @@ Runner addSegmentCommand(CLI::App& app) {
         if (r.centres)
             std::printf(", centres precision %.3f recall %.3f (%d crowns, %d trees)", r.centres->precision(),
                         r.centres->recall(), r.centres->detected, r.centres->truth);
-        std::printf("; segmentation %.3f s (%.0f MP/s), total %.2f s (%.0f MP/s)\n", r.segmentSeconds,
-                    r.segmentSeconds > 0.0 ? mp / r.segmentSeconds : 0.0, r.totalSeconds,
-                    r.totalSeconds > 0.0 ? mp / r.totalSeconds : 0.0);
+        std::printf("; segmentation %.3f s (%.0f MP/s), end to end %.2f s (%.0f MP/s; read %.2f s, write %.2f s, "
+                    "stats: %s)\n",
+                    r.segmentSeconds, r.segmentSeconds > 0.0 ? mp / r.segmentSeconds : 0.0, endToEnd,
+                    endToEnd > 0.0 ? mp / endToEnd : 0.0, r.readSeconds, r.writeSeconds,
+                    statsFrom(r));
         return 0;
     };
 }

@@ -1,12 +1,12 @@
 #include "GeoTiffStreamWriter.h"
 
 #include "AtomicFile.h"
+#include "ParallelIndices.h"
 #include "TiffSupport.h"
 
 #include <libdeflate.h>
 
 #include <algorithm>
-#include <atomic>
 #include <bit>
 #include <cassert>
 #include <cstring>
@@ -20,25 +20,6 @@ namespace {
 constexpr int kRowsPerStrip = 16;
 
 int bytesOf(SampleType t) { return t == SampleType::U8 ? 1 : t == SampleType::F32 ? 4 : 2; }
-
-/// Calls fn(index, worker) for every index in [0, count) on up to `threads` threads; worker < threads identifies
-/// the calling thread (for per-thread scratch). Returns when all are done.
-template <class Fn> void parallelIndices(int count, int threads, const Fn& fn) {
-    const int n = std::clamp(threads, 1, std::max(count, 1));
-    if (n == 1) {
-        for (int i = 0; i < count; ++i) fn(i, 0);
-        return;
-    }
-    std::atomic<int> next{0};
-    auto worker = [&](int w) {
-        for (int i = next.fetch_add(1); i < count; i = next.fetch_add(1)) fn(i, w);
-    };
-    std::vector<std::thread> pool;
-    pool.reserve(size_t(n - 1));
-    for (int w = 1; w < n; ++w) pool.emplace_back(worker, w);
-    worker(0);
-    for (auto& t : pool) t.join();
-}
 
 // The TIFF predictors, applied in place to one row of a tile or strip exactly as libtiff's encoder would
 // (tif_predict.c), so that readers undo them and the files match what libtiff writes itself.

@@ -12,6 +12,8 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <future>
+#include <memory>
 #include <sstream>
 #include <thread>
 
@@ -50,6 +52,15 @@ public:
     Status read(int y0, int y1, std::uint8_t* out) {
         const size_t rowBytes = size_t(m_reader.width()) * size_t(m_channels);
         for (int y = y0; y < y1;) {
+            const int bandEnd = std::min(m_reader.height(), y + m_reader.bandRows());
+            if (!m_sixteen && y % m_reader.bandRows() == 0 && bandEnd <= y1 && (y < m_band0 || y >= m_band1)) {
+                // A whole band wanted and not loaded: straight into `out`, no copy.
+                if (auto st = m_reader.read(y, bandEnd, m_channels, SampleType::U8, out + size_t(y - y0) * rowBytes);
+                    !st)
+                    return st;
+                y = bandEnd;
+                continue;
+            }
             if (y >= m_band1 || y < m_band0) {
                 m_band0 = y - y % m_reader.bandRows();
                 m_band1 = std::min(m_reader.height(), m_band0 + m_reader.bandRows());
@@ -95,9 +106,32 @@ Status readPair(RowReader& on, RowReader& off, int y0, int y1, std::uint8_t* onO
     return onStatus ? offStatus : onStatus;
 }
 
+// Bytes that are not zeroed when they grow: every byte of the window is read into before it is used, and zeroing
+// the whole held pair (hundreds of MB) would cost as much as a tenth of decoding it.
+class ByteBuffer {
+public:
+    std::uint8_t* data() { return m_data.get(); }
+    size_t size() const { return m_size; }
+    void reserve(size_t n) {
+        if (n <= m_capacity) return;
+        auto grown = std::make_unique_for_overwrite<std::uint8_t[]>(n);
+        if (m_size) std::memcpy(grown.get(), m_data.get(), m_size);
+        m_data = std::move(grown);
+        m_capacity = n;
+    }
+    void resize(size_t n) {
+        if (n > m_capacity) reserve(std::max(n, 2 * m_capacity));
+        m_size = n;
+    }
+
+private:
+    std::unique_ptr<std::uint8_t[]> m_data;
+    size_t m_size = 0, m_capacity = 0;
+};
+
 // Rows [first, last) of both seasons held in memory; the window slides down the image.
 struct PairWindow {
-    std::vector<std::uint8_t> on, off;
+    ByteBuffer on, off;
     int first = 0, last = 0, width = 0;
 
     Status slide(RowReader& onReader, RowReader& offReader, int newFirst, int newLast) {
@@ -217,6 +251,16 @@ Result<std::vector<CrownPoint>> readTrueTrees(const std::filesystem::path& csv) 
     return trees;
 }
 
+const char* statsSourceName(StatsSource source) {
+    switch (source) {
+    case StatsSource::None: return "none";
+    case StatsSource::Given: return "given";
+    case StatsSource::HeldPair: return "held pair";
+    case StatsSource::HistogramPass: return "histogram pass";
+    }
+    return "?";
+}
+
 Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
     const auto start = Clock::now();
     const SegmentationParams& params = job.params;
@@ -250,7 +294,7 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
         trueTrees = std::move(*t);
     }
     const bool withCrowns = !job.trees.empty() || trueTrees.has_value();
-    auto maskOut = ImageStreamWriter::open(job.mask, w, h, 1);
+    auto maskOut = ImageStreamWriter::open(job.mask, w, h, 1, ImageEncoding::FastMask);
     if (!maskOut) return maskOut.error();
     std::optional<ImageStreamWriter> overlayOut;
     if (!job.overlay.empty()) {
@@ -270,12 +314,45 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
         if (!b) return b.error();
         return std::make_pair(std::move(*a), std::move(*b));
     };
+    auto pair = openPair();
+    if (!pair) return pair.error();
 
-    // Pass 1 (equalized, default): the pair's histograms, band by band.
-    const double statsShare = needsHistograms(params.method) ? 0.3 : 0.0;
-    if (needsHistograms(params.method)) {
-        auto pair = openPair();
-        if (!pair) return pair.error();
+    // The pair's statistics (equalized, default): given, from the pair held whole, or from a first streamed pass.
+    const bool colour = params.method == SegmentationMethod::Equalized;
+    const bool drop = params.method == SegmentationMethod::Default;
+    const std::uint64_t pairBytes = 2 * std::uint64_t(w) * std::uint64_t(h) * 3;
+    PairWindow window;
+    window.width = w;
+    if (!needsHistograms(params.method)) {
+        report.statsSource = StatsSource::None;
+    } else if (job.histograms) {
+        report.statsSource = StatsSource::Given;
+        report.stats = statsFromHistograms(*job.histograms, params.method);
+    } else if (pairBytes <= job.memoryBudget) {
+        // Decoded once and held: the window grows to the whole image and never slides.
+        report.statsSource = StatsSource::HeldPair;
+        report.heldInMemory = true;
+        window.on.reserve(pairBytes / 2);
+        window.off.reserve(pairBytes / 2);
+        SegmentationHistograms hist;
+        const size_t rowBytes = size_t(w) * 3;
+        for (int y0 = 0; y0 < h; y0 += preferredRows) {
+            const int y1 = std::min(h, y0 + preferredRows);
+            auto t = Clock::now();
+            if (auto st = window.slide(pair->first, pair->second, 0, y1); !st) return st.error();
+            report.readSeconds += secondsSince(t);
+            t = Clock::now(); // each band's histograms while its rows are still in cache
+            hist.merge(rowHistograms(RgbRows{window.on.data() + size_t(y0) * rowBytes,
+                                             window.off.data() + size_t(y0) * rowBytes, w, h, y0, y1 - y0},
+                                     colour, drop));
+            report.segmentSeconds += secondsSince(t);
+            progress(0.5 * y1 / h, "reading");
+        }
+        report.stats = statsFromHistograms(hist, params.method);
+    } else {
+        // Too large to hold: a first pass over both files for the histograms, band by band.
+        report.statsSource = StatsSource::HistogramPass;
+        report.inputPasses = 2;
         SegmentationHistograms hist;
         std::vector<std::uint8_t> on, off;
         for (int y0 = 0; y0 < h; y0 += bandRows) {
@@ -286,64 +363,81 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
             if (auto st = readPair(pair->first, pair->second, y0, y1, on.data(), off.data()); !st) return st.error();
             report.readSeconds += secondsSince(t);
             t = Clock::now();
-            hist.merge(rowHistograms(RgbRows{on.data(), off.data(), w, h, y0, y1 - y0},
-                                     params.method == SegmentationMethod::Equalized,
-                                     params.method == SegmentationMethod::Default));
+            hist.merge(rowHistograms(RgbRows{on.data(), off.data(), w, h, y0, y1 - y0}, colour, drop));
             report.segmentSeconds += secondsSince(t);
-            progress(statsShare * y1 / h, "histograms");
+            progress(0.3 * y1 / h, "histograms");
         }
         report.stats = statsFromHistograms(hist, params.method);
+        auto again = openPair(); // the readers only go forward
+        if (!again) return again.error();
+        pair = std::move(again);
     }
+    const double done0 = report.heldInMemory ? 0.5 : report.inputPasses == 2 ? 0.3 : 0.0;
 
-    // Pass 2: bands of output rows with their halo.
-    auto pair = openPair();
-    if (!pair) return pair.error();
+    // Bands of output rows with their halo. The mask and overlay of a band are encoded on a writer thread while the
+    // next band is segmented (two buffers of each, taking turns).
     std::optional<RowReader> truthReader;
     if (withTruth) {
         auto t = RowReader::open(job.truth, 1, nullptr, preferredRows);
         if (!t) return t.error();
         truthReader = std::move(*t);
     }
-    PairWindow window;
-    window.width = w;
-    std::vector<std::uint8_t> mask, truth, overlay;
+    std::vector<std::uint8_t> mask[2], overlay[2], truth;
     std::vector<std::uint8_t> crownMask; // mask rows [crownFirst, crownLast) for the crown search
     int crownFirst = 0, crownLast = 0, crownDone = 0;
     std::vector<CrownDetection> crowns;
     Confusion confusion;
-    for (int y0 = 0; y0 < h; y0 += bandRows) {
+    double writerSeconds = 0.0; // the writer thread's own time
+    // Declared after everything the writer thread touches: destroyed (joined) before them on an early return.
+    std::future<Status> pendingWrite;
+    auto waitForWriter = [&]() -> Status {
+        if (!pendingWrite.valid()) return Ok{};
+        return pendingWrite.get();
+    };
+    for (int y0 = 0, band = 0; y0 < h; y0 += bandRows, ++band) {
         const int y1 = std::min(h, y0 + bandRows), rows = y1 - y0;
         const size_t n = size_t(rows) * size_t(w);
         auto t = Clock::now();
-        if (auto st = window.slide(pair->first, pair->second, std::max(0, y0 - halo), std::min(h, y1 + halo)); !st)
-            return st.error();
+        if (!report.heldInMemory)
+            if (auto st = window.slide(pair->first, pair->second, std::max(0, y0 - halo), std::min(h, y1 + halo)); !st)
+                return st.error();
         truth.resize(withTruth ? n : 0);
         if (withTruth)
             if (auto st = truthReader->read(y0, y1, truth.data()); !st) return st.error();
         report.readSeconds += secondsSince(t);
 
         t = Clock::now();
-        mask.resize(n);
+        std::vector<std::uint8_t>& m = mask[band % 2];
+        m.resize(n);
         const RgbRows in{window.on.data(), window.off.data(), w, h, window.first, window.last - window.first};
-        segmentRows(in, y0, rows, params, report.stats, mask.data());
+        segmentRows(in, y0, rows, params, report.stats, m.data());
         report.segmentSeconds += secondsSince(t);
 
-        if (withTruth) confusion.add(mask.data(), truth.data(), n);
-        t = Clock::now();
-        if (auto st = maskOut->writeRows(y0, rows, mask.data()); !st) return st.error();
+        if (withTruth) confusion.add(m.data(), truth.data(), n);
+        std::vector<std::uint8_t>& o = overlay[band % 2];
         if (overlayOut) {
-            overlay.resize(n * 3);
-            drawOverlay(window.on.data() + size_t(y0 - window.first) * size_t(w) * 3, mask.data(),
-                        withTruth ? truth.data() : nullptr, n, overlay.data());
-            if (auto st = overlayOut->writeRows(y0, rows, overlay.data()); !st) return st.error();
+            t = Clock::now();
+            o.resize(n * 3);
+            drawOverlay(window.on.data() + size_t(y0 - window.first) * size_t(w) * 3, m.data(),
+                        withTruth ? truth.data() : nullptr, n, o.data());
+            report.writeSeconds += secondsSince(t);
         }
-        report.writeSeconds += secondsSince(t);
+        // The writer of the previous band must be done before this band's turn (and its buffers are free again).
+        if (auto st = waitForWriter(); !st) return st.error();
+        pendingWrite = std::async(std::launch::async, [&, y0, rows, band]() -> Status {
+            const auto t0 = Clock::now();
+            if (auto st = maskOut->writeRows(y0, rows, mask[band % 2].data()); !st) return st;
+            if (overlayOut)
+                if (auto st = overlayOut->writeRows(y0, rows, overlay[band % 2].data()); !st) return st;
+            writerSeconds += secondsSince(t0);
+            return Ok{};
+        });
 
         if (withCrowns) {
             // Crowns lag the mask by their halo, and wait for at least four halos of rows (each call transforms its
             // rows plus a halo on both sides); the last band flushes them all.
             t = Clock::now();
-            crownMask.insert(crownMask.end(), mask.begin(), mask.end());
+            crownMask.insert(crownMask.end(), m.begin(), m.end());
             crownLast = y1;
             const int done = y1 == h ? h : std::max(crownDone, y1 - crownHaloRows);
             if (done == h || done - crownDone >= 4 * crownHaloRows) {
@@ -356,10 +450,11 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
             }
             report.crownSeconds += secondsSince(t);
         }
-        progress(statsShare + (1.0 - statsShare) * y1 / h, "segmenting");
+        progress(done0 + (1.0 - done0) * y1 / h, "segmenting");
     }
 
     auto t = Clock::now();
+    if (auto st = waitForWriter(); !st) return st.error();
     if (auto st = maskOut->finish(); !st) return st.error();
     if (overlayOut)
         if (auto st = overlayOut->finish(); !st) return st.error();
@@ -369,7 +464,7 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
         std::string err;
         if (!writeTextAtomic(job.trees, csv, err)) return fileError(job.trees.string(), err);
     }
-    report.writeSeconds += secondsSince(t);
+    report.writeSeconds += writerSeconds + secondsSince(t);
     if (withTruth) report.confusion = confusion;
     report.crowns = int(crowns.size());
     if (trueTrees) report.centres = matchCentres(local, *trueTrees);

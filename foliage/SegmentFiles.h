@@ -1,9 +1,12 @@
 #pragma once
-// The offline segmentation of a scene's imagery files (`seasonview segment`): streams both seasons band by band
+// The offline segmentation of a scene's imagery files (`seasonview segment`): reads both seasons band by band
 // through core's BandReader (8- or 16-bit; 16-bit through the scene's stored 0.5–99.5 % stretch), segments each
 // band with the rows around it it needs (Segmentation.h), and streams the mask and the overlay out through
-// ImageStreamWriter, so memory stays a few bands whatever the image size. Optionally scores the mask against a truth
-// mask (pixels) and true trees (crown centres), and lists the crowns it finds (CrownCentres.h).
+// ImageStreamWriter on a writer thread. Each input is decoded once: when the method needs the pair's histograms and
+// they are not given (PairStats.h caches them with the pyramids), the decoded pair is held whole if it fits the
+// memory budget; only a pair larger than that is read twice (histograms, then segmentation), so memory stays a few
+// bands whatever the image size. Every path gives the same mask, byte for byte. Optionally scores the mask against
+// a truth mask (pixels) and true trees (crown centres), and lists the crowns it finds (CrownCentres.h).
 #include "Scene.h"
 #include "Segmentation.h"
 #include "SegmentationMetrics.h"
@@ -15,6 +18,12 @@
 
 namespace seasonview {
 
+/// Default SegmentJob::memoryBudget: 2 GiB, a pair of 18,900² RGB images.
+inline constexpr std::uint64_t kSegmentMemoryBudget = std::uint64_t(2) << 30;
+
+/// Where the segmentation's pair statistics came from.
+enum class StatsSource { None, Given, HeldPair, HistogramPass };
+
 struct SegmentJob {
     SegmentationParams params;
     std::filesystem::path mask;       // required: 8-bit, 255 = treetop (format by extension: .png, .tif)
@@ -23,6 +32,13 @@ struct SegmentJob {
     std::filesystem::path truth;      // optional: truth mask on the imagery grid (non-zero = deciduous treetop)
     std::filesystem::path truthTrees; // optional: true trees CSV (synth's trees.csv: x, y, radius_m[, type])
     int bandRows = 256;               // output rows per band; memory grows with it, the output does not depend on it
+    /// Bytes the decoded pair (2 × width × height × 3) may take when the histograms must be computed: within it the
+    /// pair is held whole and each input decoded once, above it both are streamed twice. The output does not
+    /// depend on it.
+    std::uint64_t memoryBudget = kSegmentMemoryBudget;
+    /// The pair's histograms when they are known already (cachedPairHistograms of PairStats.h, from the same 8-bit
+    /// values): no histogram pass. They must be those of this pair, or the mask is wrong.
+    std::optional<SegmentationHistograms> histograms;
     ProgressFn progress;
 };
 
@@ -32,12 +48,19 @@ struct SegmentReport {
     std::optional<Confusion> confusion;      // with a truth mask
     int crowns = 0;                          // crowns found (with `trees` or `truthTrees`)
     std::optional<CentreScores> centres;     // with true trees
+    StatsSource statsSource = StatsSource::None; // none needed (pixel, neighborhood), given, or computed
+    bool heldInMemory = false;               // the decoded pair was held whole (else streamed in bands)
+    int inputPasses = 1;                     // times each input was decoded (2: streamed histogram pass)
     double segmentSeconds = 0.0;             // the rule itself: histograms + segmentation of every band
     double crownSeconds = 0.0;               // distance transform and maxima
     double readSeconds = 0.0;                // reading and decoding the inputs (both seasons in parallel)
-    double writeSeconds = 0.0;               // encoding and writing the mask, overlay and trees
+    double writeSeconds = 0.0;               // encoding and writing the mask, overlay and trees (the mask and
+                                             // overlay on a writer thread, alongside the segmentation)
     double totalSeconds = 0.0;               // wall time of the whole job
 };
+
+/// "none", "given", "held pair", "histogram pass".
+const char* statsSourceName(StatsSource source);
 
 /// Overlay colours, blended half and half over the leaf-on image: true positive (or, without truth, detected),
 /// false positive, false negative. RGB.

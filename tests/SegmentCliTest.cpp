@@ -179,6 +179,51 @@ TEST_F(SegmentCliTest, BandsDoNotChangeTheOutput) {
     }
 }
 
+TEST_F(SegmentCliTest, HeldStreamedAndPreparedStatisticsGiveTheSameMask) {
+    // Each input decoded once with the pair held in memory (the default), twice with no memory to hold it, and
+    // once with the pair statistics `prepare` cached: the same mask file every time.
+    struct Case {
+        const char* tag;
+        std::vector<std::string> extra;
+        const char* statsFrom;
+        bool inMemory;
+        int passes;
+    };
+    const std::vector<Case> cases = {
+        {"held", {}, "held pair", true, 1},
+        {"streamed", {"--memory-budget", "0"}, "histogram pass", false, 2},
+        {"prepared", {}, "pair statistics cache", false, 1},
+    };
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.tag);
+        if (std::string(c.tag) == "prepared") {
+            const CliResult p = runCli({"prepare", "--leafon", (dir / "on.tif").string(), "--leafoff",
+                                        (dir / "off.tif").string(), "--cache", (dir / "cache").string()});
+            ASSERT_EQ(p.exitCode, 0) << p.err;
+        }
+        auto args = segment();
+        args.insert(args.end(), c.extra.begin(), c.extra.end());
+        args.insert(args.end(), {"--out", (dir / (std::string(c.tag) + ".png")).string(), "--metrics",
+                                 (dir / (std::string(c.tag) + ".json")).string()});
+        const CliResult r = runCli(args);
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+        const nlohmann::json m = readJson(dir / (std::string(c.tag) + ".json"));
+        EXPECT_EQ(m["stats_from"], c.statsFrom);
+        EXPECT_EQ(m["pair_in_memory"], c.inMemory);
+        EXPECT_EQ(m["input_passes"], c.passes);
+        for (const char* key : {"seconds", "megapixels_per_second", "total_seconds", "total_megapixels_per_second",
+                                "read_seconds", "write_seconds", "crown_seconds", "end_to_end_seconds",
+                                "end_to_end_megapixels_per_second", "drop_threshold"})
+            EXPECT_TRUE(m.contains(key)) << key;
+        EXPECT_GT(m["end_to_end_megapixels_per_second"].get<double>(), 0.0);
+        EXPECT_GE(m["end_to_end_seconds"].get<double>(), m["total_seconds"].get<double>());
+        EXPECT_EQ(readBytes(dir / (std::string(c.tag) + ".png")), readBytes(dir / "held.png"));
+    }
+    auto mask = readImageU8(dir / "held.png");
+    ASSERT_TRUE(mask.ok());
+    EXPECT_EQ(mask->pixels, segmentImage(pair.on, pair.off, {SegmentationMethod::Default, 5}).pixels);
+}
+
 TEST_F(SegmentCliTest, MismatchedSizesAreRejected) {
     TreePair small = framedPair(80, 64);
     writeRgb(dir / "small.tif", small.off, false);

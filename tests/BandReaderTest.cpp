@@ -1,0 +1,136 @@
+// BandReader: the deflate TIFFs it decodes itself (libdeflate) give exactly the samples OpenImageIO gives, tiled or
+// in strips, 8- or 16-bit, RGB or grey, whole or some channels, any band height; the layouts it leaves to
+// OpenImageIO still read; damaged tiles are one error naming the file.
+#include "BandReader.h"
+#include "Raster.h"
+#include "TestUtil.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+
+using namespace seasonview;
+using namespace seasonview::test;
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// Samples with structure (so the predictor matters) and noise (so deflate has work), different per channel.
+template <typename T> std::vector<T> pattern(int w, int h, int channels, unsigned seed) {
+    std::vector<T> v(size_t(w) * size_t(h) * size_t(channels));
+    std::uint32_t s = seed * 2654435761u + 1;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            for (int c = 0; c < channels; ++c) {
+                s = s * 1664525u + 1013904223u;
+                const double smooth = 0.5 + 0.5 * std::sin(0.05 * x + 0.03 * y + c);
+                const double max = sizeof(T) == 1 ? 255.0 : 65535.0;
+                v[(size_t(y) * size_t(w) + size_t(x)) * size_t(channels) + size_t(c)] =
+                    T(std::min(max, smooth * 0.9 * max + double(s >> 24) * (sizeof(T) == 1 ? 0.1 : 25.0)));
+            }
+    return v;
+}
+
+// Every band of `path` through BandReader, first `channels` channels, as one image.
+template <typename T>
+std::vector<T> readBands(const fs::path& path, int preferredRows, int channels, bool expectOwnDecoder) {
+    auto r = BandReader::open(path, preferredRows);
+    EXPECT_TRUE(r.ok()) << r.message();
+    if (!r) return {};
+    EXPECT_EQ(r->decodesDeflateItself(), expectOwnDecoder) << path;
+    std::vector<T> out(size_t(r->width()) * size_t(r->height()) * size_t(channels));
+    for (int y = 0; y < r->height(); y += r->bandRows()) {
+        const int y1 = std::min(r->height(), y + r->bandRows());
+        auto st = r->read(y, y1, channels, sizeof(T) == 1 ? SampleType::U8 : SampleType::U16,
+                          out.data() + size_t(y) * size_t(r->width()) * size_t(channels));
+        EXPECT_TRUE(st.ok()) << st.message();
+    }
+    return out;
+}
+
+template <typename T> std::vector<T> readWhole(const fs::path& path, int channels) {
+    if constexpr (sizeof(T) == 1) {
+        auto img = readImageU8(path, channels);
+        EXPECT_TRUE(img.ok()) << img.message();
+        return img ? img->pixels : std::vector<T>{};
+    } else {
+        auto img = readImageU16(path, channels);
+        EXPECT_TRUE(img.ok()) << img.message();
+        return img ? img->pixels : std::vector<T>{};
+    }
+}
+
+template <typename T> void expectSameAsOiio(const fs::path& dir, int w, int h, int channels, int tile) {
+    const SampleType type = sizeof(T) == 1 ? SampleType::U8 : SampleType::U16;
+    const std::vector<T> data = pattern<T>(w, h, channels, unsigned(w * 7 + channels));
+    GeoTiffWriteOptions o;
+    o.tileSize = tile;
+    const fs::path path = dir / ("img_" + std::to_string(channels) + "_" + std::to_string(tile) + ".tif");
+    ASSERT_TRUE(writeGeoTiff(path, data.data(), type, w, h, channels, testGeoref(), o).ok());
+    // 2 and 4 channels carry unassociated alpha, which OpenImageIO premultiplies: those stay with it.
+    const bool own = channels == 1 || channels == 3;
+    for (int wanted = 1; wanted <= channels; ++wanted) {
+        const std::vector<T> whole = readWhole<T>(path, wanted);
+        for (int rows : {1, 16, 50, 256, 1000}) {
+            SCOPED_TRACE("channels " + std::to_string(wanted) + " of " + std::to_string(channels) + ", tile " +
+                         std::to_string(tile) + ", bands of " + std::to_string(rows));
+            EXPECT_TRUE(readBands<T>(path, rows, wanted, own) == whole);
+        }
+    }
+}
+
+} // namespace
+
+TEST(BandReaderTest, OwnDeflateDecoderEqualsOpenImageIo) {
+    TempDir dir("bandreader-same");
+    for (int tile : {0, 64, 256}) { // strips of 16 rows, small and usual tiles
+        expectSameAsOiio<std::uint8_t>(dir.path(), 301, 197, 3, tile);
+        expectSameAsOiio<std::uint8_t>(dir.path(), 301, 197, 1, tile);
+        expectSameAsOiio<std::uint16_t>(dir.path(), 301, 197, 3, tile);
+        expectSameAsOiio<std::uint16_t>(dir.path(), 130, 67, 1, tile);
+    }
+    expectSameAsOiio<std::uint8_t>(dir.path(), 100, 90, 4, 64); // RGBA: OpenImageIO's
+    expectSameAsOiio<std::uint8_t>(dir.path(), 1, 1, 3, 16);    // one pixel, one mostly empty tile
+}
+
+TEST(BandReaderTest, OtherFormatsStillReadThroughOpenImageIo) {
+    TempDir dir("bandreader-other");
+    const std::vector<std::uint8_t> grey = pattern<std::uint8_t>(77, 45, 1, 3);
+    ASSERT_TRUE(writeImageAtomic(dir / "mask.png", grey.data(), 77, 45, 1).ok());
+    EXPECT_TRUE(readBands<std::uint8_t>(dir / "mask.png", 10, 1, false) == grey);
+    // An 8-bit file read as 16-bit goes through OpenImageIO's conversion.
+    const std::vector<std::uint8_t> rgb = pattern<std::uint8_t>(64, 40, 3, 4);
+    ASSERT_TRUE(writeGeoTiff(dir / "rgb.tif", rgb.data(), SampleType::U8, 64, 40, 3, testGeoref()).ok());
+    auto r = BandReader::open(dir / "rgb.tif", 64);
+    ASSERT_TRUE(r.ok());
+    std::vector<std::uint16_t> wide(rgb.size());
+    ASSERT_TRUE(r->read(0, 40, 3, SampleType::U16, wide.data()).ok());
+    for (size_t i = 0; i < rgb.size(); ++i) ASSERT_EQ(wide[i], std::uint16_t(rgb[i] * 257)) << i;
+}
+
+TEST(BandReaderTest, DamagedTilesAreOneLineNamingTheFile) {
+    TempDir dir("bandreader-damaged");
+    const int w = 512, h = 512;
+    const std::vector<std::uint8_t> rgb = pattern<std::uint8_t>(w, h, 3, 5);
+    const fs::path path = dir / "a.tif";
+    ASSERT_TRUE(writeGeoTiff(path, rgb.data(), SampleType::U8, w, h, 3, testGeoref()).ok());
+    const std::string bytes = readBytes(path);
+    std::string garbled = bytes; // the directory (at the end) intact, tile data in the middle garbled
+    for (size_t i = bytes.size() / 4; i < bytes.size() / 2; ++i) garbled[i] = char(i * 13);
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << garbled;
+    auto r = BandReader::open(path, 256);
+    ASSERT_TRUE(r.ok()) << r.message();
+    std::vector<std::uint8_t> out(size_t(w) * 256 * 3);
+    bool failed = false;
+    for (int y = 0; y < h; y += 256) {
+        const Status st = r->read(y, y + 256, 3, SampleType::U8, out.data());
+        if (st) continue;
+        failed = true;
+        EXPECT_EQ(st.message().rfind(path.string() + ": ", 0), 0u) << st.message();
+        EXPECT_EQ(st.message().find('\n'), std::string::npos) << st.message();
+    }
+    EXPECT_TRUE(failed) << "garbled tiles must not read as pixels";
+}
