@@ -7,8 +7,9 @@ layout(location = 0) in vec2 aGrid;
 uniform mat4 uViewProj;
 uniform vec2 uPieceOffset;   // piece origin, level cells
 uniform vec2 uLevelOrigin;   // sample coordinates of the level's vertex (0, 0)
-uniform float uCell;         // samples per cell, 2^level
-uniform int uLevel;
+uniform float uCell;         // samples per cell, 2^level (below 1 for levels finer than the DEM)
+uniform int uLevel;          // DEM level: negative for levels finer than the DEM (the triangulated surface of level 0)
+uniform int uDrawnLevel;     // 0 for the finest level drawn (the levels view's colour)
 uniform vec2 uLevelCentre;   // sample coordinates of the level's centre
 uniform float uHalfCells;    // (n - 1) / 2
 uniform float uTransitionWidth; // cells (n / 10)
@@ -70,7 +71,7 @@ bool elevTexel(int level, ivec2 t, out float h) {
 // bilinear between that level's samples (exact at its own samples).
 float elevationAt(int level, vec2 s) {
     if (uHasElevation == 0) return 0.0;
-    for (int l = min(level, uElevLevels - 1); l < uElevLevels; ++l) {
+    for (int l = clamp(level, 0, uElevLevels - 1); l < uElevLevels; ++l) {
         vec2 q = s / exp2(float(l));
         ivec2 i0 = ivec2(floor(q));
         vec2 f = q - vec2(i0);
@@ -83,6 +84,40 @@ float elevationAt(int level, vec2 s) {
         return mix(mix(h00, h10, f.x), mix(h01, h11, f.x), f.y);
     }
     return 0.0;
+}
+
+// Height of the DEM's triangulated surface at sample coordinates s (each level-0 cell split along its north-east to
+// south-west diagonal, the surface of the reference mesh and of the elevation grid's resampling): the heights of
+// levels finer than the DEM. Bilinear from a coarser level while level 0 is not resident there.
+float triangulatedAt(vec2 s) {
+    if (uHasElevation == 0) return 0.0;
+    ivec2 i0 = ivec2(floor(s));
+    vec2 f = s - vec2(i0);
+    float h00, h10, h01, h11;
+    if (f.x + f.y <= 1.0) {
+        if (elevTexel(0, i0, h00) && elevTexel(0, i0 + ivec2(1, 0), h10) && elevTexel(0, i0 + ivec2(0, 1), h01))
+            return h00 + f.x * (h10 - h00) + f.y * (h01 - h00);
+    } else if (elevTexel(0, i0 + ivec2(1, 1), h11) && elevTexel(0, i0 + ivec2(1, 0), h10) &&
+               elevTexel(0, i0 + ivec2(0, 1), h01)) {
+        return h11 + (1.0 - f.x) * (h01 - h11) + (1.0 - f.y) * (h10 - h11);
+    }
+    return elevationAt(1, s);
+}
+
+// The surface of geometry level `level` at s as its own grid interpolates it along cell edges: exact at its
+// vertices, linear between neighbouring vertices on a grid line. DEM levels: bilinear between that level's
+// samples. Levels finer than the DEM: their vertices' triangulated heights, bilinear between them.
+float levelSurface(int level, vec2 s) {
+    if (level >= 0) return elevationAt(level, s);
+    float c = exp2(float(level));
+    vec2 q = s / c;
+    vec2 i0 = floor(q);
+    vec2 f = q - i0;
+    float h00 = triangulatedAt(i0 * c);
+    float h10 = f.x > 0.0 ? triangulatedAt((i0 + vec2(1.0, 0.0)) * c) : h00;
+    float h01 = f.y > 0.0 ? triangulatedAt((i0 + vec2(0.0, 1.0)) * c) : h00;
+    float h11 = f.x > 0.0 && f.y > 0.0 ? triangulatedAt((i0 + vec2(1.0)) * c) : h00;
+    return mix(mix(h00, h10, f.x), mix(h01, h11, f.x), f.y);
 }
 
 // Unnormalised normal (local frame, z up) from central differences `step` samples apart at level `level`.
@@ -98,11 +133,12 @@ void main() {
     vec2 d = abs(s - uLevelCentre) / uCell;
     vec2 a = clamp((d - (uHalfCells - uTransitionWidth - 1.0)) / uTransitionWidth, 0.0, 1.0);
     float alpha = uBlendToCoarser != 0 ? max(a.x, a.y) : 0.0;
-    float z = elevationAt(uLevel, s);
-    vec3 n = uNormals != 0 ? normalAt(uLevel, s, uCell) : vec3(0.0, 0.0, 1.0);
+    float z = uLevel >= 0 ? elevationAt(uLevel, s) : triangulatedAt(s);
+    // Normals from differences at least one DEM sample apart: finer steps would only show the bilinear facets.
+    vec3 n = uNormals != 0 ? normalAt(uLevel, s, max(uCell, 1.0)) : vec3(0.0, 0.0, 1.0);
     if (alpha > 0.0) {
-        z = mix(z, elevationAt(uLevel + 1, s), alpha);
-        if (uNormals != 0) n = mix(n, normalAt(uLevel + 1, s, 2.0 * uCell), alpha);
+        z = mix(z, levelSurface(uLevel + 1, s), alpha);
+        if (uNormals != 0) n = mix(n, normalAt(uLevel + 1, s, max(2.0 * uCell, 1.0)), alpha);
     }
 #ifdef CANOPY_LAYER
     vLayer = gl_InstanceID;
@@ -111,7 +147,7 @@ void main() {
     vec2 local = vec2(uGridOrigin.x + s.x * uGridSpacing, uGridOrigin.y - s.y * uGridSpacing);
     vLocal = vec3(local, z);
     vNormal = normalize(n);
-    vLevel = uLevel;
+    vLevel = uDrawnLevel;
     // 0..1 across the lattice; texel centres at (i + 0.5) / K. Past the lattice the map is extended linearly, not
     // clamped: a coarse triangle reaching far outside must still interpolate image coordinates that cross the
     // image's edge where the edge is, or the discard would cut it in the wrong place.

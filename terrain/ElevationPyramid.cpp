@@ -51,6 +51,12 @@ ElevationGrid elevationGrid(const Scene& scene) {
         g.spacing = !sameSpace && widest / (native / 2.0) <= 16384.0 ? native / 2.0 : native;
         margin = 2.0 * native;
         g.origin = {scene.localMin.x - margin, scene.localMax.y + margin};
+        if (sameSpace && g.spacing == native) {
+            // In the DEM's own space and spacing: start on one of its samples (north-west of the corner), so every
+            // grid sample is a DEM sample and the grid's triangulated surface is the DEM's, not a smoothed copy.
+            const glm::dvec2 px = glm::floor(r.crsToPixel(scene.frame.fromLocal(r.crs, g.origin)) - 0.5);
+            g.origin = glm::dvec2(scene.frame.toLocal(r.crs, r.pixelToCrs(px + 0.5)));
+        }
     } else {
         g.spacing = std::max(scene.gsd, std::max(extent.x, extent.y) / 2048.0);
         margin = 2.0 * g.spacing;

@@ -76,4 +76,64 @@ bool FrustumPlanes::outside(const glm::dvec3& lo, const glm::dvec3& hi) const {
     return false;
 }
 
+HeightBounds HeightBounds::flat(float h) {
+    HeightBounds b;
+    b.m_levels.push_back({1, 1, {glm::vec2(h, h)}});
+    b.m_tileSize = glm::dvec2(1e300);
+    return b;
+}
+
+HeightBounds HeightBounds::build(int width, int height, int tiles, const TileRange& tileRange) {
+    HeightBounds b;
+    b.m_gridMax = glm::dvec2(std::max(width - 1, 0), std::max(height - 1, 0));
+    Level l0;
+    l0.w = std::clamp(tiles, 1, std::max(width, 1));
+    l0.h = std::clamp(tiles, 1, std::max(height, 1));
+    b.m_tileSize = glm::max(b.m_gridMax, glm::dvec2(1.0)) / glm::dvec2(l0.w, l0.h);
+    l0.r.resize(size_t(l0.w) * size_t(l0.h));
+    for (int y = 0; y < l0.h; ++y)
+        for (int x = 0; x < l0.w; ++x)
+            l0.r[size_t(y) * size_t(l0.w) + size_t(x)] =
+                tileRange(glm::dvec2(x, y) * b.m_tileSize, glm::dvec2(x + 1, y + 1) * b.m_tileSize);
+    b.m_levels.push_back(std::move(l0));
+    while (b.m_levels.back().w > 1 || b.m_levels.back().h > 1) {
+        const Level& f = b.m_levels.back();
+        Level c;
+        c.w = (f.w + 1) / 2;
+        c.h = (f.h + 1) / 2;
+        c.r.assign(size_t(c.w) * size_t(c.h), glm::vec2(1e30f, -1e30f));
+        for (int y = 0; y < f.h; ++y)
+            for (int x = 0; x < f.w; ++x) {
+                glm::vec2& t = c.r[size_t(y / 2) * size_t(c.w) + size_t(x / 2)];
+                const glm::vec2 v = f.r[size_t(y) * size_t(f.w) + size_t(x)];
+                t = glm::vec2(std::min(t.x, v.x), std::max(t.y, v.y));
+            }
+        b.m_levels.push_back(std::move(c));
+    }
+    return b;
+}
+
+glm::vec2 HeightBounds::range(glm::dvec2 lo, glm::dvec2 hi) const {
+    lo = glm::clamp(lo, glm::dvec2(0.0), m_gridMax);
+    hi = glm::clamp(hi, glm::dvec2(0.0), m_gridMax);
+    // The level where the box spans at most a few tiles per side; its tiles cover the box.
+    for (size_t k = 0; k < m_levels.size(); ++k) {
+        const Level& L = m_levels[k];
+        const glm::dvec2 size = m_tileSize * std::ldexp(1.0, int(k));
+        const int x0 = std::clamp(int(std::floor(lo.x / size.x)), 0, L.w - 1);
+        const int y0 = std::clamp(int(std::floor(lo.y / size.y)), 0, L.h - 1);
+        const int x1 = std::clamp(int(std::floor(hi.x / size.x)), 0, L.w - 1);
+        const int y1 = std::clamp(int(std::floor(hi.y / size.y)), 0, L.h - 1);
+        if ((x1 - x0 + 1) * (y1 - y0 + 1) > 16 && k + 1 < m_levels.size()) continue;
+        glm::vec2 r(1e30f, -1e30f);
+        for (int y = y0; y <= y1; ++y)
+            for (int x = x0; x <= x1; ++x) {
+                const glm::vec2 v = L.r[size_t(y) * size_t(L.w) + size_t(x)];
+                r = glm::vec2(std::min(r.x, v.x), std::max(r.y, v.y));
+            }
+        return r;
+    }
+    return m_levels.back().r[0];
+}
+
 } // namespace seasonview

@@ -12,6 +12,7 @@
 #include <glm/vec3.hpp>
 
 #include <array>
+#include <functional>
 #include <vector>
 
 namespace seasonview {
@@ -51,6 +52,31 @@ struct FrustumPlanes {
     std::array<glm::dvec4, 4> planes;
     static FrustumPlanes fromViewProj(const glm::dmat4& viewProj);
     bool outside(const glm::dvec3& lo, const glm::dvec3& hi) const;
+};
+
+/// Conservative height bounds over boxes of the elevation grid, for culling each piece against the frustum with its
+/// own box (GPU Gems 2 ch. 2 §2.3.3 cull blocks by their bounding boxes) rather than the whole DEM's height range: a
+/// lattice of tiles over the grid, each with the range of the heights inside it, and its max/min mip chain.
+class HeightBounds {
+public:
+    /// `tileRange(lo, hi)`: the range of heights over the box [lo, hi] in level-0 sample coordinates (it may be
+    /// wider, never narrower). Tiles of at least one sample, at most `tiles` per side.
+    using TileRange = std::function<glm::vec2(glm::dvec2 lo, glm::dvec2 hi)>;
+    static HeightBounds build(int width, int height, int tiles, const TileRange& tileRange);
+    /// A flat grid: every box is [h, h].
+    static HeightBounds flat(float h);
+    /// Range over the box (sample coordinates; the part outside the grid takes its edge's heights, as the shader's
+    /// clamped fetches do).
+    glm::vec2 range(glm::dvec2 lo, glm::dvec2 hi) const;
+
+private:
+    struct Level {
+        int w = 1, h = 1;
+        std::vector<glm::vec2> r; // (min, max)
+    };
+    std::vector<Level> m_levels; // m_levels[0] = the tiles
+    glm::dvec2 m_tileSize{1.0};  // samples per tile
+    glm::dvec2 m_gridMax{0.0};   // last sample coordinate
 };
 
 } // namespace seasonview

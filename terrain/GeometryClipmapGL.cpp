@@ -10,6 +10,7 @@ namespace seasonview {
 namespace {
 constexpr int kLookupSize = 129; // local -> image lattice, per side
 constexpr int kMaxElevationLevels = 24;
+constexpr int kMaxGeometryLevels = 24;
 } // namespace
 
 Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene& scene, const ElevationGrid& grid,
@@ -21,10 +22,52 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
     g->m_grid = grid;
     g->m_options = options;
     g->m_ring = RingLayout::make(options.n);
-    g->m_levels = std::max(options.levels, geometryLevelCount(options.n, std::max(grid.width, grid.height)));
+    // DEM levels: enough for the coarsest to cover the DEM and the imagery from anywhere inside them. Then levels
+    // finer than the DEM down to finestCellMetres, as many as fit (level coordinates in units of 2^−sub samples
+    // stay below 2^30).
+    g->m_imageryMin = scene.localMin;
+    g->m_imageryMax = scene.localMax;
+    const glm::dvec2 imagery = glm::max(scene.localMax - scene.localMin, glm::dvec2(0.0)) / grid.spacing;
+    const int extentSamples = int(std::min(std::ceil(std::max({double(grid.width), double(grid.height), imagery.x,
+                                                         imagery.y})), 1e9));
+    const int demLevels = std::max(options.levels, geometryLevelCount(options.n, extentSamples));
+    int sub = 0;
+    while (std::ldexp(grid.spacing, -sub) > options.finestCellMetres * (1.0 + 1e-9) &&
+           demLevels + sub < kMaxGeometryLevels &&
+           double(options.n - 1) * std::ldexp(1.0, demLevels + sub) <= std::ldexp(1.0, 30))
+        ++sub;
+    g->m_subLevels = sub;
+    g->m_levels = std::min(demLevels + sub, kMaxGeometryLevels);
     if (scene.elevation) {
-        g->m_minHeight = scene.elevation->minHeight;
-        g->m_maxHeight = scene.elevation->maxHeight;
+        // Per-tile height ranges from the DEM's own samples under each tile (its corners taken through the CRS): the
+        // resampled grid and everything interpolated from it stay inside them.
+        const Heightfield& hf = *scene.elevation;
+        const int W = hf.heights.width, H = hf.heights.height;
+        g->m_bounds = HeightBounds::build(grid.width, grid.height, 128, [&](glm::dvec2 lo, glm::dvec2 hi) {
+            lo = glm::floor(lo); // the grid samples any point of the box interpolates
+            hi = glm::ceil(hi);
+            glm::dvec2 pmin(1e300), pmax(-1e300);
+            for (const glm::dvec2 c : {lo, hi, glm::dvec2(lo.x, hi.y), glm::dvec2(hi.x, lo.y)}) {
+                const glm::dvec2 px =
+                    hf.georef.crsToPixel(scene.frame.fromLocal(hf.georef.crs, grid.samplePosition(c.x, c.y))) - 0.5;
+                pmin = glm::min(pmin, px);
+                pmax = glm::max(pmax, px);
+            }
+            // The DEM samples around those (a hundredth of a pixel for the corners' curvature in another CRS).
+            const int x0 = std::clamp(int(std::floor(pmin.x - 0.01)), 0, W - 1);
+            const int x1 = std::clamp(int(std::ceil(pmax.x + 0.01)), 0, W - 1);
+            const int y0 = std::clamp(int(std::floor(pmin.y - 0.01)), 0, H - 1);
+            const int y1 = std::clamp(int(std::ceil(pmax.y + 0.01)), 0, H - 1);
+            glm::vec2 r(1e30f, -1e30f);
+            for (int y = y0; y <= y1; ++y)
+                for (int x = x0; x <= x1; ++x) {
+                    const float v = hf.heights.at(x, y);
+                    r = glm::vec2(std::min(r.x, v), std::max(r.y, v));
+                }
+            return r;
+        });
+    } else {
+        g->m_bounds = HeightBounds::flat(0.0f);
     }
     if (elevation) {
         if (elevation->format != TexelFormat::R32F || elevation->width() != grid.width ||
@@ -136,18 +179,19 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
 }
 
 ClipmapFrameStats GeometryClipmapGL::update(const Camera& camera, int viewportHeight) {
-    const glm::dvec2 viewer = m_grid.sampleCoords({camera.position.x, camera.position.y});
+    const double unit = std::ldexp(1.0, -m_subLevels); // DEM samples per placement unit
+    const glm::dvec2 viewer = m_grid.sampleCoords({camera.position.x, camera.position.y}) / unit;
     const double above = camera.position.z - m_scene->terrainHeight(camera.position.x, camera.position.y);
     const double pixelsPerRadian = double(viewportHeight) / (2.0 * std::tan(camera.fovYDeg * M_PI / 360.0));
-    const int finest = finestActiveLevel(m_levels, m_grid.spacing, above, pixelsPerRadian);
+    const int finest = finestActiveLevel(m_levels, cellMetres(0), above, pixelsPerRadian);
     m_placement = placeGeometryLevels(viewer, m_options.n, m_levels, finest);
     if (!m_elevation) return {};
     const int clipLevels = m_elevation->schedule().layout().clipLevels();
     std::vector<glm::dvec2> centres;
     const double half = double(m_options.n - 1) / 2.0;
-    for (int l = 0; l < clipLevels; ++l) {
-        const GeometryLevel& g = m_placement.levels[size_t(std::min(l, m_levels - 1))];
-        centres.push_back(glm::dvec2(g.origin) + half * double(g.cell) + 0.5);
+    for (int l = 0; l < clipLevels; ++l) { // DEM level l is geometry level l + subLevels
+        const GeometryLevel& g = m_placement.levels[size_t(std::min(l + m_subLevels, m_levels - 1))];
+        centres.push_back((glm::dvec2(g.origin) + half * double(g.cell)) * unit + 0.5);
     }
     return m_elevation->update(centres);
 }
@@ -197,24 +241,39 @@ GeometryFrameStats GeometryClipmapGL::drawPieces(const gl::ShaderProgram& progra
     GeometryFrameStats st;
     const FrustumPlanes frustum = FrustumPlanes::fromViewProj(viewProj);
     const double s = m_grid.spacing;
-    const double zlo = double(m_minHeight) - 1.0, zhi = double(m_maxHeight) + 1.0 + std::max(lift, 0.0);
     const double half = double(m_options.n - 1) / 2.0;
+    const double unit = std::ldexp(1.0, -m_subLevels); // DEM samples per placement unit (exact in float)
     for (int l = m_placement.finest; l < m_levels; ++l) {
         const GeometryLevel& g = m_placement.levels[size_t(l)];
-        program.set("uLevel", l);
-        program.set("uLevelOrigin", glm::vec2(g.origin));
-        program.set("uCell", float(g.cell));
-        program.set("uLevelCentre", glm::vec2(glm::dvec2(g.origin) + half * double(g.cell)));
+        // The shader works in DEM samples: uLevel is the DEM level (negative below the DEM's resolution).
+        program.set("uLevel", l - m_subLevels);
+        program.set("uDrawnLevel", l - m_placement.finest);
+        program.set("uLevelOrigin", glm::vec2(glm::dvec2(g.origin) * unit));
+        program.set("uCell", float(double(g.cell) * unit));
+        program.set("uLevelCentre", glm::vec2((glm::dvec2(g.origin) + half * double(g.cell)) * unit));
         program.set("uBlendToCoarser", m_options.stitchLevels && l + 1 < m_levels ? 1 : 0);
         bool any = false;
-        // Sample coordinates -> local box (j runs south).
+        // Placement units -> local box (j runs south).
         auto box = [&](int x0, int y0, int x1, int y1) {
-            return std::pair{m_grid.samplePosition(double(g.origin.x + x0 * g.cell), double(g.origin.y + y1 * g.cell)),
-                             m_grid.samplePosition(double(g.origin.x + x1 * g.cell), double(g.origin.y + y0 * g.cell))};
+            return std::pair{m_grid.samplePosition(double(g.origin.x + x0 * g.cell) * unit,
+                                                   double(g.origin.y + y1 * g.cell) * unit),
+                             m_grid.samplePosition(double(g.origin.x + x1 * g.cell) * unit,
+                                                   double(g.origin.y + y0 * g.cell) * unit)};
         };
+        // Outside the frustum, or wholly outside the imagery (every fragment there would be discarded).
+        // Heights within two of the level's cells of the piece (the coarser level's samples its transition blends
+        // towards lie within one coarse cell).
+        const double margin = 2.0 * double(g.cell) * unit;
         auto visible = [&](int x0, int y0, int x1, int y1) {
             const auto [a, b] = box(x0, y0, x1, y1);
-            return !frustum.outside({a.x - s, a.y - s, zlo}, {b.x + s, b.y + s, zhi});
+            if (b.x < m_imageryMin.x - s || a.x > m_imageryMax.x + s || b.y < m_imageryMin.y - s ||
+                a.y > m_imageryMax.y + s)
+                return false;
+            const glm::vec2 hr =
+                m_bounds.range(glm::dvec2(g.origin.x + x0 * g.cell, g.origin.y + y0 * g.cell) * unit - margin,
+                               glm::dvec2(g.origin.x + x1 * g.cell, g.origin.y + y1 * g.cell) * unit + margin);
+            return !frustum.outside({a.x - s, a.y - s, double(hr.x) - 1.0},
+                                    {b.x + s, b.y + s, double(hr.y) + 1.0 + std::max(lift, 0.0)});
         };
         for (const GridRect& r : levelPieces(m_ring, m_placement, l)) {
             if (!visible(r.x0, r.y0, r.x1, r.y1)) {

@@ -3,7 +3,11 @@
 // viewer, drawn from a few static vertex/index buffers (one per piece shape: m×m block, fix-ups, trims, the outer
 // edge's degenerate triangles), heights fetched in the vertex shader from an elevation clipmap (an R32F ClipmapGL
 // streamed from the DEM's pyramid like the imagery), transition regions blending heights and normals towards the
-// coarser level, per-piece view-frustum culling. Triangles drawn do not depend on the DEM's size.
+// coarser level, per-piece view-frustum culling. Triangles drawn do not depend on the DEM's size: the levels are
+// laid out in metres down to GeometryClipmapOptions::finestCellMetres whatever the DEM's spacing (levels finer than
+// the DEM take bilinear heights from its finest level, the upsampling of §2.3.4 without synthesised detail), the
+// finest drawn follows the viewer's height above the terrain, the coarsest is the one covering the scene, and pieces
+// outside the imagery (whose fragments would be discarded) are culled like those outside the frustum.
 #include "Camera.h"
 #include "ClipmapGL.h"
 #include "ElevationPyramid.h"
@@ -15,6 +19,7 @@
 #include <glm/mat2x2.hpp>
 #include <glm/mat4x4.hpp>
 
+#include <cmath>
 #include <functional>
 #include <map>
 #include <memory>
@@ -24,10 +29,13 @@ namespace seasonview {
 
 struct GeometryClipmapOptions {
     int n = 255;                             // vertices per level side, 2^k − 1
-    // Levels, fixed (GPU Gems 2 ch. 2 §2.1: n and the level count set the triangle budget, whatever the DEM): at
-    // least this many, more only when the grid needs them to be covered from anywhere in it. 10 levels of 255
-    // cover (n − 1) · 2^9 = 130 048 DEM samples.
-    int levels = 10;
+    // DEM levels: at least this many, more when the grid or the imagery needs them to be covered from anywhere in
+    // it (geometryLevelCount).
+    int levels = 1;
+    // Geometry levels go down to cells of this size (metres), or the DEM's spacing where that is finer: a coarse
+    // DEM gets upsampled levels (bilinear heights) so the mesh, and the triangle count, follow the screen and not
+    // the DEM's resolution (GPU Gems 2 ch. 2 §2.1: n and the level count set the triangle budget, whatever the DEM).
+    double finestCellMetres = 0.5;
     int elevationClipSize = 512;             // texels per toroidal elevation level (>= n + 2 block margins)
     std::int64_t uploadBudgetTexels = 1 << 18; // elevation texels per frame
     // false: no transition blending and no edge triangles between levels, for showing the cracks they close
@@ -67,8 +75,13 @@ public:
     GeometryFrameStats drawInstanced(const gl::ShaderProgram& program, const glm::dmat4& viewProj, double lift,
                                      const PieceInstances& instances) const;
 
+    /// Placement in geometry levels g = 0 .. levelCount() − 1, coordinates in units of 2^−subLevels() DEM samples:
+    /// level g has cells of 2^(g − subLevels()) DEM samples (the first subLevels() levels are finer than the DEM).
     const GeometryPlacement& placement() const { return m_placement; }
     int levelCount() const { return m_levels; }
+    int subLevels() const { return m_subLevels; }
+    /// Metres per cell of geometry level g.
+    double cellMetres(int g) const { return std::ldexp(m_grid.spacing, g - m_subLevels); }
     const ElevationGrid& grid() const { return m_grid; }
     std::int64_t residentBytes() const { return m_elevation ? m_elevation->residentBytes() : 0; }
     std::int64_t totalTexelsUploaded() const { return m_elevation ? m_elevation->totalTexelsUploaded() : 0; }
@@ -89,8 +102,10 @@ private:
     ElevationGrid m_grid;
     GeometryClipmapOptions m_options;
     RingLayout m_ring;
-    int m_levels = 1;
-    float m_minHeight = 0, m_maxHeight = 0;
+    int m_levels = 1;    // geometry levels, sub-DEM ones included
+    int m_subLevels = 0; // geometry levels finer than the DEM's samples
+    glm::dvec2 m_imageryMin{0.0}, m_imageryMax{0.0}; // local bounds of the imagery (culling)
+    HeightBounds m_bounds = HeightBounds::flat(0.0f); // per-piece culling boxes
     std::unique_ptr<ClipmapGL> m_elevation;
     std::vector<glm::ivec2> m_elevationLevelSizes;
     std::map<std::pair<int, int>, Mesh> m_meshes;

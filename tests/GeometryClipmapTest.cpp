@@ -87,3 +87,41 @@ TEST(GeometryClipmapTest, FrustumCullsBoxesOutsideTheSidePlanes) {
     EXPECT_TRUE(f.outside({-5, 50, 200}, {5, 60, 300}));   // above
     EXPECT_FALSE(f.outside({-1000, -1000, -5}, {1000, 1000, 5})); // around the viewer
 }
+
+// Per-piece culling boxes: the range over any box contains every height a point inside it can take (the grid
+// samples around it), and small boxes get ranges far tighter than the whole grid's.
+TEST(GeometryClipmapTest, HeightBoundsAreConservativeAndTight) {
+    const int w = 300, h = 200;
+    std::mt19937 rng(3);
+    std::vector<float> z(size_t(w) * h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            z[size_t(y) * w + size_t(x)] = float(100.0 * std::sin(x * 0.05) * std::cos(y * 0.07)) +
+                                           float(rng() % 100) * 0.01f;
+    auto brute = [&](glm::dvec2 lo, glm::dvec2 hi) {
+        glm::vec2 r(1e30f, -1e30f);
+        const int x0 = std::clamp(int(std::floor(lo.x)), 0, w - 1), x1 = std::clamp(int(std::ceil(hi.x)), 0, w - 1);
+        const int y0 = std::clamp(int(std::floor(lo.y)), 0, h - 1), y1 = std::clamp(int(std::ceil(hi.y)), 0, h - 1);
+        for (int y = y0; y <= y1; ++y)
+            for (int x = x0; x <= x1; ++x) {
+                const float v = z[size_t(y) * w + size_t(x)];
+                r = glm::vec2(std::min(r.x, v), std::max(r.y, v));
+            }
+        return r;
+    };
+    const HeightBounds b = HeightBounds::build(w, h, 32, brute);
+    const glm::vec2 all = brute({0.0, 0.0}, {w - 1.0, h - 1.0});
+    std::uniform_real_distribution<double> px(-50.0, w + 50.0), py(-50.0, h + 50.0), size(0.0, 40.0);
+    int tight = 0;
+    for (int trial = 0; trial < 2000; ++trial) {
+        const glm::dvec2 lo(px(rng), py(rng)), hi = lo + glm::dvec2(size(rng), size(rng));
+        const glm::vec2 want = brute(glm::clamp(lo, glm::dvec2(0.0), glm::dvec2(w - 1, h - 1)),
+                                     glm::clamp(hi, glm::dvec2(0.0), glm::dvec2(w - 1, h - 1)));
+        const glm::vec2 got = b.range(lo, hi);
+        ASSERT_LE(got.x, want.x) << trial;
+        ASSERT_GE(got.y, want.y) << trial;
+        tight += (got.y - got.x) < 0.5f * (all.y - all.x) ? 1 : 0;
+    }
+    EXPECT_GT(tight, 1000);
+    EXPECT_EQ(HeightBounds::flat(7.0f).range({-1e6, -1e6}, {1e6, 1e6}), glm::vec2(7.0f, 7.0f));
+}
