@@ -261,6 +261,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     gl::Query timer = gl::Query::create(GL_TIME_ELAPSED);
     ImagerySettings imagery;
     imagery.view = *view;
+    if (auto st = parseCanopyGround(a->groundUnder, a->groundElsewhere, imagery); !st)
+        return fail(st.message());
     using clock = std::chrono::steady_clock;
     auto ms = [](clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
 
@@ -289,6 +291,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
             im.view = ImageryView::LeafOn; // canopy=off: the terrain alone
         if (m.canopy)
             im.view = ImageryView::Canopy;
+        if (m.canopy && m.canopyLayers > 0)
+            im.canopyBase = CanopyDrawSettings{}.darkest; // the ground draws layer 0 under the stacked ones
         if (m.clipmap) {
             const GeometryFrameStats ground = m.clipRenderer->render(cam, im, target);
             row.drawCalls = ground.drawCalls;
@@ -388,6 +392,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
           {"canopy_layers", a->canopyLayers},
           {"segmentation_method", a->method},
           {"segmentation_k", a->k},
+          {"ground_under_canopy", a->groundUnder},
+          {"ground_elsewhere", a->groundElsewhere},
           {"tree_height_m", scene->sources.treeHeightM}}},
         {"wall_seconds", seconds}};
     nlohmann::json compare = nlohmann::json::array();

@@ -24,7 +24,7 @@ struct BenchSettings {
     int clipLevels = 0;           // toroidal levels allocated at least (ClipmapOptions::minClipLevels)           // geometry clipmap n (vertices per level side, 2^k - 1)
     std::int64_t uploadBudget = std::int64_t(1) << 20;
     // canopy view: stacked layers ("off" or 1..32), the canopy layer's segmentation method and k.
-    std::string canopyLayers = "16", method = "default";
+    std::string canopyLayers = "16", method = "default", groundUnder = "leafoff", groundElsewhere = "leafon";
     int k = 5;
     std::filesystem::path cacheDir;
 };

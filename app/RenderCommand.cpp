@@ -15,7 +15,7 @@ struct RenderArgs {
     float blend = 0.5f, swipe = 0.5f, aniso = 8.0f, shade = 0.0f;
     int clipSize = 2048, gridSize = 255, clipLevels = 0;
     bool window = false;
-    std::string canopyLayers = "16", method = "default";
+    std::string canopyLayers = "16", method = "default", groundUnder = "leafoff", groundElsewhere = "leafon";
     int k = kSegDefaultK;
 };
 } // namespace
@@ -65,6 +65,12 @@ Runner addRenderCommand(CLI::App& app) {
         ->capture_default_str();
     cmd->add_option("--k", args->k, "canopy view: neighbourhood size of the ground layer (odd, 1..15)")
         ->capture_default_str();
+    cmd->add_option("--ground-under-canopy", args->groundUnder,
+                    "canopy view: season of the ground under the crowns (seen where layers are off), leafon|leafoff")
+        ->capture_default_str();
+    cmd->add_option("--ground-elsewhere", args->groundElsewhere,
+                    "canopy view: season of the ground away from the crowns, leafon|leafoff")
+        ->capture_default_str();
     cmd->add_option("--stats", args->stats, "Write level statistics (coverage, uploads, memory) to this JSON file");
     cmd->add_option("--out", args->out, "Output image (.png or .tif)")->required();
     cmd->add_flag("--window", args->window, "Render through a hidden GLFW window instead of headless EGL");
@@ -83,6 +89,8 @@ Runner addRenderCommand(CLI::App& app) {
         imagery.swipe = args->swipe;
         imagery.anisotropy = args->aniso;
         imagery.shading = args->shade;
+        if (auto st = parseCanopyGround(args->groundUnder, args->groundElsewhere, imagery); !st)
+            return fail(st.message());
         if (args->gridSize < 31 || args->gridSize > 1023 || ((args->gridSize + 1) & args->gridSize) != 0)
             return fail("--grid-size " + std::to_string(args->gridSize) + ": expected 2^k - 1 in 31..1023");
         settings.geometry.n = args->gridSize;

@@ -202,6 +202,21 @@ Result<CanopyRenderSettings> parseCanopyArgs(const std::string& layers, const st
     return c;
 }
 
+Status parseCanopyGround(const std::string& under, const std::string& elsewhere, ImagerySettings& imagery) {
+    auto season = [](const std::string& flag, const std::string& v) -> Result<int> {
+        if (v == "leafon") return 0;
+        if (v == "leafoff") return 1;
+        return Error{flag + " '" + v + "': expected leafon|leafoff"};
+    };
+    auto u = season("--ground-under-canopy", under);
+    if (!u) return u.error();
+    auto e = season("--ground-elsewhere", elsewhere);
+    if (!e) return e.error();
+    imagery.groundUnderCanopy = *u;
+    imagery.groundElsewhere = *e;
+    return Ok{};
+}
+
 Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, const std::vector<StillRequest>& stills,
                                      const RenderSettings& settings) {
     std::vector<ImagePyramid> pyramids;
@@ -276,8 +291,11 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
         if (canopy) canopy->completeSynchronously();
         (*renderer)->updateGeometry(s.camera, height);
         (*renderer)->completeGeometry();
-        GeometryFrameStats drawn = (*renderer)->render(s.camera, s.imagery, target);
-        if (s.imagery.view == ImageryView::Canopy && settings.canopy.layers > 0) {
+        const bool stacked = s.imagery.view == ImageryView::Canopy && settings.canopy.layers > 0;
+        ImagerySettings imagery = s.imagery;
+        if (stacked) imagery.canopyBase = CanopyDrawSettings{}.darkest; // the ground draws layer 0
+        GeometryFrameStats drawn = (*renderer)->render(s.camera, imagery, target);
+        if (stacked) {
             CanopyDrawSettings cd;
             cd.treeHeight = scene.sources.treeHeightM;
             cd.anisotropy = s.imagery.anisotropy;

@@ -61,6 +61,8 @@ struct CanopyRenderSettings {
 
 /// --canopy-layers N|off, --method M, --k K -> canopy settings; errors name the flag.
 Result<CanopyRenderSettings> parseCanopyArgs(const std::string& layers, const std::string& method, int k);
+/// --ground-under-canopy / --ground-elsewhere S (leafon|leafoff) -> the canopy view's ground seasons in `imagery`.
+Status parseCanopyGround(const std::string& under, const std::string& elsewhere, ImagerySettings& imagery);
 
 struct RenderSettings {
     RendererKind renderer = RendererKind::Clipmap;

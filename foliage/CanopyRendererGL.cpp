@@ -10,6 +10,21 @@
 
 namespace seasonview {
 
+int canopyPieceLayers(const glm::dvec3& eye, double pixelsPerRadian, const glm::dvec3& lo, const glm::dvec3& hi,
+                      const CanopyDrawSettings& s, int layers) {
+    // The stack over a point at horizontal distance r and height dz below the eye spans about
+    // H · ppr · r / (r² + dz²) pixels (a vertical segment of height H seen from distance d = √(r² + dz²),
+    // foreshortened by r / d); its largest value over the box decides.
+    const glm::dvec2 e(eye), lo2(lo), hi2(hi);
+    const double rmin = glm::length(glm::clamp(e, lo2, hi2) - e);
+    const double rmax = glm::length(glm::max(glm::abs(lo2 - e), glm::abs(hi2 - e)));
+    const double dz = std::max({0.0, eye.z - (hi.z + s.treeHeight), lo.z - eye.z});
+    const double r = std::clamp(dz, rmin, rmax); // r / (r² + dz²) is largest at r = dz
+    const double stack = r + dz <= 0.0 ? 1e9 : s.treeHeight * pixelsPerRadian * r / (r * r + dz * dz);
+    if (stack < s.minLiftPixels || layers < 2) return 0;
+    return std::clamp(int(std::ceil(stack / std::max(s.pixelsPerLayer, 1e-3))), 1, layers - 1);
+}
+
 Result<std::unique_ptr<CanopyRendererGL>> CanopyRendererGL::create() {
     auto r = std::unique_ptr<CanopyRendererGL>(new CanopyRendererGL());
     auto p = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag", {"CANOPY_LAYER"});
@@ -22,7 +37,7 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
                                             const CanopyClipmapGL& canopy, const CanopyDrawSettings& s,
                                             const gl::RenderTarget& target) const {
     const int layers = canopy.options().layers;
-    if (layers < 1 || s.treeHeight <= 0.0) return {};
+    if (layers < 2 || s.treeHeight <= 0.0) return {}; // layer 0 is the ground pass's
     target.bind();
     const double aspect = double(target.width()) / double(target.height());
     const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
@@ -39,13 +54,9 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
     m_program.use();
     // Layer 0 lies on the ground: equal depth wins (reversed Z, GL_GEQUAL), so the lowest layer covers the ground.
     glDepthFunc(GL_GEQUAL);
-    // A piece farther (horizontally) than this shows the whole stack below minLiftPixels: no layers there.
     const double pixelsPerRadian = double(target.height()) / (2.0 * std::tan(glm::radians(camera.fovYDeg) / 2.0));
-    const double range = s.treeHeight * pixelsPerRadian / std::max(s.minLiftPixels, 1e-3);
-    const glm::dvec2 eye(camera.position.x, camera.position.y);
-    auto instances = [&](int, glm::dvec2 lo, glm::dvec2 hi) {
-        const glm::dvec2 nearest = glm::clamp(eye, lo, hi);
-        return glm::length(nearest - eye) <= range ? layers : 0;
+    auto instances = [&](int, glm::dvec3 lo, glm::dvec3 hi) {
+        return canopyPieceLayers(camera.position, pixelsPerRadian, lo, hi, s, layers);
     };
     GeometryFrameStats st = terrain.geometry().drawInstanced(m_program, viewProj, s.treeHeight, instances);
     glBindVertexArray(0);

@@ -1,13 +1,16 @@
 #pragma once
-// The stacked canopy (Ropinski et al. 2007 §4.2): N copies of the terrain's geometry clipmap (one instanced draw per
-// piece), copy i lifted to i / (N − 1) of the tree height; a fragment of layer i stays only where the derived canopy
-// layer (CanopyClipmapGL.h) says its texel belongs to layer i, coloured with the leaf-on imagery, darker towards the
-// lower layers, its texture coordinates shifted slightly per layer. Drawn after the terrain's `canopy` view (whose
-// ground shows leaf-off under the crowns), into the same depth buffer.
+// The stacked canopy (Ropinski et al. 2007 §4.2): N layers, layer i the terrain's geometry clipmap lifted to
+// i / (N − 1) of the tree height; a fragment of layer i stays only where the derived canopy layer
+// (CanopyClipmapGL.h) says its texel belongs to layer i, coloured with the leaf-on imagery, darker towards the lower
+// layers, its texture coordinates shifted slightly per layer. Layer 0 lies on the ground: the terrain's `canopy`
+// view draws it (ImagerySettings::canopyBase). Layers 1 .. N − 1 are instanced draws of the geometry clipmap's
+// coarser layer rings (GeometryClipmapOptions::layerN), into the same depth buffer, each piece with only as many
+// layers as its stack has pixels on screen (none where the stack is under minLiftPixels).
 #include "CanopyClipmapGL.h"
 #include "ClipmapTerrainRendererGL.h"
 
 #include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
 
 namespace seasonview {
 
@@ -18,7 +21,14 @@ struct CanopyDrawSettings {
     float anisotropy = 8.0f;        // as the terrain's ImagerySettings
     float shading = 0.0f;
     double minLiftPixels = 1.0;     // pieces where the whole stack is shorter than this on screen get no layers
+    double pixelsPerLayer = 1.0;    // elsewhere layers are thinned to about one per this many pixels of stack
 };
+
+/// Layers above the ground one (1 .. layers − 1) to draw for a piece whose box (local metres, z its terrain heights)
+/// is seen from `eye`: about one per settings.pixelsPerLayer pixels of the tallest stack on screen over the box, at
+/// least 1, none where it is under settings.minLiftPixels.
+int canopyPieceLayers(const glm::dvec3& eye, double pixelsPerRadian, const glm::dvec3& lo, const glm::dvec3& hi,
+                      const CanopyDrawSettings& settings, int layers);
 
 class CanopyRendererGL {
 public:

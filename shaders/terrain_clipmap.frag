@@ -12,6 +12,8 @@ uniform int uView;       // ImageryView: 0 leafon, 1 leafoff, 2 blend, 3 swipe, 
                          // 8 canopy (ground: uCanopyGround[1] under the canopy, uCanopyGround[0] elsewhere)
 uniform int uCanopyGround[2]; // season (0 leaf-on, 1 leaf-off) of the ground away from / under the canopy
 uniform int uHasCanopy;
+uniform float uCanopyBase;    // > 0: stacked layers are drawn, and the ground draws their lowest one (layer 0, on the
+                              // ground): leaf-on times this factor where the canopy is
 uniform float uCanopyDark;    // colour factor of the lowest layer (the top one is 1)
 uniform vec2 uLayerShift;     // level-0 texels per layer (§4.2: "a slight texture coordinate shift")
 uniform int uWirePass;   // wireframe view, second pass: the lines in their level's colour
@@ -41,12 +43,16 @@ void main() {
 #ifdef CANOPY_LAYER
     p += uLayerShift * float(vLayer);
 #endif
+#ifdef CANOPY_LAYER
+    // The canopy at the level the footprint asks for (its isotropic level, computed alone: most layer fragments
+    // stop here): one fetch, then the leaf-on colour only for kept fragments, darker towards the ground
+    // (self-shadowing inside the crown).
+    float lambdaIso = log2(max(max(length(dFdx(p)), length(dFdy(p))), 1e-8));
+    if (canopyAt(p, int(floor(max(lambdaIso, 0.0)))) <= vLayer) discard;
+#endif
     ClipFootprint f = clipmapFootprint(p);
     int used;
 #ifdef CANOPY_LAYER
-    // The canopy at the level the footprint asks for: one fetch, then the leaf-on colour only for kept fragments,
-    // darker towards the ground (self-shadowing inside the crown).
-    if (canopyAt(p, int(floor(max(f.lambdaIso, 0.0)))) <= vLayer) discard;
     vec3 lc = sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
     lc *= mix(uCanopyDark, 1.0, float(vLayer) / float(max(uCanopyLayers - 1, 1)));
     if (uShade > 0.0) lc *= mix(1.0, 0.25 + 0.75 * max(dot(normalize(vNormal), uSunDir), 0.0), uShade);
@@ -85,8 +91,11 @@ void main() {
         // The ground of the canopy view: leaf-off under the crowns (the trees stand on it as layers), leaf-on
         // elsewhere; both configurable.
         bool under = uHasCanopy != 0 && canopyAt(p, int(floor(max(f.lambdaIso, 0.0)))) > 0;
-        c = uCanopyGround[under ? 1 : 0] == 0 ? sampleClipmap(uClip0, uCoarse0, p, f, used).rgb
-                                              : sampleClipmap(uClip1, uCoarse1, p, f, used).rgb;
+        if (under && uCanopyBase > 0.0)
+            c = uCanopyBase * sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
+        else
+            c = uCanopyGround[under ? 1 : 0] == 0 ? sampleClipmap(uClip0, uCoarse0, p, f, used).rgb
+                                                  : sampleClipmap(uClip1, uCoarse1, p, f, used).rgb;
     } else if (uView == 4 || uView == 6) {
         // Level colours over the imagery's brightness: the imagery level used (lod, Ropinski 2007 Fig. 2) or
         // the geometry level drawn (levels).

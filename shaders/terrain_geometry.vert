@@ -34,10 +34,13 @@ uniform int uElevLevels;
 uniform vec2 uElevLevelSize[24];
 
 #ifdef CANOPY_LAYER
-// Stacked canopy layers (Ropinski et al. 2007 §4.2, foliage/CanopyRendererGL.h): instance i is layer i, lifted to
-// i / (N - 1) of the tree height.
+// Stacked canopy layers (Ropinski et al. 2007 §4.2, foliage/CanopyRendererGL.h): layer j is lifted to j / (N - 1)
+// of the tree height. Layer 0 lies on the ground and is drawn by the ground pass; a piece draws uPieceInstances
+// of layers 1 .. N - 1, evenly thinned where its stack is only a few pixels high on screen (instance i is layer
+// round((i + 1) (N - 1) / uPieceInstances), the top layer always among them).
 uniform float uCanopyHeight;
 uniform int uCanopyLayers;
+uniform int uPieceInstances;
 flat out int vLayer;
 #endif
 
@@ -141,8 +144,8 @@ void main() {
         if (uNormals != 0) n = mix(n, normalAt(uLevel + 1, s, max(2.0 * uCell, 1.0)), alpha);
     }
 #ifdef CANOPY_LAYER
-    vLayer = gl_InstanceID;
-    z += uCanopyHeight * float(gl_InstanceID) / float(max(uCanopyLayers - 1, 1));
+    vLayer = int(round(float((gl_InstanceID + 1) * (uCanopyLayers - 1)) / float(max(uPieceInstances, 1))));
+    z += uCanopyHeight * float(vLayer) / float(max(uCanopyLayers - 1, 1));
 #endif
     vec2 local = vec2(uGridOrigin.x + s.x * uGridSpacing, uGridOrigin.y - s.y * uGridSpacing);
     vLocal = vec3(local, z);

@@ -36,6 +36,9 @@ struct ImagerySettings {
     // Canopy view: the season of the ground under the treetops and elsewhere (0 leaf-on, 1 leaf-off).
     int groundUnderCanopy = 1;
     int groundElsewhere = 0;
+    // Canopy view with stacked layers: > 0 makes the ground draw the lowest layer (leaf-on times this factor, the
+    // layers' CanopyDrawSettings::darkest) where the canopy is, so the layers start one above it; 0 without layers.
+    float canopyBase = 0.0f;
 };
 
 /// A per-texel canopy layer the ground pass can read (foliage/CanopyClipmapGL.h implements it): binds the samplers

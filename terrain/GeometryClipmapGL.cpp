@@ -22,6 +22,10 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
     g->m_grid = grid;
     g->m_options = options;
     g->m_ring = RingLayout::make(options.n);
+    g->m_options.layerN = std::min(options.layerN, options.n);
+    assert(g->m_options.layerN >= 7 && ((g->m_options.layerN + 1) & g->m_options.layerN) == 0 &&
+           "GeometryClipmapGL: layerN must be 2^k - 1");
+    g->m_layerRing = RingLayout::make(g->m_options.layerN);
     // DEM levels: enough for the coarsest to cover the DEM and the imagery from anywhere inside them. Then levels
     // finer than the DEM down to finestCellMetres, as many as fit (level coordinates in units of 2^−sub samples
     // stay below 2^30).
@@ -147,13 +151,14 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
     };
     upload(g->m_edge, ev, ei);
     // One mesh per piece shape (blocks, fix-ups, trims, the finest level's cross), made up front.
-    GeometryPlacement probe = placeGeometryLevels(glm::dvec2(0.0), n, 2, 0);
+    for (const RingLayout* ring : {&g->m_ring, &g->m_layerRing}) {
+    GeometryPlacement probe = placeGeometryLevels(glm::dvec2(0.0), ring->n, 2, 0);
     for (TrimSide tx : {TrimSide::Low, TrimSide::High})
         for (TrimSide ty : {TrimSide::Low, TrimSide::High}) {
             probe.levels[1].trimX = tx;
             probe.levels[1].trimY = ty;
             for (int level : {0, 1})
-                for (const GridRect& r : levelPieces(g->m_ring, probe, level)) {
+                for (const GridRect& r : levelPieces(*ring, probe, level)) {
                     const auto key = std::make_pair(r.cellsX(), r.cellsY());
                     if (g->m_meshes.count(key)) continue;
                     std::vector<float> v;
@@ -175,6 +180,7 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
                     upload(g->m_meshes[key], v, idx);
                 }
         }
+    }
     return g;
 }
 
@@ -185,6 +191,7 @@ ClipmapFrameStats GeometryClipmapGL::update(const Camera& camera, int viewportHe
     const double pixelsPerRadian = double(viewportHeight) / (2.0 * std::tan(camera.fovYDeg * M_PI / 360.0));
     const int finest = finestActiveLevel(m_levels, cellMetres(0), above, pixelsPerRadian);
     m_placement = placeGeometryLevels(viewer, m_options.n, m_levels, finest);
+    m_layerPlacement = placeGeometryLevels(viewer, m_options.layerN, m_levels, finest);
     if (!m_elevation) return {};
     const int clipLevels = m_elevation->schedule().layout().clipLevels();
     std::vector<glm::dvec2> centres;
@@ -217,8 +224,6 @@ void GeometryClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit) co
                               &m_lookupSlope[0][0]);
     program.set("uGridOrigin", glm::vec2(m_grid.origin));
     program.set("uGridSpacing", float(m_grid.spacing));
-    program.set("uHalfCells", float(m_options.n - 1) / 2.0f);
-    program.set("uTransitionWidth", float(std::max(2, m_options.n / 10)));
 }
 
 void GeometryClipmapGL::drawMesh(const Mesh& mesh, int instances) const {
@@ -241,13 +246,19 @@ GeometryFrameStats GeometryClipmapGL::drawPieces(const gl::ShaderProgram& progra
     GeometryFrameStats st;
     const FrustumPlanes frustum = FrustumPlanes::fromViewProj(viewProj);
     const double s = m_grid.spacing;
-    const double half = double(m_options.n - 1) / 2.0;
+    // The terrain's rings, or the coarser ones of the instanced layers.
+    const RingLayout& ring = instances ? m_layerRing : m_ring;
+    const GeometryPlacement& placement = instances ? m_layerPlacement : m_placement;
+    const int n = ring.n;
+    program.set("uHalfCells", float(n - 1) / 2.0f);
+    program.set("uTransitionWidth", float(std::max(2, n / 10)));
+    const double half = double(n - 1) / 2.0;
     const double unit = std::ldexp(1.0, -m_subLevels); // DEM samples per placement unit (exact in float)
-    for (int l = m_placement.finest; l < m_levels; ++l) {
-        const GeometryLevel& g = m_placement.levels[size_t(l)];
+    for (int l = placement.finest; l < m_levels; ++l) {
+        const GeometryLevel& g = placement.levels[size_t(l)];
         // The shader works in DEM samples: uLevel is the DEM level (negative below the DEM's resolution).
         program.set("uLevel", l - m_subLevels);
-        program.set("uDrawnLevel", l - m_placement.finest);
+        program.set("uDrawnLevel", l - placement.finest);
         program.set("uLevelOrigin", glm::vec2(glm::dvec2(g.origin) * unit));
         program.set("uCell", float(double(g.cell) * unit));
         program.set("uLevelCentre", glm::vec2((glm::dvec2(g.origin) + half * double(g.cell)) * unit));
@@ -264,18 +275,18 @@ GeometryFrameStats GeometryClipmapGL::drawPieces(const gl::ShaderProgram& progra
         // Heights within two of the level's cells of the piece (the coarser level's samples its transition blends
         // towards lie within one coarse cell).
         const double margin = 2.0 * double(g.cell) * unit;
+        glm::vec2 hr(0.0f); // the last piece's height range
         auto visible = [&](int x0, int y0, int x1, int y1) {
             const auto [a, b] = box(x0, y0, x1, y1);
             if (b.x < m_imageryMin.x - s || a.x > m_imageryMax.x + s || b.y < m_imageryMin.y - s ||
                 a.y > m_imageryMax.y + s)
                 return false;
-            const glm::vec2 hr =
-                m_bounds.range(glm::dvec2(g.origin.x + x0 * g.cell, g.origin.y + y0 * g.cell) * unit - margin,
-                               glm::dvec2(g.origin.x + x1 * g.cell, g.origin.y + y1 * g.cell) * unit + margin);
+            hr = m_bounds.range(glm::dvec2(g.origin.x + x0 * g.cell, g.origin.y + y0 * g.cell) * unit - margin,
+                                glm::dvec2(g.origin.x + x1 * g.cell, g.origin.y + y1 * g.cell) * unit + margin);
             return !frustum.outside({a.x - s, a.y - s, double(hr.x) - 1.0},
                                     {b.x + s, b.y + s, double(hr.y) + 1.0 + std::max(lift, 0.0)});
         };
-        for (const GridRect& r : levelPieces(m_ring, m_placement, l)) {
+        for (const GridRect& r : levelPieces(ring, placement, l)) {
             if (!visible(r.x0, r.y0, r.x1, r.y1)) {
                 ++st.piecesCulled;
                 continue;
@@ -283,8 +294,9 @@ GeometryFrameStats GeometryClipmapGL::drawPieces(const gl::ShaderProgram& progra
             int count = 1;
             if (instances) {
                 const auto [a, b] = box(r.x0, r.y0, r.x1, r.y1);
-                count = (*instances)(l, a, b);
+                count = (*instances)(l, glm::dvec3(a, hr.x), glm::dvec3(b, hr.y));
                 if (count <= 0) continue;
+                program.set("uPieceInstances", count);
             }
             const auto it = m_meshes.find({r.cellsX(), r.cellsY()});
             assert(it != m_meshes.end() && "GeometryClipmapGL: piece shape without a mesh");
@@ -294,7 +306,7 @@ GeometryFrameStats GeometryClipmapGL::drawPieces(const gl::ShaderProgram& progra
             ++st.drawCalls;
             any = true;
         }
-        if (!instances && m_options.stitchLevels && l + 1 < m_levels && visible(0, 0, m_options.n - 1, m_options.n - 1)) {
+        if (!instances && m_options.stitchLevels && l + 1 < m_levels && visible(0, 0, n - 1, n - 1)) {
             program.set("uPieceOffset", glm::vec2(0.0f));
             drawMesh(m_edge);
             st.triangles += m_edge.indexCount / 3;

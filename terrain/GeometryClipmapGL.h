@@ -38,6 +38,10 @@ struct GeometryClipmapOptions {
     double finestCellMetres = 0.5;
     int elevationClipSize = 512;             // texels per toroidal elevation level (>= n + 2 block margins)
     std::int64_t uploadBudgetTexels = 1 << 18; // elevation texels per frame
+    // Vertices per level side of the rings drawInstanced() draws (stacked canopy layers), 2^k − 1, at most n: the
+    // same levels around the viewer with 4× coarser cells at a given distance and 1/16 of the triangles per level
+    // (31 is cheaper still, but its layers cut into hilly terrain).
+    int layerN = 63;
     // false: no transition blending and no edge triangles between levels, for showing the cracks they close
     // (tests); never for rendering.
     bool stitchLevels = true;
@@ -68,10 +72,12 @@ public:
     /// Draws the pieces inside the frustum with `program` (bound by the caller, bind() called).
     GeometryFrameStats draw(const gl::ShaderProgram& program, const glm::dmat4& viewProj) const;
 
-    /// Instances of one piece: level, its box in the local frame (metres, x east, y north). 0 = skip it.
-    using PieceInstances = std::function<int(int level, glm::dvec2 lo, glm::dvec2 hi)>;
-    /// The same pieces drawn as `instances` says (gl_InstanceID tells them apart), culled against the frustum
-    /// with their boxes raised by up to `lift` metres; no edge triangles (stacked layers, foliage/).
+    /// Instances of one piece: level, its box in the local frame (metres, x east, y north, z its terrain heights,
+    /// before any lift). 0 = skip it. The count is also set as the int uniform `uPieceInstances`.
+    using PieceInstances = std::function<int(int level, glm::dvec3 lo, glm::dvec3 hi)>;
+    /// The rings of options.layerN vertices, each piece drawn as `instances` says (gl_InstanceID tells them
+    /// apart), culled against the frustum with their boxes raised by up to `lift` metres; no edge triangles
+    /// (stacked layers, foliage/).
     GeometryFrameStats drawInstanced(const gl::ShaderProgram& program, const glm::dmat4& viewProj, double lift,
                                      const PieceInstances& instances) const;
 
@@ -102,6 +108,7 @@ private:
     ElevationGrid m_grid;
     GeometryClipmapOptions m_options;
     RingLayout m_ring;
+    RingLayout m_layerRing;             // options.layerN (drawInstanced)
     int m_levels = 1;    // geometry levels, sub-DEM ones included
     int m_subLevels = 0; // geometry levels finer than the DEM's samples
     glm::dvec2 m_imageryMin{0.0}, m_imageryMax{0.0}; // local bounds of the imagery (culling)
@@ -114,6 +121,7 @@ private:
     glm::dvec2 m_lookupMin{0.0}, m_lookupSize{1.0};
     glm::mat2 m_lookupSlope{1.0f};
     GeometryPlacement m_placement;
+    GeometryPlacement m_layerPlacement; // the layerN rings around the same viewer, same finest level
 };
 
 } // namespace seasonview

@@ -73,12 +73,31 @@ TEST(CanopyCliTest, GroundUnderTheCanopyIsLeafOffAndLayersStandUp) {
     EXPECT_GT(layerChange, 0.05) << "the stacked layers should cover the leaf-off ground";
 }
 
+// Both ground seasons are flags: leaf-on everywhere is the leaf-on view, leaf-off everywhere the leaf-off view.
+TEST(CanopyCliTest, GroundSeasonsAreConfigurable) {
+    const CanopyScene& s = scene();
+    for (const char* season : {"leafon", "leafoff"}) {
+        ASSERT_EQ(s.render(std::string(season) + "_view.png", {"--view", season}).exitCode, 0);
+        const CliResult r = s.render(std::string(season) + "_ground.png",
+                                     {"--view", "canopy", "--canopy-layers", "off", "--ground-under-canopy", season,
+                                      "--ground-elsewhere", season});
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+        const auto view = s.image(std::string(season) + "_view.png"), ground = s.image(std::string(season) + "_ground.png");
+        EXPECT_EQ(view.pixels, ground.pixels) << season;
+    }
+    // The default (leaf-off under the crowns) differs from both.
+    ASSERT_EQ(s.render("default_ground.png", {"--view", "canopy", "--canopy-layers", "off"}).exitCode, 0);
+    EXPECT_NE(s.image("default_ground.png").pixels, s.image("leafon_view.png").pixels);
+}
+
 TEST(CanopyCliTest, BadCanopyFlagsFailWithOneLine) {
     const CanopyScene& s = scene();
     for (auto [args, needle] : {std::pair{std::vector<std::string>{"--view", "canopy", "--canopy-layers", "0"}, "--canopy-layers"},
                                 std::pair{std::vector<std::string>{"--view", "canopy", "--canopy-layers", "x"}, "--canopy-layers"},
                                 std::pair{std::vector<std::string>{"--view", "canopy", "--method", "magic"}, "--method"},
-                                std::pair{std::vector<std::string>{"--view", "canopy", "--k", "4"}, "--k"}}) {
+                                std::pair{std::vector<std::string>{"--view", "canopy", "--k", "4"}, "--k"},
+                                std::pair{std::vector<std::string>{"--view", "canopy", "--ground-under-canopy", "winter"}, "--ground-under-canopy"},
+                                std::pair{std::vector<std::string>{"--view", "canopy", "--ground-elsewhere", "x"}, "--ground-elsewhere"}}) {
         const CliResult r = s.render("bad.png", args);
         EXPECT_EQ(r.exitCode, 1);
         EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
