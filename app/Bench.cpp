@@ -6,6 +6,7 @@
 
 #include "CanopyClipmapGL.h"
 #include "CanopyRendererGL.h"
+#include "TrunksGL.h"
 
 #include "AtomicFile.h"
 #include "CameraPath.h"
@@ -50,6 +51,7 @@ struct Mode {
     std::unique_ptr<ClipmapGL> clipmap;
     std::unique_ptr<CanopyClipmapGL> canopy;
     std::unique_ptr<CanopyRendererGL> canopyRenderer;
+    std::unique_ptr<TrunksGL> trunks;
     std::unique_ptr<ClipmapTerrainRendererGL> clipRenderer;
     std::unique_ptr<ReferenceRendererGL> reference;
     std::vector<FrameRow> rows;
@@ -160,7 +162,9 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     auto canopyArgs = parseCanopyArgs(a->canopyLayers, a->method, a->k);
     if (!canopyArgs)
         return fail(canopyArgs.message());
-    const CanopyRenderSettings canopy = *canopyArgs;
+    CanopyRenderSettings canopy = *canopyArgs;
+    if (auto st = parseTrunksArg(a->trunks, canopy); !st)
+        return fail(st.message());
     auto view = parseImageryView(a->view);
     if (!view)
         return fail("--view '" + a->view + "': expected leafon|leafoff|blend|swipe|lod|wireframe|levels|relief|canopy");
@@ -254,6 +258,12 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                     return fail(cr.message());
                 m.canopyRenderer = std::move(*cr);
                 m.clipRenderer->setCanopy(m.canopy.get());
+                if (canopy.trunks && layers > 0) {
+                    auto tr = TrunksGL::create(*scene, *m.clipmap, *m.canopy);
+                    if (!tr)
+                        return fail(tr.message());
+                    m.trunks = std::move(*tr);
+                }
             }
         }
     }
@@ -280,10 +290,14 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         glBeginQuery(GL_TIME_ELAPSED, timer.id());
         if (m.canopy) {
             // Upload-time derivation: only blocks newly resident; per-frame: everything resident, every frame.
+            CanopyFrameStats derived;
             if (m.perFrameSegmentation)
-                m.canopy->rederiveAll();
+                derived = m.canopy->rederiveAll();
             else
-                m.canopy->update();
+                derived = m.canopy->update();
+            // Crown centres of the trunks: searched again whenever the canopy's blocks changed.
+            if (m.trunks && (derived.blocksDerived > 0 || frame == 0))
+                m.trunks->find();
         }
         imagery.anisotropy = m.anisotropy;
         ImagerySettings im = imagery;
@@ -291,19 +305,25 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
             im.view = ImageryView::LeafOn; // canopy=off: the terrain alone
         if (m.canopy)
             im.view = ImageryView::Canopy;
-        if (m.canopy && m.canopyLayers > 0)
-            im.canopyBase = CanopyDrawSettings{}.darkest; // the ground draws layer 0 under the stacked ones
+        CanopyRenderSettings modeCanopy = canopy;
+        modeCanopy.trunks = m.trunks != nullptr;
+        const CanopyDrawSettings cd = canopyDrawSettings(*scene, modeCanopy, im);
+        if (m.canopy && m.canopyLayers > 0 && cd.crownBase <= 0.0)
+            im.canopyBase = cd.darkest; // the ground draws layer 0 under the stacked ones
         if (m.clipmap) {
             const GeometryFrameStats ground = m.clipRenderer->render(cam, im, target);
             row.drawCalls = ground.drawCalls;
             row.triangles = ground.triangles;
             if (m.canopy && m.canopyLayers > 0) {
-                CanopyDrawSettings cd;
-                cd.treeHeight = scene->sources.treeHeightM;
-                cd.anisotropy = m.anisotropy;
                 const GeometryFrameStats layers = m.canopyRenderer->render(cam, *m.clipRenderer, *m.canopy, cd, target);
                 row.drawCalls += layers.drawCalls;
                 row.triangles += layers.triangles;
+                if (m.trunks) {
+                    const GeometryFrameStats t = m.trunks->draw(
+                        cam, *m.clipRenderer, cd.crownBase + 0.1 * (cd.treeHeight - cd.crownBase), target);
+                    row.drawCalls += t.drawCalls;
+                    row.triangles += t.triangles;
+                }
             }
         } else
             m.reference->render(cam, imagery.view == ImageryView::LeafOff ? Season::LeafOff : Season::LeafOn, target);
@@ -392,6 +412,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
           {"canopy_layers", a->canopyLayers},
           {"segmentation_method", a->method},
           {"segmentation_k", a->k},
+          {"trunks", a->trunks},
           {"ground_under_canopy", a->groundUnder},
           {"ground_elsewhere", a->groundElsewhere},
           {"tree_height_m", scene->sources.treeHeightM}}},

@@ -34,6 +34,7 @@ Runner addBenchCommand(CLI::App& app) {
     cmd->add_option("--canopy-layers", a->b.canopyLayers, "canopy view: stacked layers 1..32 or off")
         ->capture_default_str();
     cmd->add_option("--method", a->b.method, "canopy view: pixel|neighborhood|equalized|default")->capture_default_str();
+    cmd->add_option("--trunks", a->b.trunks, "canopy view: trunks under the crowns, on|off")->capture_default_str();
     cmd->add_option("--ground-under-canopy", a->b.groundUnder, "canopy view: ground season under the crowns, leafon|leafoff")
         ->capture_default_str();
     cmd->add_option("--ground-elsewhere", a->b.groundElsewhere, "canopy view: ground season elsewhere, leafon|leafoff")

@@ -16,6 +16,7 @@ struct RenderArgs {
     int clipSize = 2048, gridSize = 255, clipLevels = 0;
     bool window = false;
     std::string canopyLayers = "16", method = "default", groundUnder = "leafoff", groundElsewhere = "leafon";
+    std::string trunks = "on";
     int k = kSegDefaultK;
 };
 } // namespace
@@ -65,6 +66,10 @@ Runner addRenderCommand(CLI::App& app) {
         ->capture_default_str();
     cmd->add_option("--k", args->k, "canopy view: neighbourhood size of the ground layer (odd, 1..15)")
         ->capture_default_str();
+    cmd->add_option("--trunks", args->trunks,
+                    "canopy view: trunks at the crown centres found in the canopy layer, the crowns lifted to their "
+                    "base; on|off")
+        ->capture_default_str();
     cmd->add_option("--ground-under-canopy", args->groundUnder,
                     "canopy view: season of the ground under the crowns (seen where layers are off), leafon|leafoff")
         ->capture_default_str();
@@ -107,6 +112,7 @@ Runner addRenderCommand(CLI::App& app) {
         settings.windowed = args->window;
         if (auto c = parseCanopyArgs(args->canopyLayers, args->method, args->k); !c) return fail(c.message());
         else settings.canopy = *c;
+        if (auto st = parseTrunksArg(args->trunks, settings.canopy); !st) return fail(st.message());
         settings.cacheDir = args->scene.cache.empty() ? defaultCacheDir() : std::filesystem::path(args->scene.cache);
         if (settings.renderer == RendererKind::Reference && view != ImageryView::LeafOn && view != ImageryView::LeafOff)
             return fail("--view " + args->view + " needs --renderer clipmap");

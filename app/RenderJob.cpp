@@ -2,6 +2,7 @@
 
 #include "CanopyClipmapGL.h"
 #include "CanopyRendererGL.h"
+#include "TrunksGL.h"
 
 #include "DepthAccuracy.h"
 #include "ElevationPyramid.h"
@@ -202,6 +203,22 @@ Result<CanopyRenderSettings> parseCanopyArgs(const std::string& layers, const st
     return c;
 }
 
+Status parseTrunksArg(const std::string& value, CanopyRenderSettings& settings) {
+    if (value != "on" && value != "off") return Error{"--trunks '" + value + "': expected on|off"};
+    settings.trunks = value == "on";
+    return Ok{};
+}
+
+CanopyDrawSettings canopyDrawSettings(const Scene& scene, const CanopyRenderSettings& canopy,
+                                      const ImagerySettings& imagery) {
+    CanopyDrawSettings cd;
+    cd.treeHeight = scene.sources.treeHeightM;
+    cd.anisotropy = imagery.anisotropy;
+    cd.shading = imagery.shading;
+    cd.crownBase = canopy.trunks ? canopy.crownBaseFraction * cd.treeHeight : 0.0;
+    return cd;
+}
+
 Status parseCanopyGround(const std::string& under, const std::string& elsewhere, ImagerySettings& imagery) {
     auto season = [](const std::string& flag, const std::string& v) -> Result<int> {
         if (v == "leafon") return 0;
@@ -269,6 +286,7 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
     // The canopy view's derived layer and stacked layers, made when a still asks for them.
     std::unique_ptr<CanopyClipmapGL> canopy;
     std::unique_ptr<CanopyRendererGL> canopyRenderer;
+    std::unique_ptr<TrunksGL> trunks;
     if (std::any_of(stills.begin(), stills.end(), [](const StillRequest& s) { return s.imagery.view == ImageryView::Canopy; })) {
         auto hist = preparePairStats(scene, pyramids, settings.cacheDir);
         if (!hist) return hist.error();
@@ -282,6 +300,11 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
         if (!cr) return cr.error();
         canopyRenderer = std::move(*cr);
         (*renderer)->setCanopy(canopy.get());
+        if (settings.canopy.trunks && settings.canopy.layers > 0) {
+            auto t = TrunksGL::create(scene, **clipmap, *canopy);
+            if (!t) return t.error();
+            trunks = std::move(*t);
+        }
     }
     std::unique_ptr<gl::RenderTarget> scratch;
     std::unique_ptr<ReferenceRendererGL> reference;
@@ -289,20 +312,25 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
         (*clipmap)->update(clipmapCentres(scene, s.camera, width, height, settings.centers, geometry));
         const ClipmapFrameStats loaded = (*clipmap)->completeSynchronously(); // a still waits for its texels
         if (canopy) canopy->completeSynchronously();
+        if (trunks && s.imagery.view == ImageryView::Canopy) trunks->find();
         (*renderer)->updateGeometry(s.camera, height);
         (*renderer)->completeGeometry();
         const bool stacked = s.imagery.view == ImageryView::Canopy && settings.canopy.layers > 0;
+        const CanopyDrawSettings cd = canopyDrawSettings(scene, settings.canopy, s.imagery);
         ImagerySettings imagery = s.imagery;
-        if (stacked) imagery.canopyBase = CanopyDrawSettings{}.darkest; // the ground draws layer 0
+        // Layers on the ground: the ground draws layer 0; over trunks it shows its own season under the crowns.
+        if (stacked && cd.crownBase <= 0.0) imagery.canopyBase = cd.darkest;
         GeometryFrameStats drawn = (*renderer)->render(s.camera, imagery, target);
         if (stacked) {
-            CanopyDrawSettings cd;
-            cd.treeHeight = scene.sources.treeHeightM;
-            cd.anisotropy = s.imagery.anisotropy;
-            cd.shading = s.imagery.shading;
             const GeometryFrameStats layers = canopyRenderer->render(s.camera, **renderer, *canopy, cd, target);
             drawn.triangles += layers.triangles;
             drawn.drawCalls += layers.drawCalls;
+            if (trunks) {
+                // Up into the lowest layers, so no gap shows between a trunk and its crown.
+                const GeometryFrameStats t = trunks->draw(s.camera, **renderer, cd.crownBase + 0.1 * (cd.treeHeight - cd.crownBase), target);
+                drawn.triangles += t.triangles;
+                drawn.drawCalls += t.drawCalls;
+            }
         }
         if (auto st = checkGl(s.out); !st) return st.error();
         if (auto st = writeRgb(target, s.out); !st) return st.error();

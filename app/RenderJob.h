@@ -3,6 +3,7 @@
 // rendering stills with the reference renderer through a headless or windowed context.
 #include "Camera.h"
 #include "ClipmapCenters.h"
+#include "CanopyRendererGL.h"
 #include "ClipmapTerrainRendererGL.h"
 #include "ImagePyramid.h"
 #include "PairStats.h"
@@ -57,7 +58,15 @@ enum class RendererKind { Clipmap, Reference };
 struct CanopyRenderSettings {
     SegmentationParams params;  // method and the ground layer's k
     int layers = 16;            // stacked layers; 0 = off (the ground alone: leaf-off under the crowns)
+    bool trunks = true;         // trunks under the crowns (foliage/TrunksGL.h), the layers lifted to the crowns' base
+    double crownBaseFraction = 0.35; // with trunks: the crowns' base, fraction of the tree height
 };
+
+/// --trunks on|off -> settings.trunks; errors name the flag.
+Status parseTrunksArg(const std::string& value, CanopyRenderSettings& settings);
+/// The canopy's draw settings for a scene (tree height, crown base with trunks, the terrain's filtering and shading).
+CanopyDrawSettings canopyDrawSettings(const Scene& scene, const CanopyRenderSettings& canopy,
+                                      const ImagerySettings& imagery);
 
 /// --canopy-layers N|off, --method M, --k K -> canopy settings; errors name the flag.
 Result<CanopyRenderSettings> parseCanopyArgs(const std::string& layers, const std::string& method, int k);

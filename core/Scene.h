@@ -55,6 +55,10 @@ struct Scene {
     glm::dvec2 localToImagePixel(glm::dvec2 local) const {
         return leafon.info.georef->crsToPixel(frame.fromLocal(leafon.info.georef->crs, local));
     }
+    /// The local point of leaf-on pixel coordinates (the inverse of localToImagePixel).
+    glm::dvec2 imagePixelToLocal(glm::dvec2 px) const {
+        return glm::dvec2(frame.toLocal(leafon.info.georef->crs, leafon.info.georef->pixelToCrs(px)));
+    }
 };
 
 /// Opens the scene's files and checks them: both seasons georeferenced on the same grid (sizes equal, corners

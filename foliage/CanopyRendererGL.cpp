@@ -11,7 +11,7 @@
 namespace seasonview {
 
 int canopyPieceLayers(const glm::dvec3& eye, double pixelsPerRadian, const glm::dvec3& lo, const glm::dvec3& hi,
-                      const CanopyDrawSettings& s, int layers) {
+                      const CanopyDrawSettings& s, int maxLayers) {
     // The stack over a point at horizontal distance r and height dz below the eye spans about
     // H · ppr · r / (r² + dz²) pixels (a vertical segment of height H seen from distance d = √(r² + dz²),
     // foreshortened by r / d); its largest value over the box decides.
@@ -21,8 +21,8 @@ int canopyPieceLayers(const glm::dvec3& eye, double pixelsPerRadian, const glm::
     const double dz = std::max({0.0, eye.z - (hi.z + s.treeHeight), lo.z - eye.z});
     const double r = std::clamp(dz, rmin, rmax); // r / (r² + dz²) is largest at r = dz
     const double stack = r + dz <= 0.0 ? 1e9 : s.treeHeight * pixelsPerRadian * r / (r * r + dz * dz);
-    if (stack < s.minLiftPixels || layers < 2) return 0;
-    return std::clamp(int(std::ceil(stack / std::max(s.pixelsPerLayer, 1e-3))), 1, layers - 1);
+    if (stack < s.minLiftPixels || maxLayers < 1) return 0;
+    return std::clamp(int(std::ceil(stack / std::max(s.pixelsPerLayer, 1e-3))), 1, maxLayers);
 }
 
 Result<std::unique_ptr<CanopyRendererGL>> CanopyRendererGL::create() {
@@ -37,13 +37,16 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
                                             const CanopyClipmapGL& canopy, const CanopyDrawSettings& s,
                                             const gl::RenderTarget& target) const {
     const int layers = canopy.options().layers;
-    if (layers < 2 || s.treeHeight <= 0.0) return {}; // layer 0 is the ground pass's
+    const int first = s.crownBase > 0.0 ? 0 : 1; // on the ground, layer 0 is the ground pass's
+    if (layers - first < 1 || s.treeHeight <= 0.0) return {};
     target.bind();
     const double aspect = double(target.width()) / double(target.height());
     const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
     terrain.bindTerrain(m_program, viewProj);
     canopy.bind(m_program, kCanopyUnit);
     m_program.set("uCanopyHeight", float(s.treeHeight));
+    m_program.set("uCrownBase", float(std::clamp(s.crownBase, 0.0, s.treeHeight)));
+    m_program.set("uFirstLayer", first);
     m_program.set("uCanopyDark", std::clamp(s.darkest, 0.0f, 1.0f));
     m_program.set("uLayerShift", s.shift);
     m_program.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
@@ -56,7 +59,7 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
     glDepthFunc(GL_GEQUAL);
     const double pixelsPerRadian = double(target.height()) / (2.0 * std::tan(glm::radians(camera.fovYDeg) / 2.0));
     auto instances = [&](int, glm::dvec3 lo, glm::dvec3 hi) {
-        return canopyPieceLayers(camera.position, pixelsPerRadian, lo, hi, s, layers);
+        return canopyPieceLayers(camera.position, pixelsPerRadian, lo, hi, s, layers - first);
     };
     GeometryFrameStats st = terrain.geometry().drawInstanced(m_program, viewProj, s.treeHeight, instances);
     glBindVertexArray(0);

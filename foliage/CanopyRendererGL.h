@@ -22,13 +22,16 @@ struct CanopyDrawSettings {
     float shading = 0.0f;
     double minLiftPixels = 1.0;     // pieces where the whole stack is shorter than this on screen get no layers
     double pixelsPerLayer = 1.0;    // elsewhere layers are thinned to about one per this many pixels of stack
+    // Metres: 0 = the layers stand on the ground (layer 0 is the ground pass's, ImagerySettings::canopyBase);
+    // > 0 = the crowns' base: layers 0 .. N − 1 span crownBase .. treeHeight, trunks stand below (TrunksGL.h).
+    double crownBase = 0.0;
 };
 
-/// Layers above the ground one (1 .. layers − 1) to draw for a piece whose box (local metres, z its terrain heights)
-/// is seen from `eye`: about one per settings.pixelsPerLayer pixels of the tallest stack on screen over the box, at
-/// least 1, none where it is under settings.minLiftPixels.
+/// Layers to draw (of at most `maxLayers`) for a piece whose box (local metres, z its terrain heights) is seen from
+/// `eye`: about one per settings.pixelsPerLayer pixels of the tallest stack on screen over the box, at least 1,
+/// none where it is under settings.minLiftPixels.
 int canopyPieceLayers(const glm::dvec3& eye, double pixelsPerRadian, const glm::dvec3& lo, const glm::dvec3& hi,
-                      const CanopyDrawSettings& settings, int layers);
+                      const CanopyDrawSettings& settings, int maxLayers);
 
 class CanopyRendererGL {
 public:

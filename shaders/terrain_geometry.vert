@@ -2,6 +2,8 @@
 // positions are level cells; heights come from the elevation clipmap (R32F, level-0 samples = the elevation
 // grid's samples, i east, j south); in the transition region near the level's outer edge heights and normals
 // blend towards the coarser level (§2.4.2), reaching it exactly at the edge so neighbouring levels meet.
+#include "common_elevation.glsl"
+
 layout(location = 0) in vec2 aGrid;
 
 uniform mat4 uViewProj;
@@ -22,23 +24,15 @@ uniform float uLookupTexels;          // K
 uniform mat2 uLookupSlope;            // d(image uv) / d(t) over the whole lattice: extrapolates past its edge
 
 uniform int uNormals;        // 0: skip the normals (no view needs them)
-uniform int uHasElevation;
-uniform sampler2DArray uElevClip0;
-uniform sampler2DArray uElevCoarse0; // the resident levels, exact, one layer each
-uniform isampler2DArray uElevClipTags;
-uniform int uElevClipLevels;
-uniform float uElevClipSize;
-uniform int uElevBlockSize;
-uniform int uElevSlotsPerSide;
-uniform int uElevLevels;
-uniform vec2 uElevLevelSize[24];
 
 #ifdef CANOPY_LAYER
-// Stacked canopy layers (Ropinski et al. 2007 §4.2, foliage/CanopyRendererGL.h): layer j is lifted to j / (N - 1)
-// of the tree height. Layer 0 lies on the ground and is drawn by the ground pass; a piece draws uPieceInstances
-// of layers 1 .. N - 1, evenly thinned where its stack is only a few pixels high on screen (instance i is layer
-// round((i + 1) (N - 1) / uPieceInstances), the top layer always among them).
+// Stacked canopy layers (Ropinski et al. 2007 §4.2, foliage/CanopyRendererGL.h): layer j is lifted to
+// base + (H - base) j / (N - 1), H the tree height, base 0 or the crowns' base over trunks. On the ground layer 0
+// is drawn by the ground pass (uFirstLayer 1). A piece draws uPieceInstances of layers uFirstLayer .. N - 1,
+// evenly thinned where its stack is only a few pixels high on screen, the top layer always among them.
 uniform float uCanopyHeight;
+uniform float uCrownBase;
+uniform int uFirstLayer;
 uniform int uCanopyLayers;
 uniform int uPieceInstances;
 flat out int vLayer;
@@ -50,62 +44,6 @@ out vec2 vImageUv;
 out vec3 vNormal;
 out vec3 vLocal;
 flat out int vLevel;
-
-bool elevBlockValid(int level, ivec2 t) {
-    ivec2 b = t / uElevBlockSize;
-    ivec2 slot = b % uElevSlotsPerSide;
-    return texelFetch(uElevClipTags, ivec3(slot, level), 0).r == (b.x | (b.y << 16));
-}
-
-// Height of level `level`'s sample t (clamped into the level). False when its block is not resident yet.
-bool elevTexel(int level, ivec2 t, out float h) {
-    t = clamp(t, ivec2(0), ivec2(uElevLevelSize[level]) - 1);
-    if (level >= uElevClipLevels) {
-        h = texelFetch(uElevCoarse0, ivec3(t, level - uElevClipLevels), 0).r;
-        return true;
-    }
-    if (!elevBlockValid(level, t)) return false;
-    int n = int(uElevClipSize);
-    h = texelFetch(uElevClip0, ivec3(t % n, level), 0).r;
-    return true;
-}
-
-// Height at sample coordinates s (level-0 samples), from level `level` or the first coarser level resident there:
-// bilinear between that level's samples (exact at its own samples).
-float elevationAt(int level, vec2 s) {
-    if (uHasElevation == 0) return 0.0;
-    for (int l = clamp(level, 0, uElevLevels - 1); l < uElevLevels; ++l) {
-        vec2 q = s / exp2(float(l));
-        ivec2 i0 = ivec2(floor(q));
-        vec2 f = q - vec2(i0);
-        float h00, h10 = 0.0, h01 = 0.0, h11 = 0.0;
-        bool ok = elevTexel(l, i0, h00);
-        if (f.x > 0.0) ok = ok && elevTexel(l, i0 + ivec2(1, 0), h10);
-        if (f.y > 0.0) ok = ok && elevTexel(l, i0 + ivec2(0, 1), h01);
-        if (f.x > 0.0 && f.y > 0.0) ok = ok && elevTexel(l, i0 + ivec2(1, 1), h11);
-        if (!ok) continue;
-        return mix(mix(h00, h10, f.x), mix(h01, h11, f.x), f.y);
-    }
-    return 0.0;
-}
-
-// Height of the DEM's triangulated surface at sample coordinates s (each level-0 cell split along its north-east to
-// south-west diagonal, the surface of the reference mesh and of the elevation grid's resampling): the heights of
-// levels finer than the DEM. Bilinear from a coarser level while level 0 is not resident there.
-float triangulatedAt(vec2 s) {
-    if (uHasElevation == 0) return 0.0;
-    ivec2 i0 = ivec2(floor(s));
-    vec2 f = s - vec2(i0);
-    float h00, h10, h01, h11;
-    if (f.x + f.y <= 1.0) {
-        if (elevTexel(0, i0, h00) && elevTexel(0, i0 + ivec2(1, 0), h10) && elevTexel(0, i0 + ivec2(0, 1), h01))
-            return h00 + f.x * (h10 - h00) + f.y * (h01 - h00);
-    } else if (elevTexel(0, i0 + ivec2(1, 1), h11) && elevTexel(0, i0 + ivec2(1, 0), h10) &&
-               elevTexel(0, i0 + ivec2(0, 1), h01)) {
-        return h11 + (1.0 - f.x) * (h01 - h11) + (1.0 - f.y) * (h10 - h11);
-    }
-    return elevationAt(1, s);
-}
 
 // The surface of geometry level `level` at s as its own grid interpolates it along cell edges: exact at its
 // vertices, linear between neighbouring vertices on a grid line. DEM levels: bilinear between that level's
@@ -144,8 +82,10 @@ void main() {
         if (uNormals != 0) n = mix(n, normalAt(uLevel + 1, s, max(2.0 * uCell, 1.0)), alpha);
     }
 #ifdef CANOPY_LAYER
-    vLayer = int(round(float((gl_InstanceID + 1) * (uCanopyLayers - 1)) / float(max(uPieceInstances, 1))));
-    z += uCanopyHeight * float(vLayer) / float(max(uCanopyLayers - 1, 1));
+    int span = uCanopyLayers - 1 - uFirstLayer;
+    vLayer = uPieceInstances <= 1 ? uCanopyLayers - 1
+                                  : uFirstLayer + int(round(float(gl_InstanceID * span) / float(uPieceInstances - 1)));
+    z += uCrownBase + (uCanopyHeight - uCrownBase) * float(vLayer) / float(max(uCanopyLayers - 1, 1));
 #endif
     vec2 local = vec2(uGridOrigin.x + s.x * uGridSpacing, uGridOrigin.y - s.y * uGridSpacing);
     vLocal = vec3(local, z);

@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <tuple>
+
 using namespace seasonview;
 using namespace seasonview::test;
 
@@ -38,8 +41,9 @@ CanopyScene& scene() {
 
 TEST(CanopyCliTest, CanopyViewGoldens) {
     const CanopyScene& s = scene();
-    for (auto [layers, golden] : {std::pair{"16", "canopy_layers16"}, std::pair{"off", "canopy_ground"}}) {
-        const CliResult r = s.render(std::string(golden) + ".png", {"--view", "canopy", "--canopy-layers", layers});
+    for (auto [layers, trunks, golden] : {std::tuple{"16", "on", "canopy_layers16"}, std::tuple{"16", "off", "canopy_layers16_no_trunks"},
+                                          std::tuple{"off", "on", "canopy_ground"}}) {
+        const CliResult r = s.render(std::string(golden) + ".png", {"--view", "canopy", "--canopy-layers", layers, "--trunks", trunks});
         ASSERT_EQ(r.exitCode, 0) << r.err;
         const Image<std::uint8_t> img = s.image(std::string(golden) + ".png");
         // Layer edges move by a pixel between rasteriser builds (max); the mean catches a wrong canopy.
@@ -90,6 +94,28 @@ TEST(CanopyCliTest, GroundSeasonsAreConfigurable) {
     EXPECT_NE(s.image("default_ground.png").pixels, s.image("leafon_view.png").pixels);
 }
 
+// Trunks stand under the crowns, which are lifted to their base: on and off differ, and the trunks' bark colour
+// (brown, red above green and blue) appears only with them.
+TEST(CanopyCliTest, TrunksStandUnderTheCrowns) {
+    const CanopyScene& s = scene();
+    // Leaf-on ground under the crowns here, so that the lifted crowns uncover no brown leaf-off ground.
+    ASSERT_EQ(s.render("trunks_on.png", {"--view", "canopy", "--trunks", "on", "--ground-under-canopy", "leafon"}).exitCode, 0);
+    ASSERT_EQ(s.render("trunks_off.png", {"--view", "canopy", "--trunks", "off", "--ground-under-canopy", "leafon"}).exitCode, 0);
+    const auto on = s.image("trunks_on.png"), off = s.image("trunks_off.png");
+    ASSERT_EQ(on.pixels.size(), off.pixels.size());
+    auto bark = [](const Image<std::uint8_t>& img) {
+        int n = 0;
+        for (size_t i = 0; i < img.pixels.size(); i += 3) {
+            const int r = img.pixels[i], g = img.pixels[i + 1], b = img.pixels[i + 2];
+            n += r > g + 12 && g > b + 8 && r < 140 && r > 40 ? 1 : 0;
+        }
+        return n;
+    };
+    EXPECT_NE(on.pixels, off.pixels);
+    std::printf("bark-coloured pixels: %d with trunks, %d without\n", bark(on), bark(off));
+    EXPECT_GT(bark(on), bark(off) + 20) << "no trunks drawn";
+}
+
 TEST(CanopyCliTest, BadCanopyFlagsFailWithOneLine) {
     const CanopyScene& s = scene();
     for (auto [args, needle] : {std::pair{std::vector<std::string>{"--view", "canopy", "--canopy-layers", "0"}, "--canopy-layers"},
@@ -97,7 +123,8 @@ TEST(CanopyCliTest, BadCanopyFlagsFailWithOneLine) {
                                 std::pair{std::vector<std::string>{"--view", "canopy", "--method", "magic"}, "--method"},
                                 std::pair{std::vector<std::string>{"--view", "canopy", "--k", "4"}, "--k"},
                                 std::pair{std::vector<std::string>{"--view", "canopy", "--ground-under-canopy", "winter"}, "--ground-under-canopy"},
-                                std::pair{std::vector<std::string>{"--view", "canopy", "--ground-elsewhere", "x"}, "--ground-elsewhere"}}) {
+                                std::pair{std::vector<std::string>{"--view", "canopy", "--ground-elsewhere", "x"}, "--ground-elsewhere"},
+                                std::pair{std::vector<std::string>{"--view", "canopy", "--trunks", "yes"}, "--trunks"}}) {
         const CliResult r = s.render("bad.png", args);
         EXPECT_EQ(r.exitCode, 1);
         EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;

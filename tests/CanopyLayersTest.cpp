@@ -1,5 +1,5 @@
 // How many stacked canopy layers a piece gets (foliage/CanopyRendererGL.h): all of them where the stack is tall on
-// screen, fewer as it shrinks with distance, none below minLiftPixels; never the ground layer.
+// screen, fewer as it shrinks with distance, none below minLiftPixels.
 #include "CanopyRendererGL.h"
 
 #include <gtest/gtest.h>
@@ -9,7 +9,7 @@
 using namespace seasonview;
 
 namespace {
-int layersAt(double distance, double eyeHeight, const CanopyDrawSettings& s, int layers = 16) {
+int layersAt(double distance, double eyeHeight, const CanopyDrawSettings& s, int layers = 15) {
     const double ppr = 360.0 / (2.0 * std::tan(M_PI / 6.0)); // 360 rows, 60 degrees
     // A 10 m piece at `distance` east of the eye, terrain at 0 m.
     return canopyPieceLayers({0.0, 0.0, eyeHeight}, ppr, {distance, -5.0, 0.0}, {distance + 10.0, 5.0, 0.0}, s, layers);
@@ -34,9 +34,10 @@ TEST(CanopyLayersTest, LayersFollowTheStackOnScreen) {
     // Under a pixel of stack: nothing.
     EXPECT_EQ(layersAt(15.0 * ppr * 2.0, 15.0, s), 0);
     // Straight down from high above, the stack is seen end-on: few layers.
-    EXPECT_LE(canopyPieceLayers({0.0, 0.0, 3000.0}, ppr, {-5.0, -5.0, 0.0}, {5.0, 5.0, 0.0}, s, 16), 2);
-    // Two pixels per layer halves them; one layer of 16 means only the ground one: nothing to stack.
+    EXPECT_LE(canopyPieceLayers({0.0, 0.0, 3000.0}, ppr, {-5.0, -5.0, 0.0}, {5.0, 5.0, 0.0}, s, 15), 2);
+    // Two pixels per layer halves them; no layer to draw (only the ground's): nothing; never more than asked for.
     s.pixelsPerLayer = 2.0;
     EXPECT_EQ(layersAt(d, 15.0, s), int(std::ceil(stack / 2.0)));
-    EXPECT_EQ(layersAt(20.0, 10.0, s, 1), 0);
+    EXPECT_EQ(layersAt(20.0, 10.0, s, 0), 0);
+    EXPECT_EQ(layersAt(20.0, 10.0, s, 4), 4);
 }

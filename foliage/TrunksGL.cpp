@@ -1,0 +1,139 @@
+#include "TrunksGL.h"
+
+#include "TerrainMeshGL.h" // kNearPlane
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/type_ptr.hpp>
+#include <glm/mat2x2.hpp>
+#include <glm/matrix.hpp>
+
+namespace seasonview {
+
+namespace {
+constexpr int kVerticesPerTrunk = 8 * 6; // trunk.vert: 8 sides, two triangles each
+constexpr GLintptr kHeader = 16;         // DrawArraysIndirectCommand before the trunks
+} // namespace
+
+Result<std::unique_ptr<TrunksGL>> TrunksGL::create(const Scene& scene, const ClipmapGL& imagery,
+                                                   const CanopyClipmapGL& canopy, const TrunkOptions& options) {
+    auto t = std::unique_ptr<TrunksGL>(new TrunksGL(imagery, canopy));
+    t->m_options = options;
+    auto f = gl::ShaderProgram::buildCompute("trunk_find.comp");
+    if (!f) return f.error();
+    t->m_find = std::move(*f);
+    auto d = gl::ShaderProgram::build("trunk.vert", "trunk.frag");
+    if (!d) return d.error();
+    t->m_draw = std::move(*d);
+    t->m_vao = gl::VertexArray::create();
+    t->m_buffer = gl::Buffer::create();
+    glNamedBufferStorage(t->m_buffer.id(), kHeader + GLsizeiptr(options.capacity) * 16, nullptr,
+                         GL_DYNAMIC_STORAGE_BIT);
+    const std::uint32_t header[4] = {std::uint32_t(kVerticesPerTrunk), 0, 0, 0};
+    glNamedBufferSubData(t->m_buffer.id(), 0, kHeader, header);
+
+    // Image pixel -> local metres: the inverse of the scene's local -> image map, linearised at the imagery's
+    // centre (exact for UTM imagery; geographic imagery is within a fraction of a pixel over a scene).
+    const glm::dvec2 c = (scene.localMin + scene.localMax) / 2.0;
+    const double h = std::max(1.0, glm::length(scene.localMax - scene.localMin) / 4.0);
+    const glm::dvec2 pc = scene.localToImagePixel(c);
+    const glm::dmat2 J((scene.localToImagePixel(c + glm::dvec2(h, 0.0)) - pc) / h,
+                       (scene.localToImagePixel(c + glm::dvec2(0.0, h)) - pc) / h);
+    const glm::dmat2 inv = glm::inverse(J);
+    const glm::dvec2 o = c - inv * pc;
+    t->m_imageToLocal = glm::dmat3(glm::dvec3(inv[0], 0.0), glm::dvec3(inv[1], 0.0), glm::dvec3(o, 1.0));
+    t->m_metresPerPixel = scene.gsd;
+
+    // The level: the finest clip level whose texels reach texelMetres.
+    const int clipLevels = imagery.schedule().layout().clipLevels();
+    int level = 0;
+    while (level + 1 < clipLevels && std::ldexp(scene.gsd, level) < options.texelMetres * 0.99) ++level;
+    t->m_level = level;
+    const double texel = std::ldexp(scene.gsd, level);
+    t->m_minRadius = float(options.minCrownRadius / texel);
+    t->m_maxRadius = std::max(2, int(std::ceil(options.maxCrownRadius / texel)));
+    const int size = imagery.schedule().layout().size;
+    t->m_distance = gl::Texture::create(GL_TEXTURE_2D);
+    glTextureStorage2D(t->m_distance.id(), 1, GL_R32F, size, size);
+    return t;
+}
+
+int TrunksGL::find() {
+    const ClipmapLayout& L = m_imagery.schedule().layout();
+    if (L.clipLevels() == 0) {
+        m_count = 0;
+        return 0;
+    }
+    const std::uint32_t zero = 0;
+    glNamedBufferSubData(m_buffer.id(), 4, 4, &zero);
+    m_imagery.bind(m_find, 0, "u");
+    m_canopy.bind(m_find, kCanopyUnit);
+    const TexelRect& w = m_imagery.schedule().window(m_level);
+    m_find.set("uLevel", m_level);
+    glProgramUniform2i(m_find.id(), m_find.location("uWindow0"), w.x0, w.y0);
+    glProgramUniform2i(m_find.id(), m_find.location("uWindow1"), w.x1, w.y1);
+    m_find.set("uMinRadius", m_minRadius);
+    m_find.set("uMaxRadius", m_maxRadius);
+    m_find.set("uCapacity", m_options.capacity);
+    m_find.use();
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_buffer.id());
+    glBindImageTexture(0, m_distance.id(), 0, GL_FALSE, 0, GL_READ_WRITE, GL_R32F);
+    const GLuint groups = GLuint((L.size + 15) / 16);
+    for (int pass : {0, 1}) {
+        m_find.set("uPass", pass);
+        glDispatchCompute(groups, groups, 1);
+        glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT |
+                        GL_BUFFER_UPDATE_BARRIER_BIT);
+    }
+    std::uint32_t n = 0;
+    glGetNamedBufferSubData(m_buffer.id(), 4, 4, &n);
+    m_count = int(std::min<std::uint32_t>(n, std::uint32_t(m_options.capacity)));
+    return m_count;
+}
+
+GeometryFrameStats TrunksGL::draw(const Camera& camera, const ClipmapTerrainRendererGL& terrain, double trunkHeight,
+                                  const gl::RenderTarget& target) const {
+    if (m_count == 0 || trunkHeight <= 0.0) return {};
+    target.bind();
+    const double aspect = double(target.width()) / double(target.height());
+    const glm::mat4 viewProj(camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix());
+    terrain.geometry().bind(m_draw, 8);
+    m_draw.set("uViewProj", viewProj);
+    const glm::mat3 m(m_imageToLocal);
+    glProgramUniformMatrix3fv(m_draw.id(), m_draw.location("uImageToLocal"), 1, GL_FALSE, glm::value_ptr(m));
+    m_draw.set("uMetresPerPixel", float(m_metresPerPixel));
+    m_draw.set("uTrunkHeight", float(trunkHeight));
+    m_draw.set("uRadiusFraction", m_options.radiusFraction);
+    m_draw.set("uMinRadius", 0.12f);
+    m_draw.set("uMaxRadius", 0.5f);
+    m_draw.set("uCapacity", m_options.capacity);
+    m_draw.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
+    m_draw.use();
+    glBindVertexArray(m_vao.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_buffer.id());
+    glBindBuffer(GL_DRAW_INDIRECT_BUFFER, m_buffer.id());
+    glDrawArraysIndirect(GL_TRIANGLES, nullptr);
+    glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
+    glBindVertexArray(0);
+    GeometryFrameStats st;
+    st.drawCalls = 1;
+    st.triangles = std::int64_t(m_count) * (kVerticesPerTrunk / 3);
+    return st;
+}
+
+std::vector<Trunk> TrunksGL::readTrunks() const {
+    std::vector<glm::vec4> raw(static_cast<size_t>(m_count));
+    if (m_count > 0) glGetNamedBufferSubData(m_buffer.id(), kHeader, GLsizeiptr(raw.size() * 16), raw.data());
+    std::vector<Trunk> out;
+    out.reserve(raw.size());
+    for (const glm::vec4& r : raw) {
+        const glm::dvec3 l = m_imageToLocal * glm::dvec3(r.x, r.y, 1.0);
+        out.push_back({glm::dvec2(l), double(r.z) * m_metresPerPixel, int(r.w)});
+    }
+    return out;
+}
+
+} // namespace seasonview

@@ -1,0 +1,70 @@
+#pragma once
+// Trunks at runtime (Ropinski et al. 2007 §4.2, Fig. 6c "additionally integrated trunks"): crown centres and radii
+// found on the GPU in the derived canopy layer of one clip level (shaders/trunk_find.comp: maxima of the distance
+// to the nearest texel outside the canopy, as CrownCentres.h does offline), so they follow the clipmap's region
+// around the viewer; drawn as instanced cylinders
+// (shaders/trunk.vert) from the terrain to the crowns' base with one indirect draw, no readback needed for it.
+// The offline counterpart is `segment --trees` (CrownCentres.h: distance-transform maxima of the CPU mask).
+#include "CanopyClipmapGL.h"
+#include "ClipmapTerrainRendererGL.h"
+#include "Scene.h"
+#include "gl/GlObjects.h"
+#include "gl/RenderTarget.h"
+#include "gl/ShaderProgram.h"
+
+#include <glm/mat3x3.hpp>
+#include <glm/vec4.hpp>
+
+#include <memory>
+#include <vector>
+
+namespace seasonview {
+
+struct TrunkOptions {
+    double texelMetres = 0.5;     // search the finest clip level whose texels are at least this size
+    double minCrownRadius = 1.0;  // metres: smaller distance maxima are not crowns (as CrownCentres.h)
+    double maxCrownRadius = 8.0;  // metres: the distance search's limit
+    int capacity = 16384;         // trunks kept
+    float radiusFraction = 0.1f;  // trunk radius / crown radius, clamped to [0.12, 0.5] m
+};
+
+struct Trunk {
+    glm::dvec2 local;   // metres, local frame
+    double crownRadius; // metres
+    int canopyValue;    // layers the centre texel belongs to
+};
+
+class TrunksGL {
+public:
+    static Result<std::unique_ptr<TrunksGL>> create(const Scene& scene, const ClipmapGL& imagery,
+                                                    const CanopyClipmapGL& canopy, const TrunkOptions& options = {});
+
+    /// Finds the crown centres of the searched level's current window (after the canopy's update()); returns how
+    /// many (a one-integer readback, for the statistics).
+    int find();
+    /// Draws the trunks found last, from the terrain up to `trunkHeight` metres, into `target` (depth-tested with
+    /// what is there). Returns its triangles and draw calls.
+    GeometryFrameStats draw(const Camera& camera, const ClipmapTerrainRendererGL& terrain, double trunkHeight,
+                            const gl::RenderTarget& target) const;
+
+    /// The trunks found last (tests, `--trunks` statistics).
+    std::vector<Trunk> readTrunks() const;
+    int level() const { return m_level; }
+    int count() const { return m_count; }
+
+private:
+    TrunksGL(const ClipmapGL& imagery, const CanopyClipmapGL& canopy) : m_imagery(imagery), m_canopy(canopy) {}
+    const ClipmapGL& m_imagery;
+    const CanopyClipmapGL& m_canopy;
+    TrunkOptions m_options;
+    gl::ShaderProgram m_find, m_draw;
+    gl::Buffer m_buffer;
+    gl::VertexArray m_vao;
+    glm::dmat3 m_imageToLocal{1.0};
+    double m_metresPerPixel = 1.0;
+    gl::Texture m_distance; // pass 0's distances, N×N R32F, toroidal like the level
+    float m_minRadius = 1.0f;
+    int m_level = 0, m_maxRadius = 2, m_count = 0;
+};
+
+} // namespace seasonview

@@ -1,0 +1,96 @@
+// Crown centres at runtime (Ropinski et al. 2007 Fig. 6c; foliage/TrunksGL.h), per clip level region, the GPU
+// counterpart of CrownCentres.h: over one toroidal level of the derived canopy layer (common_canopy.glsl; a texel
+// is canopy where it belongs to the ground layer, value >= 1), pass 0 stores each canopy texel's Euclidean
+// distance to the nearest texel outside the canopy (square rings searched outwards until no nearer one can come,
+// clamped at uMaxRadius; -1 where a block on the way is not derived yet), pass 1 keeps the maxima of that distance
+// at least uMinRadius, each the largest within 0.75 × its distance (ties: the first in row order), and appends them
+// to the trunk buffer, whose head is a DrawArraysIndirectCommand: the draw takes them without a readback.
+
+// The imagery clipmap's layout (ClipmapGL::bind; common_clipmap.glsl itself needs derivatives).
+uniform int uClipLevels;
+uniform float uClipSize;
+uniform int uBlockSize;
+uniform int uSlotsPerSide;
+uniform vec2 uLevel0Size;
+uniform vec2 uCoarseSize;
+#include "common_canopy.glsl"
+
+layout(local_size_x = 16, local_size_y = 16) in;
+
+uniform int uPass;        // 0: distances, 1: maxima
+uniform int uLevel;       // the clip level searched
+uniform ivec2 uWindow0;   // its window's first texel (level texels)
+uniform ivec2 uWindow1;   // one past its last
+uniform float uMinRadius; // texels
+uniform int uMaxRadius;   // texels
+uniform int uCapacity;
+
+layout(r32f, binding = 0) uniform image2D uDistance; // N×N, toroidal like the level
+
+layout(std430, binding = 0) buffer Trunks {
+    uint vertexCount;     // DrawArraysIndirectCommand
+    uint instanceCount;   // appended centres (may pass uCapacity: the draw ignores those)
+    uint first;
+    uint baseInstance;
+    vec4 trunks[];        // level-0 texel x, y, crown radius in level-0 texels, canopy value
+};
+
+bool inWindow(ivec2 q) { return all(greaterThanEqual(q, uWindow0)) && all(lessThan(q, uWindow1)); }
+
+// -1: unknown (outside the window or not derived), else the canopy value.
+int valueAt(ivec2 q) {
+    if (!inWindow(q) || !canopyBlockValid(uLevel, q)) return -1;
+    return int(texelFetch(uCanopyClip, ivec3(q % int(uClipSize), uLevel), 0).r);
+}
+
+float distanceAt(ivec2 q) {
+    if (!inWindow(q)) return -1.0;
+    return imageLoad(uDistance, q % int(uClipSize)).r;
+}
+
+void main() {
+    ivec2 t = ivec2(gl_GlobalInvocationID.xy);
+    int n = int(uClipSize);
+    if (t.x >= n || t.y >= n) return;
+    // The level texel stored at t: the one of the window congruent to t modulo N.
+    ivec2 q = uWindow0 + ((t - uWindow0 % n + n) % n);
+    if (uPass == 0) {
+        int v = valueAt(q);
+        float d = 0.0;
+        if (v < 0) {
+            d = -1.0;
+        } else if (v > 0) {
+            float best2 = float(uMaxRadius * uMaxRadius);
+            bool unknown = false;
+            for (int r = 1; r <= uMaxRadius && float(r * r) < best2 && !unknown; ++r) {
+                for (int k = -r; k <= r; ++k) {
+                    ivec2 o[4] = ivec2[4](ivec2(k, -r), ivec2(k, r), ivec2(-r, k), ivec2(r, k));
+                    for (int j = 0; j < 4; ++j) {
+                        int w = valueAt(q + o[j]);
+                        if (w < 0) unknown = true;
+                        else if (w == 0) best2 = min(best2, float(dot(o[j], o[j])));
+                    }
+                }
+            }
+            d = unknown ? -1.0 : sqrt(best2);
+        }
+        imageStore(uDistance, t, vec4(d));
+        return;
+    }
+    float d = imageLoad(uDistance, t).r;
+    float radius = max(0.5, d - 0.5); // the edge lies half a texel before the nearest outside texel's centre
+    if (d <= 0.0 || radius < uMinRadius) return;
+    int s = max(1, int(ceil(0.75 * d)));
+    for (int dy = -s; dy <= s; ++dy)
+        for (int dx = -s; dx <= s; ++dx) {
+            if (dx == 0 && dy == 0) continue;
+            float w = distanceAt(q + ivec2(dx, dy));
+            if (w < 0.0) return; // not known there yet: decide when it is
+            bool before = dy < 0 || (dy == 0 && dx < 0);
+            if (w > d || (before && w == d)) return;
+        }
+    uint i = atomicAdd(instanceCount, 1u);
+    if (int(i) >= uCapacity) return;
+    float scale = exp2(float(uLevel));
+    trunks[i] = vec4((vec2(q) + 0.5) * scale, radius * scale, float(valueAt(q)));
+}
