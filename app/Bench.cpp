@@ -295,9 +295,10 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                 derived = m.canopy->rederiveAll();
             else
                 derived = m.canopy->update();
-            // Crown centres of the trunks: searched again whenever the canopy's blocks changed.
-            if (m.trunks && (derived.blocksDerived > 0 || frame == 0))
-                m.trunks->find();
+            // Crown centres of the trunks: searched again when the searched level's derived blocks changed.
+            (void)derived;
+            if (m.trunks)
+                m.trunks->update();
         }
         imagery.anisotropy = m.anisotropy;
         ImagerySettings im = imagery;

@@ -115,6 +115,7 @@ Runner addDemoCommand(CLI::App& app) {
         const Camera top = overviewCamera(*scene, aspect);
         const Camera oblique = obliqueCamera(*scene, 30.0, -35.0, 0.3);
         const Camera low = obliqueCamera(*scene, 210.0, -12.0, 0.22);
+        const Camera near = obliqueCamera(*scene, 30.0, -30.0, 0.05);
         const std::vector<Still> stills = {
             {"leafon_top.png", "Leaf-on (summer), straight down", top, ImageryView::LeafOn},
             {"leafoff_top.png", "Leaf-off (winter), straight down", top, ImageryView::LeafOff},
@@ -127,6 +128,9 @@ Runner addDemoCommand(CLI::App& app) {
             {"terrain_levels.png", "Terrain geometry clipmap levels (one colour per level: red finest, then green, "
                                    "blue, yellow, ...)", oblique, ImageryView::Levels},
             {"terrain_wireframe.png", "Terrain geometry clipmap triangles, low view", low, ImageryView::Wireframe},
+            {"canopy_trunks.png", "Deciduous treetops found by comparing the seasons (default method, on the GPU), "
+                                  "standing as 16 stacked layers over the leaf-off ground, trunks at the crown centres "
+                                  "(30 deg down, 145 m away)", near, ImageryView::Canopy},
         };
         std::vector<StillRequest> requests;
         for (const Still& s : stills) {

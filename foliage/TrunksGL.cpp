@@ -61,12 +61,23 @@ Result<std::unique_ptr<TrunksGL>> TrunksGL::create(const Scene& scene, const Cli
     return t;
 }
 
+bool TrunksGL::update() {
+    ++m_framesSinceSearch;
+    if (m_imagery.schedule().layout().clipLevels() == 0) return false;
+    if (m_count > 0 && m_framesSinceSearch < m_options.framesBetweenSearches) return false;
+    if (m_canopy.slotTags(m_level) == m_searchedTags) return false;
+    find();
+    return true;
+}
+
 int TrunksGL::find() {
     const ClipmapLayout& L = m_imagery.schedule().layout();
     if (L.clipLevels() == 0) {
         m_count = 0;
         return 0;
     }
+    m_searchedTags = m_canopy.slotTags(m_level);
+    m_framesSinceSearch = 0;
     const std::uint32_t zero = 0;
     glNamedBufferSubData(m_buffer.id(), 4, 4, &zero);
     m_imagery.bind(m_find, 0, "u");

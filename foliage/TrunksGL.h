@@ -26,6 +26,9 @@ struct TrunkOptions {
     double maxCrownRadius = 8.0;  // metres: the distance search's limit
     int capacity = 16384;         // trunks kept
     float radiusFraction = 0.1f;  // trunk radius / crown radius, clamped to [0.12, 0.5] m
+    // update() searches again at most every this many frames (a search covers the whole level: ~0.4 s on llvmpipe
+    // for 1024², about a millisecond on a GPU); the trunks near the viewer move with the level's window anyway.
+    int framesBetweenSearches = 8;
 };
 
 struct Trunk {
@@ -42,6 +45,9 @@ public:
     /// Finds the crown centres of the searched level's current window (after the canopy's update()); returns how
     /// many (a one-integer readback, for the statistics).
     int find();
+    /// Once per frame: find() when the searched level's derived blocks changed since the last search and at least
+    /// options.framesBetweenSearches frames have passed (else the trunks stand as they are); true when it searched.
+    bool update();
     /// Draws the trunks found last, from the terrain up to `trunkHeight` metres, into `target` (depth-tested with
     /// what is there). Returns its triangles and draw calls.
     GeometryFrameStats draw(const Camera& camera, const ClipmapTerrainRendererGL& terrain, double trunkHeight,
@@ -65,6 +71,8 @@ private:
     gl::Texture m_distance; // pass 0's distances, N×N R32F, toroidal like the level
     float m_minRadius = 1.0f;
     int m_level = 0, m_maxRadius = 2, m_count = 0;
+    std::vector<std::int32_t> m_searchedTags; // the level's derived blocks at the last search
+    int m_framesSinceSearch = 0;
 };
 
 } // namespace seasonview
