@@ -216,6 +216,7 @@ CanopyDrawSettings canopyDrawSettings(const Scene& scene, const CanopyRenderSett
     cd.anisotropy = imagery.anisotropy;
     cd.shading = imagery.shading;
     cd.crownBase = canopy.trunks ? canopy.crownBaseFraction * cd.treeHeight : 0.0;
+    cd.scene = &scene;
     return cd;
 }
 

@@ -69,11 +69,29 @@ Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL
     c->m_blocks = gl::Buffer::create();
     glNamedBufferStorage(c->m_blocks.id(), kMaxDispatchBlocks * 16, nullptr, GL_DYNAMIC_STORAGE_BIT);
 
+    // Per-block maxima of every slot of every clip level, then of the coarse base's blocks.
+    c->m_slotCount = slots * slots;
+    c->m_coarseBlocksX = (coarse.x + L.block - 1) / L.block;
+    const int coarseBlocks = c->m_coarseBlocksX * ((coarse.y + L.block - 1) / L.block);
+    const size_t entries = size_t(clipLevels) * size_t(c->m_slotCount) + size_t(coarseBlocks);
+    const std::vector<std::uint32_t> zeros(entries, 0u);
+    c->m_blockMax = gl::Buffer::create();
+    glNamedBufferStorage(c->m_blockMax.id(), GLsizeiptr(entries * 4), zeros.data(), GL_DYNAMIC_STORAGE_BIT);
+    c->m_maxReadback = gl::Buffer::create();
+    const GLbitfield mapFlags = GL_MAP_READ_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+    glNamedBufferStorage(c->m_maxReadback.id(), GLsizeiptr(entries * 4), nullptr, mapFlags);
+    c->m_maxMapped = static_cast<const std::uint32_t*>(
+        glMapNamedBufferRange(c->m_maxReadback.id(), 0, GLsizeiptr(entries * 4), mapFlags));
+    if (!c->m_maxMapped) return Error{"canopy layer: cannot map the block maxima's readback buffer"};
+    c->m_maxKnown.assign(entries, -1);
+    c->m_maxGeneration.assign(entries, 0);
+
     // The coarse base is resident whole: derive all of it now.
     std::vector<glm::ivec2> blocks;
     for (int by = 0; by * L.block < coarse.y; ++by)
         for (int bx = 0; bx * L.block < coarse.x; ++bx) blocks.push_back({bx, by});
     c->derive(clipLevels, true, blocks);
+    c->collectMaxima(true);
     return c;
 }
 
@@ -101,9 +119,76 @@ bool CanopyClipmapGL::derivable(int level, int bx, int by) const {
     return true;
 }
 
+CanopyClipmapGL::~CanopyClipmapGL() {
+    if (m_maxFence) glDeleteSync(m_maxFence);
+    if (m_maxMapped) glUnmapNamedBuffer(m_maxReadback.id());
+}
+
+void CanopyClipmapGL::collectMaxima(bool wait) const {
+    auto* self = const_cast<CanopyClipmapGL*>(this);
+    for (int round = 0; round < 2; ++round) {
+        if (m_maxFence) {
+            const GLenum r = glClientWaitSync(m_maxFence, wait ? GL_SYNC_FLUSH_COMMANDS_BIT : 0,
+                                              wait ? GLuint64(10'000'000'000) : 0);
+            if (r != GL_ALREADY_SIGNALED && r != GL_CONDITION_SATISFIED) return; // not back yet: next time
+            glDeleteSync(m_maxFence);
+            m_maxFence = nullptr;
+            // Entries derived again after the copy keep waiting for the next one.
+            for (size_t i = 0; i < m_maxKnown.size(); ++i)
+                if (m_maxGeneration[i] <= m_fenceGeneration) m_maxKnown[i] = int(m_maxMapped[i]);
+            self->m_collectedGeneration = m_fenceGeneration;
+        }
+        if (m_generation <= m_collectedGeneration) return;
+        // Something derived since the last copy: copy again (the fence tells when it has landed).
+        glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT);
+        glCopyNamedBufferSubData(m_blockMax.id(), m_maxReadback.id(), 0, 0,
+                                 GLsizeiptr(m_maxKnown.size() * sizeof(std::uint32_t)));
+        m_maxFence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+        self->m_fenceGeneration = m_generation;
+        if (!wait) return;
+    }
+}
+
+int CanopyClipmapGL::maxValueOver(glm::dvec2 lo, glm::dvec2 hi) const {
+    collectMaxima(false);
+    const ClipmapSchedule& s = m_source.schedule();
+    const ClipmapLayout& L = s.layout();
+    const int slots = s.slotsPerSide(), all = m_options.layers;
+    int m = 0;
+    for (int level = 0; level <= L.clipLevels(); ++level) {
+        const bool coarse = level == L.clipLevels();
+        const double texel = std::ldexp(1.0, level) * double(L.block); // level-0 pixels per block
+        const glm::ivec2 size = L.levelSizes[size_t(level)];
+        const int nbx = (size.x + L.block - 1) / L.block, nby = (size.y + L.block - 1) / L.block;
+        const int bx0 = std::clamp(int(std::floor(lo.x / texel)), 0, nbx - 1);
+        const int by0 = std::clamp(int(std::floor(lo.y / texel)), 0, nby - 1);
+        const int bx1 = std::clamp(int(std::floor(hi.x / texel)), 0, nbx - 1);
+        const int by1 = std::clamp(int(std::floor(hi.y / texel)), 0, nby - 1);
+        if ((bx1 - bx0 + 1) * (by1 - by0 + 1) > 256) return all;
+        for (int by = by0; by <= by1; ++by)
+            for (int bx = bx0; bx <= bx1; ++bx) {
+                int index = 0;
+                if (coarse) {
+                    index = maxIndex(L.clipLevels(), 0) + by * m_coarseBlocksX + bx;
+                } else {
+                    const int slot = wrapTexel(by, slots) * slots + wrapTexel(bx, slots);
+                    // Not derived here: a fragment falls back to a coarser level, which this loop covers too.
+                    if (m_tags[size_t(level)][size_t(slot)] != blockTag(bx, by)) continue;
+                    index = maxIndex(level, slot);
+                }
+                const int v = m_maxKnown[size_t(index)];
+                if (v < 0) return all;
+                m = std::max(m, v);
+            }
+    }
+    return m;
+}
+
 void CanopyClipmapGL::derive(int level, bool coarse, const std::vector<glm::ivec2>& blocks) {
     if (blocks.empty()) return;
     const ClipmapLayout& L = m_source.schedule().layout();
+    const int slots = m_source.schedule().slotsPerSide();
+    ++m_generation;
     m_source.bind(m_program, 0);
     m_program.set("uLevel", level);
     m_program.set("uCoarsePass", coarse ? 1 : 0);
@@ -118,16 +203,27 @@ void CanopyClipmapGL::derive(int level, bool coarse, const std::vector<glm::ivec
     glBindImageTexture(1, m_coarse.id(), 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R8UI);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_blocks.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_luts.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, m_blockMax.id());
     m_program.use();
     for (size_t first = 0; first < blocks.size(); first += kMaxDispatchBlocks) {
         const size_t n = std::min(blocks.size() - first, size_t(kMaxDispatchBlocks));
         std::vector<glm::ivec4> list(n);
-        for (size_t i = 0; i < n; ++i) list[i] = {blocks[first + i].x, blocks[first + i].y, level, 0};
+        const std::uint32_t zero = 0;
+        for (size_t i = 0; i < n; ++i) {
+            const glm::ivec2 b = blocks[first + i];
+            const int index = coarse ? maxIndex(L.clipLevels(), 0) + b.y * m_coarseBlocksX + b.x
+                                     : maxIndex(level, wrapTexel(b.y, slots) * slots + wrapTexel(b.x, slots));
+            list[i] = {b.x, b.y, level, index};
+            glClearNamedBufferSubData(m_blockMax.id(), GL_R32UI, GLintptr(index) * 4, 4, GL_RED_INTEGER,
+                                      GL_UNSIGNED_INT, &zero);
+            m_maxKnown[size_t(index)] = -1;
+            m_maxGeneration[size_t(index)] = m_generation;
+        }
         glNamedBufferSubData(m_blocks.id(), 0, GLsizeiptr(n * sizeof(glm::ivec4)), list.data());
         glDispatchCompute(GLuint(L.block / kTile), GLuint(L.block / kTile), GLuint(n));
         // The next dispatch rewrites the block list; fetches and readbacks must see the stores.
         glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT |
-                        GL_TEXTURE_UPDATE_BARRIER_BIT);
+                        GL_TEXTURE_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
     }
     m_totalDerived += std::int64_t(blocks.size());
 }
@@ -175,11 +271,23 @@ CanopyFrameStats CanopyClipmapGL::run(int budget, bool everything) {
     return st;
 }
 
-CanopyFrameStats CanopyClipmapGL::update() { return run(m_options.blocksPerFrame, false); }
+CanopyFrameStats CanopyClipmapGL::update() {
+    const CanopyFrameStats st = run(m_options.blocksPerFrame, false);
+    collectMaxima(false);
+    return st;
+}
 
-CanopyFrameStats CanopyClipmapGL::completeSynchronously() { return run(1 << 30, false); }
+CanopyFrameStats CanopyClipmapGL::completeSynchronously() {
+    const CanopyFrameStats st = run(1 << 30, false);
+    collectMaxima(true);
+    return st;
+}
 
-CanopyFrameStats CanopyClipmapGL::rederiveAll() { return run(1 << 30, true); }
+CanopyFrameStats CanopyClipmapGL::rederiveAll() {
+    const CanopyFrameStats st = run(1 << 30, true);
+    collectMaxima(false);
+    return st;
+}
 
 void CanopyClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit) const {
     glBindTextureUnit(GLuint(firstUnit), m_clip.id());

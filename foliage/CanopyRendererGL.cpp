@@ -58,8 +58,23 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
     // Layer 0 lies on the ground: equal depth wins (reversed Z, GL_GEQUAL), so the lowest layer covers the ground.
     glDepthFunc(GL_GEQUAL);
     const double pixelsPerRadian = double(target.height()) / (2.0 * std::tan(glm::radians(camera.fovYDeg) / 2.0));
+    // Texels a layer's fragment may reach past its piece: the per-layer shift of the top layer, and one.
+    const double reach = std::max(std::abs(s.shift.x), std::abs(s.shift.y)) * double(layers) + 1.0;
     auto instances = [&](int, glm::dvec3 lo, glm::dvec3 hi) {
-        return canopyPieceLayers(camera.position, pixelsPerRadian, lo, hi, s, layers - first);
+        int top = layers - 1; // the highest layer any texel under the piece belongs to
+        if (s.scene) {
+            glm::dvec2 pmin(1e300), pmax(-1e300);
+            for (const glm::dvec2 c : {glm::dvec2(lo), glm::dvec2(hi), glm::dvec2(lo.x, hi.y), glm::dvec2(hi.x, lo.y)}) {
+                const glm::dvec2 p = s.scene->localToImagePixel(c);
+                pmin = glm::min(pmin, p);
+                pmax = glm::max(pmax, p);
+            }
+            top = canopy.maxValueOver(pmin - reach, pmax + reach) - 1;
+        }
+        if (top < first) return 0;
+        const int n = canopyPieceLayers(camera.position, pixelsPerRadian, lo, hi, s, top - first + 1);
+        m_program.set("uPieceTop", top);
+        return n;
     };
     GeometryFrameStats st = terrain.geometry().drawInstanced(m_program, viewProj, s.treeHeight, instances);
     glBindVertexArray(0);

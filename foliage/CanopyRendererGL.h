@@ -8,6 +8,7 @@
 // layers as its stack has pixels on screen (none where the stack is under minLiftPixels).
 #include "CanopyClipmapGL.h"
 #include "ClipmapTerrainRendererGL.h"
+#include "Scene.h"
 
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
@@ -25,6 +26,9 @@ struct CanopyDrawSettings {
     // Metres: 0 = the layers stand on the ground (layer 0 is the ground pass's, ImagerySettings::canopyBase);
     // > 0 = the crowns' base: layers 0 .. N − 1 span crownBase .. treeHeight, trunks stand below (TrunksGL.h).
     double crownBase = 0.0;
+    // The scene, for skipping per piece the layers that no canopy texel under it reaches
+    // (CanopyClipmapGL::maxValueOver); null: every piece draws up to the top layer.
+    const Scene* scene = nullptr;
 };
 
 /// Layers to draw (of at most `maxLayers`) for a piece whose box (local metres, z its terrain heights) is seen from

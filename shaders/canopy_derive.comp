@@ -33,6 +33,9 @@ layout(r8ui, binding = 1) uniform writeonly uimage2D uCanopyCoarseOut;
 layout(std430, binding = 0) readonly buffer Blocks { ivec4 blocks[]; };
 // Equalisation tables (method equalized): on r, g, b, off r, g, b; 256 entries each.
 layout(std430, binding = 1) readonly buffer Luts { uint luts[]; };
+// Per derived block the largest value written (blocks[i].w indexes it; zeroed before the dispatch): the renderer
+// skips the layers no texel of a piece's blocks reaches (CanopyClipmapGL::maxValueOver, read back without waiting).
+layout(std430, binding = 2) buffer BlockMax { uint blockMax[]; };
 
 uniform int uLevel;        // the level derived; uCoarsePass: the coarse base
 uniform int uCoarsePass;   // 1: read the coarse textures' base, write uCanopyCoarseOut
@@ -141,6 +144,7 @@ void main() {
                 ++layer;
             }
         }
+        if (top > 0) atomicMax(blockMax[blk.w], uint(top));
         if (uCoarsePass != 0) {
             imageStore(uCanopyCoarseOut, g, uvec4(uint(top)));
         } else {

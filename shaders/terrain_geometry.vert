@@ -28,15 +28,16 @@ uniform int uNormals;        // 0: skip the normals (no view needs them)
 #ifdef CANOPY_LAYER
 // Stacked canopy layers (Ropinski et al. 2007 §4.2, foliage/CanopyRendererGL.h): layer j is lifted to
 // base + (H - base) j / (N - 1), H the tree height, base 0 or the crowns' base over trunks. On the ground layer 0
-// is drawn by the ground pass (uFirstLayer 1). A piece draws uPieceInstances of layers uFirstLayer .. N - 1,
-// evenly thinned where its stack is only a few pixels high on screen, the top layer always among them and drawn
-// first: a kept fragment of a higher layer then hides the lower ones behind it before they are shaded (early depth
+// is drawn by the ground pass (uFirstLayer 1). A piece draws uPieceInstances of layers uFirstLayer .. uPieceTop (the
+// highest any canopy texel under it reaches), evenly thinned where its stack is only a few pixels high on screen,
+// the top one always among them and drawn first: a kept fragment of a higher layer then hides the lower ones behind it before they are shaded (early depth
 // test; 15 % less time on llvmpipe than bottom-up).
 uniform float uCanopyHeight;
 uniform float uCrownBase;
 uniform int uFirstLayer;
 uniform int uCanopyLayers;
 uniform int uPieceInstances;
+uniform int uPieceTop;       // the highest layer any canopy texel under the piece reaches (CanopyRendererGL)
 flat out int vLayer;
 #endif
 
@@ -84,8 +85,8 @@ void main() {
         if (uNormals != 0) n = mix(n, normalAt(uLevel + 1, s, max(2.0 * uCell, 1.0)), alpha);
     }
 #ifdef CANOPY_LAYER
-    int span = uCanopyLayers - 1 - uFirstLayer;
-    vLayer = uPieceInstances <= 1 ? uCanopyLayers - 1
+    int span = uPieceTop - uFirstLayer;
+    vLayer = uPieceInstances <= 1 ? uPieceTop
                                   : uFirstLayer + int(round(float((uPieceInstances - 1 - gl_InstanceID) * span) / float(uPieceInstances - 1)));
     z += uCrownBase + (uCanopyHeight - uCrownBase) * float(vLayer) / float(max(uCanopyLayers - 1, 1));
 #endif

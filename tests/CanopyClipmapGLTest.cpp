@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <random>
 
 using namespace seasonview;
 using namespace seasonview::test;
@@ -178,6 +179,62 @@ TEST(CanopyClipmapGLTest, CrownsThinTowardsTheTopLayer) {
     }
     EXPECT_GT(ground, 0);
     EXPECT_LT(top, ground);
+}
+
+// The per-block maxima the layers are culled with: for any box, at least the largest value a fragment in it can
+// read at any level (derived blocks of every clip level, and the coarse base), and less than all layers over
+// fields, or culling would never happen.
+TEST(CanopyClipmapGLTest, BlockMaximaBoundEveryLevelsValues) {
+    ASSERT_TRUE(headlessContext());
+    ClipmapOptions co;
+    co.size = 256;
+    auto clip = ClipmapGL::create(synth().pyramids, co);
+    ASSERT_TRUE(clip.ok());
+    const ClipmapLayout& L = (*clip)->schedule().layout();
+    (*clip)->update(std::vector<glm::dvec2>(size_t(L.clipLevels()), glm::dvec2(500.0, 520.0)));
+    (*clip)->completeSynchronously();
+    CanopyOptions o;
+    auto canopy = CanopyClipmapGL::create(**clip, pairStats(synth().pyramids, o.params.method), o);
+    ASSERT_TRUE(canopy.ok()) << canopy.message();
+    (*canopy)->completeSynchronously();
+    std::vector<std::vector<std::uint8_t>> levels;
+    for (int l = 0; l < L.clipLevels(); ++l) levels.push_back((*canopy)->readClipLevel(l));
+    const std::vector<std::uint8_t> coarse = (*canopy)->readCoarse();
+    const int slots = (*clip)->schedule().slotsPerSide();
+    // The true largest value over level-0 pixel box [x0, x1) × [y0, y1) at every level where it is derived.
+    auto truth = [&](int x0, int y0, int x1, int y1) {
+        int m = 0;
+        for (int l = 0; l <= L.clipLevels(); ++l) {
+            const int s = 1 << l;
+            const glm::ivec2 size = L.levelSizes[size_t(l)];
+            for (int y = y0 / s; y <= std::min((y1 - 1) / s, size.y - 1); ++y)
+                for (int x = x0 / s; x <= std::min((x1 - 1) / s, size.x - 1); ++x) {
+                    if (l == L.clipLevels()) {
+                        m = std::max(m, int(coarse[size_t(y) * size_t(size.x) + size_t(x)]));
+                        continue;
+                    }
+                    const int bx = x / L.block, by = y / L.block;
+                    const size_t slot = size_t(wrapTexel(by, slots)) * size_t(slots) + size_t(wrapTexel(bx, slots));
+                    if ((*canopy)->slotTags(l)[slot] != (bx | (by << 16))) continue;
+                    m = std::max(m, int(levels[size_t(l)][size_t(wrapTexel(y, L.size)) * size_t(L.size) +
+                                                          size_t(wrapTexel(x, L.size))]));
+                }
+        }
+        return m;
+    };
+    std::mt19937 rng(11);
+    std::uniform_int_distribution<int> pos(0, 1000), size(1, 60);
+    int below = 0;
+    for (int trial = 0; trial < 300; ++trial) {
+        const int x0 = pos(rng), y0 = pos(rng), x1 = std::min(1024, x0 + size(rng)), y1 = std::min(1024, y0 + size(rng));
+        const int got = (*canopy)->maxValueOver({double(x0), double(y0)}, {double(x1) - 1e-3, double(y1) - 1e-3});
+        ASSERT_GE(got, truth(x0, y0, x1, y1)) << x0 << "," << y0 << " " << x1 << "," << y1;
+        below += got < o.layers ? 1 : 0;
+    }
+    // Some boxes (13 of these 300) get fewer than all layers: the coarse levels' 64-texel blocks span up to 512
+    // pixels here and mostly hold some canopy, so culling by block maxima helps only over wide open ground.
+    EXPECT_GT(below, 5);
+    EXPECT_EQ(gl::drainErrors(), "");
 }
 
 TEST(CanopyClipmapGLTest, RealSentinelPairAgreesWithTheCpu) {
