@@ -143,6 +143,35 @@ SynthFixture& synth() {
     return f;
 }
 
+// The synthetic pair in a 256² clipmap with its canopy layer; `derived`: the windows placed a little off the centre
+// and everything derivable derived.
+struct SynthCanopy {
+    std::unique_ptr<ClipmapGL> clip;
+    std::unique_ptr<CanopyClipmapGL> canopy;
+};
+
+SynthCanopy synthCanopy(bool derived) {
+    SynthCanopy c;
+    ClipmapOptions co;
+    co.size = 256;
+    auto clip = ClipmapGL::create(synth().pyramids, co);
+    EXPECT_TRUE(clip.ok()) << clip.message();
+    if (!clip) return c;
+    c.clip = std::move(*clip);
+    const ClipmapLayout& L = c.clip->schedule().layout();
+    if (derived) {
+        c.clip->update(std::vector<glm::dvec2>(size_t(L.clipLevels()), glm::dvec2(500.0, 520.0)));
+        c.clip->completeSynchronously();
+    }
+    CanopyOptions o;
+    auto canopy = CanopyClipmapGL::create(*c.clip, pairStats(synth().pyramids, o.params.method), o);
+    EXPECT_TRUE(canopy.ok()) << canopy.message();
+    if (!canopy) return c;
+    c.canopy = std::move(*canopy);
+    if (derived) c.canopy->completeSynchronously();
+    return c;
+}
+
 } // namespace
 
 TEST(CanopyClipmapGLTest, DefaultMethodAgreesWithTheCpuOnEveryLayer) {
@@ -161,17 +190,13 @@ TEST(CanopyClipmapGLTest, PaperMethodsAgreeWithTheCpu) {
 // need not hold at a smaller one.)
 TEST(CanopyClipmapGLTest, CrownsThinTowardsTheTopLayer) {
     ASSERT_TRUE(headlessContext());
-    ClipmapOptions co;
-    co.size = 256;
-    auto clip = ClipmapGL::create(synth().pyramids, co);
-    ASSERT_TRUE(clip.ok());
-    CanopyOptions o;
-    auto canopy = CanopyClipmapGL::create(**clip, pairStats(synth().pyramids, o.params.method), o);
-    ASSERT_TRUE(canopy.ok()) << canopy.message();
-    EXPECT_EQ((*canopy)->layerK(0, 0), 5);
-    EXPECT_EQ((*canopy)->layerK(15, 0), 15);
-    EXPECT_EQ((*canopy)->layerK(15, 1), 7);
-    const std::vector<std::uint8_t> v = (*canopy)->readCoarse();
+    SynthCanopy c = synthCanopy(false);
+    ASSERT_TRUE(c.canopy);
+    const auto& canopy = c.canopy;
+    EXPECT_EQ(canopy->layerK(0, 0), 5);
+    EXPECT_EQ(canopy->layerK(15, 0), 15);
+    EXPECT_EQ(canopy->layerK(15, 1), 7);
+    const std::vector<std::uint8_t> v = canopy->readCoarse();
     std::int64_t ground = 0, top = 0;
     for (std::uint8_t x : v) {
         ground += x >= 1 ? 1 : 0;
@@ -186,21 +211,16 @@ TEST(CanopyClipmapGLTest, CrownsThinTowardsTheTopLayer) {
 // fields, or culling would never happen.
 TEST(CanopyClipmapGLTest, BlockMaximaBoundEveryLevelsValues) {
     ASSERT_TRUE(headlessContext());
-    ClipmapOptions co;
-    co.size = 256;
-    auto clip = ClipmapGL::create(synth().pyramids, co);
-    ASSERT_TRUE(clip.ok());
-    const ClipmapLayout& L = (*clip)->schedule().layout();
-    (*clip)->update(std::vector<glm::dvec2>(size_t(L.clipLevels()), glm::dvec2(500.0, 520.0)));
-    (*clip)->completeSynchronously();
-    CanopyOptions o;
-    auto canopy = CanopyClipmapGL::create(**clip, pairStats(synth().pyramids, o.params.method), o);
-    ASSERT_TRUE(canopy.ok()) << canopy.message();
-    (*canopy)->completeSynchronously();
+    SynthCanopy c = synthCanopy(true);
+    ASSERT_TRUE(c.canopy);
+    const auto& clip = c.clip;
+    const auto& canopy = c.canopy;
+    const ClipmapLayout& L = clip->schedule().layout();
+    const CanopyOptions o = canopy->options();
     std::vector<std::vector<std::uint8_t>> levels;
-    for (int l = 0; l < L.clipLevels(); ++l) levels.push_back((*canopy)->readClipLevel(l));
-    const std::vector<std::uint8_t> coarse = (*canopy)->readCoarse();
-    const int slots = (*clip)->schedule().slotsPerSide();
+    for (int l = 0; l < L.clipLevels(); ++l) levels.push_back(canopy->readClipLevel(l));
+    const std::vector<std::uint8_t> coarse = canopy->readCoarse();
+    const int slots = clip->schedule().slotsPerSide();
     // The true largest value over level-0 pixel box [x0, x1) × [y0, y1) at every level where it is derived.
     auto truth = [&](int x0, int y0, int x1, int y1) {
         int m = 0;
@@ -215,7 +235,7 @@ TEST(CanopyClipmapGLTest, BlockMaximaBoundEveryLevelsValues) {
                     }
                     const int bx = x / L.block, by = y / L.block;
                     const size_t slot = size_t(wrapTexel(by, slots)) * size_t(slots) + size_t(wrapTexel(bx, slots));
-                    if ((*canopy)->slotTags(l)[slot] != (bx | (by << 16))) continue;
+                    if (canopy->slotTags(l)[slot] != (bx | (by << 16))) continue;
                     m = std::max(m, int(levels[size_t(l)][size_t(wrapTexel(y, L.size)) * size_t(L.size) +
                                                           size_t(wrapTexel(x, L.size))]));
                 }
@@ -227,7 +247,7 @@ TEST(CanopyClipmapGLTest, BlockMaximaBoundEveryLevelsValues) {
     int below = 0;
     for (int trial = 0; trial < 300; ++trial) {
         const int x0 = pos(rng), y0 = pos(rng), x1 = std::min(1024, x0 + size(rng)), y1 = std::min(1024, y0 + size(rng));
-        const int got = (*canopy)->maxValueOver({double(x0), double(y0)}, {double(x1) - 1e-3, double(y1) - 1e-3});
+        const int got = canopy->maxValueOver({double(x0), double(y0)}, {double(x1) - 1e-3, double(y1) - 1e-3});
         ASSERT_GE(got, truth(x0, y0, x1, y1)) << x0 << "," << y0 << " " << x1 << "," << y1;
         below += got < o.layers ? 1 : 0;
     }
