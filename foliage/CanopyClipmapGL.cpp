@@ -124,8 +124,7 @@ CanopyClipmapGL::~CanopyClipmapGL() {
     if (m_maxMapped) glUnmapNamedBuffer(m_maxReadback.id());
 }
 
-void CanopyClipmapGL::collectMaxima(bool wait) const {
-    auto* self = const_cast<CanopyClipmapGL*>(this);
+void CanopyClipmapGL::collectMaxima(bool wait) {
     for (int round = 0; round < 2; ++round) {
         if (m_maxFence) {
             const GLenum r = glClientWaitSync(m_maxFence, wait ? GL_SYNC_FLUSH_COMMANDS_BIT : 0,
@@ -136,7 +135,7 @@ void CanopyClipmapGL::collectMaxima(bool wait) const {
             // Entries derived again after the copy keep waiting for the next one.
             for (size_t i = 0; i < m_maxKnown.size(); ++i)
                 if (m_maxGeneration[i] <= m_fenceGeneration) m_maxKnown[i] = int(m_maxMapped[i]);
-            self->m_collectedGeneration = m_fenceGeneration;
+            m_collectedGeneration = m_fenceGeneration;
         }
         if (m_generation <= m_collectedGeneration) return;
         // Something derived since the last copy: copy again (the fence tells when it has landed).
@@ -144,13 +143,12 @@ void CanopyClipmapGL::collectMaxima(bool wait) const {
         glCopyNamedBufferSubData(m_blockMax.id(), m_maxReadback.id(), 0, 0,
                                  GLsizeiptr(m_maxKnown.size() * sizeof(std::uint32_t)));
         m_maxFence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
-        self->m_fenceGeneration = m_generation;
+        m_fenceGeneration = m_generation;
         if (!wait) return;
     }
 }
 
 int CanopyClipmapGL::maxValueOver(glm::dvec2 lo, glm::dvec2 hi) const {
-    collectMaxima(false);
     const ClipmapSchedule& s = m_source.schedule();
     const ClipmapLayout& L = s.layout();
     const int slots = s.slotsPerSide(), all = m_options.layers;

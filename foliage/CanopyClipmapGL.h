@@ -61,7 +61,8 @@ public:
     std::int64_t residentBytes() const;
     /// The largest canopy value any level could give a fragment inside the level-0 image pixel box [lo, hi]: the
     /// maxima of the derived blocks it overlaps on every clip level and the coarse base, read back from the
-    /// derivation without waiting for it; options().layers where a block's maximum is not back yet or the box
+    /// derivation without waiting for it (collected by update()); options().layers where a block's maximum is not
+    /// back yet or the box
     /// spans too many blocks to look at.
     int maxValueOver(glm::dvec2 lo, glm::dvec2 hi) const;
     std::int64_t totalBlocksDerived() const { return m_totalDerived; }
@@ -87,13 +88,15 @@ private:
     gl::Buffer m_blocks, m_luts;
     // Per-block maxima: GPU buffer (clip levels' slots, then the coarse base's blocks), a persistently mapped copy
     // taken after each derivation with a fence, and the CPU's view of them (-1: not back yet).
-    void collectMaxima(bool wait) const;
+    // Takes the copy in flight when its fence has signalled (or waits for it), then copies again if blocks were
+    // derived since; update() and the others call it, so maxValueOver sees the maxima a frame late at most.
+    void collectMaxima(bool wait);
     int maxIndex(int level, int slot) const { return level * m_slotCount + slot; }
     gl::Buffer m_blockMax, m_maxReadback;
     const std::uint32_t* m_maxMapped = nullptr;
-    mutable GLsync m_maxFence = nullptr;
-    mutable std::vector<int> m_maxKnown;
-    mutable std::vector<std::uint64_t> m_maxGeneration; // derivation generation of each entry
+    GLsync m_maxFence = nullptr;
+    std::vector<int> m_maxKnown;
+    std::vector<std::uint64_t> m_maxGeneration; // derivation generation of each entry
     std::uint64_t m_generation = 0, m_fenceGeneration = 0, m_collectedGeneration = 0;
     int m_slotCount = 0, m_coarseBlocksX = 0;
     std::vector<std::vector<std::int32_t>> m_tags; // per clip level, per slot: the block derived there

@@ -8,8 +8,6 @@
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/type_ptr.hpp>
-#include <glm/mat2x2.hpp>
-#include <glm/matrix.hpp>
 
 namespace seasonview {
 
@@ -35,16 +33,13 @@ Result<std::unique_ptr<TrunksGL>> TrunksGL::create(const Scene& scene, const Cli
     const std::uint32_t header[4] = {std::uint32_t(kVerticesPerTrunk), 0, 0, 0};
     glNamedBufferSubData(t->m_buffer.id(), 0, kHeader, header);
 
-    // Image pixel -> local metres: the inverse of the scene's local -> image map, linearised at the imagery's
-    // centre (exact for UTM imagery; geographic imagery is within a fraction of a pixel over a scene).
-    const glm::dvec2 c = (scene.localMin + scene.localMax) / 2.0;
-    const double h = std::max(1.0, glm::length(scene.localMax - scene.localMin) / 4.0);
-    const glm::dvec2 pc = scene.localToImagePixel(c);
-    const glm::dmat2 J((scene.localToImagePixel(c + glm::dvec2(h, 0.0)) - pc) / h,
-                       (scene.localToImagePixel(c + glm::dvec2(0.0, h)) - pc) / h);
-    const glm::dmat2 inv = glm::inverse(J);
-    const glm::dvec2 o = c - inv * pc;
-    t->m_imageToLocal = glm::dmat3(glm::dvec3(inv[0], 0.0), glm::dvec3(inv[1], 0.0), glm::dvec3(o, 1.0));
+    // Image pixel -> local metres: affine through three of the scene's exact inverses (exact for UTM imagery;
+    // geographic imagery is within a fraction of a pixel over a scene).
+    const glm::dvec2 image(scene.leafon.info.width, scene.leafon.info.height);
+    const glm::dvec2 o = scene.imagePixelToLocal({0.0, 0.0});
+    const glm::dvec2 ex = (scene.imagePixelToLocal({image.x, 0.0}) - o) / image.x;
+    const glm::dvec2 ey = (scene.imagePixelToLocal({0.0, image.y}) - o) / image.y;
+    t->m_imageToLocal = glm::dmat3(glm::dvec3(ex, 0.0), glm::dvec3(ey, 0.0), glm::dvec3(o, 1.0));
     t->m_metresPerPixel = scene.gsd;
 
     // The level: the finest clip level whose texels reach texelMetres.
