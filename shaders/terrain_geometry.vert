@@ -71,8 +71,31 @@ vec3 normalAt(int level, vec2 s, float step) {
     return vec3(-hx, -hy, 2.0 * step * uGridSpacing);
 }
 
+// The lattice's bilinear interpolation at tc in [0,1]², weights in full float precision. (The texture unit's
+// filter quantises its weights, to 8 bits on llvmpipe: the image's edge, where fragments are discarded, would then
+// wiggle between vertices and a ray could pass through the terrain's cut edge there.)
+vec2 lookupImageUv(vec2 tc) {
+    vec2 q = tc * (uLookupTexels - 1.0);
+    ivec2 i0 = min(ivec2(floor(q)), ivec2(uLookupTexels) - 2);
+    vec2 f = q - vec2(i0);
+    vec2 a = texelFetch(uLocalToImage, i0, 0).xy, b = texelFetch(uLocalToImage, i0 + ivec2(1, 0), 0).xy;
+    vec2 c = texelFetch(uLocalToImage, i0 + ivec2(0, 1), 0).xy, d = texelFetch(uLocalToImage, i0 + ivec2(1, 1), 0).xy;
+    return mix(mix(a, b, f.x), mix(c, d, f.x), f.y);
+}
+
 void main() {
     vec2 cell = aGrid + uPieceOffset;
+    if (uBlendToCoarser != 0) {
+        // The outer edge meets the coarser level's inner edge, which has a vertex at every other one of this
+        // level's (§2.4.2). Each odd vertex of the outer edge is moved onto its even neighbour: the two triangles
+        // beside it on the edge collapse to degenerate ones, the rest fan from the even vertex, and the edge is
+        // made of the coarser level's own edges with bit-identical end points. No T-junction is left, so the
+        // rasteriser's fill rule closes the seam exactly. (The odd vertex lies on that edge anyway: the transition
+        // gives it the coarser level's height, interpolated.)
+        float last = 2.0 * uHalfCells;
+        if ((cell.x == 0.0 || cell.x == last) && mod(cell.y, 2.0) == 1.0) cell.y -= 1.0;
+        if ((cell.y == 0.0 || cell.y == last) && mod(cell.x, 2.0) == 1.0) cell.x -= 1.0;
+    }
     vec2 s = uLevelOrigin + cell * uCell;
     vec2 d = abs(s - uLevelCentre) / uCell;
     vec2 a = clamp((d - (uHalfCells - uTransitionWidth - 1.0)) / uTransitionWidth, 0.0, 1.0);
@@ -81,7 +104,11 @@ void main() {
     // Normals from differences at least one DEM sample apart: finer steps would only show the bilinear facets.
     vec3 n = uNormals != 0 ? normalAt(uLevel, s, max(uCell, 1.0)) : vec3(0.0, 0.0, 1.0);
     if (alpha > 0.0) {
-        z = mix(z, levelSurface(uLevel + 1, s), alpha);
+        // At alpha 1 exactly the coarser level's height, bit for bit: mix() may round (z + (c - z) * 1 != c), and
+        // the outer edge's vertices must land where the coarser level's own vertices do or a pixel centre on the
+        // shared edge falls between the two.
+        const float coarse = levelSurface(uLevel + 1, s);
+        z = alpha >= 1.0 ? coarse : mix(z, coarse, alpha);
         if (uNormals != 0) n = mix(n, normalAt(uLevel + 1, s, max(2.0 * uCell, 1.0)), alpha);
     }
 #ifdef CANOPY_LAYER
@@ -99,7 +126,6 @@ void main() {
     // image's edge where the edge is, or the discard would cut it in the wrong place.
     vec2 t = (local - uLookupMin) / uLookupSize;
     vec2 tc = clamp(t, 0.0, 1.0);
-    vImageUv = textureLod(uLocalToImage, (tc * (uLookupTexels - 1.0) + 0.5) / uLookupTexels, 0.0).xy +
-               uLookupSlope * (t - tc);
+    vImageUv = lookupImageUv(tc) + uLookupSlope * (t - tc);
     gl_Position = uViewProj * vec4(local, z, 1.0);
 }

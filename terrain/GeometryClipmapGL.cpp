@@ -117,25 +117,6 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
     glTextureParameteri(g->m_localToImage.id(), GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
     glTextureParameteri(g->m_localToImage.id(), GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
 
-    // The outer edge: per side (n - 1) / 2 zero-area triangles (even, odd, even vertex), in the level's cells.
-    const int n = options.n;
-    std::vector<float> ev;
-    std::vector<std::uint32_t> ei;
-    auto vtx = [&](int x, int y) {
-        ev.push_back(float(x));
-        ev.push_back(float(y));
-        return std::uint32_t(ev.size() / 2 - 1);
-    };
-    for (int k = 0; k + 2 < n; k += 2) {
-        for (auto [ax, ay, bx, by, cx, cy] : {std::array<int, 6>{k, 0, k + 1, 0, k + 2, 0},
-                                              std::array<int, 6>{k, n - 1, k + 1, n - 1, k + 2, n - 1},
-                                              std::array<int, 6>{0, k, 0, k + 1, 0, k + 2},
-                                              std::array<int, 6>{n - 1, k, n - 1, k + 1, n - 1, k + 2}}) {
-            ei.push_back(vtx(ax, ay));
-            ei.push_back(vtx(bx, by));
-            ei.push_back(vtx(cx, cy));
-        }
-    }
     auto upload = [](Mesh& m, const std::vector<float>& v, const std::vector<std::uint32_t>& idx) {
         m.vertices = gl::Buffer::create();
         m.indices = gl::Buffer::create();
@@ -149,7 +130,6 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
         glVertexArrayAttribFormat(m.vao.id(), 0, 2, GL_FLOAT, GL_FALSE, 0);
         glVertexArrayAttribBinding(m.vao.id(), 0, 0);
     };
-    upload(g->m_edge, ev, ei);
     // One mesh per piece shape (blocks, fix-ups, trims, the finest level's cross), made up front.
     for (const RingLayout* ring : {&g->m_ring, &g->m_layerRing}) {
     GeometryPlacement probe = placeGeometryLevels(glm::dvec2(0.0), ring->n, 2, 0);
@@ -162,22 +142,12 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
                     const auto key = std::make_pair(r.cellsX(), r.cellsY());
                     if (g->m_meshes.count(key)) continue;
                     std::vector<float> v;
-                    std::vector<std::uint32_t> idx;
-                    const int w = r.cellsX() + 1;
                     for (int y = 0; y <= r.cellsY(); ++y)
-                        for (int x = 0; x < w; ++x) {
+                        for (int x = 0; x <= r.cellsX(); ++x) {
                             v.push_back(float(x));
                             v.push_back(float(y));
                         }
-                    for (int y = 0; y < r.cellsY(); ++y)
-                        for (int x = 0; x < r.cellsX(); ++x) {
-                            const std::uint32_t a = std::uint32_t(y * w + x), b = a + 1, c = a + std::uint32_t(w),
-                                                d = c + 1;
-                            // Diagonals alternate so the mesh is symmetric (no directional bias in relief).
-                            if ((x + y) % 2 == 0) idx.insert(idx.end(), {a, b, d, a, d, c});
-                            else idx.insert(idx.end(), {a, b, c, b, d, c});
-                        }
-                    upload(g->m_meshes[key], v, idx);
+                    upload(g->m_meshes[key], v, pieceTriangles(r.cellsX(), r.cellsY()));
                 }
         }
     }
@@ -278,13 +248,16 @@ GeometryFrameStats GeometryClipmapGL::drawPieces(const gl::ShaderProgram& progra
         glm::vec2 hr(0.0f); // the last piece's height range
         auto visible = [&](int x0, int y0, int x1, int y1) {
             const auto [a, b] = box(x0, y0, x1, y1);
-            if (b.x < m_imageryMin.x - s || a.x > m_imageryMax.x + s || b.y < m_imageryMin.y - s ||
-                a.y > m_imageryMax.y + s)
+            // One of the level's cells around the piece: on the outer edge a triangle of the neighbouring piece
+            // reaches one cell into this one (its odd vertex moved onto an even one, terrain_geometry.vert).
+            const double e = std::max(s, double(g.cell) * unit * s);
+            if (b.x < m_imageryMin.x - e || a.x > m_imageryMax.x + e || b.y < m_imageryMin.y - e ||
+                a.y > m_imageryMax.y + e)
                 return false;
             hr = m_bounds.range(glm::dvec2(g.origin.x + x0 * g.cell, g.origin.y + y0 * g.cell) * unit - margin,
                                 glm::dvec2(g.origin.x + x1 * g.cell, g.origin.y + y1 * g.cell) * unit + margin);
-            return !frustum.outside({a.x - s, a.y - s, double(hr.x) - 1.0},
-                                    {b.x + s, b.y + s, double(hr.y) + 1.0 + std::max(lift, 0.0)});
+            return !frustum.outside({a.x - e, a.y - e, double(hr.x) - 1.0},
+                                    {b.x + e, b.y + e, double(hr.y) + 1.0 + std::max(lift, 0.0)});
         };
         for (const GridRect& r : levelPieces(ring, placement, l)) {
             if (!visible(r.x0, r.y0, r.x1, r.y1)) {
@@ -305,12 +278,6 @@ GeometryFrameStats GeometryClipmapGL::drawPieces(const gl::ShaderProgram& progra
             st.triangles += std::int64_t(it->second.indexCount / 3) * count;
             ++st.drawCalls;
             any = true;
-        }
-        if (!instances && m_options.stitchLevels && l + 1 < m_levels && visible(0, 0, n - 1, n - 1)) {
-            program.set("uPieceOffset", glm::vec2(0.0f));
-            drawMesh(m_edge);
-            st.triangles += m_edge.indexCount / 3;
-            ++st.drawCalls;
         }
         st.levelsDrawn += any ? 1 : 0;
     }

@@ -1,7 +1,8 @@
 #pragma once
 // GPU geometry clipmaps (Asirvatham & Hoppe 2005, GPU Gems 2 ch. 2): nested rings of n×n vertices around the
-// viewer, drawn from a few static vertex/index buffers (one per piece shape: m×m block, fix-ups, trims, the outer
-// edge's degenerate triangles), heights fetched in the vertex shader from an elevation clipmap (an R32F ClipmapGL
+// viewer, drawn from a few static vertex/index buffers (one per piece shape: m×m block, fix-ups, trims; the outer
+// edge stitched to the coarser level by degenerate triangles, made in the vertex shader by moving its odd vertices
+// onto even ones, RingLayout::stitchedVertex), heights fetched in the vertex shader from an elevation clipmap (an R32F ClipmapGL
 // streamed from the DEM's pyramid like the imagery), transition regions blending heights and normals towards the
 // coarser level, per-piece view-frustum culling. Triangles drawn do not depend on the DEM's size: the levels are
 // laid out in metres down to GeometryClipmapOptions::finestCellMetres whatever the DEM's spacing (levels finer than
@@ -116,7 +117,6 @@ private:
     std::unique_ptr<ClipmapGL> m_elevation;
     std::vector<glm::ivec2> m_elevationLevelSizes;
     std::map<std::pair<int, int>, Mesh> m_meshes;
-    Mesh m_edge; // degenerate triangles along a level's outer edge
     gl::Texture m_localToImage;
     glm::dvec2 m_lookupMin{0.0}, m_lookupSize{1.0};
     glm::mat2 m_lookupSlope{1.0f};

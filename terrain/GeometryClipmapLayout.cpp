@@ -1,6 +1,7 @@
 #include "GeometryClipmapLayout.h"
 
 #include <cassert>
+#include <cstddef>
 
 namespace seasonview {
 
@@ -51,6 +52,27 @@ std::vector<GridRect> RingLayout::finestPieces() const {
     out.push_back({0, c, c, c + 2});         // horizontal bar, west of it
     out.push_back({c + 2, c, n - 1, c + 2}); // and east of it
     return out;
+}
+
+std::pair<int, int> RingLayout::stitchedVertex(int x, int y) const {
+    const int last = n - 1;
+    if ((x == 0 || x == last) && y % 2 == 1) --y;
+    if ((y == 0 || y == last) && x % 2 == 1) --x;
+    return {x, y};
+}
+
+std::vector<std::uint32_t> pieceTriangles(int cellsX, int cellsY) {
+    std::vector<std::uint32_t> idx;
+    idx.reserve(std::size_t(cellsX) * std::size_t(cellsY) * 6);
+    const int w = cellsX + 1;
+    for (int y = 0; y < cellsY; ++y)
+        for (int x = 0; x < cellsX; ++x) {
+            const auto a = std::uint32_t(y * w + x), b = a + 1, c = a + std::uint32_t(w), d = c + 1;
+            // Diagonals alternate so the mesh is symmetric (no directional bias in relief).
+            if ((x + y) % 2 == 0) idx.insert(idx.end(), {a, b, d, a, d, c});
+            else idx.insert(idx.end(), {a, b, c, b, d, c});
+        }
+    return idx;
 }
 
 } // namespace seasonview

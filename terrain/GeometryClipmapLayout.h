@@ -4,6 +4,8 @@
 // ring fix-ups of m×3 vertices where the blocks leave a 2-cell gap, and, around the finer level's square, an
 // interior L-shaped trim one cell wide whose corner depends on where the finer level sits. The finest level is
 // the full grid. Rectangles are in the level's own cells (0 .. n-1 on each axis, x east, y north).
+#include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace seasonview {
@@ -39,9 +41,18 @@ struct RingLayout {
     GridRect finerLevel(TrimSide x, TrimSide y) const;
     /// The finest level as pieces: 16 blocks plus a full fix-up cross.
     std::vector<GridRect> finestPieces() const;
-    /// Degenerate (zero-area) triangles along the outer edge that stitch this level's edge vertices to the coarser
-    /// level's every-other vertex: (n - 1) / 2 per side.
+    /// Degenerate (zero-area) triangles along the outer edge that stitch this level to the coarser level's
+    /// every-other vertex: (n - 1) / 2 per side, the triangles that collapse when stitchedVertex() moves each odd
+    /// outer-edge vertex onto its even neighbour.
     int outerDegenerateTriangles() const { return 4 * ((n - 1) / 2); }
+    /// Where vertex (x, y) of a level (cells, 0 .. n-1) is drawn when it is stitched to the coarser level
+    /// (terrain_geometry.vert does the same): an odd vertex of the outer edge moves onto its even neighbour
+    /// (x - 1 or y - 1), so the outer edge is made of the coarser level's own inner-edge segments, with no T-junction.
+    std::pair<int, int> stitchedVertex(int x, int y) const;
 };
+
+/// A piece's triangles as indices into its (cellsX + 1) × (cellsY + 1) vertex grid (row-major, x fastest), two per
+/// cell, counter-clockwise in (x, y), diagonals alternating like a checkerboard.
+std::vector<std::uint32_t> pieceTriangles(int cellsX, int cellsY);
 
 } // namespace seasonview

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+#include <map>
 #include <vector>
 
 using namespace seasonview;
@@ -72,5 +74,64 @@ TEST(GeometryClipmapLayoutTest, FinerLevelIsAlignedToEvenFinerCells) {
         EXPECT_GE(f.x0, L.m - 1);
         EXPECT_LE(f.x1, 3 * L.m - 1);
         EXPECT_EQ(2 * f.cellsX(), L.n - 1);
+    }
+}
+
+// The stitch to the coarser level, as the vertex shader draws it: with every odd outer-edge vertex moved onto its
+// even neighbour, a ring level's triangles still tile its annulus exactly once (positive areas that add up to it, no
+// fold-over), outerDegenerateTriangles() of them collapse, and the outer boundary is made only of segments between
+// consecutive even vertices: the coarser level's own inner-edge segments, so no T-junction is left for a crack.
+TEST(GeometryClipmapLayoutTest, StitchedOuterEdgeIsTheCoarserLevelsEdge) {
+    for (int n : {7, 15, 31, 63, 255}) {
+        const RingLayout L = RingLayout::make(n);
+        for (TrimSide tx : {TrimSide::Low, TrimSide::High})
+            for (TrimSide ty : {TrimSide::Low, TrimSide::High}) {
+                std::vector<GridRect> pieces = L.ringBlocks();
+                for (const auto& f : L.fixups()) pieces.push_back(f);
+                for (const auto& t : L.trim(tx, ty)) pieces.push_back(t);
+                long long area2 = 0; // twice the area
+                int degenerate = 0;
+                std::map<std::pair<std::pair<int, int>, std::pair<int, int>>, int> edges; // directed edge -> uses
+                for (const GridRect& r : pieces) {
+                    const auto idx = pieceTriangles(r.cellsX(), r.cellsY());
+                    ASSERT_EQ(idx.size(), size_t(r.cellsX()) * size_t(r.cellsY()) * 6u);
+                    auto at = [&](std::uint32_t i) {
+                        const int w = r.cellsX() + 1;
+                        return L.stitchedVertex(r.x0 + int(i) % w, r.y0 + int(i) / w);
+                    };
+                    for (size_t k = 0; k < idx.size(); k += 3) {
+                        const auto a = at(idx[k]), b = at(idx[k + 1]), c = at(idx[k + 2]);
+                        const long long cross = (long long)(b.first - a.first) * (c.second - a.second) -
+                                                (long long)(b.second - a.second) * (c.first - a.first);
+                        ASSERT_GE(cross, 0) << "n " << n << ": a triangle folded over";
+                        if (cross == 0) {
+                            ++degenerate;
+                            continue;
+                        }
+                        area2 += cross;
+                        for (auto [p, q] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, a}}) ++edges[{p, q}];
+                    }
+                }
+                const long long cells = (long long)(n - 1) * (n - 1) - (long long)((n - 1) / 2) * ((n - 1) / 2);
+                EXPECT_EQ(area2, 2 * cells) << "n " << n;
+                EXPECT_EQ(degenerate, L.outerDegenerateTriangles()) << "n " << n;
+                // Boundary edges: used once and not in the opposite direction. Those on the outer border must
+                // join consecutive even vertices.
+                int outer = 0;
+                for (const auto& [e, uses] : edges) {
+                    EXPECT_EQ(uses, 1) << "n " << n << ": an edge used twice in one direction (overlap)";
+                    if (edges.count({e.second, e.first})) continue;
+                    const auto [p, q] = e;
+                    const bool onOuter = (p.first == q.first && (p.first == 0 || p.first == n - 1)) ||
+                                         (p.second == q.second && (p.second == 0 || p.second == n - 1));
+                    if (!onOuter) continue;
+                    ++outer;
+                    EXPECT_EQ(p.first % 2 + p.second % 2 + q.first % 2 + q.second % 2, 0)
+                        << "n " << n << ": outer edge ends on an odd vertex";
+                    EXPECT_EQ(std::abs(p.first - q.first) + std::abs(p.second - q.second), 2)
+                        << "n " << n << ": outer edge is not one coarser cell";
+                }
+                EXPECT_EQ(outer, 4 * ((n - 1) / 2)) << "n " << n;
+            }
     }
 }
