@@ -71,18 +71,6 @@ vec3 normalAt(int level, vec2 s, float step) {
     return vec3(-hx, -hy, 2.0 * step * uGridSpacing);
 }
 
-// The lattice's bilinear interpolation at tc in [0,1]², weights in full float precision. (The texture unit's
-// filter quantises its weights, to 8 bits on llvmpipe: the image's edge, where fragments are discarded, would then
-// wiggle between vertices and a ray could pass through the terrain's cut edge there.)
-vec2 lookupImageUv(vec2 tc) {
-    vec2 q = tc * (uLookupTexels - 1.0);
-    ivec2 i0 = min(ivec2(floor(q)), ivec2(uLookupTexels) - 2);
-    vec2 f = q - vec2(i0);
-    vec2 a = texelFetch(uLocalToImage, i0, 0).xy, b = texelFetch(uLocalToImage, i0 + ivec2(1, 0), 0).xy;
-    vec2 c = texelFetch(uLocalToImage, i0 + ivec2(0, 1), 0).xy, d = texelFetch(uLocalToImage, i0 + ivec2(1, 1), 0).xy;
-    return mix(mix(a, b, f.x), mix(c, d, f.x), f.y);
-}
-
 void main() {
     vec2 cell = aGrid + uPieceOffset;
     if (uBlendToCoarser != 0) {
@@ -126,6 +114,7 @@ void main() {
     // image's edge where the edge is, or the discard would cut it in the wrong place.
     vec2 t = (local - uLookupMin) / uLookupSize;
     vec2 tc = clamp(t, 0.0, 1.0);
-    vImageUv = lookupImageUv(tc) + uLookupSlope * (t - tc);
+    vImageUv = textureLod(uLocalToImage, (tc * (uLookupTexels - 1.0) + 0.5) / uLookupTexels, 0.0).xy +
+               uLookupSlope * (t - tc);
     gl_Position = uViewProj * vec4(local, z, 1.0);
 }

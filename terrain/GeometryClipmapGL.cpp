@@ -246,18 +246,22 @@ GeometryFrameStats GeometryClipmapGL::drawPieces(const gl::ShaderProgram& progra
         // towards lie within one coarse cell).
         const double margin = 2.0 * double(g.cell) * unit;
         glm::vec2 hr(0.0f); // the last piece's height range
+        const bool stitched = m_options.stitchLevels && l + 1 < m_levels;
         auto visible = [&](int x0, int y0, int x1, int y1) {
+            // A piece on the outer edge that starts at an odd vertex reaches one cell past its low side (x - 1 along
+            // the rows at y = 0 and n - 1, y - 1 along those columns: that vertex is drawn on the even one before
+            // it, terrain_geometry.vert), over its neighbour's cells: it is culled with that cell included.
+            const bool onRow = y0 == 0 || y1 == n - 1, onColumn = x0 == 0 || x1 == n - 1;
+            if (stitched && onRow && x0 % 2 == 1) --x0;
+            if (stitched && onColumn && y0 % 2 == 1) --y0;
             const auto [a, b] = box(x0, y0, x1, y1);
-            // One of the level's cells around the piece: on the outer edge a triangle of the neighbouring piece
-            // reaches one cell into this one (its odd vertex moved onto an even one, terrain_geometry.vert).
-            const double e = std::max(s, double(g.cell) * unit * s);
-            if (b.x < m_imageryMin.x - e || a.x > m_imageryMax.x + e || b.y < m_imageryMin.y - e ||
-                a.y > m_imageryMax.y + e)
+            if (b.x < m_imageryMin.x - s || a.x > m_imageryMax.x + s || b.y < m_imageryMin.y - s ||
+                a.y > m_imageryMax.y + s)
                 return false;
             hr = m_bounds.range(glm::dvec2(g.origin.x + x0 * g.cell, g.origin.y + y0 * g.cell) * unit - margin,
                                 glm::dvec2(g.origin.x + x1 * g.cell, g.origin.y + y1 * g.cell) * unit + margin);
-            return !frustum.outside({a.x - e, a.y - e, double(hr.x) - 1.0},
-                                    {b.x + e, b.y + e, double(hr.y) + 1.0 + std::max(lift, 0.0)});
+            return !frustum.outside({a.x - s, a.y - s, double(hr.x) - 1.0},
+                                    {b.x + s, b.y + s, double(hr.y) + 1.0 + std::max(lift, 0.0)});
         };
         for (const GridRect& r : levelPieces(ring, placement, l)) {
             if (!visible(r.x0, r.y0, r.x1, r.y1)) {
