@@ -4,6 +4,8 @@
 #include "RenderJob.h"
 
 #include "AtomicFile.h"
+#include "Raster.h"
+#include "SegmentFiles.h"
 #include "SyntheticScene.h"
 
 #include <nlohmann/json.hpp>
@@ -14,6 +16,8 @@
 #include <memory>
 #include <optional>
 #include <sstream>
+#include <thread>
+#include <algorithm>
 
 namespace seasonview::app {
 
@@ -35,6 +39,111 @@ bool cachedSceneMatches(const std::filesystem::path& dir, const SynthOptions& o)
     const auto& g = j["generator"];
     return g.value("seed", std::uint64_t(0)) == o.seed && g.value("size_m", 0.0) == o.sizeM &&
            g.value("gsd", 0.0) == o.gsd && g.value("dem", std::string()) == o.dem.string();
+}
+
+// One method of the demo's offline segmentation.
+struct SegmentRow {
+    SegmentationMethod method;
+    int k = kSegDefaultK;
+    SegmentReport report;
+};
+
+// Box-averages an RGB image down by an integer factor (the overlay's thumbnail for the page).
+Image<std::uint8_t> downsample(const Image<std::uint8_t>& im, int factor) {
+    Image<std::uint8_t> r;
+    r.width = std::max(1, im.width / factor);
+    r.height = std::max(1, im.height / factor);
+    r.channels = im.channels;
+    r.pixels.assign(size_t(r.width) * size_t(r.height) * size_t(r.channels), 0);
+    for (int y = 0; y < r.height; ++y)
+        for (int x = 0; x < r.width; ++x)
+            for (int c = 0; c < r.channels; ++c) {
+                unsigned sum = 0, n = 0;
+                for (int j = y * factor; j < std::min(im.height, (y + 1) * factor); ++j)
+                    for (int i = x * factor; i < std::min(im.width, (x + 1) * factor); ++i, ++n) sum += im.at(i, j, c);
+                r.at(x, y, c) = std::uint8_t((sum + n / 2) / std::max(n, 1u));
+            }
+    return r;
+}
+
+Image<std::uint8_t> crop(const Image<std::uint8_t>& im, int x0, int y0, int w, int h) {
+    Image<std::uint8_t> r;
+    r.width = std::min(w, im.width - x0);
+    r.height = std::min(h, im.height - y0);
+    r.channels = im.channels;
+    r.pixels.resize(size_t(r.width) * size_t(r.height) * size_t(r.channels));
+    for (int y = 0; y < r.height; ++y)
+        std::copy_n(&im.at(x0, y0 + y), size_t(r.width) * size_t(r.channels), &r.at(0, y));
+    return r;
+}
+
+// The offline (CPU) segmentation of the scene with every method, scored against the generator's truth
+// (`seasonview segment`'s engine, foliage/SegmentFiles.h): masks in DIR/segment, and for `default` the overlay
+// (true positives, false positives, false negatives over the leaf-on image) as a thumbnail of the whole scene and a
+// full-resolution crop of its centre. The full overlay would be as large as the imagery: it is not kept.
+Result<std::vector<SegmentRow>> segmentDemo(const Scene& scene, const std::filesystem::path& dir) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec) return fileError(dir.string(), "cannot create folder (" + ec.message() + ")");
+    std::vector<SegmentRow> rows;
+    for (SegmentationMethod m : {SegmentationMethod::Pixel, SegmentationMethod::Neighborhood,
+                                 SegmentationMethod::Equalized, SegmentationMethod::Default}) {
+        SegmentJob job;
+        job.params = {m, kSegDefaultK};
+        const std::string name(segmentationMethodName(m));
+        job.mask = dir / (name + ".png");
+        job.truth = scene.sources.truthDeciduous;
+        job.truthTrees = scene.sources.truthTrees;
+        if (m == SegmentationMethod::Default) {
+            job.overlay = dir / "overlay_full.tif";
+            job.trees = dir / "trees.csv";
+        }
+        auto r = segmentScene(scene, job);
+        if (!r) return r.error();
+        rows.push_back({m, effectiveK(job.params), std::move(*r)});
+        if (m != SegmentationMethod::Default) continue;
+        auto overlay = readImageU8(job.overlay, 3);
+        if (!overlay) return overlay.error();
+        std::filesystem::remove(job.overlay, ec);
+        const int factor = std::max(1, (std::max(overlay->width, overlay->height) + 1023) / 1024);
+        const Image<std::uint8_t> thumb = downsample(*overlay, factor);
+        if (auto st = writeImageAtomic(dir / "overlay.png", thumb.pixels.data(), thumb.width, thumb.height, 3); !st)
+            return st.error();
+        const int side = std::min({640, overlay->width, overlay->height});
+        const Image<std::uint8_t> centre =
+            crop(*overlay, (overlay->width - side) / 2, (overlay->height - side) / 2, side, side);
+        if (auto st = writeImageAtomic(dir / "overlay_crop.png", centre.pixels.data(), centre.width, centre.height, 3);
+            !st)
+            return st.error();
+    }
+    nlohmann::ordered_json j = nlohmann::ordered_json::array();
+    for (const SegmentRow& row : rows) {
+        const SegmentReport& r = row.report;
+        const double mp = double(r.width) * double(r.height) / 1e6;
+        nlohmann::ordered_json e;
+        e["method"] = std::string(segmentationMethodName(row.method));
+        e["k"] = row.k;
+        if (r.confusion) {
+            e["precision"] = r.confusion->precision();
+            e["recall"] = r.confusion->recall();
+            e["f1"] = r.confusion->f1();
+            e["iou"] = r.confusion->iou();
+        }
+        if (r.centres) {
+            e["centres_precision"] = r.centres->precision();
+            e["centres_recall"] = r.centres->recall();
+            e["crowns"] = r.centres->detected;
+            e["trees_truth"] = r.centres->truth;
+        }
+        e["pixels"] = std::uint64_t(r.width) * std::uint64_t(r.height);
+        e["seconds"] = r.segmentSeconds;
+        e["megapixels_per_second"] = r.segmentSeconds > 0.0 ? mp / r.segmentSeconds : 0.0;
+        e["total_seconds"] = r.totalSeconds;
+        j.push_back(e);
+    }
+    std::string err;
+    if (!writeTextAtomic(dir / "metrics.json", j.dump(2) + "\n", err)) return fileError((dir / "metrics.json").string(), err);
+    return rows;
 }
 
 std::string htmlEscape(const std::string& s) {
@@ -165,6 +274,31 @@ Runner addDemoCommand(CLI::App& app) {
             bench = std::move(*r);
         }
 
+        // The offline segmentation against the generator's truth (a scene without truth has nothing to score).
+        std::vector<SegmentRow> segmentation;
+        double segmentSeconds = 0.0;
+        if (!scene->sources.truthDeciduous.empty()) {
+            std::printf("segmenting the scene offline with each method (CPU, k %d) ...\n", kSegDefaultK);
+            std::fflush(stdout);
+            const auto ts = clock::now();
+            auto rows = segmentDemo(*scene, out / "segment");
+            if (!rows) return fail(rows.message());
+            segmentation = std::move(*rows);
+            segmentSeconds = std::chrono::duration<double>(clock::now() - ts).count();
+        }
+        std::ostringstream segTable; // the printed summary's table
+        for (const SegmentRow& row : segmentation) {
+            const SegmentReport& r = row.report;
+            char line[256];
+            std::snprintf(line, sizeof line, "    %-13s k %d  precision %.3f  recall %.3f  F1 %.3f  IoU %.3f  centres P %.3f R %.3f  %.0f MP/s\n",
+                          std::string(segmentationMethodName(row.method)).c_str(), row.k,
+                          r.confusion ? r.confusion->precision() : 0.0, r.confusion ? r.confusion->recall() : 0.0,
+                          r.confusion ? r.confusion->f1() : 0.0, r.confusion ? r.confusion->iou() : 0.0,
+                          r.centres ? r.centres->precision() : 0.0, r.centres ? r.centres->recall() : 0.0,
+                          r.segmentSeconds > 0.0 ? double(r.width) * r.height / 1e6 / r.segmentSeconds : 0.0);
+            segTable << line;
+        }
+
         std::ostringstream html;
         html << "<!doctype html><html><head><meta charset=\"utf-8\"><title>seasonview demo</title><style>"
                 "body{font-family:sans-serif;margin:2em;max-width:1400px}figure{display:inline-block;margin:0 1em 1em 0}"
@@ -206,6 +340,37 @@ Runner addDemoCommand(CLI::App& app) {
             }
             html << "</table>\n<figure><img src=\"bench/plot.png\" alt=\"frame time and coverage\"></figure>\n";
         }
+        if (!segmentation.empty()) {
+            const SegmentReport& any = segmentation.front().report;
+            html << "<h2>Offline segmentation</h2>\n<p>Deciduous treetops found on the CPU by comparing the seasons ("
+                    "<code>seasonview segment</code>, the rule the canopy layers use on the GPU), each method on the "
+                 << any.width << "&times;" << any.height
+                 << " pair, scored per pixel against the generator's truth mask and per crown against its tree list "
+                    "(a detected crown centre counts when it lies within a true crown's radius). Throughput: the rule "
+                    "alone, on " << std::max(1u, std::thread::hardware_concurrency())
+                 << " threads (<a href=\"segment/metrics.json\">metrics.json</a>).</p>\n<table><tr><th>method</th><th>k</th>"
+                    "<th>precision</th><th>recall</th><th>F1</th><th>IoU</th><th>centres precision</th>"
+                    "<th>centres recall</th><th>MP/s</th></tr>\n";
+            for (const SegmentRow& sr : segmentation) {
+                const SegmentReport& r = sr.report;
+                char cells[512];
+                std::snprintf(cells, sizeof cells,
+                              "<td>%d</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td>"
+                              "<td>%.0f</td>",
+                              sr.k, r.confusion ? r.confusion->precision() : 0.0,
+                              r.confusion ? r.confusion->recall() : 0.0, r.confusion ? r.confusion->f1() : 0.0,
+                              r.confusion ? r.confusion->iou() : 0.0, r.centres ? r.centres->precision() : 0.0,
+                              r.centres ? r.centres->recall() : 0.0,
+                              r.segmentSeconds > 0.0 ? double(r.width) * r.height / 1e6 / r.segmentSeconds : 0.0);
+                html << "<tr><td>" << segmentationMethodName(sr.method) << "</td>" << cells << "</tr>\n";
+            }
+            html << "</table>\n<figure><img src=\"segment/overlay.png\" alt=\"default method vs truth\"><figcaption>"
+                    "<code>default</code> against the truth, whole scene: <span style=\"color:#c9a800\">yellow</span> "
+                    "true positive, <span style=\"color:#d000a0\">magenta</span> false positive, "
+                    "<span style=\"color:#0090f0\">blue</span> false negative</figcaption></figure>"
+                    "<figure><img src=\"segment/overlay_crop.png\" alt=\"default method vs truth, centre\"><figcaption>"
+                    "The same at full resolution, the scene's centre</figcaption></figure>\n";
+        }
         html << "<h2>Ground truth</h2>\n<figure><img src=\"scene/truth_deciduous.png\"><figcaption>Deciduous crowns"
                 "</figcaption></figure><figure><img src=\"scene/truth_conifer.png\"><figcaption>Conifers</figcaption>"
                 "</figure>\n</body></html>\n";
@@ -219,7 +384,10 @@ Runner addDemoCommand(CLI::App& app) {
         for (const Still& s : stills) std::printf("  still     %s\n", (out / s.file).c_str());
         std::printf("  device    %s: %s\n", info->platform.c_str(), info->renderer.c_str());
         if (bench) std::printf("  bench     %s/bench (%s)\n%s", out.c_str(), bench->device.c_str(), bench->table.c_str());
-        std::printf("  time      %.1f s total (synth %.1f s, render %.1f s)\n", total, synthSeconds, renderSeconds);
+        if (!segmentation.empty())
+            std::printf("  segment   %s/segment (offline, against the truth)\n%s", out.c_str(), segTable.str().c_str());
+        std::printf("  time      %.1f s total (synth %.1f s, render %.1f s, segmentation %.1f s)\n", total, synthSeconds,
+                    renderSeconds, segmentSeconds);
         return 0;
     };
 }

@@ -1,12 +1,15 @@
 // `seasonview demo` end to end on a small scene: the page and every image it shows exist, the canopy still among
-// them, and the bench it ran left its files.
+// them, the bench it ran left its files, and the offline segmentation scored every method against the truth.
 #include "TestUtil.h"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <fstream>
 #include <regex>
 #include <sstream>
+#include <string>
+#include <vector>
 
 using namespace seasonview;
 using namespace seasonview::test;
@@ -35,4 +38,29 @@ TEST(DemoCliTest, IndexHtmlAndEveryImageItShowsExist) {
     EXPECT_TRUE(canopy);
     for (const char* file : {"bench/summary.json", "bench/frames.csv", "bench/plot.png"})
         EXPECT_TRUE(std::filesystem::is_regular_file(dir / "out" / file)) << file;
+
+    // The offline segmentation: every method scored against the truth, in the page and in metrics.json; the
+    // full-size overlay not left behind.
+    EXPECT_NE(html.find("Offline segmentation"), std::string::npos);
+    std::ifstream mf(dir / "out/segment/metrics.json");
+    ASSERT_TRUE(mf.good());
+    const auto metrics = nlohmann::json::parse(mf);
+    ASSERT_EQ(metrics.size(), 4u);
+    std::vector<std::string> methods;
+    for (const auto& m : metrics) {
+        methods.push_back(m.at("method").get<std::string>());
+        for (const char* key : {"precision", "recall", "f1", "iou", "centres_precision", "centres_recall"}) {
+            EXPECT_GE(m.at(key).get<double>(), 0.0) << key;
+            EXPECT_LE(m.at(key).get<double>(), 1.0) << key;
+        }
+        EXPECT_GT(m.at("megapixels_per_second").get<double>(), 0.0);
+        EXPECT_TRUE(std::filesystem::is_regular_file(dir / "out/segment" / (methods.back() + ".png")));
+        EXPECT_NE(html.find("<td>" + methods.back() + "</td>"), std::string::npos) << methods.back();
+    }
+    EXPECT_EQ(methods, (std::vector<std::string>{"pixel", "neighborhood", "equalized", "default"}));
+    // The default method finds the synthetic crowns (on this small scene too).
+    EXPECT_GT(metrics[3].at("f1").get<double>(), 0.5);
+    for (const char* file : {"segment/overlay.png", "segment/overlay_crop.png", "segment/trees.csv"})
+        EXPECT_TRUE(std::filesystem::is_regular_file(dir / "out" / file)) << file;
+    EXPECT_FALSE(std::filesystem::exists(dir / "out/segment/overlay_full.tif"));
 }
