@@ -170,8 +170,6 @@ std::vector<glm::dvec2> clipmapCentres(const Scene& scene, const Camera& camera,
     return px;
 }
 
-namespace {
-
 Status writeRgb(const gl::RenderTarget& target, const std::filesystem::path& out) {
     const std::vector<std::uint8_t> rgba = target.readRgba();
     const size_t n = size_t(target.width()) * size_t(target.height());
@@ -180,8 +178,6 @@ Status writeRgb(const gl::RenderTarget& target, const std::filesystem::path& out
         for (int c = 0; c < 3; ++c) rgb[i * 3 + size_t(c)] = rgba[i * 4 + size_t(c)];
     return writeImageAtomic(out, rgb.data(), target.width(), target.height(), 3);
 }
-
-} // namespace
 
 Result<CanopyRenderSettings> parseCanopyArgs(const std::string& layers, const std::string& method, int k) {
     CanopyRenderSettings c;

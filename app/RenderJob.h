@@ -11,6 +11,7 @@
 #include "ReferenceRendererGL.h"
 #include "Scene.h"
 #include "gl/GlContext.h"
+#include "gl/RenderTarget.h"
 
 #include <CLI/CLI.hpp>
 
@@ -110,6 +111,9 @@ ClipmapGeometry clipmapGeometry(const Scene& scene, const ClipmapLayout& layout)
 /// what preparing pyramids says; returns the context info.
 Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, const std::vector<StillRequest>& stills,
                                      const RenderSettings& settings);
+
+/// Writes a render target's colour as an RGB image (PNG or TIFF by extension), atomically.
+Status writeRgb(const gl::RenderTarget& target, const std::filesystem::path& out);
 
 /// Prints the scene's warnings and notes to stderr, one line each.
 void printSceneNotes(const Scene& scene);

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
     add(seasonview::app::addPrepareCommand);
     add(seasonview::app::addBenchCommand);
     add(seasonview::app::addSegmentCommand);
+    add(seasonview::app::addViewCommand);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

@@ -222,10 +222,11 @@ std::string slurp(const std::filesystem::path& p) {
 }
 } // namespace
 
-CliResult runCli(const std::vector<std::string>& args) {
+namespace {
+CliResult runWithPrefix(const std::string& prefix, const std::vector<std::string>& args) {
     static int counter = 0;
     const auto base = outputDir() / ("cli-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    std::string cmd = quote(SEASONVIEW_BINARY);
+    std::string cmd = prefix + quote(SEASONVIEW_BINARY);
     for (const auto& a : args) cmd += " " + quote(a);
     cmd += " >" + quote(base.string() + ".out") + " 2>" + quote(base.string() + ".err") + " </dev/null";
     const int status = std::system(cmd.c_str());
@@ -238,6 +239,15 @@ CliResult runCli(const std::vector<std::string>& args) {
     std::filesystem::remove(base.string() + ".out");
     std::filesystem::remove(base.string() + ".err");
     return r;
+}
+} // namespace
+
+CliResult runCli(const std::vector<std::string>& args) { return runWithPrefix("", args); }
+
+std::optional<CliResult> runCliWithDisplay(const std::vector<std::string>& args) {
+    if (std::getenv("DISPLAY")) return runWithPrefix("", args);
+    if (std::system("command -v xvfb-run >/dev/null 2>&1") != 0) return std::nullopt;
+    return runWithPrefix("xvfb-run -a -s '-screen 0 1280x1024x24' ", args);
 }
 
 } // namespace seasonview::test

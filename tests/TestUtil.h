@@ -84,5 +84,7 @@ struct CliResult {
 };
 /// Runs the seasonview binary with `args` (shell-quoted here), capturing stdout and stderr.
 CliResult runCli(const std::vector<std::string>& args);
+/// The same with a display: directly when DISPLAY is set, else under `xvfb-run -a`; nothing when neither exists.
+std::optional<CliResult> runCliWithDisplay(const std::vector<std::string>& args);
 
 } // namespace seasonview::test

@@ -134,6 +134,7 @@ public:
         return glfwWindowShouldClose(m_window);
     }
     void framebufferSize(int& width, int& height) const override { glfwGetFramebufferSize(m_window, &width, &height); }
+    void* nativeWindow() const override { return m_window; }
 
 private:
     GLFWwindow* m_window;

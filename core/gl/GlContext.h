@@ -24,6 +24,8 @@ public:
     virtual bool shouldClose() { return false; }
     /// Size in pixels of the window's default framebuffer (0,0 headless).
     virtual void framebufferSize(int& width, int& height) const { width = height = 0; }
+    /// The GLFWwindow* of a windowed context (nullptr headless).
+    virtual void* nativeWindow() const { return nullptr; }
     const ContextInfo& info() const { return m_info; }
 
 protected:
