@@ -41,7 +41,7 @@ namespace {
 struct ViewArgs {
     SceneArgs scene;
     std::string size = "1280x720", camera, mode, script, record, bookmarks, screenshotDir = ".", screenshotSize;
-    std::vector<std::string> screenshotsAt;
+    std::vector<std::string> screenshotsAt, windowShotsAt;
     double quitAt = -1.0, fixedDt = -1.0;
     int clipSize = 1024, gridSize = 255;
     std::string view = "leafon", canopyLayers = "16", method = "default", trunks = "on", centers = "footprint";
@@ -354,6 +354,8 @@ Runner addViewCommand(CLI::App& app) {
     cmd->add_option("--grid-size", a->gridSize, "Geometry clipmap vertices per level side (2^k - 1)")->capture_default_str();
     cmd->add_option("--script", a->script, "Replay timed input events from a JSON file (see app/README.md)");
     cmd->add_option("--screenshot-at", a->screenshotsAt, "T:FILE: save the view at T seconds (repeatable)");
+    cmd->add_option("--window-screenshot-at", a->windowShotsAt,
+                    "T:FILE: save the whole window, panel included, at T seconds (repeatable)");
     cmd->add_option("--quit-at", a->quitAt, "Exit at T seconds");
     cmd->add_option("--fixed-dt", a->fixedDt,
                     "Seconds the clock advances per frame (default 1/30 with --script, --screenshot-at or --quit-at; "
@@ -411,6 +413,14 @@ Runner addViewCommand(CLI::App& app) {
             shots.push_back(*sh);
         }
         std::sort(shots.begin(), shots.end(), [](auto& x, auto& y) { return x.t < y.t; });
+        std::vector<TimedScreenshot> windowShots;
+        for (const std::string& t : a->windowShotsAt) {
+            auto sh = parseTimedScreenshot(t);
+            if (!sh) return fail("--window-" + sh.message().substr(2));
+            if (auto st = checkImageOutput(sh->file); !st) return fail(st.message());
+            windowShots.push_back(*sh);
+        }
+        std::sort(windowShots.begin(), windowShots.end(), [](auto& x, auto& y) { return x.t < y.t; });
         std::optional<std::pair<int, int>> shotSize;
         if (!a->screenshotSize.empty()) {
             auto ss = parseSize(a->screenshotSize);
@@ -419,7 +429,7 @@ Runner addViewCommand(CLI::App& app) {
         }
         auto bookmarks = loadBookmarks(a->bookmarks);
         if (!bookmarks) return fail(bookmarks.message());
-        const bool scripted = !script.empty() || !shots.empty() || a->quitAt >= 0.0;
+        const bool scripted = !script.empty() || !shots.empty() || !windowShots.empty() || a->quitAt >= 0.0;
         const double fixedDt = a->fixedDt > 0.0 ? a->fixedDt : (scripted ? 1.0 / 30.0 : 0.0);
 
         auto scene = a->scene.load();
@@ -503,7 +513,7 @@ Runner addViewCommand(CLI::App& app) {
             std::unique_ptr<gl::RenderTarget> target, scratch;
             double t = 0.0, prevT = -1.0, frameMsAvg = 0.0, coverage = std::nan("");
             bool swipeDrag = false;
-            int frame = 0, shotIndex = 0, screenshotCount = 0;
+            int frame = 0, shotIndex = 0, windowShotIndex = 0, screenshotCount = 0;
             std::string status;
             auto last = std::chrono::steady_clock::now();
             const ImageryView seasonViews[2] = {ImageryView::LeafOn, ImageryView::LeafOff};
@@ -675,7 +685,7 @@ Runner addViewCommand(CLI::App& app) {
                 ImGui::NewFrame();
                 if (s.panel) {
                     ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
-                    ImGui::SetNextWindowSize(ImVec2(330, 0), ImGuiCond_FirstUseEver);
+                    ImGui::SetNextWindowSize(ImVec2(420, 0), ImGuiCond_FirstUseEver);
                     ImGui::Begin("seasonview");
                     int v = int(s.view);
                     ImGui::TextUnformatted("Season");
@@ -737,13 +747,15 @@ Runner addViewCommand(CLI::App& app) {
                     const Crs& crs = scene->leafon.info.georef->crs;
                     const glm::dvec2 inCrs = scene->frame.fromLocal(crs, local);
                     const glm::dvec2 lonLat = crs.isGeographic() ? inCrs : convert(crs, Crs::geographic(), inCrs);
-                    ImGui::Text("frame %.1f ms (%.0f fps), %lld triangles, %d draws", frameMsAvg,
-                                frameMsAvg > 0 ? 1000.0 / frameMsAvg : 0.0, (long long)drawn.triangles, drawn.drawCalls);
-                    ImGui::Text("coverage %.3f   texels uploaded %lld (total %.1f M)", coverage,
-                                (long long)live.lastLoad.texelsUploaded, double(live.texelsTotal) / 1e6);
-                    ImGui::Text("resident %.1f MB   loader queue %d blocks", double(live.residentBytes()) / 1048576.0,
+                    ImGui::Text("frame %.1f ms (%.1f fps)", frameMsAvg, frameMsAvg > 0 ? 1000.0 / frameMsAvg : 0.0);
+                    ImGui::Text("%lld triangles, %d draw calls", (long long)drawn.triangles, drawn.drawCalls);
+                    ImGui::Text("coverage %.3f", coverage);
+                    ImGui::Text("texels uploaded %lld (total %.1f M)", (long long)live.lastLoad.texelsUploaded,
+                                double(live.texelsTotal) / 1e6);
+                    ImGui::Text("resident %.1f MB, loader queue %d blocks", double(live.residentBytes()) / 1048576.0,
                                 live.lastLoad.blocksMissing);
-                    ImGui::Text("camera %s (%s)", cam.toString().c_str(), navModeName(nav.mode()));
+                    ImGui::Text("camera %.1f, %.1f, %.1f m, yaw %.1f, pitch %.1f (%s)", cam.position.x, cam.position.y,
+                                cam.position.z, cam.yawDeg, cam.pitchDeg, navModeName(nav.mode()));
                     ImGui::Text("%.2f m above ground", cam.position.z - ground(cam.position.x, cam.position.y));
                     ImGui::Text("%s: %.2f, %.2f", crs.name().c_str(), inCrs.x, inCrs.y);
                     ImGui::Text("lat %.6f, lon %.6f", lonLat.y, lonLat.x);
@@ -754,6 +766,24 @@ Runner addViewCommand(CLI::App& app) {
                 glBindFramebuffer(GL_FRAMEBUFFER, 0);
                 glViewport(0, 0, fw, fh);
                 ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+                while (windowShotIndex < int(windowShots.size()) && windowShots[size_t(windowShotIndex)].t <= t + 1e-9) {
+                    // The back buffer as it is about to be shown: the view, the panel and the HUD.
+                    std::vector<std::uint8_t> rgb(size_t(fw) * size_t(fh) * 3);
+                    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+                    glReadBuffer(GL_BACK);
+                    glReadPixels(0, 0, fw, fh, GL_RGB, GL_UNSIGNED_BYTE, rgb.data());
+                    std::vector<std::uint8_t> top(rgb.size());
+                    for (int y = 0; y < fh; ++y)
+                        std::copy_n(&rgb[size_t(fh - 1 - y) * size_t(fw) * 3], size_t(fw) * 3, &top[size_t(y) * size_t(fw) * 3]);
+                    const std::filesystem::path& file = windowShots[size_t(windowShotIndex)].file;
+                    if (auto st = writeImageAtomic(file, top.data(), fw, fh, 3); !st) {
+                        result = fail(st.message());
+                        break;
+                    }
+                    std::printf("saved %s (window) at %.3f s\n", file.c_str(), t);
+                    ++windowShotIndex;
+                }
+                if (result != 0) break;
                 glfwSwapBuffers(window);
                 ++frame;
                 if (std::string e = gl::drainErrors(); !e.empty()) {
@@ -762,6 +792,9 @@ Runner addViewCommand(CLI::App& app) {
                 }
             }
             if (auto st = rec.save(); !st && result == 0) result = fail(st.message());
+            if (result == 0 && windowShotIndex < int(windowShots.size()))
+                result = fail("--window-screenshot-at " + std::to_string(windowShots[size_t(windowShotIndex)].t) +
+                              ": the viewer ended before that time (see --quit-at)");
             if (result == 0 && shotIndex < int(shots.size()))
                 result = fail("--screenshot-at " + std::to_string(shots[size_t(shotIndex)].t) +
                               ": the viewer ended before that time (see --quit-at)");
