@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 
@@ -57,7 +58,9 @@ TEST(ViewCliTest, ScriptedSessionScreenshotsAndRecordedPath) {
         {"t": 2.4, "key": "5"},
         {"t": 2.8, "key": "C"},
         {"t": 3.1, "key": "F"},
-        {"t": 3.2, "hold": "W", "duration": 0.4}
+        {"t": 3.2, "hold": "W", "duration": 0.4},
+        {"t": 1.55, "key": "K"},
+        {"t": 3.65, "key": "J"}
     ])");
     {
         std::ofstream f(dir / "script.json");
@@ -66,6 +69,7 @@ TEST(ViewCliTest, ScriptedSessionScreenshotsAndRecordedPath) {
     auto png = [&](const char* name) { return (dir / name).string(); };
     const auto r = runCliWithDisplay({"view", scene, "--size", "320x240", "--cache", (dir / "cache").string(),
                                       "--script", (dir / "script.json").string(), "--record", png("rec.json"),
+                                      "--bookmarks", png("bookmarks.json"),
                                       "--screenshot-at", std::string("1.5:") + png("leafon.png"),
                                       "--screenshot-at", std::string("1.8:") + png("leafoff.png"),
                                       "--screenshot-at", std::string("2.3:") + png("swipe.png"),
@@ -108,8 +112,22 @@ TEST(ViewCliTest, ScriptedSessionScreenshotsAndRecordedPath) {
     EXPECT_NEAR(keys[1].at("time").get<double>(), 8.0 / 30.0, 1e-12);
     // The fly phase (F, then W held) moved the camera along its view, straight down from the map view.
     const auto& lastKey = keys[keys.size() - 1];
-    const auto& before = keys[keys.size() - 4];
-    EXPECT_LT(lastKey.at("z").get<double>(), before.at("z").get<double>() - 1.0);
+    EXPECT_LT(keys[keys.size() - 2].at("z").get<double>(), keys[keys.size() - 5].at("z").get<double>() - 1.0);
+    // K saved the camera of the leaf-on screenshot as a bookmark; J at 3.65 s jumped back to it at once (no easing),
+    // so the last keyframe (3.73 s) is that camera again.
+    std::ifstream bf(dir / "bookmarks.json");
+    ASSERT_TRUE(bf.good());
+    const auto marks = nlohmann::json::parse(bf);
+    ASSERT_EQ(marks.size(), 1u);
+    double mark[6] = {0, 0, 0, 0, 0, 0};
+    ASSERT_EQ(std::sscanf(marks[0].get<std::string>().c_str(), "%lf,%lf,%lf,%lf,%lf,%lf", &mark[0], &mark[1], &mark[2],
+                          &mark[3], &mark[4], &mark[5]),
+              6);
+    EXPECT_NEAR(lastKey.at("x").get<double>(), mark[0], 1e-6);
+    EXPECT_NEAR(lastKey.at("y").get<double>(), mark[1], 1e-6);
+    EXPECT_NEAR(lastKey.at("z").get<double>(), mark[2], 1e-6);
+    EXPECT_NEAR(keys[6].at("z").get<double>(), mark[2], 0.02) << "the map camera after the zoom (1.6 s), still easing in";
+
     const CliResult b = runCli({"bench", scene, "--cache", (dir / "cache").string(), "--path", png("rec.json"), "--frames",
                                 std::to_string(keys.size()), "--warmup", "0", "--size", "80x60", "--coverage-every", "0",
                                 "--out", png("bench")});
