@@ -1,0 +1,166 @@
+#include "AtlasLayout.h"
+
+#include <glm/geometric.hpp>
+
+#define STB_RECT_PACK_IMPLEMENTATION
+#include <stb/stb_rect_pack.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace seasonview::city {
+
+double projectionFactor(double dmin, double fovXDeg, int screenWidth) {
+    return double(screenWidth) / (2.0 * dmin * std::tan(fovXDeg * M_PI / 360.0));
+}
+
+double triangleArea(const TexturedTriangle& tri) {
+    return 0.5 * glm::length(glm::cross(tri.v[1] - tri.v[0], tri.v[2] - tri.v[0]));
+}
+
+WorldScale textureWorldScale(const TexturedTriangle& tri) {
+    WorldScale w;
+    if (triangleArea(tri) <= 0.0) return w;
+    const glm::dvec2 t1 = tri.t[1] - tri.t[0], t2 = tri.t[2] - tri.t[0];
+    const double det = t1.x * t2.y - t1.y * t2.x;
+    // Scale of the texture coordinates, to judge degeneracy relative to them.
+    const double scale = std::max({glm::length(t1), glm::length(t2), glm::length(tri.t[2] - tri.t[1])});
+    if (scale <= 0.0) {
+        w.singleColour = true; // t0 = t1 = t2: one colour
+        return w;
+    }
+    if (std::abs(det) <= 1e-12 * scale * scale) {
+        // Collinear texture coordinates: the stretch of the longest texture-space edge.
+        double best = -1.0, stretch = 0.0;
+        for (int i = 0; i < 3; ++i) {
+            const int j = (i + 1) % 3;
+            const double lt = glm::length(tri.t[size_t(j)] - tri.t[size_t(i)]);
+            if (lt > best) {
+                best = lt;
+                stretch = glm::length(tri.v[size_t(j)] - tri.v[size_t(i)]) / lt;
+            }
+        }
+        w.s = w.t = stretch;
+        return w;
+    }
+    // P_T(a, b) = a v1 + b v2, Tex_T(a, b) = a t1 + b t2 (v0 = 0, t0 = 0): s_world = P_T(Tex_T^-1 (1, 0)).
+    const glm::dvec3 v1 = tri.v[1] - tri.v[0], v2 = tri.v[2] - tri.v[0];
+    const glm::dvec2 ab_s(t2.y / det, -t1.y / det); // Tex_T^-1 (1, 0)
+    const glm::dvec2 ab_t(-t2.x / det, t1.x / det); // Tex_T^-1 (0, 1)
+    w.s = glm::length(ab_s.x * v1 + ab_s.y * v2);
+    w.t = glm::length(ab_t.x * v1 + ab_t.y * v2);
+    return w;
+}
+
+glm::ivec2 requiredTextureSize(const TexturedTriangle& tri, double fproj) {
+    const WorldScale w = textureWorldScale(tri);
+    if (w.singleColour) return {1, 1};
+    return {std::max(1, int(std::ceil(w.s * fproj - 1e-9))), std::max(1, int(std::ceil(w.t * fproj - 1e-9)))};
+}
+
+AtlasArea requiredAtlasArea(const std::vector<const TexturedTriangle*>& tris, double fproj, int border) {
+    AtlasArea a;
+    if (tris.empty()) return a;
+    a.texture = tris.front()->texture;
+    // Texels per repetition (not rounded yet: rounding each repetition would add up over many of them).
+    glm::dvec2 tex(0.0);
+    glm::dvec2 lo(INFINITY), hi(-INFINITY);
+    for (const TexturedTriangle* t : tris) {
+        const WorldScale w = textureWorldScale(*t);
+        tex = glm::max(tex, glm::dvec2(w.s, w.t) * fproj);
+        for (const glm::dvec2& c : t->t) {
+            lo = glm::min(lo, c);
+            hi = glm::max(hi, c);
+        }
+    }
+    // The area's texels for the bounding rectangle's repetitions (at least one texel each way), then the border.
+    const glm::dvec2 extent = hi - lo;
+    const int w = std::max(1, int(std::ceil(tex.x * extent.x - 1e-9)));
+    const int h = std::max(1, int(std::ceil(tex.y * extent.y - 1e-9)));
+    tex = glm::max(tex, glm::dvec2(1.0));
+    a.size = {w + 2 * border, h + 2 * border};
+    // Grow A_tex about its centre so the border texels show the texture's own neighbourhood. A rectangle of zero
+    // extent (one colour, or one line) grows by the texture-space size of `border` texels at the texture's size.
+    const glm::dvec2 centre = 0.5 * (lo + hi);
+    const glm::dvec2 half(extent.x > 0.0 ? 0.5 * extent.x * double(a.size.x) / double(w) : 0.5 * double(a.size.x) / tex.x,
+                          extent.y > 0.0 ? 0.5 * extent.y * double(a.size.y) / double(h) : 0.5 * double(a.size.y) / tex.y);
+    a.srcMin = centre - half;
+    a.srcMax = centre + half;
+    return a;
+}
+
+bool packAtlas(std::vector<AtlasArea>& areas, int atlasSize, double* fill) {
+    std::vector<stbrp_node> nodes(size_t(atlasSize) * 2);
+    stbrp_context ctx;
+    stbrp_init_target(&ctx, atlasSize, atlasSize, nodes.data(), int(nodes.size()));
+    stbrp_setup_heuristic(&ctx, STBRP_HEURISTIC_Skyline_BL_sortHeight);
+    std::vector<stbrp_rect> rects(areas.size());
+    double covered = 0.0;
+    for (size_t i = 0; i < areas.size(); ++i) {
+        rects[i].id = int(i);
+        rects[i].w = areas[i].size.x;
+        rects[i].h = areas[i].size.y;
+        covered += double(areas[i].size.x) * double(areas[i].size.y);
+    }
+    const bool all = stbrp_pack_rects(&ctx, rects.data(), int(rects.size())) == 1;
+    for (const stbrp_rect& r : rects)
+        if (r.was_packed) areas[size_t(r.id)].position = {r.x, r.y};
+    if (fill) *fill = covered / (double(atlasSize) * double(atlasSize));
+    return all;
+}
+
+std::array<std::vector<std::uint32_t>, 4> splitByArea(const std::vector<TexturedTriangle>& tris,
+                                                      const std::vector<std::uint32_t>& subset) {
+    std::array<std::vector<std::uint32_t>, 4> out;
+    if (subset.empty()) return out;
+    glm::dvec3 lo(INFINITY), hi(-INFINITY);
+    for (std::uint32_t i : subset)
+        for (const glm::dvec3& v : tris[i].v) {
+            lo = glm::min(lo, v);
+            hi = glm::max(hi, v);
+        }
+    const glm::dvec3 d = hi - lo;
+    std::array<int, 3> axes = {0, 1, 2};
+    std::sort(axes.begin(), axes.end(), [&](int a, int b) { return d[a] > d[b]; });
+    auto mid = [&](std::uint32_t i, int axis) { return (tris[i].v[0][axis] + tris[i].v[1][axis] + tris[i].v[2][axis]) / 3.0; };
+    // Sorted by midpoint along `axis`, cut where the summed area is closest to half (both sides non-empty).
+    auto halve = [&](std::vector<std::uint32_t> ids, int axis) {
+        std::stable_sort(ids.begin(), ids.end(), [&](std::uint32_t a, std::uint32_t b) { return mid(a, axis) < mid(b, axis); });
+        double total = 0.0;
+        for (std::uint32_t i : ids) total += triangleArea(tris[i]);
+        size_t cut = ids.size() / 2;
+        double acc = 0.0, best = INFINITY;
+        for (size_t k = 1; k < ids.size(); ++k) { // first k triangles
+            acc += triangleArea(tris[ids[k - 1]]);
+            const double e = std::abs(acc - 0.5 * total);
+            if (e < best) {
+                best = e;
+                cut = k;
+            }
+        }
+        if (ids.size() < 2) cut = ids.size();
+        return std::pair{std::vector<std::uint32_t>(ids.begin(), ids.begin() + std::ptrdiff_t(cut)),
+                         std::vector<std::uint32_t>(ids.begin() + std::ptrdiff_t(cut), ids.end())};
+    };
+    auto [a, b] = halve(subset, axes[0]);
+    auto [a1, a2] = halve(a, axes[1]);
+    auto [b1, b2] = halve(b, axes[1]);
+    out = {std::move(a1), std::move(a2), std::move(b1), std::move(b2)};
+    return out;
+}
+
+glm::dvec2 rootAtlasCoord(glm::dvec2 t, const std::vector<int>& path) {
+    // Each step down halves the square and offsets it into the child's quadrant (0 bottom-left, 1 bottom-right,
+    // 2 top-left, 3 top-right): r = (t + Σ_i q_i 2^(k-i)) / 2^k with q_i = (P_i mod 2, (P_i and 2) / 2).
+    glm::dvec2 r = t;
+    for (auto it = path.rbegin(); it != path.rend(); ++it) r = (r + glm::dvec2(*it % 2, (*it & 2) / 2)) * 0.5;
+    return r;
+}
+
+glm::dvec2 levelAtlasCoord(glm::dvec2 root, int level) {
+    const glm::dvec2 s = root * std::ldexp(1.0, level);
+    return s - glm::floor(s);
+}
+
+} // namespace seasonview::city
