@@ -48,6 +48,7 @@ struct Mode {
     float anisotropy = 8.0f;
     int canopyLayers = -1;        // -1: as --view says; 0: no canopy (leaf-on terrain); N: canopy view, N layers
     bool perFrameSegmentation = false; // the canopy layer re-derived every frame (the paper's per-frame evaluation)
+    bool terrainOnly = false;     // scene=terrain: the relief alone (geometry, no imagery, no canopy)
     std::unique_ptr<ClipmapGL> clipmap;
     std::unique_ptr<CanopyClipmapGL> canopy;
     std::unique_ptr<CanopyRendererGL> canopyRenderer;
@@ -108,10 +109,10 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     const size_t eq = a.compare.find('=');
     const std::string key = a.compare.substr(0, eq);
     if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso" && key != "canopy" &&
-                                    key != "segmentation"))
+                                    key != "segmentation" && key != "scene"))
         return Error{"--compare '" + a.compare +
-                     "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,... or "
-                     "segmentation=upload,perframe"};
+                     "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
+                     "segmentation=upload,perframe or scene=terrain,full"};
     std::stringstream list(a.compare.substr(eq + 1));
     std::string v;
     while (std::getline(list, v, ',')) {
@@ -134,6 +135,19 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
             if (!c)
                 return Error{"--compare: canopy '" + v + "' is not off or 1..32"};
             m->canopyLayers = c->layers;
+        } else if (key == "scene") {
+            // terrain: the geometry clipmaps shaded, no imagery; full: both seasons (leaf-off under the crowns,
+            // leaf-on elsewhere), the stacked canopy layers (--canopy-layers, default 16) and the trunks.
+            if (v == "terrain") {
+                m->terrainOnly = true;
+                m->canopyLayers = 0;
+            } else if (v == "full") {
+                auto c = parseCanopyArgs(a.canopyLayers, a.method, a.k);
+                if (!c)
+                    return Error{c.message()};
+                m->canopyLayers = std::max(1, c->layers);
+            } else
+                return Error{"--compare: scene '" + v + "' (expected terrain|full)"};
         } else if (key == "segmentation") {
             if (v != "upload" && v != "perframe")
                 return Error{"--compare: segmentation '" + v + "' (expected upload|perframe)"};
@@ -306,6 +320,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
             im.view = ImageryView::LeafOn; // canopy=off: the terrain alone
         if (m.canopy)
             im.view = ImageryView::Canopy;
+        if (m.terrainOnly)
+            im.view = ImageryView::Relief;
         CanopyRenderSettings modeCanopy = canopy;
         modeCanopy.trunks = m.trunks != nullptr;
         const CanopyDrawSettings cd = canopyDrawSettings(*scene, modeCanopy, im);

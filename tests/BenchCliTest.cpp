@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include <fstream>
+#include <tuple>
 #include <map>
 #include <sstream>
 #include <vector>
@@ -44,51 +45,61 @@ TEST(BenchCli, CompareWritesFramesSummaryCompareAndPlot) {
 
 // The canopy comparison (no canopy vs 16 layers with trunks) in one run: both modes draw, the canopy adds
 // triangles and draw calls, its settings are recorded, and the per-frame uploads add up to the mode's total.
+// Both comparisons that add the canopy: canopy=off,16 (leaf-on terrain vs the canopy view) and scene=terrain,full
+// (the relief alone vs both seasons, 16 layers and trunks).
 TEST(BenchCli, CanopyCompareAddsLayersAndTrunks) {
     TempDir dir("bench-canopy");
     const CliResult s = runCli({"synth", "--out", (dir / "scene").string(), "--size-m", "256", "--gsd", "0.25"});
     ASSERT_EQ(s.exitCode, 0) << s.err;
-    const CliResult r = runCli({"bench", (dir / "scene/scene.json").string(), "--path", "flyover", "--frames", "4",
-                                "--warmup", "1", "--size", "160x90", "--clip-size", "512", "--view", "canopy",
-                                "--compare", "canopy=off,16", "--coverage-every", "0", "--cache",
-                                (dir / "cache").string(), "--out", (dir / "out").string()});
-    ASSERT_EQ(r.exitCode, 0) << r.err;
-    std::ifstream csv(dir / "out/frames.csv");
-    std::string header;
-    std::getline(csv, header);
-    auto column = [&](const std::string& name) {
-        std::stringstream h(header);
-        int i = 0;
-        for (std::string c; std::getline(h, c, ','); ++i)
-            if (c == name) return i;
-        return -1;
-    };
-    const int mode = column("mode"), tri = column("triangles"), draws = column("draw_calls"),
-              up = column("texels_uploaded");
-    ASSERT_GE(mode, 0);
-    std::map<std::string, std::vector<std::int64_t>> triangles, drawCalls;
-    std::map<std::string, std::int64_t> uploaded;
-    for (std::string line; std::getline(csv, line);) {
-        std::vector<std::string> cells;
-        std::stringstream l(line);
-        for (std::string c; std::getline(l, c, ',');) cells.push_back(c);
-        triangles[cells[size_t(mode)]].push_back(std::stoll(cells[size_t(tri)]));
-        drawCalls[cells[size_t(mode)]].push_back(std::stoll(cells[size_t(draws)]));
-        uploaded[cells[size_t(mode)]] += std::stoll(cells[size_t(up)]);
+    for (auto [compare, without, with] : {std::tuple{"canopy=off,16", "canopy=off", "canopy=16"},
+                                          std::tuple{"scene=terrain,full", "scene=terrain", "scene=full"}}) {
+        const std::string out = (dir / ("out-" + std::string(without))).string();
+        const CliResult r = runCli({"bench", (dir / "scene/scene.json").string(), "--path", "flyover", "--frames", "4",
+                                    "--warmup", "1", "--size", "160x90", "--clip-size", "512", "--view", "canopy",
+                                    "--compare", compare, "--coverage-every", "0", "--cache",
+                                    (dir / "cache").string(), "--out", out});
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+        std::ifstream csv(out + "/frames.csv");
+        std::string header;
+        std::getline(csv, header);
+        auto column = [&](const std::string& name) {
+            std::stringstream h(header);
+            int i = 0;
+            for (std::string c; std::getline(h, c, ','); ++i)
+                if (c == name) return i;
+            return -1;
+        };
+        const int mode = column("mode"), tri = column("triangles"), draws = column("draw_calls"),
+                  up = column("texels_uploaded");
+        ASSERT_GE(mode, 0);
+        std::map<std::string, std::vector<std::int64_t>> triangles, drawCalls;
+        std::map<std::string, std::int64_t> uploaded;
+        for (std::string line; std::getline(csv, line);) {
+            std::vector<std::string> cells;
+            std::stringstream l(line);
+            for (std::string c; std::getline(l, c, ',');) cells.push_back(c);
+            triangles[cells[size_t(mode)]].push_back(std::stoll(cells[size_t(tri)]));
+            drawCalls[cells[size_t(mode)]].push_back(std::stoll(cells[size_t(draws)]));
+            uploaded[cells[size_t(mode)]] += std::stoll(cells[size_t(up)]);
+        }
+        ASSERT_EQ(triangles[without].size(), 4u) << compare;
+        ASSERT_EQ(triangles[with].size(), 4u) << compare;
+        for (size_t i = 0; i < 4; ++i) {
+            EXPECT_GT(triangles[with][i], triangles[without][i]) << compare << " " << i;
+            EXPECT_GT(drawCalls[with][i], drawCalls[without][i]) << compare << " " << i;
+        }
+        std::ifstream sj(out + "/summary.json");
+        const auto summary = nlohmann::json::parse(sj);
+        EXPECT_EQ(summary["settings"]["trunks"], "on");
+        EXPECT_EQ(summary["settings"]["canopy_layers"], "16");
+        EXPECT_EQ(summary["settings"]["ground_under_canopy"], "leafoff");
+        for (const char* m : {without, with})
+            EXPECT_EQ(summary["modes"][m]["totals"]["texels_uploaded"].get<std::int64_t>(), uploaded[m]) << m;
     }
-    ASSERT_EQ(triangles["canopy=off"].size(), 4u);
-    ASSERT_EQ(triangles["canopy=16"].size(), 4u);
-    for (size_t i = 0; i < 4; ++i) {
-        EXPECT_GT(triangles["canopy=16"][i], triangles["canopy=off"][i]) << i;
-        EXPECT_GT(drawCalls["canopy=16"][i], drawCalls["canopy=off"][i]) << i;
-    }
-    std::ifstream sj(dir / "out/summary.json");
-    const auto summary = nlohmann::json::parse(sj);
-    EXPECT_EQ(summary["settings"]["trunks"], "on");
-    EXPECT_EQ(summary["settings"]["canopy_layers"], "16");
-    EXPECT_EQ(summary["settings"]["ground_under_canopy"], "leafoff");
-    for (const char* m : {"canopy=off", "canopy=16"})
-        EXPECT_EQ(summary["modes"][m]["totals"]["texels_uploaded"].get<std::int64_t>(), uploaded[m]) << m;
+    const CliResult bad = runCli({"bench", (dir / "scene/scene.json").string(), "--compare", "scene=terrain,city",
+                                  "--out", (dir / "bad").string()});
+    EXPECT_EQ(bad.exitCode, 1);
+    EXPECT_NE(bad.err.find("scene 'city' (expected terrain|full)"), std::string::npos) << bad.err;
 }
 
 TEST(BenchCli, BadPathAndCompareAreOneLineErrors) {
