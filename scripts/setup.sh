@@ -9,7 +9,7 @@ PACKAGES=(cmake g++ make pkg-config
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev
   libgeographiclib-dev libgeotiff-dev libtiff-dev libdeflate-dev libpng-dev
   libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri libepoxy-dev
-  libgtest-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev libstb-dev libimgui-dev
+  libgtest-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev libstb-dev libimgui-dev libcitygml-dev libtinyobjloader-dev
   xvfb xauth)
 
 missing=()

@@ -1,0 +1,36 @@
+#pragma once
+// Internal to city/: the format readers behind loadCityModel and the polygon checks they share.
+#include "CityModel.h"
+
+#include <map>
+
+namespace seasonview::city::detail {
+
+/// Counts of polygon problems while reading one file, turned into one warning line each.
+struct PolygonChecks {
+    std::size_t degenerate = 0;
+    std::size_t nonPlanar = 0;
+    double worstOffPlane = 0.0; // metres
+    void addWarnings(CityModel& model) const;
+};
+
+/// Adds one polygon, already triangulated (`indices` into `verts`, three per triangle), to the model: skipped when
+/// degenerate (fewer than three distinct vertices or no area), warned about when a vertex lies more than
+/// max(5 cm, 1 % of its extent) off its Newell plane. `uvs` empty or one per vertex. Zero-area triangles are dropped.
+void addPolygon(CityModel& model, const std::vector<glm::dvec3>& verts, const std::vector<glm::dvec2>& uvs,
+                const std::vector<unsigned>& indices, int texture, std::uint32_t building, Surface surface,
+                PolygonChecks& checks);
+
+/// The surface kind of a triangle from its normal (for sources without semantics): up-facing (> 60° from
+/// vertical walls) = roof, down-facing = ground, else wall.
+Surface surfaceFromNormal(const TexturedTriangle& tri);
+
+/// Index of a texture file in model.textures (added once per path); -1 with a warning counted in `missing` when
+/// the file does not exist or is not an image OpenImageIO can open.
+int textureIndex(CityModel& model, const std::string& path, bool repeat, std::map<std::string, int>& known,
+                 std::vector<std::string>& missing);
+
+Result<CityModel> loadCityGml(const std::string& path, const CityLoadOptions& options);
+Result<CityModel> loadObj(const std::string& path, const CityLoadOptions& options);
+
+} // namespace seasonview::city::detail

@@ -1,0 +1,349 @@
+// City model input: CityGML (libcitygml) and OBJ, CRS handling, bad input, placing buildings on the terrain.
+#include "CityModel.h"
+#include "GeoFrame.h"
+#include "TestUtil.h"
+
+#include <OpenImageIO/imageio.h>
+#include <glm/geometric.hpp>
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <set>
+#include <sstream>
+
+using namespace seasonview;
+using namespace seasonview::city;
+
+namespace {
+
+void writeText(const std::filesystem::path& p, const std::string& s) { std::ofstream(p) << s; }
+
+void writePng(const std::filesystem::path& p, int w, int h) {
+    std::vector<std::uint8_t> px(std::size_t(w * h * 3), 128);
+    auto out = OIIO::ImageOutput::create(p.string());
+    ASSERT_TRUE(out);
+    ASSERT_TRUE(out->open(p.string(), OIIO::ImageSpec(w, h, 3, OIIO::TypeDesc::UINT8)));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, px.data()));
+    out->close();
+}
+
+std::string polygon(const std::string& id, const std::string& posList) {
+    return "<gml:surfaceMember><gml:Polygon gml:id=\"" + id + "\"><gml:exterior><gml:LinearRing gml:id=\"" + id +
+           "_r\"><gml:posList srsDimension=\"3\">" + posList +
+           "</gml:posList></gml:LinearRing></gml:exterior></gml:Polygon></gml:surfaceMember>";
+}
+
+std::string surface(const std::string& kind, const std::string& id, const std::string& polygons) {
+    return "<bldg:boundedBy><bldg:" + kind + " gml:id=\"" + id + "\"><bldg:lod2MultiSurface><gml:MultiSurface>" +
+           polygons + "</gml:MultiSurface></bldg:lod2MultiSurface></bldg:" + kind + "></bldg:boundedBy>";
+}
+
+/// One LoD2 building: a 10 m × 6 m box, 8 m high, on the south side a wall textured with `texture` (0..1 across
+/// the wall); `extra` polygons are added to the roof surface. srsName empty = none.
+std::string cityGml(const std::string& srsName, const std::string& texture, const std::string& extra = "",
+                    double e = 390000.0, double n = 5819000.0, double z = 34.0) {
+    auto p = [&](double x, double y, double h) {
+        return std::to_string(e + x) + " " + std::to_string(n + y) + " " + std::to_string(z + h) + " ";
+    };
+    const std::string south = p(0, 0, 0) + p(10, 0, 0) + p(10, 0, 8) + p(0, 0, 8) + p(0, 0, 0);
+    const std::string roof = p(0, 0, 8) + p(10, 0, 8) + p(10, 6, 8) + p(0, 6, 8) + p(0, 0, 8);
+    const std::string env = srsName.empty() ? "" : " srsName=\"" + srsName + "\"";
+    return R"(<?xml version="1.0" encoding="UTF-8"?>
+<CityModel xmlns="http://www.opengis.net/citygml/2.0" xmlns:gml="http://www.opengis.net/gml"
+ xmlns:bldg="http://www.opengis.net/citygml/building/2.0" xmlns:app="http://www.opengis.net/citygml/appearance/2.0">
+<gml:boundedBy><gml:Envelope)" + env + R"( srsDimension="3"><gml:lowerCorner>)" + p(0, 0, 0) +
+           "</gml:lowerCorner><gml:upperCorner>" + p(10, 6, 8) + R"(</gml:upperCorner></gml:Envelope></gml:boundedBy>
+<cityObjectMember><bldg:Building gml:id="B1">)" +
+           surface("WallSurface", "W1", polygon("P1", south)) + surface("RoofSurface", "R1", polygon("P2", roof) + extra) +
+           R"(<app:appearance><app:Appearance><app:theme>rgbTexture</app:theme><app:surfaceDataMember>
+<app:ParameterizedTexture><app:imageURI>)" + texture + R"(</app:imageURI><app:wrapMode>wrap</app:wrapMode>
+<app:target uri="#P1"><app:TexCoordList><app:textureCoordinates ring="#P1_r">0 0 1 0 1 1 0 1 0 0</app:textureCoordinates>
+</app:TexCoordList></app:target></app:ParameterizedTexture></app:surfaceDataMember></app:Appearance></app:appearance>
+</bldg:Building></cityObjectMember></CityModel>
+)";
+}
+
+std::size_t count(const CityModel& m, Surface s) {
+    return std::size_t(std::count(m.surface.begin(), m.surface.end(), s));
+}
+
+} // namespace
+
+TEST(CityModelTest, EpsgFromSrsNameForms) {
+    EXPECT_EQ(epsgFromSrsName("EPSG:25833"), 25833);
+    EXPECT_EQ(epsgFromSrsName("urn:ogc:def:crs:EPSG::25833"), 25833);
+    EXPECT_EQ(epsgFromSrsName("urn:ogc:def:crs:EPSG:6.12:32632"), 32632);
+    EXPECT_EQ(epsgFromSrsName("http://www.opengis.net/def/crs/EPSG/0/6697"), 6697);
+    EXPECT_EQ(epsgFromSrsName("urn:ogc:def:crs,crs:EPSG::25832,crs:EPSG::7837"), 25832);
+    EXPECT_EQ(epsgFromSrsName("urn:adv:crs:ETRS89_UTM33*DE_DHHN2016_NH"), 25833);
+    EXPECT_FALSE(epsgFromSrsName("urn:ogc:def:crs:OGC:1.3:CRS84-ish"));
+    EXPECT_FALSE(epsgFromSrsName(""));
+}
+
+TEST(CityModelTest, TexturedLod2BuildingInUtm) {
+    test::TempDir dir("city_gml_ok");
+    writePng(dir / "wall.png", 16, 16);
+    writeText(dir / "b.gml", cityGml("urn:ogc:def:crs:EPSG::25833", "wall.png"));
+    auto m = loadCityModel((dir / "b.gml").string());
+    ASSERT_TRUE(m) << m.error().message;
+    EXPECT_TRUE(m->warnings.empty()) << m->warnings.front();
+    EXPECT_EQ(m->crs.epsg, 25833);
+    EXPECT_EQ(m->buildingIds, std::vector<std::string>{"B1"});
+    ASSERT_EQ(m->triangles.size(), 4u);
+    EXPECT_EQ(count(*m, Surface::Wall), 2u);
+    EXPECT_EQ(count(*m, Surface::Roof), 2u);
+    ASSERT_EQ(m->textures.size(), 1u);
+    EXPECT_EQ(std::filesystem::path(m->textures[0].path), dir / "wall.png");
+    EXPECT_TRUE(m->textures[0].repeat);
+    // The frame is centred on the building: x in [-5, 5], y in [-3, 3], heights as in the file.
+    EXPECT_NEAR(m->boundsMin().x, -5.0, 1e-6);
+    EXPECT_NEAR(m->boundsMax().y, 3.0, 1e-6);
+    EXPECT_NEAR(m->boundsMin().z, 34.0, 1e-6);
+    EXPECT_NEAR(m->boundsMax().z, 42.0, 1e-6);
+    EXPECT_NEAR(m->origin.x, 390005.0, 1e-6);
+    // Wall texture coordinates follow the position: u along east, v up.
+    for (std::size_t i = 0; i < m->triangles.size(); ++i) {
+        const auto& t = m->triangles[i];
+        if (m->surface[i] != Surface::Wall) {
+            EXPECT_EQ(t.texture, -1);
+            continue;
+        }
+        EXPECT_EQ(t.texture, 0);
+        for (int k = 0; k < 3; ++k) {
+            EXPECT_NEAR(t.t[std::size_t(k)].x, (t.v[std::size_t(k)].x + 5.0) / 10.0, 1e-5);
+            EXPECT_NEAR(t.t[std::size_t(k)].y, (t.v[std::size_t(k)].z - 34.0) / 8.0, 1e-5);
+        }
+    }
+}
+
+TEST(CityModelTest, MissingTextureIsAWarningAndTheWallUntextured) {
+    test::TempDir dir("city_gml_missing_tex");
+    writeText(dir / "b.gml", cityGml("EPSG:25833", "nowhere/wall.jpg"));
+    auto m = loadCityModel((dir / "b.gml").string());
+    ASSERT_TRUE(m) << m.error().message;
+    ASSERT_EQ(m->warnings.size(), 1u);
+    EXPECT_NE(m->warnings[0].find("b.gml"), std::string::npos) << m->warnings[0];
+    EXPECT_NE(m->warnings[0].find("nowhere/wall.jpg"), std::string::npos) << m->warnings[0];
+    EXPECT_TRUE(m->textures.empty());
+    EXPECT_EQ(m->texturedTriangles(), 0u);
+    EXPECT_EQ(m->triangles.size(), 4u);
+}
+
+TEST(CityModelTest, TruncatedTextureIsReportedMissing) {
+    test::TempDir dir("city_gml_bad_tex");
+    writePng(dir / "wall.png", 16, 16);
+    const std::string bytes = test::readBytes(dir / "wall.png");
+    writeText(dir / "wall.png", bytes.substr(0, 10));
+    writeText(dir / "b.gml", cityGml("EPSG:25833", "wall.png"));
+    auto m = loadCityModel((dir / "b.gml").string());
+    ASSERT_TRUE(m) << m.error().message;
+    ASSERT_EQ(m->warnings.size(), 1u);
+    EXPECT_NE(m->warnings[0].find("missing or unreadable"), std::string::npos) << m->warnings[0];
+}
+
+TEST(CityModelTest, DegenerateAndNonPlanarPolygonsAreWarnedAbout) {
+    test::TempDir dir("city_gml_bad_polys");
+    writePng(dir / "wall.png", 8, 8);
+    const double e = 390000.0, n = 5819000.0;
+    auto p = [&](double x, double y, double h) {
+        return std::to_string(e + x) + " " + std::to_string(n + y) + " " + std::to_string(34.0 + h) + " ";
+    };
+    // Three collinear points (no area), and a roof quad with one corner lifted by 1 m.
+    const std::string extra = polygon("D1", p(0, 0, 8) + p(5, 0, 8) + p(10, 0, 8) + p(0, 0, 8)) +
+                              polygon("N1", p(0, 6, 8) + p(10, 6, 8) + p(10, 12, 9) + p(0, 12, 8) + p(0, 6, 8));
+    writeText(dir / "b.gml", cityGml("EPSG:25833", "wall.png", extra));
+    auto m = loadCityModel((dir / "b.gml").string());
+    ASSERT_TRUE(m) << m.error().message;
+    std::string all;
+    for (const auto& w : m->warnings) all += w + "\n";
+    EXPECT_NE(all.find("1 degenerate polygon"), std::string::npos) << all;
+    EXPECT_NE(all.find("1 non-planar polygon"), std::string::npos) << all;
+    EXPECT_EQ(m->triangles.size(), 6u); // the non-planar quad is still drawn
+}
+
+TEST(CityModelTest, CrsProblemsAreErrors) {
+    test::TempDir dir("city_gml_crs");
+    writePng(dir / "wall.png", 8, 8);
+    writeText(dir / "swiss.gml", cityGml("urn:ogc:def:crs:EPSG::2056", "wall.png"));
+    auto swiss = loadCityModel((dir / "swiss.gml").string());
+    ASSERT_FALSE(swiss);
+    EXPECT_NE(swiss.error().message.find("swiss.gml"), std::string::npos) << swiss.error().message;
+    EXPECT_NE(swiss.error().message.find("2056"), std::string::npos) << swiss.error().message;
+
+    writeText(dir / "local.gml", cityGml("urn:x-local:crs", "wall.png"));
+    auto local = loadCityModel((dir / "local.gml").string());
+    ASSERT_FALSE(local);
+    EXPECT_NE(local.error().message.find("unsupported CRS"), std::string::npos) << local.error().message;
+
+    writeText(dir / "none.gml", cityGml("", "wall.png"));
+    auto none = loadCityModel((dir / "none.gml").string());
+    ASSERT_FALSE(none);
+    EXPECT_NE(none.error().message.find("names no CRS"), std::string::npos) << none.error().message;
+    CityLoadOptions given;
+    given.crs = Crs::utm(33, true);
+    auto withCrs = loadCityModel((dir / "none.gml").string(), given);
+    ASSERT_TRUE(withCrs) << withCrs.error().message;
+    EXPECT_EQ(withCrs->triangles.size(), 4u);
+}
+
+TEST(CityModelTest, BrokenFilesAreOneLineErrors) {
+    test::TempDir dir("city_gml_broken");
+    writePng(dir / "wall.png", 8, 8);
+    const std::string full = cityGml("EPSG:25833", "wall.png");
+    writeText(dir / "cut.gml", full.substr(0, full.size() / 2));
+    writeText(dir / "empty.gml", "");
+    writeText(dir / "none.gml", R"(<?xml version="1.0"?><CityModel xmlns="http://www.opengis.net/citygml/2.0"/>)");
+    for (const char* f : {"cut.gml", "empty.gml", "none.gml", "missing.gml", "wall.png"}) {
+        auto m = loadCityModel((dir / f).string());
+        ASSERT_FALSE(m) << f;
+        EXPECT_NE(m.error().message.find(f), std::string::npos) << m.error().message;
+        EXPECT_EQ(m.error().message.find('\n'), std::string::npos) << m.error().message;
+    }
+}
+
+TEST(CityModelTest, GeographicCrsIsReadLatitudeFirst) {
+    test::TempDir dir("city_gml_geo");
+    writePng(dir / "wall.png", 8, 8);
+    // PLATEAU style: EPSG:6697, "lat lon h"; a building 10 m (east) × 6 m (north) at 35.5° N.
+    const double lat = 35.5, lon = 139.7;
+    const Crs geo = Crs::geographic(6697);
+    const GeoFrame metres(geo, glm::dvec2(lon, lat)); // writes the file: metres around (lon, lat) -> lon, lat
+    std::string s = cityGml("http://www.opengis.net/def/crs/EPSG/0/6697", "wall.png", "", 0, 0, 3.0);
+    // Rewrite "x y" = metres into "lat lon".
+    std::string out;
+    std::istringstream in(s);
+    for (std::string line; std::getline(in, line);) out += line + "\n";
+    auto swap = [&](std::string text) {
+        std::string r;
+        std::size_t pos = 0;
+        while (true) {
+            const auto a = text.find("<gml:posList srsDimension=\"3\">", pos);
+            if (a == std::string::npos) break;
+            const auto b = text.find("</gml:posList>", a);
+            const auto start = a + std::string("<gml:posList srsDimension=\"3\">").size();
+            std::istringstream nums(text.substr(start, b - start));
+            std::string conv;
+            for (double x, y, h; nums >> x >> y >> h;)
+            {
+                const glm::dvec2 ll = metres.fromLocal(geo, glm::dvec2(x, y));
+                char buf[96];
+                std::snprintf(buf, sizeof buf, "%.10f %.10f %.4f ", ll.y, ll.x, h);
+                conv += buf;
+            }
+            r += text.substr(pos, start - pos) + conv;
+            pos = b;
+        }
+        return r + text.substr(pos);
+    };
+    writeText(dir / "geo.gml", swap(out));
+    auto m = loadCityModel((dir / "geo.gml").string());
+    ASSERT_TRUE(m) << m.error().message;
+    EXPECT_TRUE(m->crs.isGeographic());
+    EXPECT_NEAR(m->origin.y, metres.fromLocal(geo, glm::dvec2(5.0, 3.0)).y, 1e-7); // origin is (lon, lat)
+    EXPECT_NEAR(m->origin.x, metres.fromLocal(geo, glm::dvec2(5.0, 3.0)).x, 1e-7);
+    const glm::dvec3 size = m->boundsMax() - m->boundsMin();
+    EXPECT_NEAR(size.x, 10.0, 0.05);
+    EXPECT_NEAR(size.y, 6.0, 0.05);
+    EXPECT_NEAR(size.z, 8.0, 0.05);
+}
+
+TEST(CityModelTest, ObjWithMaterialTextures) {
+    test::TempDir dir("city_obj");
+    writePng(dir / "brick.png", 8, 8);
+    // A 4 m cube, y up, two objects: the first textured on its south face (-z in OBJ = south... +z is south).
+    writeText(dir / "c.mtl", "newmtl brick\nmap_Kd brick.png\nnewmtl gone\nmap_Kd gone.png\n");
+    writeText(dir / "c.obj", R"(mtllib c.mtl
+v 0 0 0
+v 4 0 0
+v 4 4 0
+v 0 4 0
+v 0 4 -4
+v 4 4 -4
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+o house
+usemtl brick
+f 1/1 2/2 3/3 4/4
+usemtl gone
+f 4/1 3/2 6/3 5/4
+o shed
+f 1 2 1
+)");
+    CityLoadOptions opts;
+    opts.localFrame = true;
+    auto m = loadCityModel((dir / "c.obj").string(), opts);
+    ASSERT_TRUE(m) << m.error().message;
+    EXPECT_EQ(m->buildingIds.size(), 2u);
+    ASSERT_EQ(m->triangles.size(), 4u);
+    EXPECT_EQ(count(*m, Surface::Wall), 2u); // the quad at OBJ z = 0 (y up) faces +z = south
+    EXPECT_EQ(count(*m, Surface::Roof), 2u); // the quad at y = 4 faces up
+    EXPECT_EQ(m->texturedTriangles(), 2u);
+    std::string all;
+    for (const auto& w : m->warnings) all += w + "\n";
+    EXPECT_NE(all.find("gone.png"), std::string::npos) << all;
+    EXPECT_NE(all.find("1 degenerate polygon"), std::string::npos) << all;
+    EXPECT_NEAR(m->boundsMax().z, 4.0, 1e-9);
+    EXPECT_NEAR(m->boundsMin().y, 0.0, 1e-9);  // OBJ z = 0 .. -4 -> north 0 .. 4
+    EXPECT_NEAR(m->boundsMax().y, 4.0, 1e-9);
+
+    auto noCrs = loadCityModel((dir / "c.obj").string());
+    ASSERT_FALSE(noCrs);
+    EXPECT_NE(noCrs.error().message.find("no CRS"), std::string::npos);
+}
+
+TEST(CityModelTest, PlaceOnTerrainAndReframe) {
+    test::TempDir dir("city_place");
+    writePng(dir / "wall.png", 8, 8);
+    writeText(dir / "b.gml", cityGml("EPSG:25833", "wall.png"));
+    auto m = loadCityModel((dir / "b.gml").string());
+    ASSERT_TRUE(m) << m.error().message;
+    // Terrain rising 1 m per metre eastwards from 100 m: the lowest ground under the building is at x = -5.
+    const double shift = placeOnTerrain(*m, [](double x, double) { return 100.0 + x; });
+    EXPECT_NEAR(m->boundsMin().z, 95.0, 1e-9);
+    EXPECT_NEAR(shift, 61.0, 1e-9);
+    const glm::dvec3 before = m->triangles[0].v[0];
+    reframe(*m, m->crs, m->origin + glm::dvec2(100.0, -50.0));
+    EXPECT_NEAR(m->triangles[0].v[0].x, before.x - 100.0, 1e-9);
+    EXPECT_NEAR(m->triangles[0].v[0].y, before.y + 50.0, 1e-9);
+    // Into a neighbouring UTM zone and back: the same points to a millimetre.
+    const Crs ownCrs = m->crs;
+    const glm::dvec2 ownOrigin = m->origin;
+    reframe(*m, Crs::utm(32, true), convert(ownCrs, Crs::utm(32, true), ownOrigin));
+    reframe(*m, ownCrs, ownOrigin);
+    EXPECT_NEAR(m->triangles[0].v[0].x, before.x - 100.0, 1e-3);
+    EXPECT_NEAR(m->triangles[0].v[0].y, before.y + 50.0, 1e-3);
+}
+
+TEST(CityModelTest, RealBerlinAndTokyoModels) {
+    const auto data = test::realDataDir();
+    if (!data || !std::filesystem::exists(*data / "city/berlin_lod2/berlin_lod2.gml"))
+        GTEST_SKIP() << "real data not found (../shared/data or SEASONVIEW_DATA): city/berlin_lod2";
+    auto berlin = loadCityModel((*data / "city/berlin_lod2/berlin_lod2.gml").string());
+    ASSERT_TRUE(berlin) << berlin.error().message;
+    EXPECT_EQ(berlin->crs.epsg, 25833);
+    EXPECT_EQ(berlin->buildingIds.size(), 5u);
+    EXPECT_EQ(berlin->textures.size(), 108u);
+    // Every wall and roof has its photo (the ground surfaces have none).
+    EXPECT_EQ(berlin->texturedTriangles(), count(*berlin, Surface::Wall) + count(*berlin, Surface::Roof));
+    EXPECT_GT(count(*berlin, Surface::Roof), 0u);
+    EXPECT_GT(count(*berlin, Surface::Wall), 0u);
+    const glm::dvec3 size = berlin->boundsMax() - berlin->boundsMin();
+    EXPECT_GT(size.x, 5.0);
+    EXPECT_LT(size.x, 500.0);
+    EXPECT_LT(size.z, 60.0);
+    for (const auto& w : berlin->warnings) std::cout << "  berlin: " << w << "\n";
+
+    auto tokyo = loadCityModel((*data / "city/plateau_ota/53392642_bldg_6697_op2.gml").string());
+    ASSERT_TRUE(tokyo) << tokyo.error().message;
+    EXPECT_TRUE(tokyo->crs.isGeographic());
+    EXPECT_EQ(tokyo->buildingIds.size(), 8u);
+    EXPECT_EQ(tokyo->textures.size(), 8u);
+    EXPECT_GE(tokyo->texturedTriangles(), count(*tokyo, Surface::Wall) + count(*tokyo, Surface::Roof));
+    const glm::dvec3 tsize = tokyo->boundsMax() - tokyo->boundsMin();
+    EXPECT_GT(tsize.x, 10.0);
+    EXPECT_LT(tsize.x, 2000.0);
+    EXPECT_LT(tsize.z, 200.0);
+    for (const auto& w : tokyo->warnings) std::cout << "  tokyo: " << w << "\n";
+}
