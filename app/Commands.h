@@ -19,6 +19,7 @@ Runner addPrepareCommand(CLI::App& app);
 Runner addBenchCommand(CLI::App& app);
 Runner addSegmentCommand(CLI::App& app);
 Runner addViewCommand(CLI::App& app);
+Runner addAtlasCommand(CLI::App& app);
 
 /// Reads a synthetic-scene preset (data/presets/*.json: size_m, gsd, seed).
 Result<SynthOptions> loadSynthPreset(const std::filesystem::path& path);

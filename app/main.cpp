@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
     add(seasonview::app::addBenchCommand);
     add(seasonview::app::addSegmentCommand);
     add(seasonview::app::addViewCommand);
+    add(seasonview::app::addAtlasCommand);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

@@ -59,7 +59,8 @@ glm::ivec2 requiredTextureSize(const TexturedTriangle& tri, double fproj) {
     return {std::max(1, int(std::ceil(w.s * fproj - 1e-9))), std::max(1, int(std::ceil(w.t * fproj - 1e-9)))};
 }
 
-AtlasArea requiredAtlasArea(const std::vector<const TexturedTriangle*>& tris, double fproj, int border) {
+AtlasArea requiredAtlasArea(const std::vector<const TexturedTriangle*>& tris, double fproj, int border,
+                            glm::dvec2 maxTexels) {
     AtlasArea a;
     if (tris.empty()) return a;
     a.texture = tris.front()->texture;
@@ -74,6 +75,7 @@ AtlasArea requiredAtlasArea(const std::vector<const TexturedTriangle*>& tris, do
             hi = glm::max(hi, c);
         }
     }
+    tex = glm::min(tex, maxTexels);
     // The area's texels for the bounding rectangle's repetitions (at least one texel each way), then the border.
     const glm::dvec2 extent = hi - lo;
     const int w = std::max(1, int(std::ceil(tex.x * extent.x - 1e-9)));

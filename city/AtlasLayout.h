@@ -9,6 +9,7 @@
 #include <glm/vec3.hpp>
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -54,7 +55,10 @@ struct AtlasArea {
 /// The area of one texture for the triangles `tris` (all of that texture): size = ceil(max(s_world f_proj) · w(A_tex))
 /// + 2b by ceil(max(t_world f_proj) · h(A_tex)) + 2b (rounded once, not per repetition); A_tex scaled about its centre by (w + 2b) / w and (h + 2b) / h so the
 /// border holds the texture's own neighbouring content (§4.5.2, b = 8).
-AtlasArea requiredAtlasArea(const std::vector<const TexturedTriangle*>& tris, double fproj, int border = 8);
+/// `maxTexels`: the original texture's size; no texture is stored larger than its original (a finer atlas copy
+/// would only magnify it: the cap matters for close dmin and for slivers whose s_world is huge).
+AtlasArea requiredAtlasArea(const std::vector<const TexturedTriangle*>& tris, double fproj, int border = 8,
+                            glm::dvec2 maxTexels = glm::dvec2(INFINITY));
 
 /// Packs the areas into an atlasSize² atlas (stb_rect_pack, skyline, largest first); sets each area's position.
 /// False when they do not all fit. `fill`: the fraction of the atlas the areas cover.

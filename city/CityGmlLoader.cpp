@@ -122,8 +122,9 @@ struct Reader {
             const auto coords = p.getTexCoordsForTheme(theme, front);
             const std::filesystem::path url(tex->getUrl());
             const std::string file = (url.is_absolute() ? url : dir / url).lexically_normal().string();
-            const bool repeat = tex->getWrapMode() != citygml::Texture::WrapMode::WM_CLAMP &&
-                                tex->getWrapMode() != citygml::Texture::WrapMode::WM_BORDER;
+            // CityGML's default wrap mode is "none" (outside [0,1] transparent): only wrap and mirror repeat.
+            const bool repeat = tex->getWrapMode() == citygml::Texture::WrapMode::WM_WRAP ||
+                                tex->getWrapMode() == citygml::Texture::WrapMode::WM_MIRROR;
             texture = textureIndex(model, file, repeat, known, missing);
             if (texture < 0) ++untexturedByMissing;
             for (const auto& c : coords) uvs.emplace_back(double(c.x), double(c.y));

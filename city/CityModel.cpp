@@ -169,7 +169,8 @@ int textureIndex(CityModel& model, const std::string& path, bool repeat, std::ma
         // The header only: a truncated or foreign file is caught here, its pixels are read by the atlas build.
         if (auto in = OIIO::ImageInput::open(path)) {
             index = int(model.textures.size());
-            model.textures.push_back(CityTexture{path, repeat});
+            const auto& spec = in->spec();
+            model.textures.push_back(CityTexture{path, repeat, spec.nchannels >= 4 ? 4 : 3, spec.width, spec.height});
             in->close();
         }
     }

@@ -26,6 +26,8 @@ enum class Surface : std::uint8_t { Wall = 0, Roof = 1, Ground = 2, Other = 3 };
 struct CityTexture {
     std::string path;
     bool repeat = true;
+    int channels = 3; // 4: has alpha (goes to the RGBA tree)
+    int width = 0, height = 0; // texels of the file
 };
 
 /// The model: triangles in the local frame of GeoFrame(crs, origin) (metres; z = the source's heights, metres).

@@ -1,0 +1,205 @@
+// `seasonview atlas build|info`: the multiresolution texture-atlas tree of a city model (city/AtlasTreeBuild.h).
+#include "AtlasTreeBuild.h"
+#include "AtomicFile.h"
+#include "Raster.h"
+#include "CityModel.h"
+#include "Commands.h"
+
+#include <nlohmann/json.hpp>
+
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cstdio>
+#include <memory>
+
+namespace seasonview::app {
+
+namespace {
+
+struct AtlasArgs {
+    std::string input, out, dmin = "auto", format = "bc", roofs = "imagery", crs, objUp = "y", report;
+    int atlasSize = 512, screenWidth = 1920;
+    double tpp = 1.0, fovX = 90.0, cacheMb = 512.0;
+    bool objLocal = false;
+    std::string tree; // info
+    std::vector<std::string> atlasPng;
+};
+
+double peakRssGb() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return double(u.ru_maxrss) / (1024.0 * 1024.0); // ru_maxrss is in KiB on Linux
+}
+
+} // namespace
+
+Result<city::CityModel> loadCityForCli(const std::string& path, const std::string& crsText, bool objLocal,
+                                       const std::string& objUp) {
+    city::CityLoadOptions options;
+    if (!crsText.empty()) {
+        const auto code = city::epsgFromSrsName(crsText);
+        if (!code) return Error{"--city-crs: expected EPSG:CODE, got '" + crsText + "'"};
+        auto crs = Crs::fromEpsg(*code);
+        if (!crs) return Error{"--city-crs: " + crs.error().message};
+        options.crs = *crs;
+    }
+    options.localFrame = objLocal;
+    options.objUp = objUp == "z" ? 'z' : 'y';
+    return city::loadCityModel(path, options);
+}
+
+Runner addAtlasCommand(CLI::App& app) {
+    auto a = std::make_shared<AtlasArgs>();
+    CLI::App* cmd = app.add_subcommand("atlas", "Multiresolution texture-atlas trees of city models (build, info)");
+    cmd->require_subcommand(1);
+    CLI::App* build = cmd->add_subcommand("build", "Build the texture-atlas tree of a CityGML or OBJ city model");
+    build->add_option("INPUT", a->input, "City model: CityGML (.gml/.xml) or OBJ (.obj with its .mtl)")->required();
+    build->add_option("--out", a->out, "Tree file to write (written whole or not at all)")->required();
+    build->add_option("--atlas-size", a->atlasSize, "Atlas width and height A, texels (power of two)")->capture_default_str();
+    build->add_option("--dmin", a->dmin, "Minimum distance for atlases, metres, or 'auto' (bounding-box diagonal / 72)")
+        ->capture_default_str();
+    build->add_option("--tpp", a->tpp, "Pixels per texel the textures are sized for")->capture_default_str();
+    build->add_option("--format", a->format, "Atlas storage: bc (BC1/BC3, default) or deflate (lossless)")
+        ->check(CLI::IsMember({"bc", "deflate"}))
+        ->capture_default_str();
+    build->add_option("--roofs", a->roofs, "imagery: roofs left to the terrain's imagery clipmap; model: their own textures")
+        ->check(CLI::IsMember({"imagery", "model"}))
+        ->capture_default_str();
+    build->add_option("--screen-width", a->screenWidth, "Screen width the minDistances assume, pixels")->capture_default_str();
+    build->add_option("--fov-x", a->fovX, "Horizontal field of view the minDistances assume, degrees")->capture_default_str();
+    build->add_option("--cache-mb", a->cacheMb, "Original textures held in memory while building, MB")->capture_default_str();
+    build->add_option("--city-crs", a->crs, "CRS of a model that names none (OBJ, CityGML without srsName): EPSG:CODE");
+    build->add_flag("--obj-local", a->objLocal, "OBJ positions are already metres in the scene's local frame");
+    build->add_option("--obj-up", a->objUp, "OBJ up axis")->check(CLI::IsMember({"y", "z"}))->capture_default_str();
+    build->add_option("--report", a->report, "Write the build figures as JSON");
+    CLI::App* info = cmd->add_subcommand("info", "Print a tree file's parameters, nodes and sizes");
+    info->add_option("TREE", a->tree, "Tree file")->required();
+    info->add_option("--atlas-png", a->atlasPng, "Write node N's atlas (of the first tree) as a PNG: N:FILE.png")
+        ->expected(1, 64);
+
+    return [a, build, info]() -> int {
+        auto fail = [](const std::string& m) {
+            std::fprintf(stderr, "seasonview atlas: %s\n", m.c_str());
+            return 1;
+        };
+        if (info->parsed()) {
+            auto f = city::AtlasTreeFile::open(a->tree);
+            if (!f) return fail(f.error().message);
+            const auto& i = f->info;
+            std::printf("%s: atlas %d² (%s), dmin %.2f m for %d px at %.0f° (τ %.2f), %zu textures, source %s\n",
+                        a->tree.c_str(), i.atlasSize, city::atlasFormatName(i.format), i.dmin, i.screenWidth, i.fovXDeg,
+                        i.tpp, f->textures.size(), i.source.c_str());
+            for (const auto& t : f->trees) {
+                int depth = 0;
+                std::size_t leaves = 0;
+                std::uint64_t bytes = 0;
+                for (const auto& n : t.nodes) {
+                    depth = std::max(depth, n.level);
+                    leaves += n.leaf();
+                    bytes += n.atlasBytes;
+                }
+                std::printf("  %s tree: %zu nodes (%zu leaves, depth %d), %zu triangles, root minDistance %.1f m, "
+                            "atlases %.1f MB\n",
+                            t.alpha ? "RGBA" : "RGB", t.nodes.size(), leaves, depth, t.vertices.size() / 3,
+                            double(t.nodes[0].minDistance), double(bytes) / 1e6);
+            }
+            std::printf("  plain triangles (roofs from imagery, untextured): %zu\n", f->plain.surface.size());
+            for (const auto& spec : a->atlasPng) {
+                const auto colon = spec.find(':');
+                int node = -1;
+                try {
+                    node = colon == std::string::npos ? -1 : std::stoi(spec.substr(0, colon));
+                } catch (...) {
+                }
+                if (node < 0 || f->trees.empty() || node >= int(f->trees[0].nodes.size()))
+                    return fail("--atlas-png: expected NODE:FILE.png with NODE < " +
+                                std::to_string(f->trees.empty() ? 0 : f->trees[0].nodes.size()) + ", got '" + spec + "'");
+                auto rgba = f->readAtlasRgba(0, node);
+                if (!rgba) return fail(rgba.error().message);
+                const int n = f->info.atlasSize;
+                std::vector<std::uint8_t> rgb(std::size_t(n) * std::size_t(n) * 3);
+                for (int y = 0; y < n; ++y) // rows are bottom-up in the tree, top-down in the PNG
+                    for (int x = 0; x < n; ++x)
+                        for (int c = 0; c < 3; ++c)
+                            rgb[(std::size_t(n - 1 - y) * std::size_t(n) + std::size_t(x)) * 3 + std::size_t(c)] =
+                                (*rgba)[(std::size_t(y) * std::size_t(n) + std::size_t(x)) * 4 + std::size_t(c)];
+                const std::string file = spec.substr(colon + 1);
+                if (auto st = writeImageAtomic(file, rgb.data(), n, n, 3); !st) return fail(st.message());
+                std::printf("  node %d (level %d, minDistance %.1f m, %u triangles) -> %s\n", node,
+                            f->trees[0].nodes[std::size_t(node)].level, double(f->trees[0].nodes[std::size_t(node)].minDistance),
+                            f->trees[0].nodes[std::size_t(node)].count, file.c_str());
+            }
+            return 0;
+        }
+        (void)build;
+        const auto t0 = std::chrono::steady_clock::now();
+        auto model = loadCityForCli(a->input, a->crs, a->objLocal, a->objUp);
+        if (!model) return fail(model.error().message);
+        for (const auto& w : model->warnings) std::fprintf(stderr, "seasonview atlas: warning: %s\n", w.c_str());
+        const double loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        std::printf("%s: %zu buildings, %zu triangles (%zu textured), %zu textures, read in %.1f s\n", a->input.c_str(),
+                    model->buildingIds.size(), model->triangles.size(), model->texturedTriangles(),
+                    model->textures.size(), loadSeconds);
+        std::fflush(stdout);
+
+        city::AtlasBuildSettings s;
+        s.atlasSize = a->atlasSize;
+        if (a->dmin != "auto") {
+            try {
+                s.dmin = std::stod(a->dmin);
+            } catch (...) {
+                return fail("--dmin: expected metres or 'auto', got '" + a->dmin + "'");
+            }
+            if (!(s.dmin > 0.0)) return fail("--dmin must be positive");
+        }
+        if (!(a->tpp > 0.0)) return fail("--tpp must be positive");
+        s.tpp = a->tpp;
+        s.screenWidth = a->screenWidth;
+        s.fovXDeg = a->fovX;
+        s.format = a->format == "deflate" ? city::AtlasFormat::Deflate : city::AtlasFormat::Bc;
+        s.roofsFromImagery = a->roofs == "imagery";
+        s.cacheBytes = std::uint64_t(std::max(16.0, a->cacheMb) * 1048576.0);
+        s.progress = terminalProgress("atlas tree");
+        auto r = city::buildAtlasTree(*model, s, a->out);
+        if (!r) return fail(r.error().message);
+        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        std::printf("%s: %zu nodes (%zu leaves, %zu empty, depth %d), %zu tree triangles (%zu critical at dmin %.2f m, "
+                    "dmin now %.2f m, %zu split), %zu plain, mean leaf fill %.1f %%, atlases %.1f MB, file %.1f MB, "
+                    "%llu texture reads, %.1f s, peak RSS %.2f GB\n",
+                    a->out.c_str(), r->nodes, r->leaves, r->emptyLeaves, r->depth, r->treeTriangles, r->criticalAtDmin,
+                    r->dminInitial, r->dmin, r->criticalSplit, r->plainTriangles, 100.0 * r->meanLeafFill,
+                    double(r->atlasBytes) / 1e6, double(r->fileBytes) / 1e6, (unsigned long long)r->textureReads,
+                    seconds, peakRssGb());
+        if (!a->report.empty()) {
+            nlohmann::json j = {{"input", a->input},
+                                {"buildings", model->buildingIds.size()},
+                                {"triangles", model->triangles.size()},
+                                {"textures", model->textures.size()},
+                                {"tree_triangles", r->treeTriangles},
+                                {"plain_triangles", r->plainTriangles},
+                                {"critical_at_dmin", r->criticalAtDmin},
+                                {"critical_split", r->criticalSplit},
+                                {"dmin_initial_m", r->dminInitial},
+                                {"dmin_m", r->dmin},
+                                {"nodes", r->nodes},
+                                {"leaves", r->leaves},
+                                {"empty_leaves", r->emptyLeaves},
+                                {"depth", r->depth},
+                                {"mean_leaf_fill", r->meanLeafFill},
+                                {"atlas_bytes", r->atlasBytes},
+                                {"file_bytes", r->fileBytes},
+                                {"texture_reads", r->textureReads},
+                                {"peak_texture_cache_bytes", r->peakCacheBytes},
+                                {"seconds", seconds},
+                                {"peak_rss_gb", peakRssGb()},
+                                {"format", city::atlasFormatName(s.format)},
+                                {"atlas_size", s.atlasSize}};
+            std::string err;
+            if (!writeTextAtomic(a->report, j.dump(2) + "\n", err)) return fail(a->report + ": " + err);
+        }
+        return 0;
+    };
+}
+
+} // namespace seasonview::app

@@ -1,0 +1,486 @@
+#include "AtlasTreeBuild.h"
+
+#include "AtlasCodec.h"
+#include "AtlasTreeIo.h"
+#include "AtomicFile.h"
+#include "TextureSource.h"
+
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <numeric>
+#include <set>
+
+namespace seasonview::city {
+
+std::array<TexturedTriangle, 2> splitTriangle(const TexturedTriangle& tri, double fproj, glm::dvec2 maxTexels) {
+    // The edge spanning the most atlas texels: its texture-space length times the texels per repetition.
+    const WorldScale w = textureWorldScale(tri);
+    const glm::dvec2 texels = glm::max(glm::min(glm::dvec2(w.s, w.t) * fproj, maxTexels), glm::dvec2(1.0));
+    int best = 0;
+    double bestLen = -1.0;
+    for (int e = 0; e < 3; ++e) {
+        const glm::dvec2 d = (tri.t[std::size_t((e + 1) % 3)] - tri.t[std::size_t(e)]) * texels;
+        // Ties (and single-colour triangles) fall back to the world-space length.
+        const double len = glm::length(d) + 1e-9 * glm::length(tri.v[std::size_t((e + 1) % 3)] - tri.v[std::size_t(e)]);
+        if (len > bestLen) {
+            bestLen = len;
+            best = e;
+        }
+    }
+    const auto a = std::size_t(best), b = std::size_t((best + 1) % 3), c = std::size_t((best + 2) % 3);
+    const glm::dvec3 mv = 0.5 * (tri.v[a] + tri.v[b]);
+    const glm::dvec2 mt = 0.5 * (tri.t[a] + tri.t[b]);
+    TexturedTriangle t0 = tri, t1 = tri;
+    t0.v = {tri.v[a], mv, tri.v[c]};
+    t0.t = {tri.t[a], mt, tri.t[c]};
+    t1.v = {mv, tri.v[b], tri.v[c]};
+    t1.t = {mt, tri.t[b], tri.t[c]};
+    return {t0, t1};
+}
+
+namespace {
+
+struct TreeInput {
+    bool alpha = false;
+    std::vector<TexturedTriangle> tris;
+    std::vector<std::uint32_t> building;
+};
+
+/// The original texture's size (texels per repetition never exceed it), infinite when unknown.
+glm::dvec2 capOf(const CityTexture& t) {
+    return t.width > 0 && t.height > 0 ? glm::dvec2(t.width, t.height) : glm::dvec2(INFINITY);
+}
+
+bool fits(const AtlasArea& a, int atlasSize) { return a.size.x <= atlasSize && a.size.y <= atlasSize; }
+
+/// How much dmin must grow for a lone triangle to fit: its texel extent (without the border) scales as 1/dmin.
+double growthToFit(const AtlasArea& a, int atlasSize, int border) {
+    const double room = double(atlasSize - 2 * border);
+    return std::max({1.0, double(a.size.x - 2 * border) / room, double(a.size.y - 2 * border) / room});
+}
+
+/// Groups one texture's triangles into clusters whose texture-space rectangles overlap (or come within `margin`):
+/// each cluster gets its own atlas area. The thesis takes one rectangle per texture and node, assuming every
+/// texture maps uniquely onto one surface; textures that are themselves atlases of many facades (PLATEAU) would then
+/// cost the whole texture for every node that uses any part of it.
+std::vector<std::vector<std::uint32_t>> clusterByUv(const std::vector<TexturedTriangle>& all,
+                                                    const std::vector<std::uint32_t>& ids, glm::dvec2 margin) {
+    struct Cluster {
+        glm::dvec2 lo, hi;
+        std::vector<std::uint32_t> ids;
+    };
+    std::vector<Cluster> cs;
+    for (auto i : ids) {
+        const auto& t = all[i].t;
+        cs.push_back({glm::min(t[0], glm::min(t[1], t[2])), glm::max(t[0], glm::max(t[1], t[2])), {i}});
+    }
+    auto near = [&](const Cluster& a, const Cluster& b) {
+        return a.lo.x <= b.hi.x + margin.x && b.lo.x <= a.hi.x + margin.x && a.lo.y <= b.hi.y + margin.y &&
+               b.lo.y <= a.hi.y + margin.y;
+    };
+    for (bool merged = true; merged && cs.size() > 1;) {
+        merged = false;
+        std::sort(cs.begin(), cs.end(), [](const Cluster& a, const Cluster& b) { return a.lo.x < b.lo.x; });
+        std::vector<Cluster> out;
+        std::vector<std::size_t> open; // indices into out whose x range may still reach the sweep line
+        for (auto& c : cs) {
+            std::size_t into = SIZE_MAX;
+            for (std::size_t k = 0; k < open.size();) {
+                Cluster& o = out[open[k]];
+                if (o.hi.x + margin.x < c.lo.x) { // left behind for good
+                    open[k] = open.back();
+                    open.pop_back();
+                    continue;
+                }
+                if (near(o, c)) {
+                    if (into == SIZE_MAX) {
+                        into = open[k];
+                        o.lo = glm::min(o.lo, c.lo);
+                        o.hi = glm::max(o.hi, c.hi);
+                        o.ids.insert(o.ids.end(), c.ids.begin(), c.ids.end());
+                    }
+                    merged = true;
+                }
+                ++k;
+            }
+            if (into == SIZE_MAX) {
+                out.push_back(std::move(c));
+                open.push_back(out.size() - 1);
+            }
+        }
+        cs = std::move(out);
+    }
+    std::vector<std::vector<std::uint32_t>> groups;
+    for (auto& c : cs) groups.push_back(std::move(c.ids));
+    return groups;
+}
+
+/// A leaf's atlas plan: the packed areas and, per area, its triangles (indices into the tree input).
+struct LeafPlan {
+    std::vector<AtlasArea> areas;
+    std::vector<std::vector<std::uint32_t>> areaTris;
+};
+
+struct Builder {
+    const AtlasBuildSettings& s;
+    double fproj;
+    TreeInput& in;
+    AtlasTreeData& out;
+    const std::vector<CityTexture>& textures;
+    std::vector<TexturedTriangle> ordered;      // §4.8.1 order
+    std::vector<std::uint32_t> orderedBuilding;
+    std::vector<std::uint32_t> orderedArea;     // per ordered triangle: its area in its leaf's plan
+    std::map<int, LeafPlan> plans;              // node -> plan
+    std::vector<std::vector<int>> paths;        // node -> child indices from the root
+    double fillSum = 0.0;
+    std::size_t nonEmptyLeaves = 0;
+    int depth = 0;
+
+    glm::dvec2 cap(int texture) const { return capOf(textures[std::size_t(texture)]); }
+
+    /// Tries to pack `ids`; on success returns the plan.
+    std::optional<LeafPlan> tryPack(const std::vector<std::uint32_t>& ids, double* fill) {
+        std::map<int, std::vector<std::uint32_t>> byTexture;
+        for (auto i : ids) byTexture[in.tris[i].texture].push_back(i);
+        LeafPlan plan;
+        for (auto& [tex, texIds] : byTexture) {
+            const glm::dvec2 c = cap(tex);
+            // Rectangles whose borders would touch share one area.
+            const glm::dvec2 margin = std::isfinite(c.x) ? 2.0 * double(s.border) / c : glm::dvec2(0.0);
+            for (auto& group : clusterByUv(in.tris, texIds, margin)) {
+                std::vector<const TexturedTriangle*> tris;
+                for (auto i : group) tris.push_back(&in.tris[i]);
+                plan.areas.push_back(requiredAtlasArea(tris, fproj, s.border, c));
+                if (!fits(plan.areas.back(), s.atlasSize)) return std::nullopt;
+                plan.areaTris.push_back(std::move(group));
+            }
+        }
+        if (!packAtlas(plan.areas, s.atlasSize, fill)) return std::nullopt;
+        return plan;
+    }
+
+int node(const std::vector<std::uint32_t>& ids, int level, int parent, std::vector<int> path) {
+        const int index = int(out.nodes.size());
+        out.nodes.emplace_back();
+        paths.push_back(path);
+        depth = std::max(depth, level);
+        {
+            AtlasNode& n = out.nodes.back();
+            n.level = level;
+            n.parent = parent;
+            n.first = std::uint32_t(ordered.size());
+        }
+        double fill = 0.0;
+        std::optional<LeafPlan> plan;
+        if (ids.empty()) plan = LeafPlan{};
+        else plan = tryPack(ids, &fill);
+        if (plan) {
+            for (std::size_t a = 0; a < plan->areaTris.size(); ++a)
+                for (auto i : plan->areaTris[a]) {
+                    ordered.push_back(in.tris[i]);
+                    orderedBuilding.push_back(in.building[i]);
+                    orderedArea.push_back(std::uint32_t(a));
+                }
+            if (!ids.empty()) {
+                fillSum += fill;
+                ++nonEmptyLeaves;
+            }
+            plans.emplace(index, std::move(*plan));
+        } else {
+            const auto groups = splitByArea(in.tris, ids);
+            for (int c = 0; c < 4; ++c) {
+                auto childPath = path;
+                childPath.push_back(c);
+                const int child = node(groups[std::size_t(c)], level + 1, index, childPath);
+                out.nodes[std::size_t(index)].children[std::size_t(c)] = child;
+            }
+        }
+        AtlasNode& n = out.nodes[std::size_t(index)];
+        n.count = std::uint32_t(ordered.size()) - n.first;
+        return index;
+    }
+};
+
+} // namespace
+
+Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuildSettings& s, const std::string& outPath) {
+    AtlasBuildReport report;
+    auto progress = [&](double f, const char* stage) {
+        if (s.progress) s.progress(f, stage);
+    };
+    if (s.atlasSize < 64 || (s.atlasSize & (s.atlasSize - 1)) != 0)
+        return Error{"--atlas-size must be a power of two of at least 64 (got " + std::to_string(s.atlasSize) + ")"};
+
+    // Which triangles go where: textured ones into the RGB or RGBA tree (thesis §4.2), roofs (when the terrain's
+    // imagery textures them, §4.8.2) and untextured ones into the plain list.
+    AtlasTreeFile file;
+    std::array<TreeInput, 2> inputs;
+    inputs[1].alpha = true;
+    for (std::size_t i = 0; i < model.triangles.size(); ++i) {
+        TexturedTriangle t = model.triangles[i];
+        const bool roof = model.surface[i] == Surface::Roof && s.roofsFromImagery;
+        if (t.texture < 0 || roof) {
+            for (const auto& v : t.v) file.plain.positions.emplace_back(v);
+            file.plain.surface.push_back(model.surface[i]);
+            continue;
+        }
+        const CityTexture& tex = model.textures[std::size_t(t.texture)];
+        // A repeating texture's coordinates may move by whole repetitions: start each triangle's rectangle in
+        // [0, 1) so triangles sharing a texture at different offsets share one atlas area (§4.5.2 assumes this
+        // implicitly; it keeps A_tex small for facades whose u runs on around the building).
+        if (tex.repeat) {
+            const glm::dvec2 lo = glm::floor(glm::min(t.t[0], glm::min(t.t[1], t.t[2])));
+            for (auto& c : t.t) c -= lo;
+        }
+        auto& input = inputs[tex.channels >= 4 ? 1 : 0];
+        input.tris.push_back(t);
+        input.building.push_back(model.building[i]);
+    }
+    report.plainTriangles = file.plain.surface.size();
+    report.inputTreeTriangles = inputs[0].tris.size() + inputs[1].tris.size();
+    if (report.inputTreeTriangles == 0) return fileError(model.source, "no textured triangles to build a tree from");
+
+    // dmin: given, or D/72 (the thesis's Berlin test) with D the bounding-box diagonal.
+    const glm::dvec3 diag = model.boundsMax() - model.boundsMin();
+    double dmin = s.dmin > 0.0 ? s.dmin : glm::length(diag) / 72.0;
+    report.dminInitial = dmin;
+    auto fprojAt = [&](double d) { return projectionFactor(d, s.fovXDeg, s.screenWidth) / s.tpp; };
+
+    // Critical triangles (§4.5.3): if more than c are critical, enlarge dmin so that c are; split the rest.
+    {
+        std::vector<double> growth;
+        for (const auto& input : inputs)
+            for (const auto& t : input.tris) {
+                // Critical: too large for an atlas at dmin even capped at the original's size. Enlarging dmin helps
+                // by the uncapped size's factor (the capped one is then the uncapped one).
+                const glm::dvec2 cap = capOf(model.textures[std::size_t(t.texture)]);
+                const bool critical = !fits(requiredAtlasArea({&t}, fprojAt(dmin), s.border, cap), s.atlasSize);
+                growth.push_back(critical ? growthToFit(requiredAtlasArea({&t}, fprojAt(dmin), s.border), s.atlasSize, s.border) : 1.0);
+            }
+        report.criticalAtDmin = std::size_t(std::count_if(growth.begin(), growth.end(), [](double g) { return g > 1.0; }));
+        const double fraction = double(report.criticalAtDmin) / double(growth.size());
+        if (fraction > s.maxCriticalFraction) {
+            std::sort(growth.begin(), growth.end());
+            // The smallest growth that leaves at most c·n triangles critical: the ceil((1 - c)·n)-th smallest.
+            const auto k = std::size_t(std::ceil((1.0 - s.maxCriticalFraction) * double(growth.size())));
+            const double g = growth[std::min(std::max<std::size_t>(k, 1) - 1, growth.size() - 1)];
+            dmin *= g * 1.0001; // rounding of sizes: a hair more so the quantile's triangle fits
+        }
+    }
+    report.dmin = dmin;
+    const double fproj = fprojAt(dmin);
+    for (auto& input : inputs) {
+        std::vector<TexturedTriangle> done;
+        std::vector<std::uint32_t> doneBuilding;
+        std::vector<std::pair<TexturedTriangle, std::uint32_t>> work;
+        for (std::size_t i = 0; i < input.tris.size(); ++i) work.emplace_back(input.tris[i], input.building[i]);
+        while (!work.empty()) {
+            auto [t, b] = work.back();
+            work.pop_back();
+            const glm::dvec2 cap = capOf(model.textures[std::size_t(t.texture)]);
+            if (fits(requiredAtlasArea({&t}, fproj, s.border, cap), s.atlasSize)) {
+                done.push_back(t);
+                doneBuilding.push_back(b);
+                continue;
+            }
+            if (++report.criticalSplit > 4 * input.tris.size() + 100000)
+                return fileError(model.source, "critical triangles do not shrink by splitting (texture coordinates broken?)");
+            for (const auto& half : splitTriangle(t, fproj, cap)) work.emplace_back(half, b);
+        }
+        input.tris = std::move(done);
+        input.building = std::move(doneBuilding);
+    }
+    report.treeTriangles = inputs[0].tris.size() + inputs[1].tris.size();
+    progress(0.05, "tree structure");
+
+    // The file: header placeholder, atlases as they are made, the index last.
+    const std::filesystem::path target(outPath);
+    const auto tmp = temporaryPathFor(target);
+    std::ofstream os(tmp, std::ios::binary | std::ios::trunc);
+    if (!os) return fileError(outPath, "cannot write (directory missing or not writable?)");
+    const std::vector<std::uint8_t> placeholder(detail::kHeaderBytes, 0);
+    os.write(reinterpret_cast<const char*>(placeholder.data()), std::streamsize(placeholder.size()));
+    std::uint64_t offset = detail::kHeaderBytes;
+
+    file.textures = model.textures;
+    file.textureChannels.assign(model.textures.size(), 3);
+    file.textureSizes.assign(model.textures.size(), glm::ivec2(0));
+    for (std::size_t t = 0; t < model.textures.size(); ++t) file.textureChannels[t] = model.textures[t].channels;
+    TextureCache cache(model.textures, s.cacheBytes);
+
+    const std::size_t totalTris = report.treeTriangles;
+    std::size_t trisDone = 0;
+    double fillSum = 0.0;
+    std::size_t fillCount = 0;
+    for (auto& input : inputs) {
+        if (input.tris.empty()) continue;
+        AtlasTreeData tree;
+        tree.alpha = input.alpha;
+        Builder b{s, fproj, input, tree, model.textures, {}, {}, {}, {}, {}, 0.0, 0, 0};
+        std::vector<std::uint32_t> all(input.tris.size());
+        std::iota(all.begin(), all.end(), 0u);
+        b.node(all, 0, -1, {});
+        report.depth = std::max(report.depth, b.depth);
+        fillSum += b.fillSum;
+        fillCount += b.nonEmptyLeaves;
+
+        // Atlases bottom-up (post-order), each written as soon as it is made; a node's level-0 image is kept
+        // until its parent has used it, so at most 4 per level of the current path are in memory.
+        const int A = s.atlasSize;
+        std::vector<std::vector<std::uint8_t>> images(tree.nodes.size());
+        std::optional<Error> failure;
+        std::function<void(int)> make = [&](int ni) {
+            if (failure) return;
+            AtlasNode& n = tree.nodes[std::size_t(ni)];
+            std::vector<std::uint8_t> img(std::size_t(A) * std::size_t(A) * 4, 0);
+            bool empty = false;
+            if (n.leaf()) {
+                n.minDistance = float(dmin);
+                const LeafPlan& plan = b.plans.at(ni);
+                empty = plan.areas.empty();
+                std::uint64_t texBytes = 0;
+                std::set<int> leafTextures;
+                for (const auto& a : plan.areas) {
+                    auto src = cache.get(a.texture);
+                    if (!src) {
+                        failure = src.error();
+                        return;
+                    }
+                    const SourceTexture& st = **src;
+                    file.textureSizes[std::size_t(a.texture)] = st.sizes[0];
+                    if (leafTextures.insert(a.texture).second) {
+                        texBytes += st.bytes();
+                        n.textures.push_back(std::uint32_t(a.texture));
+                    }
+                    // Each atlas texel samples the source rectangle linearly; the footprint chooses the mip level.
+                    const glm::dvec2 span = a.srcMax - a.srcMin;
+                    const double texelsPer = std::max(span.x * st.sizes[0].x / a.size.x, span.y * st.sizes[0].y / a.size.y);
+                    for (int y = 0; y < a.size.y; ++y)
+                        for (int x = 0; x < a.size.x; ++x) {
+                            const glm::dvec2 uv = a.srcMin + span * glm::dvec2((x + 0.5) / a.size.x, (y + 0.5) / a.size.y);
+                            const glm::vec4 c = st.sample(uv, texelsPer);
+                            std::uint8_t* d = &img[(std::size_t(a.position.y + y) * std::size_t(A) + std::size_t(a.position.x + x)) * 4];
+                            for (int k = 0; k < 4; ++k) d[k] = std::uint8_t(std::clamp(c[k] + 0.5f, 0.0f, 255.0f));
+                        }
+                }
+                n.textureBytes = texBytes;
+                // Atlas coordinates of the leaf's triangles, then the root atlas's (§4.5.4).
+                const auto& path = b.paths[std::size_t(ni)];
+                for (std::uint32_t t = n.first; t < n.first + n.count; ++t) {
+                    const TexturedTriangle& tri = b.ordered[t];
+                    const AtlasArea& a = plan.areas[b.orderedArea[t]];
+                    for (int k = 0; k < 3; ++k) {
+                        const glm::dvec2 local = (glm::dvec2(a.position) + (tri.t[std::size_t(k)] - a.srcMin) /
+                                                                              (a.srcMax - a.srcMin) * glm::dvec2(a.size)) /
+                                                 double(A);
+                        TreeVertex v;
+                        v.position = glm::vec3(tri.v[std::size_t(k)]);
+                        v.uv = glm::vec2(tri.t[std::size_t(k)]);
+                        v.root = glm::vec2(rootAtlasCoord(local, path));
+                        tree.vertices[std::size_t(t) * 3 + std::size_t(k)] = v;
+                    }
+                }
+                trisDone += n.count;
+                progress(0.05 + 0.9 * double(trisDone) / double(totalTris), "atlases");
+            } else {
+                float md = 0.0f;
+                bool any = false;
+                for (int q = 0; q < 4; ++q) {
+                    const int c = n.children[std::size_t(q)];
+                    make(c);
+                    if (failure) return;
+                    const AtlasNode& cn = tree.nodes[std::size_t(c)];
+                    if (cn.count > 0) {
+                        md = std::max(md, cn.minDistance);
+                        any = true;
+                    }
+                    // The child's atlas, halved, into quadrant q (0 bottom-left, 1 bottom-right, 2 top-left, 3 top-right).
+                    const auto half = halveRgba(images[std::size_t(c)], A);
+                    const int ox = (q % 2) * (A / 2), oy = (q / 2) * (A / 2);
+                    for (int y = 0; y < A / 2; ++y)
+                        std::copy_n(&half[std::size_t(y) * std::size_t(A / 2) * 4], std::size_t(A / 2) * 4,
+                                    &img[(std::size_t(oy + y) * std::size_t(A) + std::size_t(ox)) * 4]);
+                    images[std::size_t(c)].clear();
+                    images[std::size_t(c)].shrink_to_fit();
+                }
+                n.minDistance = 2.0f * md; // §4.5.1: half the resolution is enough from twice the distance
+                empty = !any;
+            }
+            // Bounds of the node's triangles.
+            glm::vec3 lo(INFINITY), hi(-INFINITY);
+            for (std::uint32_t t = n.first; t < n.first + n.count; ++t)
+                for (const auto& v : b.ordered[t].v) {
+                    lo = glm::min(lo, glm::vec3(v));
+                    hi = glm::max(hi, glm::vec3(v));
+                }
+            n.boundsMin = n.count ? lo : glm::vec3(0.0f);
+            n.boundsMax = n.count ? hi : glm::vec3(0.0f);
+            if (!empty) {
+                const auto blob = encodeAtlas(s.format, input.alpha, img, A);
+                n.atlasOffset = offset;
+                n.atlasBytes = blob.size();
+                os.write(reinterpret_cast<const char*>(blob.data()), std::streamsize(blob.size()));
+                offset += blob.size();
+                report.atlasBytes += blob.size();
+            }
+            images[std::size_t(ni)] = std::move(img);
+        };
+        tree.vertices.resize(b.ordered.size() * 3);
+        make(0);
+        if (failure) {
+            os.close();
+            discardTemporary(tmp);
+            return *failure;
+        }
+        for (std::size_t t = 0; t < b.ordered.size(); ++t) {
+            tree.triangleTexture.push_back(std::uint32_t(b.ordered[t].texture));
+            tree.triangleBuilding.push_back(b.orderedBuilding[t]);
+        }
+        report.nodes += tree.nodes.size();
+        for (const auto& n : tree.nodes)
+            if (n.leaf()) {
+                ++report.leaves;
+                if (n.count == 0) ++report.emptyLeaves;
+            }
+        file.trees.push_back(std::move(tree));
+    }
+    report.meanLeafFill = fillCount ? fillSum / double(fillCount) : 0.0;
+    report.textureReads = cache.reads();
+    report.peakCacheBytes = cache.peakBytes();
+    report.textures = model.textures.size();
+
+    file.info.atlasSize = s.atlasSize;
+    file.info.border = s.border;
+    file.info.dmin = dmin;
+    file.info.tpp = s.tpp;
+    file.info.screenWidth = s.screenWidth;
+    file.info.fovXDeg = s.fovXDeg;
+    file.info.format = s.format;
+    file.info.crs = model.crs;
+    file.info.origin = model.origin;
+    file.info.sceneFrame = model.sceneFrame;
+    file.info.source = model.source;
+    const auto index = detail::serializeIndex(file);
+    os.write(reinterpret_cast<const char*>(index.data()), std::streamsize(index.size()));
+    const auto header = detail::fileHeader(offset, index.size());
+    os.seekp(0);
+    os.write(reinterpret_cast<const char*>(header.data()), std::streamsize(header.size()));
+    os.close();
+    if (!os) {
+        discardTemporary(tmp);
+        return fileError(outPath, "write failed (disk full?)");
+    }
+    std::string err;
+    if (!commitTemporary(tmp, target, err)) return fileError(outPath, err);
+    report.fileBytes = offset + index.size();
+    progress(1.0, "done");
+    return report;
+}
+
+} // namespace seasonview::city

@@ -1,0 +1,130 @@
+#include "TextureSource.h"
+
+#include "AtlasCodec.h"
+
+#include <OpenImageIO/imageio.h>
+#include <glm/common.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace seasonview::city {
+
+std::uint64_t SourceTexture::bytes() const {
+    std::uint64_t n = 0;
+    for (const auto& m : mips) n += m.size();
+    return n;
+}
+
+namespace {
+
+glm::vec4 bilinear(const std::vector<std::uint8_t>& img, glm::ivec2 size, glm::dvec2 uv, bool repeat) {
+    const double fx = uv.x * size.x - 0.5, fy = uv.y * size.y - 0.5;
+    const double x0f = std::floor(fx), y0f = std::floor(fy);
+    const float ax = float(fx - x0f), ay = float(fy - y0f);
+    auto wrap = [&](long long v, int n) {
+        if (repeat) {
+            const long long m = v % n;
+            return int(m < 0 ? m + n : m);
+        }
+        return int(std::clamp<long long>(v, 0, n - 1));
+    };
+    const long long x0 = (long long)x0f, y0 = (long long)y0f;
+    const int xs[2] = {wrap(x0, size.x), wrap(x0 + 1, size.x)};
+    const int ys[2] = {wrap(y0, size.y), wrap(y0 + 1, size.y)};
+    glm::vec4 acc(0.0f);
+    for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < 2; ++i) {
+            const float w = (i ? ax : 1.0f - ax) * (j ? ay : 1.0f - ay);
+            const std::uint8_t* p = &img[(std::size_t(ys[j]) * std::size_t(size.x) + std::size_t(xs[i])) * 4];
+            acc += w * glm::vec4(p[0], p[1], p[2], p[3]);
+        }
+    return acc;
+}
+
+} // namespace
+
+glm::vec4 SourceTexture::sample(glm::dvec2 uv, double texelsPerSample) const {
+    const double lod = std::clamp(std::log2(std::max(texelsPerSample, 1.0)), 0.0, double(mips.size() - 1));
+    const int l0 = int(std::floor(lod));
+    const int l1 = std::min(l0 + 1, int(mips.size()) - 1);
+    const float f = float(lod - l0);
+    const glm::vec4 a = bilinear(mips[std::size_t(l0)], sizes[std::size_t(l0)], uv, repeat);
+    if (f <= 0.0f || l1 == l0) return a;
+    return a * (1.0f - f) + bilinear(mips[std::size_t(l1)], sizes[std::size_t(l1)], uv, repeat) * f;
+}
+
+Result<SourceTexture> readSourceTexture(const CityTexture& texture) {
+    auto in = OIIO::ImageInput::open(texture.path);
+    if (!in) return fileError(texture.path, "cannot open texture: " + firstLine(OIIO::geterror()));
+    const OIIO::ImageSpec spec = in->spec();
+    if (spec.width <= 0 || spec.height <= 0 || spec.nchannels < 1) return fileError(texture.path, "empty texture");
+    std::vector<std::uint8_t> px(std::size_t(spec.width) * std::size_t(spec.height) * std::size_t(spec.nchannels));
+    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::UINT8, px.data()))
+        return fileError(texture.path, "cannot read texture: " + firstLine(in->geterror()));
+    SourceTexture t;
+    t.channels = spec.nchannels >= 4 ? 4 : 3;
+    t.repeat = texture.repeat;
+    const int w = spec.width, h = spec.height, n = spec.nchannels;
+    std::vector<std::uint8_t> rgba(std::size_t(w) * std::size_t(h) * 4);
+    for (int y = 0; y < h; ++y) // flip: row 0 of the result is the image's bottom row
+        for (int x = 0; x < w; ++x) {
+            const std::uint8_t* s = &px[(std::size_t(h - 1 - y) * std::size_t(w) + std::size_t(x)) * std::size_t(n)];
+            std::uint8_t* d = &rgba[(std::size_t(y) * std::size_t(w) + std::size_t(x)) * 4];
+            d[0] = s[0];
+            d[1] = n >= 3 ? s[1] : s[0];
+            d[2] = n >= 3 ? s[2] : s[0];
+            d[3] = n >= 4 ? s[3] : (n == 2 ? s[1] : 255);
+        }
+    t.mips.push_back(std::move(rgba));
+    t.sizes.push_back({w, h});
+    // Box-filtered mips (odd sizes: the last row/column folds into its neighbour) down to 1×1.
+    while (t.sizes.back().x > 1 || t.sizes.back().y > 1) {
+        const glm::ivec2 s = t.sizes.back();
+        const glm::ivec2 d = glm::max(s / 2, glm::ivec2(1));
+        const auto& src = t.mips.back();
+        std::vector<std::uint8_t> dst(std::size_t(d.x) * std::size_t(d.y) * 4);
+        for (int y = 0; y < d.y; ++y)
+            for (int x = 0; x < d.x; ++x)
+                for (int c = 0; c < 4; ++c) {
+                    int sum = 0, cnt = 0;
+                    for (int yy = 2 * y; yy < std::min(2 * y + 2 + (y == d.y - 1 ? s.y % 2 : 0), s.y); ++yy)
+                        for (int xx = 2 * x; xx < std::min(2 * x + 2 + (x == d.x - 1 ? s.x % 2 : 0), s.x); ++xx) {
+                            sum += src[(std::size_t(yy) * std::size_t(s.x) + std::size_t(xx)) * 4 + std::size_t(c)];
+                            ++cnt;
+                        }
+                    dst[(std::size_t(y) * std::size_t(d.x) + std::size_t(x)) * 4 + std::size_t(c)] =
+                        std::uint8_t((sum + cnt / 2) / std::max(cnt, 1));
+                }
+        t.mips.push_back(std::move(dst));
+        t.sizes.push_back(d);
+    }
+    return t;
+}
+
+TextureCache::TextureCache(const std::vector<CityTexture>& textures, std::uint64_t capacityBytes)
+    : m_textures(textures), m_capacity(capacityBytes) {}
+
+Result<std::shared_ptr<const SourceTexture>> TextureCache::get(int texture) {
+    if (auto it = m_entries.find(texture); it != m_entries.end()) {
+        m_lru.splice(m_lru.begin(), m_lru, it->second.pos);
+        return it->second.tex;
+    }
+    auto t = readSourceTexture(m_textures[std::size_t(texture)]);
+    if (!t) return t.error();
+    ++m_reads;
+    auto ptr = std::make_shared<const SourceTexture>(std::move(*t));
+    m_bytes += ptr->bytes();
+    m_lru.push_front(texture);
+    m_entries.emplace(texture, Entry{ptr, m_lru.begin()});
+    m_peak = std::max(m_peak, m_bytes);
+    while (m_bytes > m_capacity && m_lru.size() > 1) {
+        const int victim = m_lru.back();
+        m_lru.pop_back();
+        m_bytes -= m_entries[victim].tex->bytes();
+        m_entries.erase(victim);
+    }
+    return ptr;
+}
+
+} // namespace seasonview::city

@@ -1,0 +1,55 @@
+#pragma once
+// Original textures for the atlas build, read on demand through a byte-capped LRU cache (the build never holds all
+// textures, thesis §4.7.1's 7.3 GB of facades), each with a box-filtered mip chain, sampled trilinearly so a
+// texture shrunk into an atlas does not alias.
+#include "CityModel.h"
+#include "Result.h"
+
+#include <glm/vec2.hpp>
+#include <glm/vec4.hpp>
+
+#include <cstdint>
+#include <list>
+#include <memory>
+#include <unordered_map>
+#include <vector>
+
+namespace seasonview::city {
+
+/// One decoded texture: RGBA8 mips, rows bottom-up (texture coordinate v = 0 is the image's bottom row).
+struct SourceTexture {
+    std::vector<std::vector<std::uint8_t>> mips;
+    std::vector<glm::ivec2> sizes;
+    int channels = 3; // of the file
+    bool repeat = true;
+    std::uint64_t bytes() const;
+    /// Colour at texture coordinates `uv` (texture units; repeated or clamped) with `texelsPerSample` source texels
+    /// of level 0 per output sample (chooses and blends two mip levels). RGBA, 0..255.
+    glm::vec4 sample(glm::dvec2 uv, double texelsPerSample) const;
+};
+
+/// Reads a texture file (any format OpenImageIO reads; 8/16-bit, grey, RGB or RGBA) into a SourceTexture.
+Result<SourceTexture> readSourceTexture(const CityTexture& texture);
+
+class TextureCache {
+public:
+    explicit TextureCache(const std::vector<CityTexture>& textures, std::uint64_t capacityBytes);
+    /// The texture (read on first use, kept until the cache's bytes exceed the capacity, least recently used
+    /// first). A failed read is an error naming the file.
+    Result<std::shared_ptr<const SourceTexture>> get(int texture);
+    std::uint64_t bytes() const { return m_bytes; }
+    std::uint64_t peakBytes() const { return m_peak; }
+    std::uint64_t reads() const { return m_reads; }
+
+private:
+    const std::vector<CityTexture>& m_textures;
+    std::uint64_t m_capacity, m_bytes = 0, m_peak = 0, m_reads = 0;
+    std::list<int> m_lru; // front = most recent
+    struct Entry {
+        std::shared_ptr<const SourceTexture> tex;
+        std::list<int>::iterator pos;
+    };
+    std::unordered_map<int, Entry> m_entries;
+};
+
+} // namespace seasonview::city

@@ -1,0 +1,383 @@
+// The texture-atlas tree build (thesis §4.5) and its file: structure invariants, atlas contents against the
+// original textures, critical triangles, out-of-core texture reading, RGB/RGBA trees, bad files.
+#include "AtlasCodec.h"
+#include "AtlasTreeBuild.h"
+#include "TestUtil.h"
+
+#include <OpenImageIO/imageio.h>
+#include <glm/common.hpp>
+#include <glm/ext/vector_uint4_sized.hpp>
+#include <glm/geometric.hpp>
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+using namespace seasonview;
+using namespace seasonview::city;
+
+namespace {
+
+glm::u8vec4 colourOf(int i) {
+    return {std::uint8_t(40 + (i * 67) % 200), std::uint8_t(40 + (i * 131) % 200), std::uint8_t(40 + (i * 29) % 200),
+            std::uint8_t(i % 2 ? 255 : 128)};
+}
+
+/// A w×h texture of one colour (RGB or RGBA).
+void writeSolid(const std::filesystem::path& p, int w, int h, glm::u8vec4 c, int channels) {
+    std::vector<std::uint8_t> px(std::size_t(w * h * channels));
+    for (std::size_t i = 0; i < px.size(); i += std::size_t(channels))
+        for (int k = 0; k < channels; ++k) px[i + std::size_t(k)] = c[k];
+    auto out = OIIO::ImageOutput::create(p.string());
+    ASSERT_TRUE(out);
+    ASSERT_TRUE(out->open(p.string(), OIIO::ImageSpec(w, h, channels, OIIO::TypeDesc::UINT8)));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, px.data()));
+    out->close();
+}
+
+/// A row of `n` walls, 10 m wide and 8 m high, 15 m apart along x, each with its own solid texture (256×128,
+/// `alphaEvery`-th RGBA), two triangles per wall, plus a flat roof per wall (a roof surface) and one untextured
+/// triangle.
+CityModel wallModel(const std::filesystem::path& dir, int n, int alphaEvery = 0) {
+    CityModel m;
+    m.source = (dir / "model").string();
+    m.crs = Crs::utm(33, true);
+    for (int i = 0; i < n; ++i) {
+        const bool alpha = alphaEvery > 0 && i % alphaEvery == 0;
+        const auto path = dir / ("t" + std::to_string(i) + ".png");
+        writeSolid(path, 256, 128, colourOf(i), alpha ? 4 : 3);
+        m.textures.push_back(CityTexture{path.string(), false, alpha ? 4 : 3, 256, 128});
+        m.buildingIds.push_back("b" + std::to_string(i));
+        const double x0 = 15.0 * i;
+        TexturedTriangle a, b;
+        a.v = {glm::dvec3(x0, 0, 0), glm::dvec3(x0 + 10, 0, 0), glm::dvec3(x0 + 10, 0, 8)};
+        a.t = {glm::dvec2(0, 0), glm::dvec2(1, 0), glm::dvec2(1, 1)};
+        b.v = {glm::dvec3(x0, 0, 0), glm::dvec3(x0 + 10, 0, 8), glm::dvec3(x0, 0, 8)};
+        b.t = {glm::dvec2(0, 0), glm::dvec2(1, 1), glm::dvec2(0, 1)};
+        a.texture = b.texture = i;
+        for (const auto& t : {a, b}) {
+            m.triangles.push_back(t);
+            m.building.push_back(std::uint32_t(i));
+            m.surface.push_back(Surface::Wall);
+        }
+        TexturedTriangle roof;
+        roof.v = {glm::dvec3(x0, 0, 8), glm::dvec3(x0 + 10, 0, 8), glm::dvec3(x0 + 10, 5, 8)};
+        roof.texture = i;
+        roof.t = {glm::dvec2(0, 0), glm::dvec2(1, 0), glm::dvec2(1, 1)};
+        m.triangles.push_back(roof);
+        m.building.push_back(std::uint32_t(i));
+        m.surface.push_back(Surface::Roof);
+    }
+    TexturedTriangle plain;
+    plain.v = {glm::dvec3(0, -5, 0), glm::dvec3(5, -5, 0), glm::dvec3(0, -5, 5)};
+    plain.texture = -1;
+    m.triangles.push_back(plain);
+    m.building.push_back(0);
+    m.surface.push_back(Surface::Wall);
+    return m;
+}
+
+/// Checks §4.3/§4.8.1 invariants of one tree; returns the number of leaves.
+void checkStructure(const AtlasTreeData& t, const AtlasTreeInfo& info) {
+    ASSERT_FALSE(t.nodes.empty());
+    EXPECT_EQ(t.nodes[0].parent, -1);
+    EXPECT_EQ(t.nodes[0].first, 0u);
+    EXPECT_EQ(t.nodes[0].count, t.vertices.size() / 3);
+    for (std::size_t i = 0; i < t.nodes.size(); ++i) {
+        const AtlasNode& n = t.nodes[i];
+        if (n.leaf()) {
+            for (int c : n.children) EXPECT_EQ(c, -1);
+            if (n.count > 0) {
+                EXPECT_FLOAT_EQ(n.minDistance, float(info.dmin));
+            }
+            continue;
+        }
+        // Four children whose ranges tile the parent's, in order; minDistance doubles the largest child's.
+        std::uint32_t next = n.first;
+        float md = 0.0f;
+        for (int c : n.children) {
+            ASSERT_GE(c, 0);
+            const AtlasNode& ch = t.nodes[std::size_t(c)];
+            EXPECT_EQ(ch.parent, int(i));
+            EXPECT_EQ(ch.level, n.level + 1);
+            EXPECT_EQ(ch.first, next);
+            next += ch.count;
+            if (ch.count > 0) md = std::max(md, ch.minDistance);
+            // The child's bounds lie inside the parent's.
+            if (ch.count > 0)
+                for (int k = 0; k < 3; ++k) {
+                    EXPECT_GE(ch.boundsMin[k], n.boundsMin[k]);
+                    EXPECT_LE(ch.boundsMax[k], n.boundsMax[k]);
+                }
+        }
+        EXPECT_EQ(next, n.first + n.count);
+        EXPECT_FLOAT_EQ(n.minDistance, 2.0f * md);
+    }
+}
+
+std::vector<int> pathOf(const AtlasTreeData& t, int node) {
+    std::vector<int> path;
+    for (int n = node; t.nodes[std::size_t(n)].parent >= 0; n = t.nodes[std::size_t(n)].parent) {
+        const auto& p = t.nodes[std::size_t(t.nodes[std::size_t(n)].parent)];
+        path.insert(path.begin(), int(std::find(p.children.begin(), p.children.end(), n) - p.children.begin()));
+    }
+    return path;
+}
+
+glm::u8vec4 texel(const std::vector<std::uint8_t>& rgba, int size, glm::dvec2 uv) {
+    const int x = std::clamp(int(uv.x * size), 0, size - 1), y = std::clamp(int(uv.y * size), 0, size - 1);
+    const std::uint8_t* p = &rgba[(std::size_t(y) * std::size_t(size) + std::size_t(x)) * 4];
+    return {p[0], p[1], p[2], p[3]};
+}
+
+} // namespace
+
+TEST(AtlasTreeTest, SplitTriangleKeepsTheTextureMapping) {
+    TexturedTriangle t;
+    t.v = {glm::dvec3(0, 0, 0), glm::dvec3(40, 0, 0), glm::dvec3(0, 0, 10)};
+    t.t = {glm::dvec2(0, 0), glm::dvec2(4, 0), glm::dvec2(0, 1)};
+    const auto halves = splitTriangle(t, 10.0);
+    EXPECT_NEAR(triangleArea(halves[0]) + triangleArea(halves[1]), triangleArea(t), 1e-9);
+    // 100 texels per repetition each way: the edges span 400, 412 and 100 texels, so the second (from (40, 0, 0)
+    // to (0, 0, 10)) is split at (20, 0, 5).
+    for (const auto& h : halves) {
+        bool hasMid = false;
+        for (int k = 0; k < 3; ++k) {
+            const glm::dvec3 p = h.v[std::size_t(k)];
+            // The same affine map: u = x / 10, v = z / 10.
+            EXPECT_NEAR(h.t[std::size_t(k)].x, p.x / 10.0, 1e-12);
+            EXPECT_NEAR(h.t[std::size_t(k)].y, p.z / 10.0, 1e-12);
+            hasMid = hasMid || glm::length(p - glm::dvec3(20, 0, 5)) < 1e-12;
+        }
+        EXPECT_TRUE(hasMid);
+    }
+}
+
+TEST(AtlasTreeTest, BuildsAValidTreeWhoseAtlasesHoldTheTextures) {
+    test::TempDir dir("atlas_build");
+    const CityModel model = wallModel(dir.path(), 40);
+    AtlasBuildSettings s;
+    s.atlasSize = 128; // small atlases force a deep tree
+    s.dmin = 200.0; // a wall is 48×38 texels + border: four per 128² atlas
+    s.format = AtlasFormat::Deflate; // lossless, so the colours can be compared exactly
+    auto r = buildAtlasTree(model, s, (dir / "t.svat").string());
+    ASSERT_TRUE(r) << r.error().message;
+    EXPECT_EQ(r->inputTreeTriangles, 80u);
+    EXPECT_EQ(r->plainTriangles, 41u); // 40 roofs + the untextured triangle
+    EXPECT_GT(r->depth, 1);
+    EXPECT_GT(r->meanLeafFill, 0.0);
+    EXPECT_LE(r->meanLeafFill, 1.0);
+    auto f = AtlasTreeFile::open((dir / "t.svat").string());
+    ASSERT_TRUE(f) << f.error().message;
+    ASSERT_EQ(f->trees.size(), 1u);
+    EXPECT_EQ(f->plain.surface.size(), 41u);
+    EXPECT_EQ(f->info.atlasSize, 128);
+    EXPECT_DOUBLE_EQ(f->info.dmin, 200.0);
+    const AtlasTreeData& t = f->trees[0];
+    checkStructure(t, f->info);
+    EXPECT_EQ(t.vertices.size(), 240u);
+
+    // Every leaf triangle's centroid, looked up through the root-atlas coordinates at the leaf's level, shows its
+    // texture's colour in the leaf's atlas; at the parent's level (one halving), still inside its area.
+    int checked = 0;
+    for (std::size_t ni = 0; ni < t.nodes.size(); ++ni) {
+        const AtlasNode& n = t.nodes[ni];
+        if (!n.leaf() || n.count == 0) continue;
+        auto leafAtlas = f->readAtlasRgba(0, int(ni));
+        ASSERT_TRUE(leafAtlas);
+        for (std::uint32_t tri = n.first; tri < n.first + n.count; ++tri) {
+            glm::dvec2 root(0.0);
+            for (int k = 0; k < 3; ++k) root += glm::dvec2(t.vertices[tri * 3 + std::size_t(k)].root) / 3.0;
+            const glm::u8vec4 want = colourOf(int(t.triangleTexture[tri]));
+            const glm::u8vec4 got = texel(*leafAtlas, 128, levelAtlasCoord(root, n.level));
+            for (int c = 0; c < 3; ++c) EXPECT_NEAR(int(got[c]), int(want[c]), 1) << "node " << ni << " tri " << tri;
+            // The root coordinates reproduce the leaf coordinates through the path (§4.5.4).
+            const auto path = pathOf(t, int(ni));
+            EXPECT_EQ(int(path.size()), n.level);
+            ++checked;
+        }
+        if (n.parent >= 0) {
+            auto parentAtlas = f->readAtlasRgba(0, n.parent);
+            ASSERT_TRUE(parentAtlas);
+            const AtlasNode& p = t.nodes[std::size_t(n.parent)];
+            for (std::uint32_t tri = n.first; tri < n.first + n.count; ++tri) {
+                glm::dvec2 root(0.0);
+                for (int k = 0; k < 3; ++k) root += glm::dvec2(t.vertices[tri * 3 + std::size_t(k)].root) / 3.0;
+                const glm::u8vec4 want = colourOf(int(t.triangleTexture[tri]));
+                const glm::u8vec4 got = texel(*parentAtlas, 128, levelAtlasCoord(root, p.level));
+                for (int c = 0; c < 3; ++c) EXPECT_NEAR(int(got[c]), int(want[c]), 1);
+            }
+        }
+    }
+    EXPECT_EQ(checked, 80);
+    // Each leaf lists the textures it uses and their decoded bytes (paging, §4.6).
+    for (const auto& n : t.nodes)
+        if (n.leaf() && n.count > 0) {
+            EXPECT_FALSE(n.textures.empty());
+            EXPECT_GT(n.textureBytes, 0u);
+        }
+}
+
+TEST(AtlasTreeTest, BcAtlasesAreCloseToTheLosslessOnes) {
+    test::TempDir dir("atlas_bc");
+    const CityModel model = wallModel(dir.path(), 12);
+    AtlasBuildSettings s;
+    s.atlasSize = 128;
+    s.dmin = 200.0; // a wall is 48×38 texels + border: four per 128² atlas
+    s.format = AtlasFormat::Deflate;
+    ASSERT_TRUE(buildAtlasTree(model, s, (dir / "d.svat").string()));
+    s.format = AtlasFormat::Bc;
+    ASSERT_TRUE(buildAtlasTree(model, s, (dir / "b.svat").string()));
+    auto d = AtlasTreeFile::open((dir / "d.svat").string());
+    auto b = AtlasTreeFile::open((dir / "b.svat").string());
+    ASSERT_TRUE(d && b);
+    ASSERT_EQ(d->trees[0].nodes.size(), b->trees[0].nodes.size());
+    for (std::size_t n = 0; n < d->trees[0].nodes.size(); ++n) {
+        auto x = d->readAtlasRgba(0, int(n)), y = b->readAtlasRgba(0, int(n));
+        ASSERT_TRUE(x && y);
+        const auto diff = test::compareRgb(test::rgbOf(*x), test::rgbOf(*y), 128, 128, 3);
+        EXPECT_GT(diff.psnr, 35.0) << "node " << n; // solid colours: BC1's 5:6:5 endpoints are the only loss
+        EXPECT_LT(b->trees[0].nodes[n].atlasBytes, 128u * 128u * 3u);
+    }
+}
+
+TEST(AtlasTreeTest, RgbaTexturesGetTheirOwnTree) {
+    test::TempDir dir("atlas_rgba");
+    const CityModel model = wallModel(dir.path(), 9, 3);
+    AtlasBuildSettings s;
+    s.atlasSize = 256;
+    s.dmin = 200.0; // a wall is 48×38 texels + border: four per 128² atlas
+    auto r = buildAtlasTree(model, s, (dir / "t.svat").string());
+    ASSERT_TRUE(r) << r.error().message;
+    auto f = AtlasTreeFile::open((dir / "t.svat").string());
+    ASSERT_TRUE(f);
+    ASSERT_EQ(f->trees.size(), 2u);
+    EXPECT_FALSE(f->trees[0].alpha);
+    EXPECT_TRUE(f->trees[1].alpha);
+    EXPECT_EQ(f->trees[0].vertices.size() / 3, 12u); // 6 RGB walls
+    EXPECT_EQ(f->trees[1].vertices.size() / 3, 6u);  // 3 RGBA walls
+    for (auto t : f->trees[1].triangleTexture) EXPECT_EQ(t % 3, 0u);
+    // The RGBA atlas keeps alpha (BC3): the textures with alpha 128 show it.
+    auto atlas = f->readAtlasRgba(1, 0);
+    ASSERT_TRUE(atlas);
+    const auto& v = f->trees[1].vertices;
+    glm::dvec2 root = (glm::dvec2(v[0].root) + glm::dvec2(v[1].root) + glm::dvec2(v[2].root)) / 3.0;
+    const int tex = int(f->trees[1].triangleTexture[0]);
+    EXPECT_NEAR(int(texel(*atlas, 256, root)[3]), int(colourOf(tex)[3]), 4);
+    checkStructure(f->trees[1], f->info);
+}
+
+TEST(AtlasTreeTest, CriticalTrianglesEnlargeDminThenSplit) {
+    test::TempDir dir("atlas_critical");
+    CityModel model = wallModel(dir.path(), 10);
+    // At dmin 1 m a 10 m wall wants 9600 texels across, capped at its 256-texel original: with the border, more
+    // than a 128² atlas holds, so all 20 wall triangles are critical (100 % > 10 %). dmin grows until only 10 %
+    // are: one wall made 50 m long (its texture repeated 5 times, 2 triangles) needs 5 times the growth, stays
+    // critical and is split.
+    for (std::size_t i = 0; i < 2; ++i) {
+        for (auto& v : model.triangles[i].v) v.x *= 5.0;
+        for (auto& c : model.triangles[i].t) c.x *= 5.0;
+    }
+    AtlasBuildSettings s;
+    s.atlasSize = 128;
+    s.dmin = 1.0;
+    auto r = buildAtlasTree(model, s, (dir / "t.svat").string());
+    ASSERT_TRUE(r) << r.error().message;
+    EXPECT_EQ(r->criticalAtDmin, 20u);
+    EXPECT_GT(r->dmin, 50.0);
+    EXPECT_GT(r->criticalSplit, 0u);
+    EXPECT_GT(r->treeTriangles, r->inputTreeTriangles);
+    auto f = AtlasTreeFile::open((dir / "t.svat").string());
+    ASSERT_TRUE(f);
+    checkStructure(f->trees[0], f->info);
+    // Whatever was split still covers the same area.
+    double before = 0.0, after = 0.0;
+    for (std::size_t i = 0; i < model.triangles.size(); ++i)
+        if (model.surface[i] == Surface::Wall && model.triangles[i].texture >= 0) before += triangleArea(model.triangles[i]);
+    const auto& v = f->trees[0].vertices;
+    for (std::size_t i = 0; i < v.size(); i += 3)
+        after += 0.5 * double(glm::length(glm::cross(v[i + 1].position - v[i].position, v[i + 2].position - v[i].position)));
+    EXPECT_NEAR(after, before, 1e-3 * before);
+}
+
+TEST(AtlasTreeTest, BuildReadsTexturesOutOfCore) {
+    test::TempDir dir("atlas_ooc");
+    const CityModel model = wallModel(dir.path(), 30);
+    AtlasBuildSettings s;
+    s.atlasSize = 128;
+    s.dmin = 200.0; // a wall is 48×38 texels + border: four per 128² atlas
+    s.cacheBytes = 256 * 128 * 4 * 2; // about one texture with its mips
+    auto r = buildAtlasTree(model, s, (dir / "t.svat").string());
+    ASSERT_TRUE(r) << r.error().message;
+    EXPECT_GE(r->textureReads, 30u);
+    // Never more than the capacity plus the texture being read.
+    EXPECT_LE(r->peakCacheBytes, s.cacheBytes + 256u * 128u * 4u * 4u / 3u + 64u);
+}
+
+TEST(AtlasTreeTest, BadInputAndBadFiles) {
+    test::TempDir dir("atlas_bad");
+    CityModel model = wallModel(dir.path(), 4);
+    std::filesystem::remove(dir / "t2.png"); // vanished after the model was read
+    AtlasBuildSettings s;
+    s.atlasSize = 128;
+    s.dmin = 200.0; // a wall is 48×38 texels + border: four per 128² atlas
+    auto r = buildAtlasTree(model, s, (dir / "t.svat").string());
+    ASSERT_FALSE(r);
+    EXPECT_NE(r.error().message.find("t2.png"), std::string::npos) << r.error().message;
+    EXPECT_FALSE(std::filesystem::exists(dir / "t.svat"));
+    for (const auto& e : std::filesystem::directory_iterator(dir.path()))
+        EXPECT_EQ(e.path().filename().string().find(".partial"), std::string::npos) << e.path();
+
+    s.atlasSize = 100;
+    EXPECT_FALSE(buildAtlasTree(model, s, (dir / "t.svat").string()));
+
+    // A good file, then damaged copies.
+    model = wallModel(dir.path(), 4);
+    s.atlasSize = 128;
+    ASSERT_TRUE(buildAtlasTree(model, s, (dir / "good.svat").string()));
+    const std::string bytes = test::readBytes(dir / "good.svat");
+    auto write = [&](const std::string& name, const std::string& b) {
+        std::ofstream(dir / name, std::ios::binary) << b;
+        return (dir / name).string();
+    };
+    auto cut = AtlasTreeFile::open(write("cut.svat", bytes.substr(0, bytes.size() - 10)));
+    ASSERT_FALSE(cut);
+    EXPECT_NE(cut.error().message.find("truncated"), std::string::npos) << cut.error().message;
+    std::string foreign = bytes;
+    foreign[0] = 'X';
+    EXPECT_FALSE(AtlasTreeFile::open(write("foreign.svat", foreign)));
+    std::string newer = bytes;
+    newer[8] = char(99);
+    auto nv = AtlasTreeFile::open(write("newer.svat", newer));
+    ASSERT_FALSE(nv);
+    EXPECT_NE(nv.error().message.find("version"), std::string::npos) << nv.error().message;
+    EXPECT_FALSE(AtlasTreeFile::open((dir / "none.svat").string()));
+    EXPECT_FALSE(AtlasTreeFile::open(write("empty.svat", "")));
+}
+
+TEST(AtlasTreeTest, CodecRoundTripsAndMipChain) {
+    const int n = 64;
+    std::vector<std::uint8_t> rgba(std::size_t(n * n * 4));
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+            std::uint8_t* p = &rgba[std::size_t((y * n + x) * 4)];
+            p[0] = std::uint8_t(x * 4);
+            p[1] = std::uint8_t(y * 4);
+            p[2] = std::uint8_t((x + y) * 2);
+            p[3] = 255;
+        }
+    EXPECT_EQ(atlasLevels(64), 5); // 64, 32, 16, 8, 4
+    const auto d = encodeAtlas(AtlasFormat::Deflate, false, rgba, n);
+    EXPECT_EQ(decodeAtlasRgba(AtlasFormat::Deflate, false, d, n), rgba);
+    const auto level1 = atlasLevelData(AtlasFormat::Deflate, false, d, n, 1);
+    ASSERT_EQ(level1.size(), 32u * 32u * 3u);
+    const auto half = halveRgba(rgba, n);
+    EXPECT_EQ(level1[0], half[0]);
+    EXPECT_EQ(level1[(5 * 32 + 7) * 3 + 1], half[(5 * 32 + 7) * 4 + 1]);
+    const auto bc = encodeAtlas(AtlasFormat::Bc, false, rgba, n);
+    std::uint64_t expect = 0;
+    for (int l = 0; l < 5; ++l) expect += atlasLevelBytes(AtlasFormat::Bc, false, n, l);
+    EXPECT_EQ(bc.size(), expect);
+    const auto back = decodeAtlasRgba(AtlasFormat::Bc, false, bc, n);
+    EXPECT_GT(test::compareRgb(test::rgbOf(back), test::rgbOf(rgba), n, n, 3).psnr, 35.0); // smooth gradients
+    EXPECT_TRUE(decodeAtlasRgba(AtlasFormat::Deflate, false, std::vector<std::uint8_t>(10, 7), n).empty());
+}
