@@ -37,7 +37,8 @@ bool cachedSceneMatches(const std::filesystem::path& dir, const SynthOptions& o)
     auto j = nlohmann::json::parse(f, nullptr, false);
     if (j.is_discarded() || !j.contains("generator")) return false;
     const auto& g = j["generator"];
-    return g.value("seed", std::uint64_t(0)) == o.seed && g.value("size_m", 0.0) == o.sizeM &&
+    return g.value("version", 0) == kSynthGeneratorVersion && g.value("seed", std::uint64_t(0)) == o.seed &&
+           g.value("size_m", 0.0) == o.sizeM &&
            g.value("gsd", 0.0) == o.gsd && g.value("dem", std::string()) == o.dem.string();
 }
 

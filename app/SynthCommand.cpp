@@ -44,7 +44,8 @@ Result<SynthOptions> loadSynthPreset(const std::filesystem::path& path) {
 Runner addSynthCommand(CLI::App& app) {
     struct Args {
         SynthOptions o;
-        std::string out, dem, preset;
+        std::string out, dem, preset, facades;
+        bool noCity = false;
     };
     auto args = std::make_shared<Args>();
     CLI::App* cmd = app.add_subcommand("synth", "Generate a deterministic synthetic leaf-on/leaf-off scene with ground truth");
@@ -65,6 +66,13 @@ Runner addSynthCommand(CLI::App& app) {
                     "Imagery rows generated at a time (0 = " + std::to_string(kDefaultSynthBandRows) +
                         "); memory grows with it, the output does not depend on it")
         ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--facades", args->facades,
+                    "Folder of facade photos for the city model's textures (e.g. ../shared/data/city/berlin_facades); "
+                    "default: procedural facades");
+    cmd->add_option("--facade-size", args->o.facadeSize, "Facade texture side, texels")
+        ->capture_default_str()
+        ->check(CLI::Range(16, 4096));
+    cmd->add_flag("--no-city", args->noCity, "Do not write the buildings as a city model (city/)");
     return [args, cmd]() -> int {
         if (!args->preset.empty()) {
             auto preset = loadSynthPreset(args->preset);
@@ -77,6 +85,8 @@ Runner addSynthCommand(CLI::App& app) {
             if (cmd->count("--seed") == 0) args->o.seed = preset->seed;
         }
         args->o.dem = args->dem;
+        args->o.facadePhotos = args->facades;
+        args->o.city = !args->noCity;
         const double pixels = args->o.sizeM / args->o.gsd;
         if (pixels > double(kMaxSynthPixels)) {
             std::fprintf(stderr, "seasonview synth: --size-m/--gsd gives %.0f pixels per side (max %d)\n", pixels,
@@ -88,9 +98,11 @@ Runner addSynthCommand(CLI::App& app) {
             std::fprintf(stderr, "seasonview synth: %s\n", report.message().c_str());
             return 1;
         }
-        std::printf("wrote %s: %dx%d px per season, DEM %dx%d, %d deciduous trees, %d conifers, %s, in %.1f s\n",
+        std::printf("wrote %s: %dx%d px per season, DEM %dx%d, %d deciduous trees, %d conifers, %zu buildings "
+                    "(%.1f MB of facades), %s, in %.1f s\n",
                     args->out.c_str(), report->width, report->height, report->demWidth, report->demHeight,
-                    report->deciduousTrees, report->conifers, report->crs.c_str(), report->seconds);
+                    report->deciduousTrees, report->conifers, report->buildings, double(report->facadeBytes) / 1e6,
+                    report->crs.c_str(), report->seconds);
         return 0;
     };
 }

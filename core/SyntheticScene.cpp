@@ -14,6 +14,7 @@
 #include "ImageStreamWriter.h"
 #include "Raster.h"
 #include "SynthCamera.h"
+#include "SynthCity.h"
 #include "SynthLayout.h"
 #include "SynthObjects.h"
 #include "SynthPaint.h"
@@ -313,14 +314,32 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
         !st)
         return st.error();
 
+    if (options.city) {
+        stage(0.96, "city");
+        synth::CityWriteOptions co;
+        co.facadePhotos = options.facadePhotos;
+        co.textureSize = options.facadeSize;
+        co.threads = threads;
+        // The terrain under a local point, as dem.tif holds it (sample (i, j) at the centre of its cell, row 0 north).
+        const auto groundAt = [&](float x, float y) {
+            return terrain.bilinear(terrain.z, (x + terrain.halfExtent) / terrain.spacing - 0.5f,
+                                    (terrain.halfExtent - y) / terrain.spacing - 0.5f);
+        };
+        auto city = synth::writeSynthCity(outDir / "city", objects.buildings, layout.warp, half, groundAt, co);
+        if (!city) return city.error();
+        report.buildings = city->buildings;
+        report.facadeBytes = city->textureBytes;
+    }
+
     nlohmann::ordered_json j;
     j["name"] = "synthetic seed " + std::to_string(options.seed) + (options.dem.empty() ? "" : " on " + options.dem.stem().string());
     j["leafon"] = "leafon.tif";
     j["leafoff"] = "leafoff.tif";
     j["elevation"] = "dem.tif";
+    if (options.city) j["buildings"] = "city/city.obj";
     j["truth"] = {{"deciduous", truth.fileName(0)}, {"conifer", truth.fileName(1)}, {"trees", "trees.csv"}};
     j["parameters"] = {{"tree_height_m", std::round(meanHeight * 100.0) / 100.0}};
-    j["generator"] = {{"program", "seasonview synth"}, {"version", 1},      {"seed", options.seed},
+    j["generator"] = {{"program", "seasonview synth"}, {"version", kSynthGeneratorVersion},      {"seed", options.seed},
                       {"size_m", options.sizeM},       {"gsd", options.gsd}, {"dem", options.dem.string()}};
     std::string err;
     if (!writeTextAtomic(outDir / "scene.json", j.dump(2) + "\n", err))

@@ -16,6 +16,9 @@ constexpr int kDefaultSynthBandRows = 1024;
 /// Largest supported size / gsd: memory is bounded by the band buffers and the whole DEM (4 GB at 131072).
 constexpr int kMaxSynthPixels = 131072;
 
+/// Version of what `synth` writes (scene.json's generator.version): 2 added the city model.
+constexpr int kSynthGeneratorVersion = 2;
+
 /// Above this many pixels per side the truth masks are tiled GeoTIFFs (truth_*.tif) instead of PNGs.
 constexpr int kMaxSynthPngPixels = 32768;
 
@@ -30,6 +33,9 @@ struct SynthOptions {
     int bandRows = 0;                  // imagery rows generated at a time (0 = kDefaultSynthBandRows); memory grows
                                        // with it (~18 bytes per pixel of the band), the output does not depend on it
     int pngMasksUpTo = kMaxSynthPngPixels; // larger scenes get GeoTIFF truth masks (a parameter for the tests)
+    bool city = true;                  // write the buildings as a textured OBJ city model (city/city.obj)
+    std::filesystem::path facadePhotos; // facade photo folder for the city's textures (empty: procedural facades)
+    int facadeSize = 256;              // facade texture side, texels
 };
 
 /// What was generated, for the CLI summary.
@@ -37,6 +43,8 @@ struct SynthReport {
     int width = 0, height = 0;         // imagery pixels per season
     int demWidth = 0, demHeight = 0;   // elevation samples
     int deciduousTrees = 0, conifers = 0;
+    std::size_t buildings = 0;         // in the city model (0: none written)
+    std::uint64_t facadeBytes = 0;
     double seconds = 0.0;              // wall time of the whole generation
     std::string crs;                   // e.g. "EPSG:32632 (UTM 32N)"
 };
@@ -47,7 +55,8 @@ using ProgressFn = std::function<void(double fraction, const char* stage)>;
 /// Generates the scene into `outDir` (created if needed): leafon.tif, leafoff.tif (8-bit RGB tiled UTM GeoTIFFs,
 /// BigTIFF past 2 GiB), dem.tif (float32 UTM GeoTIFF), truth_deciduous.png, truth_conifer.png (8-bit, 255 = class,
 /// on the imagery grid; tiled 8-bit GeoTIFFs truth_deciduous.tif, truth_conifer.tif above pngMasksUpTo pixels),
-/// trees.csv and scene.json (written last, naming the files). Same options -> byte-identical files, whatever
+/// trees.csv, the buildings as city/city.obj + city.mtl + city/facades/*.jpg (core/SynthCity.h) and scene.json
+/// (written last, naming the files). Same options -> byte-identical files, whatever
 /// `threads` and `bandRows`. The imagery is generated and written in bands of rows, so memory does not grow with
 /// the height; the layout (a list of objects) and the DEM are whole. Files appear atomically.
 Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const std::filesystem::path& outDir,

@@ -1,6 +1,8 @@
 // City model input: CityGML (libcitygml) and OBJ, CRS handling, bad input, placing buildings on the terrain.
 #include "CityModel.h"
 #include "GeoFrame.h"
+#include "Scene.h"
+#include "SyntheticScene.h"
 #include "TestUtil.h"
 
 #include <OpenImageIO/imageio.h>
@@ -346,4 +348,50 @@ TEST(CityModelTest, RealBerlinAndTokyoModels) {
     EXPECT_LT(tsize.x, 2000.0);
     EXPECT_LT(tsize.z, 200.0);
     for (const auto& w : tokyo->warnings) std::cout << "  tokyo: " << w << "\n";
+}
+
+TEST(CityModelTest, SyntheticSceneCityMatchesItsBuildings) {
+    test::TempDir dir("city_synth");
+    SynthOptions o;
+    o.sizeM = 512.0;
+    o.gsd = 1.0;
+    o.seed = 1;
+    o.facadeSize = 64;
+    auto report = generateSyntheticScene(o, dir.path());
+    ASSERT_TRUE(report) << report.message();
+    ASSERT_GT(report->buildings, 0u);
+    auto sources = parseManifest(dir / "scene.json");
+    ASSERT_TRUE(sources) << sources.message();
+    EXPECT_EQ(sources->buildings, dir / "city/city.obj");
+    CityLoadOptions opts;
+    opts.localFrame = true;
+    auto m = loadCityModel(sources->buildings.string(), opts);
+    ASSERT_TRUE(m) << m.error().message;
+    EXPECT_TRUE(m->warnings.empty()) << m->warnings.front();
+    EXPECT_EQ(m->buildingIds.size(), report->buildings);
+    EXPECT_EQ(m->textures.size(), report->buildings); // one unique facade texture per building
+    for (std::size_t i = 0; i < m->triangles.size(); ++i) {
+        if (m->surface[i] == Surface::Wall) {
+            EXPECT_GE(m->triangles[i].texture, 0);
+        }
+        if (m->surface[i] == Surface::Roof) {
+            EXPECT_EQ(m->triangles[i].texture, -1);
+        }
+    }
+    EXPECT_GT(count(*m, Surface::Roof), 0u);
+    // Every building stands on the DEM: its lowest vertex half a metre below the lowest ground under it.
+    auto scene = loadScene(*sources, dir / "cache");
+    ASSERT_TRUE(scene) << scene.message();
+    std::vector<double> lowest(m->buildingIds.size(), 1e30), ground(m->buildingIds.size(), 1e30);
+    for (std::size_t i = 0; i < m->triangles.size(); ++i)
+        for (const auto& v : m->triangles[i].v) {
+            lowest[m->building[i]] = std::min(lowest[m->building[i]], v.z);
+            if (m->surface[i] == Surface::Wall) ground[m->building[i]] = std::min(ground[m->building[i]], scene->terrainHeight(v.x, v.y));
+        }
+    for (std::size_t b = 0; b < lowest.size(); ++b) EXPECT_NEAR(lowest[b], ground[b] - 0.5, 0.3) << "building " << b;
+    // Deterministic: the same options write the same model.
+    test::TempDir again("city_synth_again");
+    ASSERT_TRUE(generateSyntheticScene(o, again.path()));
+    EXPECT_EQ(test::readBytes(dir / "city/city.obj"), test::readBytes(again / "city/city.obj"));
+    EXPECT_EQ(test::readBytes(dir / "city/facades/b0.jpg"), test::readBytes(again / "city/facades/b0.jpg"));
 }
