@@ -1,6 +1,9 @@
 // The texture-atlas tree build (thesis §4.5) and its file: structure invariants, atlas contents against the
 // original textures, critical triangles, out-of-core texture reading, RGB/RGBA trees, bad files.
 #include "AtlasCodec.h"
+#include "AtlasPager.h"
+#include "AtlasTraversal.h"
+#include "Camera.h"
 #include "AtlasTreeBuild.h"
 #include "TestUtil.h"
 
@@ -11,6 +14,9 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <functional>
+#include <map>
+#include <set>
 
 using namespace seasonview;
 using namespace seasonview::city;
@@ -380,4 +386,197 @@ TEST(AtlasTreeTest, CodecRoundTripsAndMipChain) {
     const auto back = decodeAtlasRgba(AtlasFormat::Bc, false, bc, n);
     EXPECT_GT(test::compareRgb(test::rgbOf(back), test::rgbOf(rgba), n, n, 3).psnr, 35.0); // smooth gradients
     EXPECT_TRUE(decodeAtlasRgba(AtlasFormat::Deflate, false, std::vector<std::uint8_t>(10, 7), n).empty());
+}
+
+namespace {
+
+/// A hand-made tree: the root (x 0..400) with four children along x; child 0 has four leaves (25 m each), the
+/// others are leaves. Leaves' minDistance 10 m, child 0's 20 m, the root's 40 m; leaf i uses texture i.
+AtlasTreeData handTree() {
+    AtlasTreeData t;
+    auto add = [&](float x0, float x1, float md, int level, int parent) {
+        AtlasNode n;
+        n.boundsMin = glm::vec3(x0, 0, 0);
+        n.boundsMax = glm::vec3(x1, 100, 10);
+        n.minDistance = md;
+        n.level = level;
+        n.parent = parent;
+        n.atlasBytes = 1000;
+        t.nodes.push_back(n);
+        return int(t.nodes.size() - 1);
+    };
+    add(0, 400, 40, 0, -1);
+    for (int c = 0; c < 4; ++c) t.nodes[0].children[std::size_t(c)] = add(100.0f * float(c), 100.0f * float(c + 1), c == 0 ? 20.0f : 10.0f, 1, 0);
+    for (int c = 0; c < 4; ++c) t.nodes[1].children[std::size_t(c)] = add(25.0f * float(c), 25.0f * float(c + 1), 10.0f, 2, 1);
+    // Ranges: depth-first, one triangle per leaf; textures: one per leaf.
+    std::uint32_t next = 0, tex = 0;
+    std::function<void(int)> fill = [&](int i) {
+        AtlasNode& n = t.nodes[std::size_t(i)];
+        n.first = next;
+        if (n.leaf()) {
+            n.count = 1;
+            n.textures = {tex};
+            t.triangleTexture.push_back(tex++);
+            t.triangleBuilding.push_back(0);
+            for (int k = 0; k < 3; ++k) t.vertices.push_back(TreeVertex{});
+            ++next;
+            return;
+        }
+        for (int c : n.children) fill(c);
+        n.count = next - n.first;
+    };
+    fill(0);
+    return t;
+}
+
+AtlasView viewOf(const Camera& cam, int width = 800, int height = 600) {
+    AtlasView v;
+    v.eye = cam.position;
+    v.viewProj = cam.projectionMatrix(double(width) / height, 0.1) * cam.viewMatrix();
+    v.screenWidth = 1920; // as the tree was built: minDistances unscaled
+    v.fovXDeg = 90.0;
+    return v;
+}
+
+std::map<std::pair<int, std::uint32_t>, BlockCategory> categories(const std::vector<BlockRequest>& r) {
+    std::map<std::pair<int, std::uint32_t>, BlockCategory> m;
+    for (const auto& b : r) m[{int(b.key.kind), b.key.index}] = b.category;
+    return m;
+}
+
+} // namespace
+
+TEST(AtlasPagingTest, CategoriesOnAHandMadeTree) {
+    const AtlasTreeData t = handTree();
+    AtlasTreeInfo info;
+    info.dmin = 10.0;
+    const AtlasTraversal trav(t, info);
+    const int atlas = int(BlockKey::Kind::Atlas), texture = int(BlockKey::Kind::Texture);
+
+    // Straight down inside the first leaf (x 0..25), 5 m up: only it is visible and nearer than every minDistance.
+    Camera close;
+    close.position = {12.0, 50.0, 5.0};
+    close.pitchDeg = -90.0;
+    close.fovYDeg = 30.0;
+    auto c = categories(trav.requests(viewOf(close)));
+    EXPECT_EQ(c.at({atlas, 0}), BlockCategory::Needed);
+    EXPECT_EQ(c.at({atlas, 1}), BlockCategory::Needed);   // child 0, refined
+    EXPECT_EQ(c.at({atlas, 5}), BlockCategory::Needed);   // its first leaf
+    EXPECT_EQ(c.at({texture, 0}), BlockCategory::Needed); // the leaf's original texture
+    for (std::uint32_t n : {6u, 7u, 8u, 2u, 3u, 4u}) EXPECT_EQ(c.at({atlas, n}), BlockCategory::Culled) << n;
+    EXPECT_EQ(c.count({texture, 1}), 0u);
+    // In priority order: the needed ones first.
+    const auto req = trav.requests(viewOf(close));
+    for (std::size_t i = 1; i < req.size(); ++i) EXPECT_FALSE(req[i] < req[i - 1]);
+    // With only the root resident, everything is drawn with the root's atlas, counted as coarser than wanted.
+    auto onlyRoot = trav.draws(viewOf(close), [](std::uint32_t n) { return n == 0; }, [](std::uint32_t) { return false; });
+    ASSERT_EQ(onlyRoot.draws.size(), 1u);
+    EXPECT_EQ(onlyRoot.draws[0].node, 0u);
+    EXPECT_FALSE(onlyRoot.draws[0].original);
+    EXPECT_EQ(onlyRoot.coarserThanWanted, 1u);
+    // Everything resident: the leaf's original texture.
+    auto all = trav.draws(viewOf(close), [](std::uint32_t) { return true; }, [](std::uint32_t) { return true; });
+    ASSERT_EQ(all.draws.size(), 1u);
+    EXPECT_TRUE(all.draws[0].original);
+    EXPECT_EQ(all.draws[0].texture, 0u);
+    EXPECT_EQ(all.coarserThanWanted, 0u);
+
+    // Far away, everything in view: the root's atlas is enough; its children are the next refinement.
+    Camera far;
+    far.position = {200.0, -2000.0, 300.0};
+    far.yawDeg = 0.0;
+    far.pitchDeg = -8.0;
+    c = categories(trav.requests(viewOf(far)));
+    EXPECT_EQ(c.at({atlas, 0}), BlockCategory::Needed);
+    for (std::uint32_t n : {1u, 2u, 3u, 4u}) EXPECT_EQ(c.at({atlas, n}), BlockCategory::ParentNeeded) << n;
+    EXPECT_EQ(c.count({atlas, 5}), 0u);
+    auto farDraws = trav.draws(viewOf(far), [](std::uint32_t) { return true; }, [](std::uint32_t) { return true; });
+    ASSERT_EQ(farDraws.draws.size(), 1u); // the whole tree in one call (§4.8.1)
+    EXPECT_EQ(farDraws.draws[0].count, 7u);
+
+    // A wider screen needs finer atlases from further away (minDistance scales with the width, §4.5.2).
+    AtlasView wide = viewOf(far);
+    wide.screenWidth = 1920 * 100;
+    c = categories(trav.requests(wide));
+    EXPECT_EQ(c.at({atlas, 1}), BlockCategory::Needed);
+}
+
+TEST(AtlasPagingTest, CapacityIsNeverExceededUnderARandomCamera) {
+    test::TempDir dir("atlas_paging");
+    const CityModel model = wallModel(dir.path(), 40);
+    AtlasBuildSettings s;
+    s.atlasSize = 128;
+    s.dmin = 200.0;
+    ASSERT_TRUE(buildAtlasTree(model, s, (dir / "t.svat").string()));
+    auto f = AtlasTreeFile::open((dir / "t.svat").string());
+    ASSERT_TRUE(f);
+    const AtlasTraversal trav(f->trees[0], f->info);
+    PagerSettings ps;
+    ps.threaded = false;
+    ps.queueLength = 3;
+    AtlasPager probe(*f, 0, ps);
+    const std::uint64_t atlasBytes = probe.blockBytes({BlockKey::Kind::Atlas, 0});
+    ps.capacityBytes = 4 * atlasBytes + 256u * 128u * 4u * 4u / 3u; // four atlases and one original texture
+    AtlasPager pager(*f, 0, ps);
+    std::uint64_t seed = 7;
+    auto rnd = [&] {
+        seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+        return double(seed >> 11) / 9007199254740992.0;
+    };
+    std::size_t uploads = 0, evictions = 0;
+    std::set<std::pair<int, std::uint32_t>> gpu; // what the GL side would hold
+    for (int frame = 0; frame < 300; ++frame) {
+        Camera cam;
+        cam.position = {rnd() * 700.0 - 50.0, -5.0 - rnd() * 300.0, 1.0 + rnd() * 100.0};
+        cam.yawDeg = rnd() * 90.0 - 45.0;
+        cam.pitchDeg = -rnd() * 40.0;
+        const AtlasView v = viewOf(cam);
+        auto out = pager.update(trav.requests(v));
+        for (const auto& k : out.evict) EXPECT_EQ(gpu.erase({int(k.kind), k.index}), 1u);
+        for (const auto& b : out.upload) EXPECT_TRUE(gpu.insert({int(b.key.kind), b.key.index}).second);
+        uploads += out.upload.size();
+        evictions += out.evict.size();
+        const auto& st = pager.stats();
+        EXPECT_LE(st.residentBytes + st.reservedBytes, ps.capacityBytes) << "frame " << frame;
+        std::uint64_t held = 0;
+        for (const auto& [kind, index] : gpu) held += pager.blockBytes({BlockKey::Kind(kind), index});
+        EXPECT_EQ(held, st.residentBytes);
+        // The root is always there after the first frame, and every draw uses a resident texture.
+        EXPECT_TRUE(pager.resident({BlockKey::Kind::Atlas, 0}));
+        auto d = trav.draws(v, [&](std::uint32_t n) { return pager.resident({BlockKey::Kind::Atlas, n}); },
+                            [&](std::uint32_t t) { return pager.resident({BlockKey::Kind::Texture, t}); });
+        for (const auto& dr : d.draws)
+            EXPECT_TRUE(pager.resident({dr.original ? BlockKey::Kind::Texture : BlockKey::Kind::Atlas,
+                                        dr.original ? dr.texture : dr.node}));
+    }
+    EXPECT_GT(uploads, 10u);
+    EXPECT_GT(evictions, 0u); // the capacity forced paging
+    EXPECT_TRUE(pager.error().empty());
+}
+
+TEST(AtlasPagingTest, ThreadedLoaderCompletesTheIdealSet) {
+    test::TempDir dir("atlas_paging_thread");
+    const CityModel model = wallModel(dir.path(), 20);
+    AtlasBuildSettings s;
+    s.atlasSize = 128;
+    s.dmin = 200.0;
+    ASSERT_TRUE(buildAtlasTree(model, s, (dir / "t.svat").string()));
+    auto f = AtlasTreeFile::open((dir / "t.svat").string());
+    ASSERT_TRUE(f);
+    const AtlasTraversal trav(f->trees[0], f->info);
+    PagerSettings ps;
+    ps.capacityBytes = 64ull << 20;
+    AtlasPager pager(*f, 0, ps);
+    Camera cam;
+    cam.position = {150.0, -30.0, 4.0};
+    cam.pitchDeg = 0.0;
+    const auto req = trav.requests(viewOf(cam));
+    auto done = pager.complete(req);
+    EXPECT_FALSE(done.upload.empty());
+    for (const auto& r : req) EXPECT_TRUE(pager.resident(r.key));
+    // Nothing coarser than wanted once the ideal set is resident.
+    auto d = trav.draws(viewOf(cam), [&](std::uint32_t n) { return pager.resident({BlockKey::Kind::Atlas, n}); },
+                        [&](std::uint32_t t) { return pager.resident({BlockKey::Kind::Texture, t}); });
+    EXPECT_EQ(d.coarserThanWanted, 0u);
+    EXPECT_GT(d.draws.size(), 0u);
 }

@@ -1,0 +1,216 @@
+#include "AtlasPager.h"
+
+#include "AtlasCodec.h"
+#include "TextureSource.h"
+
+#include <algorithm>
+#include <set>
+
+namespace seasonview::city {
+
+AtlasPager::AtlasPager(const AtlasTreeFile& file, int tree, const PagerSettings& settings, Loader loader)
+    : m_file(file), m_tree(tree), m_settings(settings), m_loader(std::move(loader)) {
+    if (m_settings.threaded) m_thread = std::thread([this] { worker(); });
+}
+
+AtlasPager::~AtlasPager() {
+    {
+        std::lock_guard lock(m_mutex);
+        m_stop = true;
+    }
+    m_cv.notify_all();
+    if (m_thread.joinable()) m_thread.join();
+}
+
+std::uint64_t AtlasPager::blockBytes(const BlockKey& key) const {
+    if (key.kind == BlockKey::Kind::Atlas) {
+        const AtlasTreeData& t = m_file.trees[std::size_t(m_tree)];
+        const int size = m_file.info.atlasSize;
+        std::uint64_t n = 0;
+        // Deflate atlases are uploaded decoded (RGB(A)8 with the stored mips), BC ones as they are.
+        for (int l = 0; l < atlasLevels(size); ++l) n += atlasLevelBytes(m_file.info.format, t.alpha, size, l);
+        return n;
+    }
+    const glm::ivec2 s = m_file.textureSizes[key.index];
+    return std::uint64_t(std::max(s.x, 1)) * std::uint64_t(std::max(s.y, 1)) * 4u * 4u / 3u; // RGBA8 + mips
+}
+
+std::string AtlasPager::error() const {
+    std::lock_guard lock(m_mutex);
+    return m_firstError;
+}
+
+Result<LoadedBlock> AtlasPager::load(const BlockKey& key) const {
+    if (m_loader) return m_loader(key);
+    LoadedBlock b;
+    b.key = key;
+    b.bytes = blockBytes(key);
+    if (key.kind == BlockKey::Kind::Atlas) {
+        auto blob = m_file.readAtlasBlob(m_tree, int(key.index));
+        if (!blob) return blob.error();
+        b.data = std::move(*blob);
+        b.size = glm::ivec2(m_file.info.atlasSize);
+        return b;
+    }
+    auto tex = readSourceTexture(m_file.textures[key.index]);
+    if (!tex) return tex.error();
+    b.size = tex->sizes[0];
+    b.data = std::move(tex->mips[0]);
+    return b;
+}
+
+void AtlasPager::worker() {
+    for (;;) {
+        BlockKey key;
+        {
+            std::unique_lock lock(m_mutex);
+            m_cv.wait(lock, [&] { return m_stop || !m_queue.empty(); });
+            if (m_stop) return;
+            key = m_queue.front();
+            m_queue.pop_front();
+        }
+        auto r = load(key);
+        std::lock_guard lock(m_mutex);
+        if (r) m_done.push_back(std::move(*r));
+        else {
+            m_errors.emplace_back(key, r.error().message);
+            if (m_firstError.empty()) m_firstError = r.error().message;
+        }
+    }
+}
+
+AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& requests) {
+    ++m_frame;
+    Frame out;
+
+    // The ideal block set: requests in priority order while they fit the capacity (the root first: it is always
+    // Needed and nearest to the front).
+    std::set<BlockKey> ideal;
+    std::uint64_t idealBytes = 0;
+    for (const auto& r : requests) {
+        if (r.category == BlockCategory::Unused) break;
+        if (std::find(m_failed.begin(), m_failed.end(), r.key) != m_failed.end()) continue;
+        const std::uint64_t b = blockBytes(r.key);
+        if (idealBytes + b > m_settings.capacityBytes) break;
+        idealBytes += b;
+        ideal.insert(r.key);
+    }
+    for (const auto& r : requests)
+        if (auto it = m_resident.find(r.key); it != m_resident.end()) it->second = m_frame;
+
+    // Finished loads become ready; queued loads that left the ideal set are dropped.
+    {
+        std::lock_guard lock(m_mutex);
+        for (auto& d : m_done) m_ready.push_back(std::move(d));
+        m_done.clear();
+        for (auto& [key, message] : m_errors) {
+            m_reserved.erase(key);
+            m_failed.push_back(key);
+        }
+        m_errors.clear();
+        for (auto it = m_queue.begin(); it != m_queue.end();) {
+            if (!ideal.count(*it)) {
+                m_reserved.erase(*it);
+                it = m_queue.erase(it);
+            } else {
+                ++it;
+            }
+        }
+    }
+
+    // Requests of this frame: missing ideal blocks in priority order, room made by evicting resident blocks outside
+    // the ideal set (least recently requested first), never the root.
+    auto reservedBytes = [&] {
+        std::uint64_t n = 0;
+        for (auto& [k, b] : m_reserved) n += b;
+        return n;
+    };
+    auto residentBytes = [&] {
+        std::uint64_t n = 0;
+        for (auto& [k, f] : m_resident) n += blockBytes(k);
+        return n;
+    };
+    std::uint64_t used = reservedBytes() + residentBytes();
+    std::size_t inFlight = m_reserved.size() - m_ready.size();
+    std::size_t missing = 0;
+    for (const auto& r : requests) {
+        if (!ideal.count(r.key) || m_resident.count(r.key) || m_reserved.count(r.key)) continue;
+        ++missing;
+        if (int(inFlight) >= m_settings.queueLength) continue;
+        const std::uint64_t b = blockBytes(r.key);
+        while (used + b > m_settings.capacityBytes) {
+            // The least recently requested resident block outside the ideal set.
+            auto victim = m_resident.end();
+            for (auto it = m_resident.begin(); it != m_resident.end(); ++it) {
+                if (ideal.count(it->first) || (it->first.kind == BlockKey::Kind::Atlas && it->first.index == 0)) continue;
+                if (victim == m_resident.end() || it->second < victim->second) victim = it;
+            }
+            if (victim == m_resident.end()) break;
+            used -= blockBytes(victim->first);
+            out.evict.push_back(victim->first);
+            m_resident.erase(victim);
+            ++m_stats.evicted;
+        }
+        if (used + b > m_settings.capacityBytes) break; // in-flight leftovers still hold the room: next frame
+        used += b;
+        m_reserved[r.key] = b;
+        ++inFlight;
+        if (m_settings.threaded) {
+            std::lock_guard lock(m_mutex);
+            m_queue.push_back(r.key);
+        } else {
+            auto loaded = load(r.key);
+            if (loaded) m_ready.push_back(std::move(*loaded));
+            else {
+                m_reserved.erase(r.key);
+                m_failed.push_back(r.key);
+                used -= b;
+                if (m_firstError.empty()) m_firstError = loaded.error().message;
+            }
+        }
+    }
+    if (m_settings.threaded) m_cv.notify_all();
+
+    // Hand out ready blocks within the upload budget (at least one per frame); a ready block that left the ideal
+    // set while loading is dropped.
+    std::uint64_t budget = 0;
+    while (!m_ready.empty() && (budget == 0 || budget + m_ready.front().bytes <= m_settings.uploadBytesPerFrame)) {
+        LoadedBlock b = std::move(m_ready.front());
+        m_ready.pop_front();
+        m_reserved.erase(b.key);
+        if (!ideal.count(b.key)) continue;
+        budget += b.bytes;
+        m_resident[b.key] = m_frame;
+        m_stats.uploadedBytes += b.bytes;
+        ++m_stats.loaded;
+        out.upload.push_back(std::move(b));
+    }
+
+    m_stats.residentBytes = residentBytes();
+    m_stats.reservedBytes = reservedBytes();
+    m_stats.residentBlocks = m_resident.size();
+    m_stats.queued = m_reserved.size();
+    m_stats.idealBytes = idealBytes;
+    m_stats.idealBlocks = ideal.size();
+    m_stats.idealMissing = missing;
+    return out;
+}
+
+AtlasPager::Frame AtlasPager::complete(const std::vector<BlockRequest>& requests) {
+    Frame all;
+    for (int guard = 0; guard < 100000; ++guard) {
+        Frame f = update(requests);
+        for (auto& b : f.upload) all.upload.push_back(std::move(b));
+        for (auto& k : f.evict) {
+            // Uploaded earlier in this call and evicted again: never handed out.
+            auto it = std::find_if(all.upload.begin(), all.upload.end(), [&](const LoadedBlock& b) { return b.key == k; });
+            if (it != all.upload.end()) all.upload.erase(it);
+            else all.evict.push_back(k);
+        }
+        if (m_stats.idealMissing == 0 && m_stats.queued == 0) break;
+        if (m_settings.threaded && f.upload.empty()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    return all;
+}
+
+} // namespace seasonview::city

@@ -1,0 +1,101 @@
+#pragma once
+// Paging of a texture-atlas tree's blocks under a byte capacity (Buchholz's thesis §4.6): each frame the view's
+// block requests (AtlasTraversal::requests, priority order) give the ideal block set — the Needed, Culled and
+// ParentNeeded blocks of highest priority whose sizes sum to at most the capacity; missing ideal blocks are queued
+// (at most `queueLength` at once) for a background loader; a block that does not fit evicts resident blocks outside
+// the ideal set, least recently requested first. Loaded blocks are handed out for upload within a per-frame byte
+// budget. The root atlas is loaded first and never evicted, so a texture is always available. Resident, queued,
+// in-flight and waiting-for-upload bytes together never exceed the capacity.
+//
+// Plain C++ (the GL side, CityRendererGL, uploads what update() hands out and deletes what it evicts).
+#include "AtlasTraversal.h"
+#include "AtlasTree.h"
+#include "Result.h"
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace seasonview::city {
+
+struct PagerSettings {
+    std::uint64_t capacityBytes = 256ull << 20;     // GPU bytes of resident blocks
+    int queueLength = 8;                            // blocks requested from the loader at a time
+    std::uint64_t uploadBytesPerFrame = 8ull << 20; // handed out for upload per frame (at least one block)
+    bool threaded = true;                           // false: loads run inside update() (tests, stills)
+};
+
+/// A loaded block: an atlas's stored blob, or an original texture's RGBA8 level 0 (rows bottom-up).
+struct LoadedBlock {
+    BlockKey key;
+    std::vector<std::uint8_t> data;
+    glm::ivec2 size{0};
+    std::uint64_t bytes = 0; // GPU bytes once uploaded
+};
+
+struct PagerStats {
+    std::uint64_t residentBytes = 0, reservedBytes = 0, idealBytes = 0;
+    std::size_t residentBlocks = 0, queued = 0, idealBlocks = 0, idealMissing = 0;
+    std::uint64_t loaded = 0, evicted = 0, uploadedBytes = 0; // totals since creation
+};
+
+class AtlasPager {
+public:
+    using Loader = std::function<Result<LoadedBlock>(const BlockKey&)>;
+
+    /// Pages tree `tree` of `file` (kept by reference). `loader`: how a block is read (default: the file's atlas
+    /// blobs and the original texture files).
+    AtlasPager(const AtlasTreeFile& file, int tree, const PagerSettings& settings, Loader loader = {});
+    ~AtlasPager();
+    AtlasPager(const AtlasPager&) = delete;
+    AtlasPager& operator=(const AtlasPager&) = delete;
+
+    struct Frame {
+        std::vector<LoadedBlock> upload; // now resident: upload these
+        std::vector<BlockKey> evict;     // no longer resident: delete these
+    };
+    /// One frame's paging for `requests` (priority order).
+    Frame update(const std::vector<BlockRequest>& requests);
+    /// Waits until every ideal block of `requests` is resident (stills, tests); returns everything to upload.
+    Frame complete(const std::vector<BlockRequest>& requests);
+
+    bool resident(const BlockKey& key) const { return m_resident.count(key) != 0; }
+    const PagerStats& stats() const { return m_stats; }
+    /// GPU bytes of a block once uploaded.
+    std::uint64_t blockBytes(const BlockKey& key) const;
+    /// The first load error (a block that could not be read is not retried); empty when none.
+    std::string error() const;
+
+private:
+    void worker();
+    Result<LoadedBlock> load(const BlockKey& key) const;
+
+    const AtlasTreeFile& m_file;
+    int m_tree;
+    PagerSettings m_settings;
+    Loader m_loader;
+
+    std::map<BlockKey, std::uint64_t> m_resident;     // key -> last frame it was requested
+    std::map<BlockKey, std::uint64_t> m_reserved;     // queued, loading or waiting for upload -> bytes
+    std::vector<BlockKey> m_failed;
+    std::deque<LoadedBlock> m_ready;                  // loaded, waiting for upload
+    std::uint64_t m_frame = 0;
+    PagerStats m_stats;
+
+    // Loader thread.
+    mutable std::mutex m_mutex;
+    std::condition_variable m_cv;
+    std::deque<BlockKey> m_queue;
+    std::vector<LoadedBlock> m_done;
+    std::vector<std::pair<BlockKey, std::string>> m_errors;
+    std::string m_firstError;
+    bool m_stop = false;
+    std::thread m_thread;
+};
+
+} // namespace seasonview::city

@@ -1,0 +1,104 @@
+#pragma once
+// Which atlases and original textures a view needs, and what to draw with what is resident (thesis §4.4, Fig. 26,
+// with the memory-management changes of §4.6, Fig. 30), plain C++ over an AtlasTreeData.
+//
+// Drawing: a node is drawn with its atlas when the camera is at least its (runtime-scaled) minDistance from its
+// bounding box, or when refinement is impossible (children's atlases, or a leaf's original textures, not resident):
+// so a coarser atlas stands in while finer data loads, never a missing texture (the root atlas is always resident).
+// A node drawn with an atlas becomes a few contiguous triangle ranges (§4.8.1): its whole range when its box is
+// inside the frustum, else its visible children's. Leaves closer than dmin are drawn with their original textures,
+// one range per run of triangles sharing a texture.
+//
+// Paging (§4.6): every node's atlas and every original texture is a block with a category — Needed (used by the
+// view with everything resident, and every ancestor of such a node), Culled (outside the frustum with a Needed
+// sibling), ParentNeeded (the parent is Needed: the next refinement; a leaf's originals when its atlas is Needed),
+// Unused — and a priority: category, then distance, then level.
+#include "AtlasTree.h"
+
+#include <glm/mat4x4.hpp>
+#include <glm/vec3.hpp>
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+namespace seasonview::city {
+
+/// The view the traversal serves.
+struct AtlasView {
+    glm::dvec3 eye{0.0};       // metres, the tree's frame
+    glm::dmat4 viewProj{1.0};  // frustum (reversed-Z infinite projections are fine: the far plane is not used)
+    int screenWidth = 1920;    // pixels
+    double fovXDeg = 90.0;     // horizontal field of view
+    double tpp = 1.0;          // pixels per texel allowed at runtime (§4.5.2: minDistances divided by it)
+};
+
+enum class BlockCategory : std::uint8_t { Needed = 0, Culled = 1, ParentNeeded = 2, Unused = 3 };
+const char* blockCategoryName(BlockCategory c);
+
+/// A block: a node's atlas (kind Atlas, index = node) or an original texture (kind Texture, index = texture).
+struct BlockKey {
+    enum class Kind : std::uint8_t { Atlas, Texture } kind = Kind::Atlas;
+    std::uint32_t index = 0;
+    bool operator==(const BlockKey& o) const { return kind == o.kind && index == o.index; }
+    bool operator<(const BlockKey& o) const { return kind != o.kind ? kind < o.kind : index < o.index; }
+};
+
+struct BlockRequest {
+    BlockKey key;
+    BlockCategory category = BlockCategory::Unused;
+    double distance = 0.0;
+    int level = 0;
+    /// Priority order: category, then distance, then level (the parent of a needed node first, §4.6).
+    bool operator<(const BlockRequest& o) const;
+};
+
+/// One draw: a triangle range with a node's atlas (sampled at fract(root · 2^level)) or an original texture.
+struct AtlasDraw {
+    bool original = false;
+    std::uint32_t node = 0;    // the atlas's node (original: the leaf)
+    std::uint32_t texture = 0; // original only
+    int level = 0;
+    std::uint32_t first = 0, count = 0; // triangles
+};
+
+struct AtlasTraversalResult {
+    std::vector<AtlasDraw> draws;
+    std::size_t atlasNodes = 0;      // distinct atlases drawn
+    std::size_t originalLeaves = 0;  // leaves drawn with their originals
+    std::size_t coarserThanWanted = 0; // nodes drawn with an atlas because finer data was not resident
+};
+
+class AtlasTraversal {
+public:
+    AtlasTraversal(const AtlasTreeData& tree, const AtlasTreeInfo& info);
+
+    /// minDistance of a node for this view: the build's value scaled to the view's screen width and field of view
+    /// and divided by its τ (§4.5.2).
+    double minDistance(std::uint32_t node, const AtlasView& view) const;
+    /// Distance from the eye to the node's box (0 inside) and whether the box is in the frustum.
+    double distance(std::uint32_t node, const AtlasView& view) const;
+    bool visible(std::uint32_t node, const AtlasView& view) const;
+
+    /// What to draw given what is resident (`atlasResident(node)`, `textureResident(texture)`); the root's atlas
+    /// must be resident.
+    AtlasTraversalResult draws(const AtlasView& view, const std::function<bool(std::uint32_t)>& atlasResident,
+                               const std::function<bool(std::uint32_t)>& textureResident) const;
+
+    /// Every block's category and priority for the view (the traversal as if everything were resident), in
+    /// priority order, Unused blocks left out.
+    std::vector<BlockRequest> requests(const AtlasView& view) const;
+
+    const AtlasTreeData& tree() const { return m_tree; }
+
+private:
+    /// The visible triangle ranges of `node`'s subtree, drawn with `atlasNode`'s atlas.
+    void atlasRanges(std::uint32_t node, std::uint32_t atlasNode, const AtlasView& view, std::vector<AtlasDraw>& out,
+                     int level) const;
+    void originalRanges(std::uint32_t leaf, std::vector<AtlasDraw>& out) const;
+
+    const AtlasTreeData& m_tree;
+    AtlasTreeInfo m_info;
+};
+
+} // namespace seasonview::city
