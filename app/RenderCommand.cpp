@@ -1,5 +1,6 @@
 // `seasonview render`: one still of a scene.
 #include "Commands.h"
+#include "CityJob.h"
 #include "RenderJob.h"
 
 #include <chrono>
@@ -17,6 +18,7 @@ struct RenderArgs {
     bool window = false;
     std::string canopyLayers = "16", method = "default", groundUnder = "leafoff", groundElsewhere = "leafon";
     std::string trunks = "on";
+    CityArgs city;
     int k = kSegDefaultK;
 };
 } // namespace
@@ -79,6 +81,7 @@ Runner addRenderCommand(CLI::App& app) {
     cmd->add_option("--stats", args->stats, "Write level statistics (coverage, uploads, memory) to this JSON file");
     cmd->add_option("--out", args->out, "Output image (.png or .tif)")->required();
     cmd->add_flag("--window", args->window, "Render through a hidden GLFW window instead of headless EGL");
+    args->city.addTo(*cmd);
     return [args]() -> int {
         const auto t0 = std::chrono::steady_clock::now();
         auto fail = [](const std::string& m) {
@@ -120,6 +123,10 @@ Runner addRenderCommand(CLI::App& app) {
             return fail("--stats needs --renderer clipmap");
         if (!args->accuracy.empty() && settings.renderer == RendererKind::Reference)
             return fail("--accuracy needs --renderer clipmap");
+        auto citySettings = args->city.settings();
+        if (!citySettings) return fail(citySettings.message());
+        settings.city = *citySettings;
+        if (settings.city && settings.renderer == RendererKind::Reference) return fail("--city needs --renderer clipmap");
         auto size = parseSize(args->size);
         if (!size) return fail(size.message());
         if (auto st = checkImageOutput(args->out); !st) return fail(st.message());
@@ -132,6 +139,11 @@ Runner addRenderCommand(CLI::App& app) {
         auto scene = args->scene.load();
         if (!scene) return fail(scene.message());
         printSceneNotes(*scene);
+        if (settings.city) {
+            auto tree = prepareCityTree(*scene, settings.cacheDir, args->city.tree);
+            if (!tree) return fail(tree.message());
+            settings.cityTree = *tree;
+        }
         const auto [w, h] = *size;
         const Camera camera = spec ? spec->resolve([&](double x, double y) { return scene->terrainHeight(x, y); })
                                    : overviewCamera(*scene, double(w) / double(h));

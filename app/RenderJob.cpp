@@ -305,6 +305,14 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
     }
     std::unique_ptr<gl::RenderTarget> scratch;
     std::unique_ptr<ReferenceRendererGL> reference;
+    std::unique_ptr<city::CityRendererGL> cityRenderer;
+    if (settings.city) {
+        city::CitySettings cs = *settings.city;
+        cs.threaded = false; // stills load everything they show
+        auto c = city::CityRendererGL::create(scene, settings.cityTree.string(), cs);
+        if (!c) return c.error();
+        cityRenderer = std::move(*c);
+    }
     for (const StillRequest& s : stills) {
         (*clipmap)->update(clipmapCentres(scene, s.camera, width, height, settings.centers, geometry));
         const ClipmapFrameStats loaded = (*clipmap)->completeSynchronously(); // a still waits for its texels
@@ -328,6 +336,13 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
                 drawn.triangles += t.triangles;
                 drawn.drawCalls += t.drawCalls;
             }
+        }
+        if (cityRenderer) {
+            cityRenderer->settings().season = s.imagery.view == ImageryView::LeafOff ? 1 : 0;
+            cityRenderer->complete(s.camera, width, height);
+            const city::CityFrameStats cst = cityRenderer->draw(s.camera, renderer->get(), target);
+            drawn.triangles += cst.triangles;
+            drawn.drawCalls += cst.drawCalls;
         }
         if (auto st = checkGl(s.out); !st) return st.error();
         if (auto st = writeRgb(target, s.out); !st) return st.error();

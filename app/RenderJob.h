@@ -4,6 +4,7 @@
 #include "Camera.h"
 #include "ClipmapCenters.h"
 #include "CanopyRendererGL.h"
+#include "CityRendererGL.h"
 #include "ClipmapTerrainRendererGL.h"
 #include "ImagePyramid.h"
 #include "PairStats.h"
@@ -83,6 +84,8 @@ struct RenderSettings {
     float referenceAnisotropy = 16.0f; // reference renderer: the sampler's maximum anisotropy
     GeometryClipmapOptions geometry;   // terrain: the geometry clipmaps' n and elevation streaming
     CanopyRenderSettings canopy;       // the `canopy` view
+    std::optional<city::CitySettings> city; // the city model (nullopt: none drawn)
+    std::filesystem::path cityTree;         // its atlas tree (prepareCityTree)
 };
 
 /// Makes sure both seasons' pyramids are prepared (building them when needed, with a progress bar on a terminal;

@@ -120,6 +120,7 @@ std::vector<std::uint8_t> serializeIndex(const AtlasTreeFile& f) {
     }
     w.vec(f.plain.positions);
     w.vec(f.plain.surface);
+    w.vec(f.plain.building);
     return w.bytes;
 }
 
@@ -214,7 +215,8 @@ Result<AtlasTreeFile> AtlasTreeFile::open(const std::string& path) {
     }
     f.plain.positions = r.vec<glm::vec3>();
     f.plain.surface = r.vec<Surface>();
-    if (!r.ok) return fileError(path, "corrupt atlas tree index");
+    f.plain.building = r.vec<std::uint32_t>();
+    if (!r.ok || f.plain.building.size() != f.plain.surface.size() || f.plain.positions.size() != 3 * f.plain.surface.size()) return fileError(path, "corrupt atlas tree index");
     // Consistency: ranges inside the triangle list, children inside the node list, atlases inside the file.
     for (const auto& tree : f.trees) {
         const std::uint64_t tris = tree.vertices.size() / 3;

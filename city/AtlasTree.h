@@ -69,6 +69,7 @@ struct AtlasTreeData {
 struct PlainTriangles {
     std::vector<glm::vec3> positions; // 3 per triangle
     std::vector<Surface> surface;     // per triangle
+    std::vector<std::uint32_t> building; // per triangle
 };
 
 /// Build parameters (thesis §4.2) and what the build measured.

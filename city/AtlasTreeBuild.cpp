@@ -228,6 +228,7 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
         if (t.texture < 0 || roof) {
             for (const auto& v : t.v) file.plain.positions.emplace_back(v);
             file.plain.surface.push_back(model.surface[i]);
+            file.plain.building.push_back(model.building[i]);
             continue;
         }
         const CityTexture& tex = model.textures[std::size_t(t.texture)];

@@ -1,0 +1,75 @@
+#include "CityJob.h"
+
+#include "AtlasTreeBuild.h"
+#include "CityModel.h"
+#include "Commands.h"
+#include "StableHash.h"
+
+#include <chrono>
+#include <cstdio>
+
+namespace seasonview::app {
+
+void CityArgs::addTo(CLI::App& cmd) {
+    cmd.add_option("--city", mode,
+                   "City model (the scene's `buildings`): atlas (texture-atlas tree), original (each original texture "
+                   "bound per draw), flat (one dummy texture, the upper bound), off")
+        ->check(CLI::IsMember({"atlas", "original", "flat", "off"}))
+        ->capture_default_str();
+    cmd.add_option("--city-tree", tree, "Atlas tree file to draw (default: built from the scene's buildings into the cache)");
+    cmd.add_option("--city-capacity", capacityMb, "Resident atlases and original textures, MB")->capture_default_str();
+    cmd.add_option("--city-tpp", tpp, "City: pixels per texel allowed (larger: coarser atlases)")->capture_default_str();
+}
+
+Result<std::optional<city::CitySettings>> CityArgs::settings() const {
+    if (mode == "off") return std::optional<city::CitySettings>();
+    if (!(capacityMb >= 1.0)) return Error{"--city-capacity must be at least 1 MB"};
+    if (!(tpp > 0.0)) return Error{"--city-tpp must be positive"};
+    city::CitySettings s;
+    s.mode = *city::parseCityMode(mode);
+    s.capacityBytes = std::uint64_t(capacityMb * 1048576.0);
+    s.tpp = tpp;
+    return std::optional<city::CitySettings>(s);
+}
+
+Result<std::filesystem::path> prepareCityTree(const Scene& scene, const std::filesystem::path& cacheDir,
+                                              const std::string& explicitTree) {
+    if (!explicitTree.empty()) return std::filesystem::path(explicitTree);
+    const std::filesystem::path model = scene.sources.buildings;
+    if (model.empty())
+        return Error{(scene.sources.manifest.empty() ? std::string("the scene") : scene.sources.manifest.string()) +
+                     ": no 'buildings' model for --city (or give --city-tree)"};
+    std::error_code ec;
+    const auto abs = std::filesystem::absolute(model, ec);
+    const auto size = std::filesystem::file_size(model, ec);
+    if (ec) return fileError(model.string(), "no such city model");
+    const auto mtime = std::filesystem::last_write_time(model, ec).time_since_epoch().count();
+    const std::string key = abs.string() + "|" + std::to_string(size) + "|" + std::to_string(mtime) + "|v" +
+                            std::to_string(city::AtlasTreeFile::kVersion) + "|defaults1";
+    char name[64];
+    std::snprintf(name, sizeof name, "%016llx.svat", (unsigned long long)stableHash64(key));
+    const auto dir = cacheDir / "atlas";
+    const auto tree = dir / name;
+    if (std::filesystem::exists(tree, ec) && city::AtlasTreeFile::open(tree.string())) return tree;
+    std::filesystem::create_directories(dir, ec);
+    if (ec) return fileError(dir.string(), "cannot create cache folder: " + ec.message());
+
+    const auto t0 = std::chrono::steady_clock::now();
+    city::CityLoadOptions options;
+    // An OBJ that comes with a scene and names no CRS is in the scene's frame (seasonview synth's city.obj).
+    options.localFrame = true;
+    auto m = city::loadCityModel(model.string(), options);
+    if (!m) return m.error();
+    for (const auto& w : m->warnings) std::fprintf(stderr, "seasonview: warning: %s\n", w.c_str());
+    city::AtlasBuildSettings bs;
+    bs.progress = terminalProgress("atlas tree");
+    auto r = city::buildAtlasTree(*m, bs, tree.string());
+    if (!r) return r.error();
+    std::printf("city: built the atlas tree of %s in %.1f s: %zu nodes, %.1f MB, %s\n", model.string().c_str(),
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), r->nodes,
+                double(r->fileBytes) / 1e6, tree.string().c_str());
+    std::fflush(stdout);
+    return tree;
+}
+
+} // namespace seasonview::app

@@ -1,0 +1,455 @@
+#include "CityRendererGL.h"
+
+#include "AtlasCodec.h"
+#include "GeoFrame.h"
+#include "TerrainMeshGL.h"
+
+#include <epoxy/gl.h>
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <chrono>
+#include <limits>
+#include <thread>
+
+namespace seasonview::city {
+
+std::optional<CityMode> parseCityMode(const std::string& name) {
+    if (name == "atlas") return CityMode::Atlas;
+    if (name == "original") return CityMode::Original;
+    if (name == "flat") return CityMode::Flat;
+    return std::nullopt;
+}
+
+const char* cityModeName(CityMode m) {
+    switch (m) {
+    case CityMode::Atlas: return "atlas";
+    case CityMode::Original: return "original";
+    case CityMode::Flat: return "flat";
+    }
+    return "?";
+}
+
+namespace {
+
+constexpr glm::vec3 kPlainColour{0.72f, 0.70f, 0.66f};
+constexpr glm::vec3 kRoofColour{0.55f, 0.35f, 0.30f};
+
+void setVertexLayout(GLuint vao, GLuint vbo, bool tree) {
+    const GLsizei stride = tree ? GLsizei(sizeof(TreeVertex)) : GLsizei(sizeof(glm::vec3));
+    glVertexArrayVertexBuffer(vao, 0, vbo, 0, stride);
+    glEnableVertexArrayAttrib(vao, 0);
+    glVertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);
+    glVertexArrayAttribBinding(vao, 0, 0);
+    if (!tree) return;
+    glEnableVertexArrayAttrib(vao, 1);
+    glVertexArrayAttribFormat(vao, 1, 2, GL_FLOAT, GL_FALSE, GLuint(offsetof(TreeVertex, uv)));
+    glVertexArrayAttribBinding(vao, 1, 0);
+    glEnableVertexArrayAttrib(vao, 2);
+    glVertexArrayAttribFormat(vao, 2, 2, GL_FLOAT, GL_FALSE, GLuint(offsetof(TreeVertex, root)));
+    glVertexArrayAttribBinding(vao, 2, 0);
+}
+
+} // namespace
+
+CityRendererGL::~CityRendererGL() = default;
+
+std::size_t CityRendererGL::triangles() const {
+    std::size_t n = m_plainRoofs + m_plainOthers;
+    for (const auto& t : m_file.trees) n += t.vertices.size() / 3;
+    return n;
+}
+
+Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scene, const std::string& treePath,
+                                                               const CitySettings& settings) {
+    auto file = AtlasTreeFile::open(treePath);
+    if (!file) return file.error();
+    std::unique_ptr<CityRendererGL> r(new CityRendererGL());
+    r->m_file = std::move(*file);
+    r->m_settings = settings;
+    AtlasTreeFile& f = r->m_file;
+
+    // Into the scene's frame: point by point when the tree has its own CRS, then each building onto the DEM.
+    if (!f.info.sceneFrame) {
+        const GeoFrame from(f.info.crs, f.info.origin);
+        const bool translate = !f.info.crs.isGeographic() && f.info.crs.sameSpace(scene.frame.crs());
+        const glm::dvec2 shift = translate ? f.info.origin - scene.frame.centre() : glm::dvec2(0.0);
+        auto move = [&](glm::vec3& p) {
+            if (translate) {
+                p.x = float(double(p.x) + shift.x);
+                p.y = float(double(p.y) + shift.y);
+            } else {
+                const glm::dvec3 l = scene.frame.toLocal(f.info.crs, from.fromLocal(f.info.crs, glm::dvec2(p)), double(p.z));
+                p.x = float(l.x);
+                p.y = float(l.y);
+            }
+        };
+        for (auto& t : f.trees)
+            for (auto& v : t.vertices) move(v.position);
+        for (auto& p : f.plain.positions) move(p);
+        if (settings.placeOnTerrain && scene.elevation) {
+            // Each building's lowest vertex onto the lowest ground under its vertices (CityModel.h's placeOnTerrain).
+            std::map<std::uint32_t, std::pair<double, double>> lowest; // building -> (lowest z, lowest ground)
+            auto see = [&](std::uint32_t b, const glm::vec3& p) {
+                auto& lg = lowest.try_emplace(b, 1e30, 1e30).first->second;
+                lg.first = std::min(lg.first, double(p.z));
+                lg.second = std::min(lg.second, scene.terrainHeight(p.x, p.y));
+            };
+            for (const auto& t : f.trees)
+                for (std::size_t i = 0; i < t.vertices.size(); ++i) see(t.triangleBuilding[i / 3], t.vertices[i].position);
+            for (std::size_t i = 0; i < f.plain.positions.size(); ++i) see(f.plain.building[i / 3], f.plain.positions[i]);
+            auto dz = [&](std::uint32_t b) { return float(lowest.at(b).second - lowest.at(b).first); };
+            for (auto& t : f.trees)
+                for (std::size_t i = 0; i < t.vertices.size(); ++i) t.vertices[i].position.z += dz(t.triangleBuilding[i / 3]);
+            for (std::size_t i = 0; i < f.plain.positions.size(); ++i) f.plain.positions[i].z += dz(f.plain.building[i / 3]);
+        }
+    }
+
+    // Shaders.
+    auto build = [](const char* variant) { return gl::ShaderProgram::build("city_building.vert", "city_building.frag", {variant}); };
+    for (auto [prog, variant] : {std::pair{&r->m_atlasProgram, "ATLAS"}, {&r->m_originalProgram, "ORIGINAL"},
+                                 {&r->m_flatProgram, "FLAT"}, {&r->m_roofProgram, "ROOF"}, {&r->m_plainProgram, "PLAIN"}}) {
+        auto p = build(variant);
+        if (!p) return p.error();
+        *prog = std::move(*p);
+    }
+    r->m_s3tc = epoxy_has_gl_extension("GL_EXT_texture_compression_s3tc");
+
+    // Geometry: one vertex buffer per tree (§4.8.1 order), one for the plain triangles (roofs first).
+    for (const auto& t : f.trees) {
+        gl::Buffer vbo = gl::Buffer::create();
+        glNamedBufferStorage(vbo.id(), GLsizeiptr(std::max<std::size_t>(t.vertices.size(), 1) * sizeof(TreeVertex)),
+                             t.vertices.empty() ? nullptr : t.vertices.data(), 0);
+        gl::VertexArray vao = gl::VertexArray::create();
+        setVertexLayout(vao.id(), vbo.id(), true);
+        r->m_vbo.push_back(std::move(vbo));
+        r->m_vao.push_back(std::move(vao));
+        r->m_traversals.push_back(std::make_unique<AtlasTraversal>(t, f.info));
+        r->m_atlases.emplace_back();
+    }
+    {
+        std::vector<glm::vec3> plain;
+        for (int pass = 0; pass < 2; ++pass)
+            for (std::size_t i = 0; i < f.plain.surface.size(); ++i)
+                if ((f.plain.surface[i] == Surface::Roof) == (pass == 0)) {
+                    for (int k = 0; k < 3; ++k) plain.push_back(f.plain.positions[i * 3 + std::size_t(k)]);
+                    (pass == 0 ? r->m_plainRoofs : r->m_plainOthers)++;
+                }
+        r->m_plainVbo = gl::Buffer::create();
+        glNamedBufferStorage(r->m_plainVbo.id(), GLsizeiptr(std::max<std::size_t>(plain.size(), 1) * sizeof(glm::vec3)),
+                             plain.empty() ? nullptr : plain.data(), 0);
+        r->m_plainVao = gl::VertexArray::create();
+        setVertexLayout(r->m_plainVao.id(), r->m_plainVbo.id(), false);
+    }
+
+    // Samplers: atlases trilinear within their mip chain (clamped: fract() keeps coordinates inside), originals
+    // repeated or clamped as their model says.
+    r->m_atlasSampler = gl::Sampler::create();
+    r->m_repeatSampler = gl::Sampler::create();
+    r->m_clampSampler = gl::Sampler::create();
+    for (GLuint s : {r->m_atlasSampler.id(), r->m_repeatSampler.id(), r->m_clampSampler.id()}) {
+        glSamplerParameteri(s, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+        glSamplerParameteri(s, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        glSamplerParameterf(s, GL_TEXTURE_MAX_ANISOTROPY, 8.0f);
+    }
+    for (GLuint s : {r->m_atlasSampler.id(), r->m_clampSampler.id()}) {
+        glSamplerParameteri(s, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+        glSamplerParameteri(s, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    }
+    glSamplerParameteri(r->m_repeatSampler.id(), GL_TEXTURE_WRAP_S, GL_REPEAT);
+    glSamplerParameteri(r->m_repeatSampler.id(), GL_TEXTURE_WRAP_T, GL_REPEAT);
+
+    // The flat mode's one dummy texture: 64² of light grey with a faint grid (so it is still a texture fetch).
+    {
+        std::vector<std::uint8_t> px(64 * 64 * 4);
+        for (int y = 0; y < 64; ++y)
+            for (int x = 0; x < 64; ++x) {
+                const std::uint8_t v = (x % 16 == 0 || y % 16 == 0) ? 150 : 190;
+                std::uint8_t* p = &px[std::size_t(y * 64 + x) * 4];
+                p[0] = p[1] = p[2] = v;
+                p[3] = 255;
+            }
+        r->m_dummy = gl::Texture::create(GL_TEXTURE_2D);
+        glTextureStorage2D(r->m_dummy.id(), 7, GL_RGBA8, 64, 64);
+        glTextureSubImage2D(r->m_dummy.id(), 0, 0, 0, 64, 64, GL_RGBA, GL_UNSIGNED_BYTE, px.data());
+        glGenerateTextureMipmap(r->m_dummy.id());
+    }
+
+    // Pagers: one per tree (its atlases and the originals of its leaves); the capacity is shared in proportion to
+    // the trees' atlas bytes. Original mode pages originals only.
+    PagerSettings ps;
+    ps.threaded = settings.threaded;
+    ps.uploadBytesPerFrame = settings.uploadBytesPerFrame;
+    if (settings.mode == CityMode::Atlas) {
+        std::vector<std::uint64_t> share;
+        std::uint64_t total = 0;
+        for (const auto& t : f.trees) {
+            std::uint64_t b = 0;
+            for (const auto& n : t.nodes) b += n.atlasBytes + n.textureBytes;
+            share.push_back(std::max<std::uint64_t>(b, 1));
+            total += share.back();
+        }
+        for (std::size_t t = 0; t < f.trees.size(); ++t) {
+            ps.capacityBytes = f.trees.size() == 1 ? settings.capacityBytes
+                                                   : std::max<std::uint64_t>(settings.capacityBytes * share[t] / total, 1);
+            r->m_pagers.push_back(std::make_unique<AtlasPager>(r->m_file, int(t), ps));
+        }
+    } else if (settings.mode == CityMode::Original && !f.trees.empty()) {
+        ps.capacityBytes = settings.capacityBytes;
+        ps.queueLength = 32;
+        r->m_originalPager = std::make_unique<AtlasPager>(r->m_file, 0, ps);
+    }
+    return r;
+}
+
+AtlasView CityRendererGL::view(const Camera& camera, int width, int height) const {
+    AtlasView v;
+    v.eye = camera.position;
+    const double aspect = double(width) / double(height);
+    v.viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
+    v.screenWidth = width;
+    v.fovXDeg = 2.0 * std::atan(std::tan(camera.fovYDeg * M_PI / 360.0) * aspect) * 180.0 / M_PI;
+    v.tpp = m_settings.tpp;
+    return v;
+}
+
+void CityRendererGL::uploadAtlas(int tree, const LoadedBlock& b) {
+    const bool alpha = m_file.trees[std::size_t(tree)].alpha;
+    const int size = m_file.info.atlasSize, levels = atlasLevels(size);
+    const AtlasFormat format = m_file.info.format;
+    gl::Texture tex = gl::Texture::create(GL_TEXTURE_2D);
+    const bool native = format == AtlasFormat::Bc && m_s3tc;
+    const GLenum internal = native ? (alpha ? GL_COMPRESSED_RGBA_S3TC_DXT5_EXT : GL_COMPRESSED_RGB_S3TC_DXT1_EXT)
+                                   : (alpha ? GL_RGBA8 : GL_RGB8);
+    glTextureStorage2D(tex.id(), levels, internal, size, size);
+    glTextureParameteri(tex.id(), GL_TEXTURE_MAX_LEVEL, levels - 1);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    for (int l = 0; l < levels; ++l) {
+        const int s = std::max(4, size >> l);
+        const auto data = atlasLevelData(format, alpha, b.data, size, l);
+        if (data.empty()) continue; // a corrupt blob stays black (the loader reported it)
+        if (native) {
+            glCompressedTextureSubImage2D(tex.id(), l, 0, 0, s, s, internal, GLsizei(data.size()), data.data());
+        } else if (format == AtlasFormat::Bc) {
+            const auto rgba = decodeBc(data.data(), s, alpha);
+            glTextureSubImage2D(tex.id(), l, 0, 0, s, s, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+        } else {
+            glTextureSubImage2D(tex.id(), l, 0, 0, s, s, alpha ? GL_RGBA : GL_RGB, GL_UNSIGNED_BYTE, data.data());
+        }
+    }
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    m_atlases[std::size_t(tree)][b.key.index] = std::move(tex);
+}
+
+void CityRendererGL::uploadTexture(const LoadedBlock& b) {
+    gl::Texture tex = gl::Texture::create(GL_TEXTURE_2D);
+    int levels = 1;
+    while ((std::max(b.size.x, b.size.y) >> levels) > 0) ++levels;
+    glTextureStorage2D(tex.id(), levels, GL_RGBA8, b.size.x, b.size.y);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTextureSubImage2D(tex.id(), 0, 0, 0, b.size.x, b.size.y, GL_RGBA, GL_UNSIGNED_BYTE, b.data.data());
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glGenerateTextureMipmap(tex.id());
+    m_textures[b.key.index] = std::move(tex);
+}
+
+void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
+    for (const auto& k : frame.evict) {
+        if (k.kind == BlockKey::Kind::Atlas) m_atlases[std::size_t(tree)].erase(k.index);
+        else m_textures.erase(k.index);
+    }
+    for (const auto& b : frame.upload) {
+        if (b.key.kind == BlockKey::Kind::Atlas) uploadAtlas(tree, b);
+        else uploadTexture(b);
+        m_frameUploaded += b.bytes;
+    }
+}
+
+void CityRendererGL::update(const Camera& camera, int width, int height) {
+    ++m_frame;
+    m_frameUploaded = 0;
+    const AtlasView v = view(camera, width, height);
+    if (m_settings.mode == CityMode::Atlas) {
+        for (std::size_t t = 0; t < m_pagers.size(); ++t) apply(int(t), m_pagers[t]->update(m_traversals[t]->requests(v)));
+    } else if (m_originalPager) {
+        // The originals of every visible leaf, nearest first.
+        std::vector<BlockRequest> req;
+        std::map<std::uint32_t, double> nearest;
+        for (const auto& trav : m_traversals)
+            for (std::uint32_t n = 0; n < trav->tree().nodes.size(); ++n) {
+                const AtlasNode& node = trav->tree().nodes[n];
+                if (!node.leaf() || !trav->visible(n, v)) continue;
+                const double d = trav->distance(n, v);
+                for (auto t : node.textures) {
+                    auto [it, fresh] = nearest.try_emplace(t, d);
+                    if (!fresh) it->second = std::min(it->second, d);
+                }
+            }
+        for (auto [t, d] : nearest) req.push_back(BlockRequest{{BlockKey::Kind::Texture, t}, BlockCategory::Needed, d, 0});
+        std::sort(req.begin(), req.end());
+        apply(0, m_originalPager->update(req));
+    }
+}
+
+void CityRendererGL::complete(const Camera& camera, int width, int height) {
+    const AtlasView v = view(camera, width, height);
+    if (m_settings.mode == CityMode::Atlas) {
+        for (std::size_t t = 0; t < m_pagers.size(); ++t) apply(int(t), m_pagers[t]->complete(m_traversals[t]->requests(v)));
+    } else if (m_originalPager) {
+        update(camera, width, height);
+        for (int i = 0; i < 100000 && (m_originalPager->stats().idealMissing > 0 || m_originalPager->stats().queued > 0); ++i) {
+            if (m_settings.threaded) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            update(camera, width, height);
+        }
+    }
+}
+
+CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRendererGL* terrain,
+                                    const gl::RenderTarget& target) {
+    CityFrameStats st;
+    target.bind();
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_GREATER);
+    glDisable(GL_CULL_FACE); // CityGML rings are not reliably oriented
+    const AtlasView v = view(camera, target.width(), target.height());
+    const glm::mat4 viewProj(v.viewProj);
+    const glm::vec3 sun(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75)));
+    GLuint bound = 0;
+    auto bindTexture = [&](GLuint id, GLuint sampler) {
+        if (id == bound) return;
+        glBindTextureUnit(0, id);
+        glBindSampler(0, sampler);
+        bound = id;
+        ++st.textureBinds;
+    };
+
+    for (std::size_t t = 0; t < m_file.trees.size(); ++t) {
+        const AtlasTreeData& tree = m_file.trees[t];
+        if (tree.vertices.empty()) continue;
+        glBindVertexArray(m_vao[t].id());
+        const float alphaCut = tree.alpha ? 0.5f : -1.0f;
+        if (m_settings.mode == CityMode::Flat) {
+            m_flatProgram.set("uViewProj", viewProj);
+            m_flatProgram.set("uSunDir", sun);
+            m_flatProgram.set("uTexture", 0);
+            m_flatProgram.set("uAlphaCut", -1.0f);
+            m_flatProgram.use();
+            bindTexture(m_dummy.id(), m_repeatSampler.id());
+            glDrawArrays(GL_TRIANGLES, 0, GLsizei(tree.vertices.size()));
+            ++st.drawCalls;
+            st.triangles += std::int64_t(tree.vertices.size() / 3);
+            continue;
+        }
+        if (m_settings.mode == CityMode::Original) {
+            // Every leaf's runs of one texture with that texture: the conventional way, one bind and one call each.
+            m_originalProgram.set("uViewProj", viewProj);
+            m_originalProgram.set("uSunDir", sun);
+            m_originalProgram.set("uTexture", 0);
+            m_originalProgram.set("uAlphaCut", alphaCut);
+            m_originalProgram.use();
+            const auto& trav = *m_traversals[t];
+            for (std::uint32_t n = 0; n < tree.nodes.size(); ++n) {
+                const AtlasNode& node = tree.nodes[n];
+                if (!node.leaf() || !trav.visible(n, v)) continue;
+                for (std::uint32_t i = node.first; i < node.first + node.count;) {
+                    const std::uint32_t tex = tree.triangleTexture[i];
+                    std::uint32_t e = i + 1;
+                    while (e < node.first + node.count && tree.triangleTexture[e] == tex) ++e;
+                    auto it = m_textures.find(tex);
+                    if (it != m_textures.end())
+                        bindTexture(it->second.id(), m_file.textures[tex].repeat ? m_repeatSampler.id() : m_clampSampler.id());
+                    else {
+                        bindTexture(m_dummy.id(), m_repeatSampler.id());
+                        ++st.missingOriginals;
+                    }
+                    glDrawArrays(GL_TRIANGLES, GLint(i * 3), GLsizei((e - i) * 3));
+                    ++st.drawCalls;
+                    st.triangles += e - i;
+                    i = e;
+                }
+            }
+            continue;
+        }
+        // Atlas mode: the traversal's draws with what the pager made resident.
+        AtlasPager& pager = *m_pagers[t];
+        const auto result = m_traversals[t]->draws(
+            v, [&](std::uint32_t n) { return pager.resident({BlockKey::Kind::Atlas, n}); },
+            [&](std::uint32_t x) { return pager.resident({BlockKey::Kind::Texture, x}); });
+        st.atlasNodes += int(result.atlasNodes);
+        st.originalLeaves += int(result.originalLeaves);
+        st.coarserThanWanted += int(result.coarserThanWanted);
+        for (const gl::ShaderProgram* p : {&m_atlasProgram, &m_originalProgram}) {
+            p->set("uViewProj", viewProj);
+            p->set("uSunDir", sun);
+            p->set("uTexture", 0);
+            p->set("uAlphaCut", alphaCut);
+        }
+        const gl::ShaderProgram* current = nullptr;
+        for (const AtlasDraw& d : result.draws) {
+            const gl::ShaderProgram& prog = d.original ? m_originalProgram : m_atlasProgram;
+            if (&prog != current) {
+                prog.use();
+                current = &prog;
+            }
+            if (d.original) {
+                auto it = m_textures.find(d.texture);
+                if (it == m_textures.end()) continue; // cannot happen: the traversal checked residency
+                bindTexture(it->second.id(), m_file.textures[d.texture].repeat ? m_repeatSampler.id() : m_clampSampler.id());
+            } else {
+                auto it = m_atlases[t].find(d.node);
+                if (it == m_atlases[t].end()) continue;
+                bindTexture(it->second.id(), m_atlasSampler.id());
+                prog.set("uLevelScale", float(std::ldexp(1.0, d.level)));
+            }
+            glDrawArrays(GL_TRIANGLES, GLint(d.first * 3), GLsizei(d.count * 3));
+            ++st.drawCalls;
+            st.triangles += d.count;
+        }
+        st.blocksResident += pager.stats().residentBlocks;
+        st.residentBytes += pager.stats().residentBytes;
+        st.loaderQueue += pager.stats().queued;
+    }
+    if (m_originalPager) {
+        st.blocksResident = m_originalPager->stats().residentBlocks;
+        st.residentBytes = m_originalPager->stats().residentBytes;
+        st.loaderQueue = m_originalPager->stats().queued;
+    }
+
+    // Plain triangles: roofs with the imagery (or one colour), the rest in one colour. Unit 0's sampler object would
+    // override the clipmap's own filtering.
+    glBindSampler(0, 0);
+    glBindVertexArray(m_plainVao.id());
+    if (m_plainRoofs > 0) {
+        m_roofProgram.set("uViewProj", viewProj);
+        m_roofProgram.set("uSunDir", sun);
+        m_roofProgram.set("uPlainColour", kRoofColour);
+        m_roofProgram.set("uAlphaCut", -1.0f);
+        m_roofProgram.set("uSeason", std::clamp(m_settings.season, 0, 1));
+        m_roofProgram.set("uHasImagery", terrain ? 1 : 0);
+        if (terrain) terrain->bindTerrain(m_roofProgram, v.viewProj);
+        m_roofProgram.set("uViewProj", viewProj);
+        m_roofProgram.use();
+        glDrawArrays(GL_TRIANGLES, 0, GLsizei(m_plainRoofs * 3));
+        ++st.drawCalls;
+        st.triangles += std::int64_t(m_plainRoofs);
+        bound = 0;
+    }
+    if (m_plainOthers > 0) {
+        m_plainProgram.set("uViewProj", viewProj);
+        m_plainProgram.set("uSunDir", sun);
+        m_plainProgram.set("uPlainColour", kPlainColour);
+        m_plainProgram.set("uAlphaCut", -1.0f);
+        m_plainProgram.use();
+        glDrawArrays(GL_TRIANGLES, GLint(m_plainRoofs * 3), GLsizei(m_plainOthers * 3));
+        ++st.drawCalls;
+        st.triangles += std::int64_t(m_plainOthers);
+    }
+    glBindVertexArray(0);
+    glBindSampler(0, 0);
+    st.uploadedBytes = m_frameUploaded;
+    return st;
+}
+
+} // namespace seasonview::city

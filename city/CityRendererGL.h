@@ -1,0 +1,101 @@
+#pragma once
+// Draws a texture-atlas tree file (AtlasTree.h) in a scene: the tree's triangles with node atlases chosen by
+// AtlasTraversal and paged by AtlasPager under a byte capacity (Buchholz's thesis §4.4, §4.6), or with their
+// original textures, or with one dummy texture (`--city atlas|original|flat`); roofs with the terrain's imagery
+// clipmap of the current season (§4.8.2); untextured triangles in one colour. Upload and draw only: the choices are
+// the plain-C++ classes'.
+#include "AtlasPager.h"
+#include "AtlasTraversal.h"
+#include "AtlasTree.h"
+#include "Camera.h"
+#include "ClipmapTerrainRendererGL.h"
+#include "Scene.h"
+#include "gl/GlObjects.h"
+#include "gl/RenderTarget.h"
+#include "gl/ShaderProgram.h"
+
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+
+namespace seasonview::city {
+
+enum class CityMode { Atlas, Original, Flat };
+std::optional<CityMode> parseCityMode(const std::string& name);
+const char* cityModeName(CityMode m);
+
+struct CitySettings {
+    CityMode mode = CityMode::Atlas;
+    double tpp = 1.0;                              // pixels per texel (§4.5.2), adjustable per frame
+    std::uint64_t capacityBytes = 256ull << 20;    // resident atlases and original textures (GPU bytes)
+    std::uint64_t uploadBytesPerFrame = 16ull << 20;
+    bool threaded = true;                          // background loader (false: loads inside update())
+    int season = 0;                                // roofs: 0 leaf-on, 1 leaf-off imagery
+    bool placeOnTerrain = true;                    // a model in its own CRS: each building set on the scene's DEM
+};
+
+/// Per-frame counters (the issue's: nodes drawn, texture binds, draw calls, blocks resident, bytes, loader queue).
+struct CityFrameStats {
+    std::int64_t triangles = 0;
+    int drawCalls = 0;
+    int textureBinds = 0;
+    int atlasNodes = 0;            // atlases drawn
+    int originalLeaves = 0;        // leaves drawn with their originals
+    int coarserThanWanted = 0;     // nodes drawn with a coarser atlas while finer data loads
+    int missingOriginals = 0;      // original mode: triangle runs drawn flat because their texture is not resident
+    std::size_t blocksResident = 0;
+    std::uint64_t residentBytes = 0;
+    std::size_t loaderQueue = 0;
+    std::uint64_t uploadedBytes = 0; // this frame
+};
+
+class CityRendererGL {
+public:
+    /// Opens the tree and uploads its geometry in the scene's local frame (converted from the tree's CRS when it
+    /// differs; buildings set on the DEM when settings.placeOnTerrain and the tree is not in the scene's frame).
+    static Result<std::unique_ptr<CityRendererGL>> create(const Scene& scene, const std::string& treePath,
+                                                          const CitySettings& settings);
+    ~CityRendererGL();
+
+    /// Paging for a view (call once per frame before draw): requests, evictions, uploads within the budget.
+    void update(const Camera& camera, int width, int height);
+    /// Loads everything the view wants before returning (stills).
+    void complete(const Camera& camera, int width, int height);
+    /// Draws into `target` (depth-tested against what is there: draw after the terrain). `terrain` textures the
+    /// roofs (null: roofs in one colour).
+    CityFrameStats draw(const Camera& camera, const ClipmapTerrainRendererGL* terrain, const gl::RenderTarget& target);
+
+    CitySettings& settings() { return m_settings; }
+    const AtlasTreeFile& file() const { return m_file; }
+    std::size_t triangles() const;
+
+private:
+    CityRendererGL() = default;
+    AtlasView view(const Camera& camera, int width, int height) const;
+    void apply(int tree, AtlasPager::Frame&& frame);
+    void uploadAtlas(int tree, const LoadedBlock& b);
+    void uploadTexture(const LoadedBlock& b);
+
+    AtlasTreeFile m_file;
+    CitySettings m_settings;
+    std::vector<std::unique_ptr<AtlasTraversal>> m_traversals;
+    std::vector<std::unique_ptr<AtlasPager>> m_pagers;
+    std::vector<gl::Buffer> m_vbo;       // per tree: TreeVertex
+    std::vector<gl::VertexArray> m_vao;
+    gl::Buffer m_plainVbo;
+    gl::VertexArray m_plainVao;
+    std::vector<std::uint32_t> m_roofFirst, m_roofCount; // plain triangle ranges: roofs, then the rest
+    std::size_t m_plainRoofs = 0, m_plainOthers = 0;
+    std::vector<std::map<std::uint32_t, gl::Texture>> m_atlases; // per tree: node -> texture
+    std::map<std::uint32_t, gl::Texture> m_textures;             // original textures (shared by both trees)
+    std::map<std::uint32_t, std::uint64_t> m_textureLastUse;     // original mode's LRU
+    gl::Texture m_dummy;
+    gl::Sampler m_atlasSampler, m_repeatSampler, m_clampSampler;
+    gl::ShaderProgram m_atlasProgram, m_originalProgram, m_flatProgram, m_roofProgram, m_plainProgram;
+    bool m_s3tc = false;
+    std::uint64_t m_frame = 0, m_frameUploaded = 0;
+    std::unique_ptr<AtlasPager> m_originalPager; // original mode: pages the originals the view shows
+};
+
+} // namespace seasonview::city

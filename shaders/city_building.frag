@@ -1,0 +1,53 @@
+// City fragments. Variants: ATLAS (a node's atlas through the root-atlas coordinates, Buchholz & Döllner 2005's
+// texture-matrix trick: fract(root · 2^level), sampled with the derivatives of root · 2^level so the wrap of
+// fract() does not fool the mip selection), ORIGINAL (the original texture), FLAT (one dummy texture for every
+// triangle: the paper's upper bound), ROOF (the imagery clipmap of the current season at the fragment's world
+// position), PLAIN (untextured: one colour). Walls are shaded from their face normal.
+#ifdef ROOF
+#include "common_clipmap.glsl"
+uniform sampler2DArray uClip0;
+uniform sampler2DArray uClip1;
+uniform sampler2D uCoarse0;
+uniform sampler2D uCoarse1;
+uniform int uSeason; // 0 leaf-on, 1 leaf-off
+uniform int uHasImagery;
+in vec2 vImageUv;
+#else
+uniform sampler2D uTexture;
+uniform float uLevelScale; // ATLAS: 2^level
+#endif
+uniform vec3 uSunDir;
+uniform vec3 uPlainColour;
+uniform float uAlphaCut; // RGBA tree: fragments below this alpha are dropped
+
+in vec2 vUv;
+in vec2 vRoot;
+in vec3 vLocal;
+out vec4 fragColor;
+
+void main() {
+    vec3 n = normalize(cross(dFdx(vLocal), dFdy(vLocal)));
+    float light = 0.62 + 0.38 * abs(dot(n, uSunDir));
+    vec4 c;
+#if defined(ATLAS)
+    vec2 s = vRoot * uLevelScale;
+    c = textureGrad(uTexture, fract(s), dFdx(s), dFdy(s));
+#elif defined(ORIGINAL) || defined(FLAT)
+    c = texture(uTexture, vUv);
+#elif defined(ROOF)
+    light = 1.0; // the orthophoto carries its own light
+    if (uHasImagery != 0 && all(greaterThanEqual(vImageUv, vec2(0.0))) && all(lessThanEqual(vImageUv, vec2(1.0)))) {
+        vec2 p = vImageUv * uLevel0Size;
+        ClipFootprint f = clipmapFootprint(p);
+        int used;
+        c = uSeason == 0 ? sampleClipmap(uClip0, uCoarse0, p, f, used) : sampleClipmap(uClip1, uCoarse1, p, f, used);
+    } else {
+        c = vec4(uPlainColour, 1.0);
+        light = 0.62 + 0.38 * abs(dot(n, uSunDir));
+    }
+#else
+    c = vec4(uPlainColour, 1.0);
+#endif
+    if (c.a < uAlphaCut) discard;
+    fragColor = vec4(c.rgb * light, 1.0);
+}
