@@ -44,7 +44,7 @@ Result<SynthOptions> loadSynthPreset(const std::filesystem::path& path) {
 Runner addSynthCommand(CLI::App& app) {
     struct Args {
         SynthOptions o;
-        std::string out, dem, preset, facades;
+        std::string out, dem, preset, facades, centre;
         bool noCity = false;
     };
     auto args = std::make_shared<Args>();
@@ -73,6 +73,9 @@ Runner addSynthCommand(CLI::App& app) {
         ->capture_default_str()
         ->check(CLI::Range(16, 4096));
     cmd->add_flag("--no-city", args->noCity, "Do not write the buildings as a city model (city/)");
+    cmd->add_option("--centre", args->centre,
+                    "LON,LAT (degrees) of the scene's centre, on its UTM zone's grid (e.g. under a real city model); "
+                    "default near Münster, or the --dem's centre");
     return [args, cmd]() -> int {
         if (!args->preset.empty()) {
             auto preset = loadSynthPreset(args->preset);
@@ -86,6 +89,15 @@ Runner addSynthCommand(CLI::App& app) {
         }
         args->o.dem = args->dem;
         args->o.facadePhotos = args->facades;
+        if (!args->centre.empty()) {
+            double lon = 0.0, lat = 0.0;
+            char extra = 0;
+            if (std::sscanf(args->centre.c_str(), "%lf,%lf%c", &lon, &lat, &extra) != 2) {
+                std::fprintf(stderr, "seasonview synth: --centre '%s': expected LON,LAT in degrees\n", args->centre.c_str());
+                return 1;
+            }
+            args->o.centreLonLat = glm::dvec2(lon, lat);
+        }
         args->o.city = !args->noCity;
         const double pixels = args->o.sizeM / args->o.gsd;
         if (pixels > double(kMaxSynthPixels)) {

@@ -65,17 +65,32 @@ AtlasArea requiredAtlasArea(const std::vector<const TexturedTriangle*>& tris, do
     if (tris.empty()) return a;
     a.texture = tris.front()->texture;
     // Texels per repetition (not rounded yet: rounding each repetition would add up over many of them).
-    glm::dvec2 tex(0.0);
+    glm::dvec2 tex(0.0), wanted(0.0);
     glm::dvec2 lo(INFINITY), hi(-INFINITY);
     for (const TexturedTriangle* t : tris) {
         const WorldScale w = textureWorldScale(*t);
-        tex = glm::max(tex, glm::dvec2(w.s, w.t) * fproj);
+        const glm::dvec2 want = glm::dvec2(w.s, w.t) * fproj;
+        tex = glm::max(tex, want);
+        glm::dvec2 tlo(INFINITY), thi(-INFINITY);
         for (const glm::dvec2& c : t->t) {
             lo = glm::min(lo, c);
             hi = glm::max(hi, c);
+            tlo = glm::min(tlo, c);
+            thi = glm::max(thi, c);
+        }
+        // What the view could really use, for capFactor: nothing from a triangle under a pixel at dmin (a sliver's
+        // s_world is huge and meaningless), and never more texels across than its longest edge spans in pixels.
+        const double area = triangleArea(*t);
+        if (area * fproj * fproj >= 1.0) {
+            const double edge = std::max({glm::length(t->v[1] - t->v[0]), glm::length(t->v[2] - t->v[1]),
+                                          glm::length(t->v[0] - t->v[2])});
+            const glm::dvec2 ext = thi - tlo;
+            wanted = glm::max(wanted, glm::dvec2(ext.x > 0.0 ? std::min(want.x, edge * fproj / ext.x) : want.x,
+                                                 ext.y > 0.0 ? std::min(want.y, edge * fproj / ext.y) : want.y));
         }
     }
     tex = glm::min(tex, maxTexels);
+    a.capFactor = std::max({1.0, tex.x > 0.0 ? wanted.x / tex.x : 1.0, tex.y > 0.0 ? wanted.y / tex.y : 1.0});
     // The area's texels for the bounding rectangle's repetitions (at least one texel each way), then the border.
     const glm::dvec2 extent = hi - lo;
     const int w = std::max(1, int(std::ceil(tex.x * extent.x - 1e-9)));

@@ -50,6 +50,9 @@ struct AtlasArea {
     glm::dvec2 srcMin{0.0}, srcMax{0.0}; // texture space, border included
     glm::ivec2 size{0};                   // atlas texels, border included
     glm::ivec2 position{0};               // atlas texels (after packing)
+    /// How much finer than the stored texels the view would want at dmin: max over the axes of uncapped / capped
+    /// texels per repetition (1 when the original's size did not cap it). The ancestors' minDistances grow by it.
+    double capFactor = 1.0;
 };
 
 /// The area of one texture for the triangles `tris` (all of that texture): size = ceil(max(s_world f_proj) · w(A_tex))

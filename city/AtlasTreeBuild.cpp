@@ -335,6 +335,8 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
         // until its parent has used it, so at most 4 per level of the current path are in memory.
         const int A = s.atlasSize;
         std::vector<std::vector<std::uint8_t>> images(tree.nodes.size());
+        // Per node: the distance from which its atlas suffices, as its parent's minDistance derives from it.
+        std::vector<double> base(tree.nodes.size(), 0.0);
         std::optional<Error> failure;
         std::function<void(int)> make = [&](int ni) {
             if (failure) return;
@@ -344,6 +346,12 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
             if (n.leaf()) {
                 n.minDistance = float(dmin);
                 const LeafPlan& plan = b.plans.at(ni);
+                // Where an original capped the stored size, the leaf holds all the detail there is but less than
+                // a view at dmin could use: its ancestors' atlases (halved per level) suffice only from
+                // capFactor times further away than the thesis's doubling says.
+                double cap = 1.0;
+                for (const auto& a : plan.areas) cap = std::max(cap, a.capFactor);
+                base[std::size_t(ni)] = dmin * cap;
                 empty = plan.areas.empty();
                 std::uint64_t texBytes = 0;
                 std::set<int> leafTextures;
@@ -390,7 +398,7 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
                 trisDone += n.count;
                 progress(0.05 + 0.9 * double(trisDone) / double(totalTris), "atlases");
             } else {
-                float md = 0.0f;
+                double md = 0.0;
                 bool any = false;
                 for (int q = 0; q < 4; ++q) {
                     const int c = n.children[std::size_t(q)];
@@ -398,7 +406,7 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
                     if (failure) return;
                     const AtlasNode& cn = tree.nodes[std::size_t(c)];
                     if (cn.count > 0) {
-                        md = std::max(md, cn.minDistance);
+                        md = std::max(md, base[std::size_t(c)]);
                         any = true;
                     }
                     // The child's atlas, halved, into quadrant q (0 bottom-left, 1 bottom-right, 2 top-left, 3 top-right).
@@ -410,7 +418,8 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
                     images[std::size_t(c)].clear();
                     images[std::size_t(c)].shrink_to_fit();
                 }
-                n.minDistance = 2.0f * md; // §4.5.1: half the resolution is enough from twice the distance
+                n.minDistance = float(2.0 * md); // §4.5.1: half the resolution is enough from twice the distance
+                base[std::size_t(ni)] = 2.0 * md;
                 empty = !any;
             }
             // Bounds of the node's triangles.

@@ -107,6 +107,20 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
         }
     }
 
+    // Node bounds in the scene's frame (every node is a contiguous range, §4.8.1).
+    if (!f.info.sceneFrame)
+        for (auto& t : f.trees)
+            for (auto& n : t.nodes) {
+                if (n.count == 0) continue;
+                glm::vec3 lo(std::numeric_limits<float>::max()), hi(std::numeric_limits<float>::lowest());
+                for (std::size_t v = std::size_t(n.first) * 3; v < std::size_t(n.first + n.count) * 3; ++v) {
+                    lo = glm::min(lo, t.vertices[v].position);
+                    hi = glm::max(hi, t.vertices[v].position);
+                }
+                n.boundsMin = lo;
+                n.boundsMax = hi;
+            }
+
     // Shaders.
     auto build = [](const char* variant) { return gl::ShaderProgram::build("city_building.vert", "city_building.frag", {variant}); };
     for (auto [prog, variant] : {std::pair{&r->m_atlasProgram, "ATLAS"}, {&r->m_originalProgram, "ORIGINAL"},

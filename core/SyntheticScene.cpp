@@ -172,6 +172,12 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
         crs = Crs::utm(std::clamp(int(std::floor((ll.x + 180.0) / 6.0)) + 1, 1, 60), ll.y >= 0.0);
         centre = glm::round(convert(Crs::geographic(), crs, ll));
         dem = std::move(*d);
+    } else if (options.centreLonLat) {
+        const glm::dvec2 ll = *options.centreLonLat;
+        if (!(std::abs(ll.y) < 84.0) || !(std::abs(ll.x) <= 180.0))
+            return Error{"synth: --centre must be longitude,latitude within UTM's range (|latitude| < 84)"};
+        crs = Crs::utm(std::clamp(int(std::floor((ll.x + 180.0) / 6.0)) + 1, 1, 60), ll.y >= 0.0);
+        centre = glm::round(convert(Crs::geographic(), crs, ll));
     }
     const glm::dvec2 origin = centre + glm::dvec2(-0.5 * extent, 0.5 * extent);
     const Georef georef{crs, origin, glm::dvec2(gsd)};
@@ -341,6 +347,7 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
     j["parameters"] = {{"tree_height_m", std::round(meanHeight * 100.0) / 100.0}};
     j["generator"] = {{"program", "seasonview synth"}, {"version", kSynthGeneratorVersion},      {"seed", options.seed},
                       {"size_m", options.sizeM},       {"gsd", options.gsd}, {"dem", options.dem.string()}};
+    if (options.centreLonLat) j["generator"]["centre_lonlat"] = {options.centreLonLat->x, options.centreLonLat->y};
     std::string err;
     if (!writeTextAtomic(outDir / "scene.json", j.dump(2) + "\n", err))
         return fileError((outDir / "scene.json").string(), err);

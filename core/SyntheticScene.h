@@ -5,6 +5,9 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <optional>
+
+#include <glm/vec2.hpp>
 #include <string>
 
 namespace seasonview {
@@ -33,6 +36,8 @@ struct SynthOptions {
     int bandRows = 0;                  // imagery rows generated at a time (0 = kDefaultSynthBandRows); memory grows
                                        // with it (~18 bytes per pixel of the band), the output does not depend on it
     int pngMasksUpTo = kMaxSynthPngPixels; // larger scenes get GeoTIFF truth masks (a parameter for the tests)
+    std::optional<glm::dvec2> centreLonLat; // where the scene lies (its UTM zone's grid); default near Münster, or
+                                            // the real DEM's centre
     bool city = true;                  // write the buildings as a textured OBJ city model (city/city.obj)
     std::filesystem::path facadePhotos; // facade photo folder for the city's textures (empty: procedural facades)
     int facadeSize = 256;              // facade texture side, texels
