@@ -1,6 +1,7 @@
 // The frame benchmark: per-frame counters along a camera path, a summary, an interleaved comparison of modes and a
 // plot of frame time and coverage over the path.
 #include "Bench.h"
+#include "CityJob.h"
 #include "Plot.h"
 #include "RenderJob.h"
 
@@ -39,6 +40,7 @@ struct FrameRow {
                  rssBytes = 0;
     int blocksMissing = 0;
     double coverage = NAN;
+    city::CityFrameStats city; // zeros without a city
 };
 
 struct Mode {
@@ -49,6 +51,8 @@ struct Mode {
     int canopyLayers = -1;        // -1: as --view says; 0: no canopy (leaf-on terrain); N: canopy view, N layers
     bool perFrameSegmentation = false; // the canopy layer re-derived every frame (the paper's per-frame evaluation)
     bool terrainOnly = false;     // scene=terrain: the relief alone (geometry, no imagery, no canopy)
+    std::optional<city::CityMode> cityMode; // the city model drawn after the terrain (nullopt: none)
+    std::unique_ptr<city::CityRendererGL> city;
     std::unique_ptr<ClipmapGL> clipmap;
     std::unique_ptr<CanopyClipmapGL> canopy;
     std::unique_ptr<CanopyRendererGL> canopyRenderer;
@@ -80,6 +84,28 @@ nlohmann::json figure(const std::vector<double>& v) {
     return {{"median", num(percentile(v, 50))}, {"p95", num(percentile(v, 95))}, {"max", num(percentile(v, 100))}};
 }
 
+/// A city mode's figures: per-frame medians/maxima of its counters and the capacity they must stay under.
+nlohmann::json cityFigures(const Mode& m) {
+    std::vector<double> nodes, binds, calls, resident, queue, coarser;
+    for (const FrameRow& r : m.rows) {
+        nodes.push_back(r.city.atlasNodes);
+        binds.push_back(r.city.textureBinds);
+        calls.push_back(r.city.drawCalls);
+        resident.push_back(double(r.city.residentBytes));
+        queue.push_back(double(r.city.loaderQueue));
+        coarser.push_back(r.city.coarserThanWanted);
+    }
+    return {{"mode", city::cityModeName(*m.cityMode)},
+            {"atlas_nodes", figure(nodes)},
+            {"texture_binds", figure(binds)},
+            {"draw_calls", figure(calls)},
+            {"resident_bytes", figure(resident)},
+            {"capacity_bytes", m.city->settings().capacityBytes},
+            {"loader_queue", figure(queue)},
+            {"coarser_than_wanted", figure(coarser)},
+            {"triangles", m.city->triangles()}};
+}
+
 // "centers=concentric,offset,footprint" or "renderer=clipmap,reference" -> modes.
 Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     std::vector<Mode> modes;
@@ -96,6 +122,10 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
         if (!(a.anisotropy >= 1.0f && a.anisotropy <= kMaxAnisotropy))
             return Error{"--aniso: expected 1..16"};
         m.anisotropy = a.anisotropy;
+        if (a.city != "off") {
+            m.cityMode = city::parseCityMode(a.city);
+            if (!m.cityMode) return Error{"--city '" + a.city + "': expected atlas|original|flat|off"};
+        }
         return m;
     };
     if (a.compare.empty()) {
@@ -109,10 +139,10 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     const size_t eq = a.compare.find('=');
     const std::string key = a.compare.substr(0, eq);
     if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso" && key != "canopy" &&
-                                    key != "segmentation" && key != "scene"))
+                                    key != "segmentation" && key != "scene" && key != "city"))
         return Error{"--compare '" + a.compare +
                      "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
-                     "segmentation=upload,perframe or scene=terrain,full"};
+                     "segmentation=upload,perframe, scene=terrain,full or city=atlas,original,flat,off"};
     std::stringstream list(a.compare.substr(eq + 1));
     std::string v;
     while (std::getline(list, v, ',')) {
@@ -148,6 +178,13 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
                 m->canopyLayers = std::max(1, c->layers);
             } else
                 return Error{"--compare: scene '" + v + "' (expected terrain|full)"};
+        } else if (key == "city") {
+            if (v == "off") {
+                m->cityMode.reset();
+            } else {
+                m->cityMode = city::parseCityMode(v);
+                if (!m->cityMode) return Error{"--compare: city '" + v + "' (expected atlas|original|flat|off)"};
+            }
         } else if (key == "segmentation") {
             if (v != "upload" && v != "perframe")
                 return Error{"--compare: segmentation '" + v + "' (expected upload|perframe)"};
@@ -281,6 +318,26 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
             }
         }
     }
+    // The city's tree, once for every mode that draws it.
+    std::filesystem::path cityTree;
+    for (Mode& m : *modes) {
+        if (!m.cityMode || !m.clipRenderer) continue;
+        if (cityTree.empty()) {
+            auto t = prepareCityTree(*scene, cache, a->cityTree);
+            if (!t)
+                return fail(t.message());
+            cityTree = *t;
+        }
+        city::CitySettings cs;
+        cs.mode = *m.cityMode;
+        cs.capacityBytes = std::uint64_t(std::max(1.0, a->cityCapacityMb) * 1048576.0);
+        cs.tpp = a->cityTpp;
+        cs.season = *view == ImageryView::LeafOff ? 1 : 0;
+        auto c = city::CityRendererGL::create(*scene, cityTree.string(), cs);
+        if (!c)
+            return fail(c.message());
+        m.city = std::move(*c);
+    }
     gl::RenderTarget target(w, h), scratch(w, h);
     gl::Query timer = gl::Query::create(GL_TIME_ELAPSED);
     ImagerySettings imagery;
@@ -342,6 +399,12 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                     row.triangles += t.triangles;
                 }
             }
+            if (m.city) {
+                m.city->update(cam, w, h);
+                row.city = m.city->draw(cam, m.clipRenderer.get(), target);
+                row.drawCalls += row.city.drawCalls;
+                row.triangles += row.city.triangles;
+            }
         } else
             m.reference->render(cam, imagery.view == ImageryView::LeafOff ? Season::LeafOff : Season::LeafOn, target);
         glEndQuery(GL_TIME_ELAPSED);
@@ -376,6 +439,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         if (m.clipmap) {
             m.clipmap->completeSynchronously();
             m.clipRenderer->completeGeometry();
+            if (m.city)
+                m.city->complete(path->at(0.0, terrain), w, h);
         }
     for (int f = 0; f < a->frames; ++f) {
         const Camera cam = path->at(double(f) / double(a->frames - 1), terrain);
@@ -389,17 +454,23 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     // frames.csv
     std::ostringstream csv;
     csv << "mode,frame,x,y,z,yaw,pitch,cpu_ms,gpu_ms,frame_ms,draw_calls,triangles,texels_uploaded,exposed_texels,"
-           "blocks_missing,resident_texture_bytes,loader_cache_bytes,rss_bytes,coverage\n";
+           "blocks_missing,resident_texture_bytes,loader_cache_bytes,rss_bytes,coverage,city_atlas_nodes,"
+           "city_texture_binds,city_draw_calls,city_triangles,city_blocks_resident,city_resident_bytes,"
+           "city_loader_queue,city_coarser_than_wanted\n";
     for (const Mode& m : *modes)
         for (const FrameRow& r : m.rows) {
             char line[512];
             std::snprintf(line, sizeof line,
-                          "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s\n",
+                          "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s,"
+                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d\n",
                           m.label.c_str(), r.frame, r.camera.position.x, r.camera.position.y, r.camera.position.z,
                           r.camera.yawDeg, r.camera.pitchDeg, r.cpuMs, r.gpuMs, r.frameMs, r.drawCalls,
                           (long long)r.triangles, (long long)r.texelsUploaded, (long long)r.exposedTexels,
                           r.blocksMissing, (long long)r.residentBytes, (long long)r.loaderCacheBytes,
-                          (long long)r.rssBytes, std::isfinite(r.coverage) ? std::to_string(r.coverage).c_str() : "");
+                          (long long)r.rssBytes, std::isfinite(r.coverage) ? std::to_string(r.coverage).c_str() : "",
+                          r.city.atlasNodes, r.city.textureBinds, r.city.drawCalls, (long long)r.city.triangles,
+                          r.city.blocksResident, (unsigned long long)r.city.residentBytes, r.city.loaderQueue,
+                          r.city.coarserThanWanted);
             csv << line;
         }
     std::string err;
@@ -490,6 +561,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                                      {"resident_texture_bytes_start", m.rows.front().residentBytes},
                                      {"resident_texture_bytes_end", m.rows.back().residentBytes},
                                      {"worst_frame_over_median", num(percentile(frame, 100) / median)},
+                                     {"city", m.city ? cityFigures(m) : nlohmann::json(nullptr)},
                                      {"totals",
                                       {{"texels_uploaded", uploaded},
                                        {"exposed_texels_per_layer", exposed},

@@ -15,8 +15,9 @@ struct BenchSettings {
     std::string path = "flyover"; // named path or keyframe JSON file
     int width = 1920, height = 1080;
     int frames = 300, warmup = 10, coverageEvery = 1, clipSize = 2048;
-    std::string compare;          // "centers=a,b,...", "renderer=clipmap,reference", "aniso=1,8", "canopy=off,16" or
-                                  // "segmentation=upload,perframe"; empty: one mode
+    std::string compare;          // "centers=a,b,...", "renderer=clipmap,reference", "aniso=1,8", "canopy=off,16",
+                                  // "segmentation=upload,perframe", "scene=terrain,full" or "city=atlas,original,flat";
+                                  // empty: one mode
     std::string renderer = "clipmap", centers = "footprint", view = "leafon";
     std::uint64_t seed = 1;
     float anisotropy = 8.0f;      // clipmap footprint filter / reference sampler (1 = isotropic)
@@ -28,6 +29,9 @@ struct BenchSettings {
     std::string trunks = "on";
     int k = 5;
     std::filesystem::path cacheDir;
+    // The scene's city model: off | atlas | original | flat, its tree (empty: built into the cache), capacity, τ.
+    std::string city = "off", cityTree;
+    double cityCapacityMb = 256.0, cityTpp = 1.0;
 };
 
 struct BenchModeResult {

@@ -55,6 +55,12 @@ Runner addBenchCommand(CLI::App& app) {
     cmd->add_option("--coverage-every", a->b.coverageEvery, "Measure coverage every K frames (0: never)")
         ->capture_default_str();
     cmd->add_option("--seed", a->b.seed, "Seed of the random path")->capture_default_str();
+    cmd->add_option("--city", a->b.city, "City model: atlas|original|flat|off (the scene's buildings)")
+        ->check(CLI::IsMember({"atlas", "original", "flat", "off"}))
+        ->capture_default_str();
+    cmd->add_option("--city-tree", a->b.cityTree, "Atlas tree file (default: built from the scene's buildings into the cache)");
+    cmd->add_option("--city-capacity", a->b.cityCapacityMb, "City: resident atlases and textures, MB")->capture_default_str();
+    cmd->add_option("--city-tpp", a->b.cityTpp, "City: pixels per texel allowed")->capture_default_str();
     return [a]() -> int {
         auto fail = [](const std::string& m) {
             std::fprintf(stderr, "seasonview bench: %s\n", m.c_str());
