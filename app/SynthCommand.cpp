@@ -34,9 +34,14 @@ Result<SynthOptions> loadSynthPreset(const std::filesystem::path& path) {
         o.sizeM = j.value("size_m", o.sizeM);
         o.gsd = j.value("gsd", o.gsd);
         o.seed = j.value("seed", o.seed);
+        o.blockCity = j.value("block_city", o.blockCity);
+        o.facadeSize = j.value("facade_size", o.facadeSize);
     } catch (const nlohmann::json::exception&) {
-        return fileError(path.string(), "preset keys size_m, gsd must be numbers and seed an integer");
+        return fileError(path.string(),
+                         "preset keys size_m, gsd must be numbers, seed, block_city and facade_size integers");
     }
+    if (o.blockCity < 0 || o.facadeSize < 16 || o.facadeSize > 4096)
+        return fileError(path.string(), "preset block_city must be >= 0 and facade_size in 16..4096");
     if (!(o.sizeM >= 16.0) || !(o.gsd >= 0.01)) return fileError(path.string(), "preset size_m or gsd out of range");
     return o;
 }
@@ -73,6 +78,9 @@ Runner addSynthCommand(CLI::App& app) {
         ->capture_default_str()
         ->check(CLI::Range(16, 4096));
     cmd->add_flag("--no-city", args->noCity, "Do not write the buildings as a city model (city/)");
+    cmd->add_option("--block-city", args->o.blockCity,
+                    "A block city of N buildings at the scene centre (benchmarks: 10,000 needs about 2 km)")
+        ->check(CLI::Range(0, 1000000));
     cmd->add_option("--centre", args->centre,
                     "LON,LAT (degrees) of the scene's centre, on its UTM zone's grid (e.g. under a real city model); "
                     "default near Münster, or the --dem's centre");
@@ -86,6 +94,8 @@ Runner addSynthCommand(CLI::App& app) {
             if (cmd->count("--size-m") == 0) args->o.sizeM = preset->sizeM;
             if (cmd->count("--gsd") == 0) args->o.gsd = preset->gsd;
             if (cmd->count("--seed") == 0) args->o.seed = preset->seed;
+            if (cmd->count("--block-city") == 0) args->o.blockCity = preset->blockCity;
+            if (cmd->count("--facade-size") == 0) args->o.facadeSize = preset->facadeSize;
         }
         args->o.dem = args->dem;
         args->o.facadePhotos = args->facades;

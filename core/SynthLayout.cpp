@@ -142,6 +142,7 @@ int Layout::parcelAt(glm::vec2 q) const {
 }
 
 std::uint32_t Layout::groundAtLayout(glm::vec2 q) const {
+    if (hasCity && q.x >= cityMin.x && q.x <= cityMax.x && q.y >= cityMin.y && q.y <= cityMax.y) return cityRecord;
     // Walk the partition from the root: a parent's road or margin strip wins over everything below it, which makes
     // junctions and verges come out right.
     std::uint32_t id = 0;

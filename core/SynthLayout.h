@@ -135,6 +135,10 @@ struct Layout {
     std::vector<Parcel> parcels;
     std::vector<GroundRecord> records;
     std::uint32_t waterRecord = 0, bankRecord = 0;
+    /// A block city (placeBlockCity): inside [cityMin, cityMax] (layout space) the ground is pavement.
+    bool hasCity = false;
+    glm::vec2 cityMin{0.0f}, cityMax{0.0f};
+    std::uint32_t cityRecord = 0;
 
     std::uint32_t addRecord(const GroundRecord& r) {
         records.push_back(r);

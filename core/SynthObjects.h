@@ -84,4 +84,10 @@ void placeSettlement(Layout& layout, Objects& objects);
 /// Trees of each type (at least 3 deciduous and 3 conifers) are guaranteed inside [-sceneHalf, sceneHalf]².
 void placeVegetation(const Layout& layout, Objects& objects, float sceneHalf);
 
+/// Block city for benchmarks (Buchholz's thesis §4.7.1: 10,000 block buildings): replaces everything in a square
+/// around the scene centre with blocks of 4 × 2 buildings (16 m × 12 m, 3 to 10 storeys, mostly flat roofs) between
+/// 12 m streets, `count` buildings in all, on pavement; trees, cars and buildings in the square are removed. The
+/// square is as small as the count allows (about 0.38 km² per 1000 buildings).
+void placeBlockCity(Layout& layout, Objects& objects, int count, std::uint64_t seed);
+
 } // namespace seasonview::synth

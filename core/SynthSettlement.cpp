@@ -353,3 +353,47 @@ void placeSettlement(Layout& l, Objects& o) {
 }
 
 } // namespace seasonview::synth
+
+namespace seasonview::synth {
+
+void placeBlockCity(Layout& l, Objects& o, int count, std::uint64_t seed) {
+    if (count <= 0) return;
+    constexpr float kW = 16.0f, kD = 12.0f, kGap = 1.0f, kStreet = 12.0f;
+    constexpr int kAcross = 4, kDeep = 2; // buildings per block
+    const float blockW = kAcross * (kW + kGap) + kStreet, blockD = kDeep * (kD + kGap) + kStreet;
+    const int blocks = (count + kAcross * kDeep - 1) / (kAcross * kDeep);
+    // A grid of about equal extent both ways.
+    const int nx = std::max(1, int(std::ceil(std::sqrt(double(blocks) * blockD / blockW))));
+    const int ny = (blocks + nx - 1) / nx;
+    const glm::vec2 size(float(nx) * blockW, float(ny) * blockD);
+    l.hasCity = true;
+    l.cityMin = -0.5f * size;
+    l.cityMax = 0.5f * size;
+    l.cityRecord = l.addRecord({Ground::Paving, 0, glm::vec2(0.0f), glm::vec2(1.0f, 0.0f), 0.5f * size, 0xC17Cu});
+    auto inside = [&](glm::vec2 layoutPoint, float margin) {
+        return layoutPoint.x > l.cityMin.x - margin && layoutPoint.x < l.cityMax.x + margin &&
+               layoutPoint.y > l.cityMin.y - margin && layoutPoint.y < l.cityMax.y + margin;
+    };
+    std::erase_if(o.buildings, [&](const Building& b) { return inside(b.centre, 20.0f); });
+    std::erase_if(o.cars, [&](const Car& c) { return inside(c.centre, 3.0f); });
+    std::erase_if(o.trees, [&](const Tree& t) { return inside(l.warp.toLayout(t.centre), t.radius + 2.0f); });
+    Rng rng(mixSeed(seed, 0xB10CC17Eull));
+    int placed = 0;
+    for (int by = 0; by < ny && placed < count; ++by)
+        for (int bx = 0; bx < nx && placed < count; ++bx)
+            for (int j = 0; j < kDeep && placed < count; ++j)
+                for (int i = 0; i < kAcross && placed < count; ++i) {
+                    const glm::vec2 c = l.cityMin + glm::vec2(float(bx) * blockW + 0.5f * kStreet + (float(i) + 0.5f) * (kW + kGap),
+                                                              float(by) * blockD + 0.5f * kStreet + (float(j) + 0.5f) * (kD + kGap));
+                    const int storeys = 3 + int(rng.next() % 8);
+                    const Roof roof = rng.chance(0.8) ? Roof::Flat : Roof::Gable;
+                    Building b = makeBuilding(rng, c, glm::vec2(1.0f, 0.0f), glm::vec2(0.5f * kW, 0.5f * kD), roof,
+                                              3.0f * float(storeys), roof == Roof::Flat ? 0.0f : 35.0f);
+                    b.material = roof == Roof::Flat ? (rng.chance(0.5) ? RoofMaterial::Gravel : RoofMaterial::Bitumen)
+                                                    : RoofMaterial(rng.next() % 5);
+                    o.buildings.push_back(b);
+                    ++placed;
+                }
+}
+
+} // namespace seasonview::synth

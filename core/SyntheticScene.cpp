@@ -192,6 +192,7 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
     Objects objects;
     placeSettlement(layout, objects);
     placeVegetation(layout, objects, half);
+    if (options.blockCity > 0) placeBlockCity(layout, objects, options.blockCity, seed);
 
     stage(0.1, "terrain");
     Terrain terrain;
@@ -347,6 +348,7 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
     j["parameters"] = {{"tree_height_m", std::round(meanHeight * 100.0) / 100.0}};
     j["generator"] = {{"program", "seasonview synth"}, {"version", kSynthGeneratorVersion},      {"seed", options.seed},
                       {"size_m", options.sizeM},       {"gsd", options.gsd}, {"dem", options.dem.string()}};
+    if (options.blockCity > 0) j["generator"]["block_city"] = options.blockCity;
     if (options.centreLonLat) j["generator"]["centre_lonlat"] = {options.centreLonLat->x, options.centreLonLat->y};
     std::string err;
     if (!writeTextAtomic(outDir / "scene.json", j.dump(2) + "\n", err))

@@ -41,6 +41,7 @@ struct SynthOptions {
     bool city = true;                  // write the buildings as a textured OBJ city model (city/city.obj)
     std::filesystem::path facadePhotos; // facade photo folder for the city's textures (empty: procedural facades)
     int facadeSize = 256;              // facade texture side, texels
+    int blockCity = 0;                 // > 0: a block city of this many buildings at the centre (placeBlockCity)
 };
 
 /// What was generated, for the CLI summary.
