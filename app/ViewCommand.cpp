@@ -5,6 +5,7 @@
 // a fixed step per frame (`--fixed-dt`), so what a script does does not depend on how fast the machine draws.
 #include "AtomicFile.h"
 #include "CameraControl.h"
+#include "CityJob.h"
 #include "Commands.h"
 #include "RenderJob.h"
 #include "ViewerScript.h"
@@ -47,6 +48,7 @@ struct ViewArgs {
     std::string view = "leafon", canopyLayers = "16", method = "default", trunks = "on", centers = "footprint";
     int k = kSegDefaultK;
     bool noPanel = false;
+    CityArgs city;
 };
 
 // Key names for scripts and the help text -> GLFW key codes.
@@ -74,6 +76,8 @@ struct ViewerSettings {
     SegmentationParams params{SegmentationMethod::Default, kSegDefaultK};
     bool panel = true;
     int coverageEvery = 30; // frames between coverage measurements (0: never)
+    bool city = true;       // the city model, when the viewer was started with one (key B)
+    float cityTpp = 1.0f;   // its pixels per texel
 };
 
 // Keys 1..9.
@@ -96,6 +100,8 @@ struct LiveScene {
     bool canopyTrunks = false;
     ClipmapFrameStats lastLoad;
     std::int64_t texelsTotal = 0;
+    std::unique_ptr<city::CityRendererGL> city;
+    city::CityFrameStats cityStats;
 
     // (Re)makes the canopy when its rule, layer count or trunks changed (the derived layer is recomputed).
     Status ensureCanopy(const ViewerSettings& s) {
@@ -181,6 +187,16 @@ struct LiveScene {
                 drawn.drawCalls += t.drawCalls;
             }
         }
+        cityStats = {};
+        if (city && s.city) {
+            city->settings().tpp = std::max(0.05f, s.cityTpp);
+            city->settings().season = s.view == ImageryView::LeafOff ? 1 : 0;
+            if (complete) city->complete(cam, target.width(), target.height());
+            else city->update(cam, target.width(), target.height());
+            cityStats = city->draw(cam, terrain.get(), target);
+            drawn.triangles += cityStats.triangles;
+            drawn.drawCalls += cityStats.drawCalls;
+        }
         return drawn;
     }
 
@@ -204,6 +220,10 @@ bool applySetting(ViewerSettings& s, const std::string& name, const nlohmann::js
         if (v.is_string() && v.get<std::string>() == "off") s.layers = 0;
         else if (v.is_number_integer() && v.get<int>() >= 1 && v.get<int>() <= 64) s.layers = v.get<int>();
         else return err = "layers must be 1..64 or \"off\"", false;
+    } else if (name == "city" && v.is_boolean()) {
+        s.city = v.get<bool>();
+    } else if (name == "city_tpp" && v.is_number()) {
+        s.cityTpp = std::clamp(v.get<float>(), 0.05f, 16.0f);
     } else if (name == "trunks" && v.is_boolean()) {
         s.trunks = v.get<bool>();
     } else if (name == "centers") {
@@ -351,6 +371,7 @@ Runner addViewCommand(CLI::App& app) {
     cmd->add_option("--trunks", a->trunks, "Trunks under the crowns: on | off")->capture_default_str();
     cmd->add_option("--centers", a->centers, "Clipmap level centres: concentric | offset | footprint")->capture_default_str();
     cmd->add_option("--clip-size", a->clipSize, "Clipmap level size N")->capture_default_str();
+    a->city.addTo(*cmd);
     cmd->add_option("--grid-size", a->gridSize, "Geometry clipmap vertices per level side (2^k - 1)")->capture_default_str();
     cmd->add_option("--script", a->script, "Replay timed input events from a JSON file (see app/README.md)");
     cmd->add_option("--screenshot-at", a->screenshotsAt, "T:FILE: save the view at T seconds (repeatable)");
@@ -435,6 +456,16 @@ Runner addViewCommand(CLI::App& app) {
         auto scene = a->scene.load();
         if (!scene) return fail(scene.message());
         printSceneNotes(*scene);
+        auto cityArg = a->city.settings();
+        if (!cityArg) return fail(cityArg.message());
+        const std::optional<city::CitySettings> citySettings = *cityArg;
+        std::filesystem::path cityTree;
+        if (citySettings) {
+            auto t = prepareCityTree(*scene, a->scene.cache.empty() ? defaultCacheDir() : std::filesystem::path(a->scene.cache),
+                                     a->city.tree);
+            if (!t) return fail(t.message());
+            cityTree = *t;
+        }
         LiveScene live;
         live.scene = &*scene;
         live.cache = a->scene.cache.empty() ? defaultCacheDir() : std::filesystem::path(a->scene.cache);
@@ -481,6 +512,11 @@ Runner addViewCommand(CLI::App& app) {
             auto terrain = ClipmapTerrainRendererGL::create(*scene, *live.clip, live.elevation ? &*live.elevation : nullptr, go);
             if (!terrain) return fail(terrain.message());
             live.terrain = std::move(*terrain);
+            if (citySettings) {
+                auto c = city::CityRendererGL::create(*scene, cityTree.string(), *citySettings);
+                if (!c) return fail(c.message());
+                live.city = std::move(*c);
+            }
 
             IMGUI_CHECKVERSION();
             ImGui::CreateContext();
@@ -601,6 +637,7 @@ Runner addViewCommand(CLI::App& app) {
                     else if (key == GLFW_KEY_TAB) s.view = s.view == ImageryView::LeafOn ? seasonViews[1] : seasonViews[0];
                     else if (key == GLFW_KEY_C) s.layers = s.layers > 0 ? 0 : 16;
                     else if (key == GLFW_KEY_T) s.trunks = !s.trunks;
+                    else if (key == GLFW_KEY_B) s.city = !s.city;
                     else if (key == GLFW_KEY_M) nav.setMode(NavMode::Map, viewport);
                     else if (key == GLFW_KEY_F) nav.setMode(NavMode::Fly, viewport);
                     else if (key == GLFW_KEY_O) {
@@ -714,6 +751,11 @@ Runner addViewCommand(CLI::App& app) {
                     if (ImGui::Checkbox("canopy layers", &layersOn)) s.layers = layersOn ? 16 : 0;
                     if (layersOn && ImGui::SliderInt("layers", &n, 1, 32)) s.layers = n;
                     ImGui::Checkbox("trunks", &s.trunks);
+                    if (live.city) {
+                        ImGui::Checkbox("city (B)", &s.city);
+                        ImGui::SliderFloat("city pixels per texel", &s.cityTpp, 0.25f, 8.0f, "%.2f",
+                                           ImGuiSliderFlags_Logarithmic);
+                    }
                     int method = int(s.params.method);
                     ImGui::Combo("method", &method, "pixel\0neighborhood\0equalized\0default\0");
                     s.params.method = SegmentationMethod(method);
@@ -750,6 +792,11 @@ Runner addViewCommand(CLI::App& app) {
                     ImGui::Text("frame %.1f ms (%.1f fps)", frameMsAvg, frameMsAvg > 0 ? 1000.0 / frameMsAvg : 0.0);
                     ImGui::Text("%lld triangles, %d draw calls", (long long)drawn.triangles, drawn.drawCalls);
                     ImGui::Text("coverage %.3f", coverage);
+                    if (live.city && s.city)
+                        ImGui::Text("city: %d atlases, %d binds, %d calls, %zu blocks %.1f MB, queue %zu",
+                                    live.cityStats.atlasNodes, live.cityStats.textureBinds, live.cityStats.drawCalls,
+                                    live.cityStats.blocksResident, double(live.cityStats.residentBytes) / 1048576.0,
+                                    live.cityStats.loaderQueue);
                     ImGui::Text("texels uploaded %lld (total %.1f M)", (long long)live.lastLoad.texelsUploaded,
                                 double(live.texelsTotal) / 1e6);
                     ImGui::Text("resident %.1f MB, loader queue %d blocks", double(live.residentBytes()) / 1048576.0,

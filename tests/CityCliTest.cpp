@@ -191,3 +191,28 @@ TEST(CityCliTest, RealBerlinAndTokyoModelsWithTheirPhotoTextures) {
         std::cout << "  " << c.name << ": atlas vs original PSNR " << d.psnr << " dB over " << d.pixels << " city pixels\n";
     }
 }
+
+TEST(CityCliTest, ViewerDrawsTheCityAndKeyBHidesIt) {
+    const CityScene& s = scene();
+    {
+        std::ofstream f(s.dir / "city_script.json");
+        f << R"([{"t": 0.5, "key": "B"}, {"t": 0.9, "set": "city", "value": true}])";
+    }
+    auto png = [&](const char* name) { return (s.dir / name).string(); };
+    const auto r = runCliWithDisplay({"view", (s.dir / "s/scene.json").string(), "--size", "320x200", "--cache",
+                                      (s.dir / "cache").string(), "--camera", "195,140,+18,35,-18,60", "--city", "atlas",
+                                      "--no-panel", "--script", png("city_script.json"), "--screenshot-at",
+                                      std::string("0.3:") + png("v_city.png"), "--screenshot-at",
+                                      std::string("0.7:") + png("v_nocity.png"), "--screenshot-at",
+                                      std::string("1.1:") + png("v_city_again.png"), "--quit-at", "1.2"});
+    if (!r) GTEST_SKIP() << "no DISPLAY and no xvfb-run: the viewer needs a window";
+    ASSERT_EQ(r->exitCode, 0) << r->err;
+    auto city = readImageU8(s.dir / "v_city.png", 3), none = readImageU8(s.dir / "v_nocity.png", 3),
+         again = readImageU8(s.dir / "v_city_again.png", 3);
+    ASSERT_TRUE(city.ok() && none.ok() && again.ok());
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < city->pixels.size(); i += 3)
+        differ += std::abs(int(city->pixels[i]) - int(none->pixels[i])) > 30 ? 1 : 0;
+    EXPECT_GT(differ, city->pixels.size() / 3 / 50) << "the buildings should show, and B hide them";
+    EXPECT_EQ(city->pixels, again->pixels) << "`set city true` shows the same city again";
+}
