@@ -1,4 +1,5 @@
 // `seasonview atlas build|info`: the multiresolution texture-atlas tree of a city model (city/AtlasTreeBuild.h).
+#include "AtlasCodec.h"
 #include "AtlasTreeBuild.h"
 #include "AtomicFile.h"
 #include "Raster.h"
@@ -10,6 +11,7 @@
 #include <sys/resource.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 
@@ -24,6 +26,7 @@ struct AtlasArgs {
     bool objLocal = false;
     std::string tree; // info
     std::vector<std::string> atlasPng;
+    std::string treeA, treeB; // compare
 };
 
 double peakRssGb() {
@@ -73,16 +76,73 @@ Runner addAtlasCommand(CLI::App& app) {
     build->add_flag("--obj-local", a->objLocal, "OBJ positions are already metres in the scene's local frame");
     build->add_option("--obj-up", a->objUp, "OBJ up axis")->check(CLI::IsMember({"y", "z"}))->capture_default_str();
     build->add_option("--report", a->report, "Write the build figures as JSON");
+    CLI::App* compare = cmd->add_subcommand(
+        "compare", "Compare the atlases of two trees of the same model (e.g. --format bc vs deflate): size, decode time, "
+                   "PSNR of B against A");
+    compare->add_option("A", a->treeA, "Reference tree (e.g. lossless)")->required();
+    compare->add_option("B", a->treeB, "Tree to compare")->required();
     CLI::App* info = cmd->add_subcommand("info", "Print a tree file's parameters, nodes and sizes");
     info->add_option("TREE", a->tree, "Tree file")->required();
     info->add_option("--atlas-png", a->atlasPng, "Write node N's atlas (of the first tree) as a PNG: N:FILE.png")
         ->expected(1, 64);
 
-    return [a, build, info]() -> int {
+    return [a, build, info, compare]() -> int {
         auto fail = [](const std::string& m) {
             std::fprintf(stderr, "seasonview atlas: %s\n", m.c_str());
             return 1;
         };
+        if (compare->parsed()) {
+            auto fa = city::AtlasTreeFile::open(a->treeA);
+            if (!fa) return fail(fa.error().message);
+            auto fb = city::AtlasTreeFile::open(a->treeB);
+            if (!fb) return fail(fb.error().message);
+            if (fa->trees.size() != fb->trees.size() || fa->info.atlasSize != fb->info.atlasSize)
+                return fail(a->treeB + ": not a tree of the same model and atlas size as " + a->treeA);
+            struct Side {
+                std::uint64_t bytes = 0;
+                double decodeMs = 0.0;
+            } sa, sb;
+            double sq = 0.0;
+            std::uint64_t samples = 0, atlases = 0;
+            for (std::size_t t = 0; t < fa->trees.size(); ++t) {
+                if (fa->trees[t].nodes.size() != fb->trees[t].nodes.size())
+                    return fail(a->treeB + ": a different tree structure than " + a->treeA);
+                for (std::size_t n = 0; n < fa->trees[t].nodes.size(); ++n) {
+                    if (fa->trees[t].nodes[n].atlasBytes == 0) continue;
+                    std::vector<std::uint8_t> img[2];
+                    int k = 0;
+                    for (auto* f : {&*fa, &*fb}) {
+                        Side& side = k == 0 ? sa : sb;
+                        auto blob = f->readAtlasBlob(int(t), int(n));
+                        if (!blob) return fail(blob.error().message);
+                        side.bytes += blob->size();
+                        // Decode time: what the upload needs (deflate: inflate every level; BC: nothing unless
+                        // the GL lacks S3TC, so the CPU decode is measured as the worst case).
+                        const auto t0 = std::chrono::steady_clock::now();
+                        img[k] = city::decodeAtlasRgba(f->info.format, f->trees[t].alpha, *blob, f->info.atlasSize);
+                        side.decodeMs += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+                        if (img[k].empty()) return fail(f->path + ": corrupt atlas of node " + std::to_string(n));
+                        ++k;
+                    }
+                    for (std::size_t i = 0; i < img[0].size(); i += 4)
+                        for (std::size_t c = 0; c < 3; ++c) {
+                            const double d = double(img[0][i + c]) - double(img[1][i + c]);
+                            sq += d * d;
+                            ++samples;
+                        }
+                    ++atlases;
+                }
+            }
+            const double mse = samples ? sq / double(samples) : 0.0;
+            const double psnr = mse > 0.0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 99.0;
+            std::printf("%llu atlases: A (%s) %.1f MB, decode %.2f ms/atlas; B (%s) %.1f MB, decode %.2f ms/atlas; "
+                        "B/A size %.3f; PSNR of B against A %.2f dB\n",
+                        (unsigned long long)atlases, city::atlasFormatName(fa->info.format), double(sa.bytes) / 1e6,
+                        atlases ? sa.decodeMs / double(atlases) : 0.0, city::atlasFormatName(fb->info.format),
+                        double(sb.bytes) / 1e6, atlases ? sb.decodeMs / double(atlases) : 0.0,
+                        sa.bytes ? double(sb.bytes) / double(sa.bytes) : 0.0, psnr);
+            return 0;
+        }
         if (info->parsed()) {
             auto f = city::AtlasTreeFile::open(a->tree);
             if (!f) return fail(f.error().message);
