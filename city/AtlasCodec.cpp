@@ -1,5 +1,7 @@
 #include "AtlasCodec.h"
 
+#include "ParallelIndices.h"
+
 #include <cstring>
 
 #define STB_DXT_IMPLEMENTATION
@@ -46,16 +48,21 @@ std::vector<std::uint8_t> halveRgba(const std::vector<std::uint8_t>& rgba, int s
 
 namespace {
 
-void appendBc(std::vector<std::uint8_t>& out, const std::vector<std::uint8_t>& rgba, int size, bool alpha) {
-    std::uint8_t block[64];
-    std::uint8_t dst[16];
-    for (int by = 0; by < size; by += 4)
+void appendBc(std::vector<std::uint8_t>& out, const std::vector<std::uint8_t>& rgba, int size, bool alpha, int threads) {
+    const std::size_t stride = alpha ? 16 : 8, rowBytes = std::size_t(size / 4) * stride;
+    const std::size_t at = out.size();
+    out.resize(at + rowBytes * std::size_t(size / 4));
+    // Rows of blocks are independent: each thread writes its own rows.
+    parallelIndices(size / 4, threads, [&](int row, int) {
+        std::uint8_t block[64];
+        const int by = row * 4;
         for (int bx = 0; bx < size; bx += 4) {
             for (int y = 0; y < 4; ++y)
                 std::memcpy(block + y * 16, &rgba[(std::size_t(by + y) * std::size_t(size) + std::size_t(bx)) * 4], 16);
-            stb_compress_dxt_block(dst, block, alpha ? 1 : 0, STB_DXT_HIGHQUAL);
-            out.insert(out.end(), dst, dst + (alpha ? 16 : 8));
+            stb_compress_dxt_block(&out[at + std::size_t(row) * rowBytes + std::size_t(bx / 4) * stride], block,
+                                   alpha ? 1 : 0, STB_DXT_HIGHQUAL);
         }
+    });
 }
 
 void appendRaw(std::vector<std::uint8_t>& out, const std::vector<std::uint8_t>& rgba, bool alpha) {
@@ -109,13 +116,14 @@ void decodeColours(const std::uint8_t* b, std::uint8_t pal[4][4], bool forceFour
 
 } // namespace
 
-std::vector<std::uint8_t> encodeAtlas(AtlasFormat format, bool alpha, const std::vector<std::uint8_t>& rgba, int size) {
+std::vector<std::uint8_t> encodeAtlas(AtlasFormat format, bool alpha, const std::vector<std::uint8_t>& rgba, int size,
+                                      int threads) {
     std::vector<std::uint8_t> chain;
     chain.reserve(chainBytes(format, alpha, size));
     std::vector<std::uint8_t> level = rgba;
     int s = size;
     for (int l = 0; l < atlasLevels(size); ++l) {
-        if (format == AtlasFormat::Bc) appendBc(chain, level, s, alpha);
+        if (format == AtlasFormat::Bc) appendBc(chain, level, s, alpha, s >= 64 ? threads : 1);
         else appendRaw(chain, level, alpha);
         if (l + 1 < atlasLevels(size)) {
             level = halveRgba(level, s);

@@ -12,8 +12,10 @@ namespace seasonview::city {
 /// Halves an RGBA8 image (size² texels) with a 2×2 box filter.
 std::vector<std::uint8_t> halveRgba(const std::vector<std::uint8_t>& rgba, int size);
 
-/// Compresses an atlas (level 0 given, RGBA8) with its whole mip chain into one blob.
-std::vector<std::uint8_t> encodeAtlas(AtlasFormat format, bool alpha, const std::vector<std::uint8_t>& rgba, int size);
+/// Compresses an atlas (level 0 given, RGBA8) with its whole mip chain into one blob; BC blocks on up to `threads`
+/// threads (the result does not depend on it).
+std::vector<std::uint8_t> encodeAtlas(AtlasFormat format, bool alpha, const std::vector<std::uint8_t>& rgba, int size,
+                                      int threads = 1);
 
 /// One mip level of a blob as it is uploaded: BC blocks for Bc, RGB(A)8 rows for Deflate. Empty on a corrupt blob.
 std::vector<std::uint8_t> atlasLevelData(AtlasFormat format, bool alpha, const std::vector<std::uint8_t>& blob,

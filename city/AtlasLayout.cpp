@@ -127,29 +127,29 @@ bool packAtlas(std::vector<AtlasArea>& areas, int atlasSize, double* fill) {
     return all;
 }
 
-std::array<std::vector<std::uint32_t>, 4> splitByArea(const std::vector<TexturedTriangle>& tris,
-                                                      const std::vector<std::uint32_t>& subset) {
+std::array<std::vector<std::uint32_t>, 4> splitPointsByArea(const std::vector<glm::dvec3>& midpoints,
+                                                           const std::vector<double>& areas,
+                                                           const std::vector<std::uint32_t>& subset) {
     std::array<std::vector<std::uint32_t>, 4> out;
     if (subset.empty()) return out;
     glm::dvec3 lo(INFINITY), hi(-INFINITY);
-    for (std::uint32_t i : subset)
-        for (const glm::dvec3& v : tris[i].v) {
-            lo = glm::min(lo, v);
-            hi = glm::max(hi, v);
-        }
+    for (std::uint32_t i : subset) {
+        lo = glm::min(lo, midpoints[i]);
+        hi = glm::max(hi, midpoints[i]);
+    }
     const glm::dvec3 d = hi - lo;
     std::array<int, 3> axes = {0, 1, 2};
     std::sort(axes.begin(), axes.end(), [&](int a, int b) { return d[a] > d[b]; });
-    auto mid = [&](std::uint32_t i, int axis) { return (tris[i].v[0][axis] + tris[i].v[1][axis] + tris[i].v[2][axis]) / 3.0; };
     // Sorted by midpoint along `axis`, cut where the summed area is closest to half (both sides non-empty).
     auto halve = [&](std::vector<std::uint32_t> ids, int axis) {
-        std::stable_sort(ids.begin(), ids.end(), [&](std::uint32_t a, std::uint32_t b) { return mid(a, axis) < mid(b, axis); });
+        std::stable_sort(ids.begin(), ids.end(),
+                         [&](std::uint32_t a, std::uint32_t b) { return midpoints[a][axis] < midpoints[b][axis]; });
         double total = 0.0;
-        for (std::uint32_t i : ids) total += triangleArea(tris[i]);
+        for (std::uint32_t i : ids) total += areas[i];
         size_t cut = ids.size() / 2;
         double acc = 0.0, best = INFINITY;
-        for (size_t k = 1; k < ids.size(); ++k) { // first k triangles
-            acc += triangleArea(tris[ids[k - 1]]);
+        for (size_t k = 1; k < ids.size(); ++k) { // first k items
+            acc += areas[ids[k - 1]];
             const double e = std::abs(acc - 0.5 * total);
             if (e < best) {
                 best = e;
@@ -165,6 +165,17 @@ std::array<std::vector<std::uint32_t>, 4> splitByArea(const std::vector<Textured
     auto [b1, b2] = halve(b, axes[1]);
     out = {std::move(a1), std::move(a2), std::move(b1), std::move(b2)};
     return out;
+}
+
+std::array<std::vector<std::uint32_t>, 4> splitByArea(const std::vector<TexturedTriangle>& tris,
+                                                      const std::vector<std::uint32_t>& subset) {
+    std::vector<glm::dvec3> mid(tris.size());
+    std::vector<double> area(tris.size());
+    for (std::uint32_t i : subset) {
+        mid[i] = (tris[i].v[0] + tris[i].v[1] + tris[i].v[2]) / 3.0;
+        area[i] = triangleArea(tris[i]);
+    }
+    return splitPointsByArea(mid, area, subset);
 }
 
 glm::dvec2 rootAtlasCoord(glm::dvec2 t, const std::vector<int>& path) {

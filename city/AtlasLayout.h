@@ -74,6 +74,11 @@ bool packAtlas(std::vector<AtlasArea>& areas, int atlasSize, double* fill = null
 std::array<std::vector<std::uint32_t>, 4> splitByArea(const std::vector<TexturedTriangle>& tris,
                                                       const std::vector<std::uint32_t>& subset);
 
+/// The same split for arbitrary items given by midpoint and area (e.g. whole texture groups, see AtlasTreeBuild).
+std::array<std::vector<std::uint32_t>, 4> splitPointsByArea(const std::vector<glm::dvec3>& midpoints,
+                                                           const std::vector<double>& areas,
+                                                           const std::vector<std::uint32_t>& subset);
+
 double triangleArea(const TexturedTriangle& tri);
 
 /// Root-atlas texture coordinates of a coordinate `t` in [0,1]² of the atlas of the node reached by `path` (child

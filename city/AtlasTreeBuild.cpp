@@ -3,6 +3,7 @@
 #include "AtlasCodec.h"
 #include "AtlasTreeIo.h"
 #include "AtomicFile.h"
+#include "ParallelIndices.h"
 #include "TextureSource.h"
 
 #include <glm/common.hpp>
@@ -15,6 +16,7 @@
 #include <map>
 #include <numeric>
 #include <set>
+#include <thread>
 
 namespace seasonview::city {
 
@@ -165,7 +167,40 @@ struct Builder {
         return plan;
     }
 
-int node(const std::vector<std::uint32_t>& ids, int level, int parent, std::vector<int> path) {
+    /// §4.5.3's area-balanced split, but of whole texture groups while the node has several textures: the thesis
+    /// assumes each texture maps uniquely, so that splitting triangles splits texture area; a facade texture
+    /// repeated around a building is needed whole by every wall, and splitting the walls apart would copy it into
+    /// every child. Only a node of one texture that does not fit is split by triangles.
+    std::array<std::vector<std::uint32_t>, 4> split(const std::vector<std::uint32_t>& ids) {
+        std::map<int, std::vector<std::uint32_t>> byTexture;
+        for (auto i : ids) byTexture[in.tris[i].texture].push_back(i);
+        if (byTexture.size() < 2) return splitByArea(in.tris, ids);
+        std::vector<glm::dvec3> mid;
+        std::vector<double> area;
+        std::vector<const std::vector<std::uint32_t>*> members;
+        for (const auto& [tex, tris] : byTexture) {
+            glm::dvec3 m(0.0);
+            double a = 0.0;
+            for (auto i : tris) {
+                const double ta = std::max(triangleArea(in.tris[i]), 1e-12);
+                m += ta * (in.tris[i].v[0] + in.tris[i].v[1] + in.tris[i].v[2]) / 3.0;
+                a += ta;
+            }
+            mid.push_back(m / a);
+            area.push_back(a);
+            members.push_back(&tris);
+        }
+        std::vector<std::uint32_t> all(mid.size());
+        std::iota(all.begin(), all.end(), 0u);
+        const auto groups = splitPointsByArea(mid, area, all);
+        std::array<std::vector<std::uint32_t>, 4> parts;
+        for (int c = 0; c < 4; ++c)
+            for (auto g : groups[std::size_t(c)])
+                parts[std::size_t(c)].insert(parts[std::size_t(c)].end(), members[g]->begin(), members[g]->end());
+        return parts;
+    }
+
+    int node(const std::vector<std::uint32_t>& ids, int level, int parent, std::vector<int> path) {
         const int index = int(out.nodes.size());
         out.nodes.emplace_back();
         paths.push_back(path);
@@ -193,7 +228,7 @@ int node(const std::vector<std::uint32_t>& ids, int level, int parent, std::vect
             }
             plans.emplace(index, std::move(*plan));
         } else {
-            const auto groups = splitByArea(in.tris, ids);
+            const auto groups = split(ids);
             for (int c = 0; c < 4; ++c) {
                 auto childPath = path;
                 childPath.push_back(c);
@@ -314,6 +349,7 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
     file.textureSizes.assign(model.textures.size(), glm::ivec2(0));
     for (std::size_t t = 0; t < model.textures.size(); ++t) file.textureChannels[t] = model.textures[t].channels;
     TextureCache cache(model.textures, s.cacheBytes);
+    const int threads = s.threads > 0 ? s.threads : std::max(1, int(std::thread::hardware_concurrency()));
 
     const std::size_t totalTris = report.treeTriangles;
     std::size_t trisDone = 0;
@@ -355,19 +391,31 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
                 empty = plan.areas.empty();
                 std::uint64_t texBytes = 0;
                 std::set<int> leafTextures;
+                std::vector<int> wanted;
+                for (const auto& a : plan.areas) wanted.push_back(a.texture);
+                if (auto st = cache.prefetch(wanted, threads); !st) {
+                    failure = st.error();
+                    return;
+                }
+                std::vector<std::shared_ptr<const SourceTexture>> sources;
                 for (const auto& a : plan.areas) {
                     auto src = cache.get(a.texture);
                     if (!src) {
                         failure = src.error();
                         return;
                     }
-                    const SourceTexture& st = **src;
-                    file.textureSizes[std::size_t(a.texture)] = st.sizes[0];
+                    sources.push_back(*src);
+                    file.textureSizes[std::size_t(a.texture)] = (*src)->sizes[0];
                     if (leafTextures.insert(a.texture).second) {
-                        texBytes += st.bytes();
+                        texBytes += (*src)->bytes();
                         n.textures.push_back(std::uint32_t(a.texture));
                     }
-                    // Each atlas texel samples the source rectangle linearly; the footprint chooses the mip level.
+                }
+                // Each atlas texel samples the source rectangle linearly; the footprint chooses the mip level. Areas
+                // do not overlap, so they are filled in parallel.
+                parallelIndices(int(plan.areas.size()), threads, [&](int ai, int) {
+                    const AtlasArea& a = plan.areas[std::size_t(ai)];
+                    const SourceTexture& st = *sources[std::size_t(ai)];
                     const glm::dvec2 span = a.srcMax - a.srcMin;
                     const double texelsPer = std::max(span.x * st.sizes[0].x / a.size.x, span.y * st.sizes[0].y / a.size.y);
                     for (int y = 0; y < a.size.y; ++y)
@@ -377,7 +425,7 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
                             std::uint8_t* d = &img[(std::size_t(a.position.y + y) * std::size_t(A) + std::size_t(a.position.x + x)) * 4];
                             for (int k = 0; k < 4; ++k) d[k] = std::uint8_t(std::clamp(c[k] + 0.5f, 0.0f, 255.0f));
                         }
-                }
+                });
                 n.textureBytes = texBytes;
                 // Atlas coordinates of the leaf's triangles, then the root atlas's (§4.5.4).
                 const auto& path = b.paths[std::size_t(ni)];
@@ -432,7 +480,7 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
             n.boundsMin = n.count ? lo : glm::vec3(0.0f);
             n.boundsMax = n.count ? hi : glm::vec3(0.0f);
             if (!empty) {
-                const auto blob = encodeAtlas(s.format, input.alpha, img, A);
+                const auto blob = encodeAtlas(s.format, input.alpha, img, A, threads);
                 n.atlasOffset = offset;
                 n.atlasBytes = blob.size();
                 os.write(reinterpret_cast<const char*>(blob.data()), std::streamsize(blob.size()));

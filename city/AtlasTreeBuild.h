@@ -25,6 +25,8 @@ struct AtlasBuildSettings {
     AtlasFormat format = AtlasFormat::Bc;
     std::uint64_t cacheBytes = 512ull << 20; // original textures held while building
     bool roofsFromImagery = true; // roofs go to the plain triangles (drawn with the terrain imagery, §4.8.2)
+    int threads = 0;              // 0: all cores (texture decoding, resampling, BC encoding; the file does not
+                                  // depend on it)
     /// Called with the fraction done (0..1) and a stage name.
     std::function<void(double, const char*)> progress;
 };

@@ -1,12 +1,14 @@
 #include "TextureSource.h"
 
 #include "AtlasCodec.h"
+#include "ParallelIndices.h"
 
 #include <OpenImageIO/imageio.h>
 #include <glm/common.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace seasonview::city {
 
@@ -105,18 +107,11 @@ Result<SourceTexture> readSourceTexture(const CityTexture& texture) {
 TextureCache::TextureCache(const std::vector<CityTexture>& textures, std::uint64_t capacityBytes)
     : m_textures(textures), m_capacity(capacityBytes) {}
 
-Result<std::shared_ptr<const SourceTexture>> TextureCache::get(int texture) {
-    if (auto it = m_entries.find(texture); it != m_entries.end()) {
-        m_lru.splice(m_lru.begin(), m_lru, it->second.pos);
-        return it->second.tex;
-    }
-    auto t = readSourceTexture(m_textures[std::size_t(texture)]);
-    if (!t) return t.error();
+void TextureCache::insert(int texture, std::shared_ptr<const SourceTexture> ptr) {
     ++m_reads;
-    auto ptr = std::make_shared<const SourceTexture>(std::move(*t));
     m_bytes += ptr->bytes();
     m_lru.push_front(texture);
-    m_entries.emplace(texture, Entry{ptr, m_lru.begin()});
+    m_entries.emplace(texture, Entry{std::move(ptr), m_lru.begin()});
     m_peak = std::max(m_peak, m_bytes);
     while (m_bytes > m_capacity && m_lru.size() > 1) {
         const int victim = m_lru.back();
@@ -124,7 +119,32 @@ Result<std::shared_ptr<const SourceTexture>> TextureCache::get(int texture) {
         m_bytes -= m_entries[victim].tex->bytes();
         m_entries.erase(victim);
     }
+}
+
+Result<std::shared_ptr<const SourceTexture>> TextureCache::get(int texture) {
+    if (auto it = m_entries.find(texture); it != m_entries.end()) {
+        m_lru.splice(m_lru.begin(), m_lru, it->second.pos);
+        return it->second.tex;
+    }
+    auto t = readSourceTexture(m_textures[std::size_t(texture)]);
+    if (!t) return t.error();
+    auto ptr = std::make_shared<const SourceTexture>(std::move(*t));
+    insert(texture, ptr);
     return ptr;
+}
+
+Status TextureCache::prefetch(const std::vector<int>& textures, int threads) {
+    std::vector<int> missing;
+    for (int t : textures)
+        if (!m_entries.count(t) && std::find(missing.begin(), missing.end(), t) == missing.end()) missing.push_back(t);
+    std::vector<std::optional<Result<SourceTexture>>> read(missing.size());
+    parallelIndices(int(missing.size()), threads,
+                    [&](int i, int) { read[std::size_t(i)] = readSourceTexture(m_textures[std::size_t(missing[std::size_t(i)])]); });
+    for (std::size_t i = 0; i < missing.size(); ++i) {
+        if (!*read[i]) return read[i]->error();
+        insert(missing[i], std::make_shared<const SourceTexture>(std::move(read[i]->value())));
+    }
+    return Ok{};
 }
 
 } // namespace seasonview::city

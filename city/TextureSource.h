@@ -37,11 +37,15 @@ public:
     /// The texture (read on first use, kept until the cache's bytes exceed the capacity, least recently used
     /// first). A failed read is an error naming the file.
     Result<std::shared_ptr<const SourceTexture>> get(int texture);
+    /// Reads the missing ones of `textures` on up to `threads` threads and keeps them (the first error is returned,
+    /// naming its file). Then get() finds them, as long as the capacity holds them all.
+    Status prefetch(const std::vector<int>& textures, int threads);
     std::uint64_t bytes() const { return m_bytes; }
     std::uint64_t peakBytes() const { return m_peak; }
     std::uint64_t reads() const { return m_reads; }
 
 private:
+    void insert(int texture, std::shared_ptr<const SourceTexture> tex);
     const std::vector<CityTexture>& m_textures;
     std::uint64_t m_capacity, m_bytes = 0, m_peak = 0, m_reads = 0;
     std::list<int> m_lru; // front = most recent

@@ -225,6 +225,13 @@ TEST(AtlasTreeTest, BuildsAValidTreeWhoseAtlasesHoldTheTextures) {
         }
     }
     EXPECT_EQ(checked, 80);
+    // Splits keep a texture's triangles together (both halves of a wall in one leaf): no texture is copied twice.
+    std::map<std::uint32_t, std::set<std::size_t>> leavesOf;
+    for (std::size_t ni = 0; ni < t.nodes.size(); ++ni)
+        if (t.nodes[ni].leaf())
+            for (std::uint32_t tri = t.nodes[ni].first; tri < t.nodes[ni].first + t.nodes[ni].count; ++tri)
+                leavesOf[t.triangleTexture[tri]].insert(ni);
+    for (const auto& [tex, leaves] : leavesOf) EXPECT_EQ(leaves.size(), 1u) << "texture " << tex;
     // Each leaf lists the textures it uses and their decoded bytes (paging, §4.6).
     for (const auto& n : t.nodes)
         if (n.leaf() && n.count > 0) {
