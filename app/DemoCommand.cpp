@@ -246,7 +246,7 @@ Runner addDemoCommand(CLI::App& app) {
         for (const Still& s : stills) {
             ImagerySettings im;
             im.view = s.view;
-            requests.push_back({s.camera, im, out / s.file, {}, {}});
+            requests.push_back({s.camera, im, out / s.file, {}, {}, {}});
         }
         RenderSettings settings;
         settings.windowed = args->window;

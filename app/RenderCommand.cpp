@@ -19,6 +19,7 @@ struct RenderArgs {
     std::string canopyLayers = "16", method = "default", groundUnder = "leafoff", groundElsewhere = "leafon";
     std::string trunks = "on";
     CityArgs city;
+    std::string cityAccuracy;
     int k = kSegDefaultK;
 };
 } // namespace
@@ -82,6 +83,8 @@ Runner addRenderCommand(CLI::App& app) {
     cmd->add_option("--out", args->out, "Output image (.png or .tif)")->required();
     cmd->add_flag("--window", args->window, "Render through a hidden GLFW window instead of headless EGL");
     args->city.addTo(*cmd);
+    cmd->add_option("--city-accuracy", args->cityAccuracy,
+                    "With --city: write the city's PSNR against its original textures (same view) to this JSON");
     return [args]() -> int {
         const auto t0 = std::chrono::steady_clock::now();
         auto fail = [](const std::string& m) {
@@ -147,7 +150,9 @@ Runner addRenderCommand(CLI::App& app) {
         const auto [w, h] = *size;
         const Camera camera = spec ? spec->resolve([&](double x, double y) { return scene->terrainHeight(x, y); })
                                    : overviewCamera(*scene, double(w) / double(h));
-        auto info = renderStills(*scene, w, h, {{camera, imagery, args->out, args->stats, args->accuracy}}, settings);
+        if (!args->cityAccuracy.empty() && !settings.city) return fail("--city-accuracy needs --city atlas|flat");
+        auto info = renderStills(*scene, w, h, {{camera, imagery, args->out, args->stats, args->accuracy, args->cityAccuracy}},
+                                 settings);
         if (!info) return fail(info.message());
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         std::printf("wrote %s (%dx%d, %s, %s renderer%s, %s: %s) camera %s in %.2f s\n", args->out.c_str(), w, h,

@@ -338,11 +338,58 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
             }
         }
         if (cityRenderer) {
+            std::vector<std::uint8_t> ground;
+            if (!s.cityAccuracyOut.empty()) ground = target.readRgba();
             cityRenderer->settings().season = s.imagery.view == ImageryView::LeafOff ? 1 : 0;
             cityRenderer->complete(s.camera, width, height);
             const city::CityFrameStats cst = cityRenderer->draw(s.camera, renderer->get(), target);
             drawn.triangles += cst.triangles;
             drawn.drawCalls += cst.drawCalls;
+            if (!s.cityAccuracyOut.empty()) {
+                // The same view with the original textures, over the terrain as it was: PSNR over the pixels the
+                // city drew (those that differ from the terrain alone in either image).
+                const std::vector<std::uint8_t> mine = target.readRgba();
+                city::CitySettings os = cityRenderer->settings();
+                os.mode = city::CityMode::Original;
+                os.threaded = false;
+                os.capacityBytes = std::max<std::uint64_t>(os.capacityBytes, 4ull << 30);
+                auto orig = city::CityRendererGL::create(scene, settings.cityTree.string(), os);
+                if (!orig) return orig.error();
+                (*renderer)->render(s.camera, imagery, target);
+                (*orig)->complete(s.camera, width, height);
+                const city::CityFrameStats ost = (*orig)->draw(s.camera, renderer->get(), target);
+                const std::vector<std::uint8_t> ref = target.readRgba();
+                double sq = 0.0;
+                std::int64_t n = 0;
+                for (std::size_t i = 0; i < ref.size(); i += 4) {
+                    int changed = 0;
+                    for (std::size_t c = 0; c < 3; ++c)
+                        changed += std::abs(int(mine[i + c]) - int(ground[i + c])) + std::abs(int(ref[i + c]) - int(ground[i + c]));
+                    if (changed == 0) continue;
+                    ++n;
+                    for (std::size_t c = 0; c < 3; ++c) {
+                        const double d = double(mine[i + c]) - double(ref[i + c]);
+                        sq += d * d;
+                    }
+                }
+                const double mse = n ? sq / double(n * 3) : 0.0;
+                nlohmann::json j = {{"camera", s.camera.toString()},
+                                    {"size", {width, height}},
+                                    {"mode", city::cityModeName(cityRenderer->settings().mode)},
+                                    {"against", "original"},
+                                    {"psnr_db", mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 999.0},
+                                    {"city_pixels", n},
+                                    {"atlas_nodes", cst.atlasNodes},
+                                    {"original_leaves", cst.originalLeaves},
+                                    {"coarser_than_wanted", cst.coarserThanWanted},
+                                    {"original_missing_textures", ost.missingOriginals}};
+                std::string err;
+                if (!writeTextAtomic(s.cityAccuracyOut, j.dump(2) + "\n", err))
+                    return fileError(s.cityAccuracyOut.string(), err);
+                // Back to this mode's picture for the image file.
+                (*renderer)->render(s.camera, imagery, target);
+                cityRenderer->draw(s.camera, renderer->get(), target);
+            }
         }
         if (auto st = checkGl(s.out); !st) return st.error();
         if (auto st = writeRgb(target, s.out); !st) return st.error();

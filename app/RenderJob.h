@@ -52,6 +52,7 @@ struct StillRequest {
     std::filesystem::path out;
     std::filesystem::path statsOut; // optional: level statistics JSON (clipmap renderer)
     std::filesystem::path accuracyOut; // optional: PSNR and depth accuracy against the reference renderer (JSON)
+    std::filesystem::path cityAccuracyOut; // optional: the city's PSNR against its original textures (JSON)
 };
 
 enum class RendererKind { Clipmap, Reference };
