@@ -24,11 +24,11 @@ TEST(GlfwWindowGLTest, SameImageAsHeadless) {
     app::RenderSettings settings;
     settings.cacheDir = dir / "cache";
     settings.windowed = true;
-    auto win = app::renderStills(*scene, 160, 120, {{cam, {}, dir / "window.png", {}, {}}}, settings);
+    auto win = app::renderStills(*scene, 160, 120, {{cam, {}, dir / "window.png", {}, {}, {}}}, settings);
     ASSERT_TRUE(win.ok()) << win.message();
     EXPECT_EQ(win->platform, "GLFW window");
     settings.windowed = false;
-    auto egl = app::renderStills(*scene, 160, 120, {{cam, {}, dir / "egl.png", {}, {}}}, settings);
+    auto egl = app::renderStills(*scene, 160, 120, {{cam, {}, dir / "egl.png", {}, {}, {}}}, settings);
     ASSERT_TRUE(egl.ok()) << egl.message();
     auto a = readImageU8(dir / "window.png", 3);
     auto b = readImageU8(dir / "egl.png", 3);
