@@ -229,7 +229,8 @@ TEST_F(SynthSceneTest, ManifestHasTheDocumentedShape) {
     EXPECT_EQ(j["truth"]["conifer"], "truth_conifer.png");
     EXPECT_EQ(j["truth"]["trees"], "trees.csv");
     EXPECT_EQ(j["generator"]["program"], "seasonview synth");
-    EXPECT_EQ(j["generator"]["version"], 1);
+    EXPECT_EQ(j["generator"]["version"], kSynthGeneratorVersion);
+    EXPECT_EQ(j["buildings"], "city/city.obj");
     EXPECT_EQ(j["generator"]["seed"], 3);
     EXPECT_EQ(j["generator"]["size_m"], 128.0);
     EXPECT_EQ(j["generator"]["gsd"], 0.5);
