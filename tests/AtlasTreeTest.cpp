@@ -480,6 +480,15 @@ AtlasTreeData handTree() {
     return t;
 }
 
+/// The tree of wallModel(dir, walls) with 128² atlases at dmin 200 m (four walls per atlas), built into dir/t.svat.
+Result<AtlasTreeFile> wallTree(const std::filesystem::path& dir, int walls) {
+    AtlasBuildSettings s;
+    s.atlasSize = 128;
+    s.dmin = 200.0;
+    if (auto r = buildAtlasTree(wallModel(dir, walls), s, (dir / "t.svat").string()); !r) return r.error();
+    return AtlasTreeFile::open((dir / "t.svat").string());
+}
+
 AtlasView viewOf(const Camera& cam, int width = 800, int height = 600) {
     AtlasView v;
     v.eye = cam.position;
@@ -554,13 +563,8 @@ TEST(AtlasPagingTest, CategoriesOnAHandMadeTree) {
 
 TEST(AtlasPagingTest, CapacityIsNeverExceededUnderARandomCamera) {
     test::TempDir dir("atlas_paging");
-    const CityModel model = wallModel(dir.path(), 40);
-    AtlasBuildSettings s;
-    s.atlasSize = 128;
-    s.dmin = 200.0;
-    ASSERT_TRUE(buildAtlasTree(model, s, (dir / "t.svat").string()));
-    auto f = AtlasTreeFile::open((dir / "t.svat").string());
-    ASSERT_TRUE(f);
+    auto f = wallTree(dir.path(), 40);
+    ASSERT_TRUE(f) << f.error().message;
     const AtlasTraversal trav(f->trees[0], f->info);
     PagerSettings ps;
     ps.threaded = false;
@@ -607,13 +611,8 @@ TEST(AtlasPagingTest, CapacityIsNeverExceededUnderARandomCamera) {
 
 TEST(AtlasPagingTest, ThreadedLoaderCompletesTheIdealSet) {
     test::TempDir dir("atlas_paging_thread");
-    const CityModel model = wallModel(dir.path(), 20);
-    AtlasBuildSettings s;
-    s.atlasSize = 128;
-    s.dmin = 200.0;
-    ASSERT_TRUE(buildAtlasTree(model, s, (dir / "t.svat").string()));
-    auto f = AtlasTreeFile::open((dir / "t.svat").string());
-    ASSERT_TRUE(f);
+    auto f = wallTree(dir.path(), 20);
+    ASSERT_TRUE(f) << f.error().message;
     const AtlasTraversal trav(f->trees[0], f->info);
     PagerSettings ps;
     ps.capacityBytes = 64ull << 20;
