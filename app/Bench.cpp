@@ -25,6 +25,7 @@
 #include <memory>
 #include <sstream>
 
+#include <malloc.h>
 #include <unistd.h>
 
 namespace seasonview::app {
@@ -37,7 +38,7 @@ struct FrameRow {
     double cpuMs = 0, gpuMs = 0, frameMs = 0;
     int drawCalls = 1;
     std::int64_t triangles = 0, texelsUploaded = 0, exposedTexels = 0, residentBytes = 0, loaderCacheBytes = 0,
-                 rssBytes = 0;
+                 rssBytes = 0, heapInUseBytes = 0, heapMappedBytes = 0;
     int blocksMissing = 0;
     double coverage = NAN;
     city::CityFrameStats city; // zeros without a city
@@ -67,6 +68,15 @@ std::int64_t residentSetBytes() {
     std::int64_t pages = 0, rss = 0;
     f >> pages >> rss;
     return rss * std::int64_t(::sysconf(_SC_PAGESIZE));
+}
+
+// malloc's own view (all arenas): bytes handed out and bytes it holds from the kernel. With RSS these tell a leak
+// (in use grows) from fragmentation or retained free memory (mapped grows, in use does not) from memory outside
+// malloc (driver mappings: neither grows).
+void heapBytes(std::int64_t& inUse, std::int64_t& mapped) {
+    const struct mallinfo2 mi = ::mallinfo2();
+    inUse = std::int64_t(mi.uordblks + mi.hblkhd);
+    mapped = std::int64_t(mi.arena + mi.hblkhd);
 }
 
 double percentile(std::vector<double> v, double p) {
@@ -426,6 +436,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         row.residentBytes = (m.clipmap ? m.clipmap->residentBytes() : 0) + (m.canopy ? m.canopy->residentBytes() : 0);
         row.loaderCacheBytes = m.clipmap ? m.clipmap->loaderCacheBytes() : 0;
         row.rssBytes = residentSetBytes();
+        heapBytes(row.heapInUseBytes, row.heapMappedBytes);
         if (m.clipmap && a->coverageEvery > 0 && frame % a->coverageEvery == 0)
             row.coverage = m.clipRenderer->measureLevels(cam, scratch).coverage;
         m.rows.push_back(row);
@@ -456,13 +467,13 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     csv << "mode,frame,x,y,z,yaw,pitch,cpu_ms,gpu_ms,frame_ms,draw_calls,triangles,texels_uploaded,exposed_texels,"
            "blocks_missing,resident_texture_bytes,loader_cache_bytes,rss_bytes,coverage,city_atlas_nodes,"
            "city_texture_binds,city_draw_calls,city_triangles,city_blocks_resident,city_resident_bytes,"
-           "city_loader_queue,city_coarser_than_wanted\n";
+           "city_loader_queue,city_coarser_than_wanted,heap_in_use_bytes,heap_mapped_bytes\n";
     for (const Mode& m : *modes)
         for (const FrameRow& r : m.rows) {
             char line[512];
             std::snprintf(line, sizeof line,
                           "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s,"
-                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d\n",
+                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld\n",
                           m.label.c_str(), r.frame, r.camera.position.x, r.camera.position.y, r.camera.position.z,
                           r.camera.yawDeg, r.camera.pitchDeg, r.cpuMs, r.gpuMs, r.frameMs, r.drawCalls,
                           (long long)r.triangles, (long long)r.texelsUploaded, (long long)r.exposedTexels,
@@ -470,7 +481,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                           (long long)r.rssBytes, std::isfinite(r.coverage) ? std::to_string(r.coverage).c_str() : "",
                           r.city.atlasNodes, r.city.textureBinds, r.city.drawCalls, (long long)r.city.triangles,
                           r.city.blocksResident, (unsigned long long)r.city.residentBytes, r.city.loaderQueue,
-                          r.city.coarserThanWanted);
+                          r.city.coarserThanWanted, (long long)r.heapInUseBytes, (long long)r.heapMappedBytes);
             csv << line;
         }
     std::string err;
@@ -558,6 +569,9 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                                      {"resident_texture_bytes", figure(resident)},
                                      {"rss_bytes_start", m.rows.front().rssBytes},
                                      {"rss_bytes_end", m.rows.back().rssBytes},
+                                     {"heap_in_use_bytes_start", m.rows.front().heapInUseBytes},
+                                     {"heap_in_use_bytes_end", m.rows.back().heapInUseBytes},
+                                     {"heap_mapped_bytes_end", m.rows.back().heapMappedBytes},
                                      {"resident_texture_bytes_start", m.rows.front().residentBytes},
                                      {"resident_texture_bytes_end", m.rows.back().residentBytes},
                                      {"worst_frame_over_median", num(percentile(frame, 100) / median)},

@@ -55,8 +55,17 @@ std::int64_t PyramidBlockSource::cacheBytes() const {
     return bytes;
 }
 
-BlockLoader::BlockLoader(BlockSource& source, const ClipmapSchedule& schedule)
-    : m_source(source), m_schedule(schedule), m_worker([this] { run(); }) {}
+namespace {
+std::int64_t blockBytes(const LoadedBlock& b) {
+    std::int64_t n = 0;
+    for (const auto& l : b.layers) n += std::int64_t(l.size());
+    return n;
+}
+} // namespace
+
+BlockLoader::BlockLoader(BlockSource& source, const ClipmapSchedule& schedule, std::int64_t maxFinishedBytes)
+    : m_source(source), m_schedule(schedule), m_maxDoneBytes(std::max<std::int64_t>(1, maxFinishedBytes)),
+      m_worker([this] { run(); }) {}
 
 BlockLoader::~BlockLoader() {
     {
@@ -77,6 +86,15 @@ void BlockLoader::want(const std::vector<BlockKey>& blocks) {
     {
         std::lock_guard lock(m_mutex);
         m_queue.clear(); // no longer wanted (or re-added below in the new priority order)
+        // Finished blocks the windows have left would only be dropped at upload, after holding memory and the
+        // upload budget's place: drop them now (a fast camera otherwise piles up gigabytes of stale blocks).
+        const auto before = m_done.size();
+        std::erase_if(m_done, [&](const LoadedBlock& b) {
+            if (intersect(m_schedule.window(b.key.level), b.texels) == b.texels) return false;
+            m_doneBytes -= blockBytes(b);
+            return true;
+        });
+        if (m_done.size() != before) m_idle.notify_all();
         for (const BlockKey& k : blocks)
             if (!isPending(k)) m_queue.push_back({k, m_schedule.blockTexels(k)});
     }
@@ -91,10 +109,17 @@ std::vector<LoadedBlock> BlockLoader::take(std::int64_t maxTexels) {
         const std::int64_t t = m_done.front().texels.area();
         if (!out.empty() && texels + t > maxTexels) break;
         texels += t;
+        m_doneBytes -= blockBytes(m_done.front());
         out.push_back(std::move(m_done.front()));
         m_done.pop_front();
     }
+    if (!out.empty()) m_wake.notify_one(); // room again below the cap
     return out;
+}
+
+std::int64_t BlockLoader::finishedBytes() const {
+    std::lock_guard lock(m_mutex);
+    return m_doneBytes;
 }
 
 size_t BlockLoader::pending() const {
@@ -104,13 +129,15 @@ size_t BlockLoader::pending() const {
 
 void BlockLoader::waitIdle() {
     std::unique_lock lock(m_mutex);
-    m_idle.wait(lock, [&] { return m_queue.empty() && m_inFlight.empty(); });
+    m_idle.wait(lock, [&] {
+        return (m_queue.empty() && m_inFlight.empty()) || (m_inFlight.empty() && m_doneBytes >= m_maxDoneBytes);
+    });
 }
 
 void BlockLoader::run() {
     std::unique_lock lock(m_mutex);
     while (true) {
-        m_wake.wait(lock, [&] { return m_stop || !m_queue.empty(); });
+        m_wake.wait(lock, [&] { return m_stop || (!m_queue.empty() && m_doneBytes < m_maxDoneBytes); });
         if (m_stop) return;
         const Job job = m_queue.front();
         m_queue.pop_front();
@@ -131,8 +158,9 @@ void BlockLoader::run() {
 
         lock.lock();
         m_inFlight.erase(std::find(m_inFlight.begin(), m_inFlight.end(), job.key));
+        m_doneBytes += blockBytes(block);
         m_done.push_back(std::move(block));
-        if (m_queue.empty() && m_inFlight.empty()) m_idle.notify_all();
+        if ((m_queue.empty() && m_inFlight.empty()) || m_doneBytes >= m_maxDoneBytes) m_idle.notify_all();
     }
 }
 

@@ -60,13 +60,16 @@ struct LoadedBlock {
 
 class BlockLoader {
 public:
-    BlockLoader(BlockSource& source, const ClipmapSchedule& schedule);
+    /// `maxFinishedBytes`: back-pressure. The worker stops reading while the finished blocks not yet taken hold
+    /// this many bytes, so a loader faster than the render thread's upload budget cannot pile up memory.
+    BlockLoader(BlockSource& source, const ClipmapSchedule& schedule, std::int64_t maxFinishedBytes = 64 << 20);
     ~BlockLoader(); // stops and joins the worker
     BlockLoader(const BlockLoader&) = delete;
     BlockLoader& operator=(const BlockLoader&) = delete;
 
     /// Replaces the wanted list (render thread, once a frame): blocks already queued or in flight are not asked
-    /// twice; queued blocks no longer wanted are dropped. Order = priority.
+    /// twice; queued blocks no longer wanted are dropped, and so are finished ones the schedule's windows have
+    /// left (the view moved on while they waited for upload). Order = priority.
     void want(const std::vector<BlockKey>& blocks);
     /// Finished blocks, oldest first, at most `maxTexels` texels in all (at least one block when any is ready).
     std::vector<LoadedBlock> take(std::int64_t maxTexels);
@@ -75,7 +78,10 @@ public:
     /// Blocks read so far, and read errors so far.
     std::int64_t blocksRead() const { return m_read.load(); }
     std::int64_t readErrors() const { return m_errors.load(); }
-    /// Waits until nothing is queued or in flight (tests and one-shot stills only; never in a frame loop).
+    /// Bytes of finished blocks waiting to be taken (never much above maxFinishedBytes).
+    std::int64_t finishedBytes() const;
+    /// Waits until nothing is queued or in flight, or until the worker waits for blocks to be taken (finished
+    /// blocks at the cap) (tests and one-shot stills only; never in a frame loop).
     void waitIdle();
 
 private:
@@ -93,6 +99,7 @@ private:
     std::deque<Job> m_queue;
     std::vector<BlockKey> m_inFlight;
     std::deque<LoadedBlock> m_done;
+    std::int64_t m_doneBytes = 0, m_maxDoneBytes;
     bool m_stop = false;
     std::atomic<std::int64_t> m_read{0}, m_errors{0};
     std::thread m_worker;

@@ -122,3 +122,50 @@ TEST(BlockLoaderTest, ReadErrorsAreReportedNotFatal) {
     EXPECT_EQ(errors, 1);
     EXPECT_EQ(loader.readErrors(), 1);
 }
+
+TEST(BlockLoaderTest, FinishedBlocksStayUnderTheCapUntilTaken) {
+    // A loader faster than the uploads must not pile up finished blocks: with a cap of 3 blocks it reads 3 (plus
+    // at most the one in flight when the cap was reached) and waits until blocks are taken.
+    SlowSource source(0);
+    ClipmapSchedule schedule(makeClipmapLayout(2048, 2048, 256, 64));
+    schedule.setCenters(std::vector<glm::dvec2>(size_t(schedule.layout().clipLevels()), glm::dvec2(1024, 1024)));
+    const std::int64_t blockBytes = 2 * 64 * 64 * 4; // two layers of 64² RGBA8
+    BlockLoader loader(source, schedule, 3 * blockBytes);
+    const auto wanted = schedule.missingBlocks(1000);
+    loader.want(wanted);
+    loader.waitIdle(); // returns at the cap, not after all 48
+    std::this_thread::sleep_for(std::chrono::milliseconds(50)); // a worker ignoring the cap would read on
+    EXPECT_EQ(loader.finishedBytes(), 3 * blockBytes);
+    EXPECT_EQ(loader.blocksRead(), 3);
+    EXPECT_EQ(loader.pending(), wanted.size() - 3);
+    // Taking blocks lets it go on; all of them arrive in the end, each once.
+    std::vector<BlockKey> got;
+    while (got.size() < wanted.size()) {
+        loader.waitIdle();
+        auto batch = loader.take(1 << 30);
+        ASSERT_FALSE(batch.empty());
+        EXPECT_LE(std::int64_t(batch.size()) * blockBytes, 3 * blockBytes);
+        for (const auto& b : batch) got.push_back(b.key);
+    }
+    EXPECT_EQ(loader.blocksRead(), std::int64_t(wanted.size()));
+    EXPECT_EQ(loader.finishedBytes(), 0);
+}
+
+TEST(BlockLoaderTest, FinishedBlocksTheViewLeftAreDroppedAtTheNextWant) {
+    SlowSource source(0);
+    ClipmapSchedule schedule(makeClipmapLayout(4096, 4096, 256, 64));
+    const auto levels = size_t(schedule.layout().clipLevels());
+    schedule.setCenters(std::vector<glm::dvec2>(levels, glm::dvec2(500, 500)));
+    BlockLoader loader(source, schedule);
+    loader.want(schedule.missingBlocks(1000));
+    loader.waitIdle();
+    const std::int64_t before = loader.finishedBytes();
+    ASSERT_GT(before, 0);
+    // Nothing taken; the view jumps to the far corner, where the finest level's window shares no block with the
+    // old one: its finished blocks go, the coarsest level's (whose window covers the image) stay.
+    schedule.setCenters(std::vector<glm::dvec2>(levels, glm::dvec2(3500, 3500)));
+    loader.want({});
+    EXPECT_LT(loader.finishedBytes(), before);
+    for (const LoadedBlock& b : loader.take(1 << 30))
+        EXPECT_EQ(intersect(schedule.window(b.key.level), b.texels), b.texels) << "a block outside its window";
+}
