@@ -46,6 +46,32 @@ std::vector<std::uint8_t> halveRgba(const std::vector<std::uint8_t>& rgba, int s
     return out;
 }
 
+void dilateRgba(std::vector<std::uint8_t>& rgba, int size, const std::vector<std::uint8_t>& covered) {
+    const std::size_t n = std::size_t(size) * std::size_t(size);
+    std::vector<std::uint32_t> queue;
+    queue.reserve(n);
+    std::vector<std::uint8_t> done(covered.begin(), covered.begin() + std::ptrdiff_t(n));
+    for (std::uint32_t i = 0; i < n; ++i)
+        if (done[i]) queue.push_back(i);
+    if (queue.empty()) return;
+    for (std::size_t head = 0; head < queue.size(); ++head) {
+        const std::uint32_t i = queue[head];
+        const int x = int(i % std::uint32_t(size)), y = int(i / std::uint32_t(size));
+        auto visit = [&](int xx, int yy) {
+            if (xx < 0 || yy < 0 || xx >= size || yy >= size) return;
+            const std::uint32_t j = std::uint32_t(yy) * std::uint32_t(size) + std::uint32_t(xx);
+            if (done[j]) return;
+            done[j] = 1;
+            std::copy_n(&rgba[std::size_t(i) * 4], 4, &rgba[std::size_t(j) * 4]);
+            queue.push_back(j);
+        };
+        visit(x - 1, y);
+        visit(x + 1, y);
+        visit(x, y - 1);
+        visit(x, y + 1);
+    }
+}
+
 namespace {
 
 void appendBc(std::vector<std::uint8_t>& out, const std::vector<std::uint8_t>& rgba, int size, bool alpha, int threads) {

@@ -12,6 +12,12 @@ namespace seasonview::city {
 /// Halves an RGBA8 image (size² texels) with a 2×2 box filter.
 std::vector<std::uint8_t> halveRgba(const std::vector<std::uint8_t>& rgba, int size);
 
+/// Fills every texel not `covered` (one byte per texel, non-zero = covered) with its nearest covered texel (4-
+/// neighbour distance, breadth first): empty atlas space then continues the areas' edges, so the filter footprints
+/// of coarse mips and anisotropic probes that reach past an area's border see its own colours, not black.
+/// Nothing happens when no texel is covered.
+void dilateRgba(std::vector<std::uint8_t>& rgba, int size, const std::vector<std::uint8_t>& covered);
+
 /// Compresses an atlas (level 0 given, RGBA8) with its whole mip chain into one blob; BC blocks on up to `threads`
 /// threads (the result does not depend on it).
 std::vector<std::uint8_t> encodeAtlas(AtlasFormat format, bool alpha, const std::vector<std::uint8_t>& rgba, int size,

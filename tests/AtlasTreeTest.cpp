@@ -630,3 +630,61 @@ TEST(AtlasPagingTest, ThreadedLoaderCompletesTheIdealSet) {
     EXPECT_EQ(d.coarserThanWanted, 0u);
     EXPECT_GT(d.draws.size(), 0u);
 }
+
+TEST(AtlasTreeTest, SplitFillsLeavesInsteadOfQuartering) {
+    // 40 walls of 64×54 atlas texels (border included) at dmin 200 m; a 128² atlas holds four. Quartering the
+    // texture groups area-evenly leaves 2–3 walls per leaf; the split cuts runs of leaf size (at most the target
+    // fill, 75 %: three walls) in Hilbert order instead, so the leaves are few and full, and each still holds
+    // whole texture groups.
+    test::TempDir dir("atlas_fill");
+    const CityModel model = wallModel(dir.path(), 40);
+    AtlasBuildSettings s;
+    s.atlasSize = 128;
+    s.dmin = 200.0;
+    s.format = AtlasFormat::Deflate;
+    auto r = buildAtlasTree(model, s, (dir / "t.svat").string());
+    ASSERT_TRUE(r) << r.error().message;
+    auto f = AtlasTreeFile::open((dir / "t.svat").string());
+    ASSERT_TRUE(f) << f.error().message;
+    const AtlasTreeData& t = f->trees[0];
+    checkStructure(t, f->info);
+    int full = 0;
+    for (const auto& n : t.nodes)
+        if (n.leaf() && n.count > 0) {
+            ++full;
+            EXPECT_LE(n.count, 4u * 2u) << "at most four walls fit a leaf";
+        }
+    EXPECT_LE(full, 14) << "ceil(40 / 3) leaves";
+    EXPECT_GE(r->meanLeafFill, 0.55);
+}
+
+TEST(AtlasTreeTest, EmptyAtlasSpaceContinuesTheNearestArea) {
+    // Three covered texels of distinct colours in a 16² image; every other texel takes the colour of a covered
+    // texel at the least 4-neighbour distance; covered texels keep theirs; nothing covered: unchanged.
+    const int n = 16;
+    std::vector<std::uint8_t> img(std::size_t(n * n * 4), 0), covered(std::size_t(n * n), 0);
+    const std::vector<std::pair<glm::ivec2, glm::u8vec4>> seeds = {
+        {glm::ivec2(2, 3), glm::u8vec4(200, 10, 10, 255)},
+        {glm::ivec2(12, 4), glm::u8vec4(10, 200, 10, 255)},
+        {glm::ivec2(7, 13), glm::u8vec4(10, 10, 200, 255)}};
+    for (const auto& [p, c] : seeds) {
+        covered[std::size_t(p.y * n + p.x)] = 1;
+        for (int k = 0; k < 4; ++k) img[std::size_t(p.y * n + p.x) * 4 + std::size_t(k)] = c[k];
+    }
+    auto untouched = img;
+    std::vector<std::uint8_t> none(covered.size(), 0);
+    dilateRgba(untouched, n, none);
+    EXPECT_EQ(untouched, img);
+    dilateRgba(img, n, covered);
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+            int best = 1 << 30;
+            for (const auto& [p, c] : seeds) best = std::min(best, std::abs(p.x - x) + std::abs(p.y - y));
+            bool ok = false;
+            for (const auto& [p, c] : seeds)
+                if (std::abs(p.x - x) + std::abs(p.y - y) == best)
+                    ok = ok || (img[std::size_t(y * n + x) * 4] == c[0] && img[std::size_t(y * n + x) * 4 + 1] == c[1] &&
+                                img[std::size_t(y * n + x) * 4 + 2] == c[2]);
+            EXPECT_TRUE(ok) << x << "," << y;
+        }
+}
