@@ -21,6 +21,11 @@ void addPolygon(CityModel& model, const std::vector<glm::dvec3>& verts, const st
                 const std::vector<unsigned>& indices, int texture, std::uint32_t building, Surface surface,
                 PolygonChecks& checks);
 
+/// Triangles of a simple polygon (indices into `verts`, three per triangle): ear clipping in the plane the
+/// polygon's Newell normal is closest to, so concave outlines (L-shaped walls, courtyards' rims) come out right;
+/// a fan when no ear is left (self-intersecting input). Fewer than 3 vertices: none.
+std::vector<unsigned> triangulatePolygon(const std::vector<glm::dvec3>& verts);
+
 /// The surface kind of a triangle from its normal (for sources without semantics): up-facing (> 60° from
 /// vertical walls) = roof, down-facing = ground, else wall.
 Surface surfaceFromNormal(const TexturedTriangle& tri);

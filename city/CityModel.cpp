@@ -153,6 +153,53 @@ void addPolygon(CityModel& model, const std::vector<glm::dvec3>& verts, const st
     }
 }
 
+std::vector<unsigned> triangulatePolygon(const std::vector<glm::dvec3>& verts) {
+    std::vector<unsigned> out;
+    const std::size_t n = verts.size();
+    if (n < 3) return out;
+    glm::dvec3 normal(0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+        const auto& a = verts[i];
+        const auto& b = verts[(i + 1) % n];
+        normal += glm::dvec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
+    }
+    // Project by dropping the normal's largest axis; keep the orientation counter-clockwise.
+    const glm::dvec3 an = glm::abs(normal);
+    const int drop = an.x >= an.y && an.x >= an.z ? 0 : (an.y >= an.z ? 1 : 2);
+    const int u = (drop + 1) % 3, v = (drop + 2) % 3;
+    const bool flip = normal[drop] < 0.0;
+    std::vector<glm::dvec2> p(n);
+    for (std::size_t i = 0; i < n; ++i) p[i] = glm::dvec2(verts[i][u], flip ? -verts[i][v] : verts[i][v]);
+    auto cross = [](glm::dvec2 a, glm::dvec2 b, glm::dvec2 c) { return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x); };
+    std::vector<unsigned> ring(n);
+    for (std::size_t i = 0; i < n; ++i) ring[i] = unsigned(i);
+    while (ring.size() > 3) {
+        bool clipped = false;
+        for (std::size_t i = 0; i < ring.size() && !clipped; ++i) {
+            const unsigned a = ring[(i + ring.size() - 1) % ring.size()], b = ring[i], c = ring[(i + 1) % ring.size()];
+            if (cross(p[a], p[b], p[c]) <= 0.0) continue; // reflex or flat: not an ear
+            bool inside = false;
+            for (unsigned q : ring) {
+                if (q == a || q == b || q == c) continue;
+                if (cross(p[a], p[b], p[q]) >= 0.0 && cross(p[b], p[c], p[q]) >= 0.0 && cross(p[c], p[a], p[q]) >= 0.0) {
+                    inside = true;
+                    break;
+                }
+            }
+            if (inside) continue;
+            out.insert(out.end(), {a, b, c});
+            ring.erase(ring.begin() + std::ptrdiff_t(i));
+            clipped = true;
+        }
+        if (!clipped) { // no ear (self-intersecting or all collinear): fan the rest
+            for (std::size_t i = 1; i + 1 < ring.size(); ++i) out.insert(out.end(), {ring[0], ring[i], ring[i + 1]});
+            return out;
+        }
+    }
+    out.insert(out.end(), {ring[0], ring[1], ring[2]});
+    return out;
+}
+
 Surface surfaceFromNormal(const TexturedTriangle& tri) {
     const glm::dvec3 n = glm::normalize(glm::cross(tri.v[1] - tri.v[0], tri.v[2] - tri.v[0]));
     if (n.z > 0.5) return Surface::Roof;    // within 60° of straight up

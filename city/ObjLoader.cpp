@@ -18,7 +18,7 @@ Result<CityModel> loadObj(const std::string& path, const CityLoadOptions& option
     if (!options.localFrame && !options.crs)
         return fileError(path, "OBJ has no CRS; give one (--city-crs EPSG:CODE) or say it is in the scene's frame");
     tinyobj::ObjReaderConfig config;
-    config.triangulate = true; // polygons fan/ear-clipped by tinyobjloader; checks below run per triangle
+    config.triangulate = false; // whole polygons: checked for planarity, then ear-clipped (triangulatePolygon)
     config.vertex_color = false;
     tinyobj::ObjReader reader;
     if (!reader.ParseFromFile(path, config))
@@ -68,12 +68,13 @@ Result<CityModel> loadObj(const std::string& path, const CityLoadOptions& option
         const auto building = std::uint32_t(model.buildingIds.size());
         model.buildingIds.push_back(shape.name.empty() ? "object" + std::to_string(building) : shape.name);
         const auto& mesh = shape.mesh;
-        for (std::size_t f = 0; f < mesh.num_face_vertices.size(); ++f) {
+        std::size_t first = 0; // index of the face's first vertex in mesh.indices
+        for (std::size_t f = 0; f < mesh.num_face_vertices.size(); first += mesh.num_face_vertices[f], ++f) {
             std::vector<glm::dvec3> verts;
             std::vector<glm::dvec2> uvs;
             bool hasUv = true;
-            for (std::size_t k = 0; k < 3; ++k) {
-                const auto& idx = mesh.indices[3 * f + k];
+            for (std::size_t k = 0; k < mesh.num_face_vertices[f]; ++k) {
+                const auto& idx = mesh.indices[first + k];
                 glm::dvec3 p = position(idx.vertex_index);
                 if (frame) {
                     const glm::dvec3 l = frame->toLocal(model.crs, glm::dvec2(p), p.z);
@@ -92,7 +93,7 @@ Result<CityModel> loadObj(const std::string& path, const CityLoadOptions& option
                 texture = -1;
                 uvs.clear();
             }
-            addPolygon(model, verts, uvs, {0, 1, 2}, texture, building, Surface::Other, checks);
+            addPolygon(model, verts, uvs, triangulatePolygon(verts), texture, building, Surface::Other, checks);
         }
     }
     if (model.triangles.empty()) return fileError(path, "no faces with area (all degenerate)");

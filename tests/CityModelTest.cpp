@@ -1,4 +1,6 @@
 // City model input: CityGML (libcitygml) and OBJ, CRS handling, bad input, placing buildings on the terrain.
+#include "AtlasLayout.h"
+#include "CityLoaders.h"
 #include "CityModel.h"
 #include "GeoFrame.h"
 #include "Scene.h"
@@ -394,4 +396,63 @@ TEST(CityModelTest, SyntheticSceneCityMatchesItsBuildings) {
     ASSERT_TRUE(generateSyntheticScene(o, again.path()));
     EXPECT_EQ(test::readBytes(dir / "city/city.obj"), test::readBytes(again / "city/city.obj"));
     EXPECT_EQ(test::readBytes(dir / "city/facades/b0.jpg"), test::readBytes(again / "city/facades/b0.jpg"));
+}
+
+TEST(CityModelTest, ObjPolygonsAreCheckedWholeAndEarClipped) {
+    test::TempDir dir("city_obj_poly");
+    // One L-shaped wall (concave, 6 vertices, listed from a vertex whose fan would leave the outline) and one
+    // quad with a corner 0.5 m off its plane, z up.
+    writeText(dir / "p.obj", R"(v 2 0 4
+v 0 0 4
+v 0 0 0
+v 4 0 0
+v 4 0 1
+v 2 0 1
+v 10 0 0
+v 14 0 0
+v 14 0 4
+v 10 0.5 4
+o l
+f 1 2 3 4 5 6
+o bent
+f 7 8 9 10
+)");
+    CityLoadOptions opts;
+    opts.localFrame = true;
+    opts.objUp = 'z';
+    auto m = loadCityModel((dir / "p.obj").string(), opts);
+    ASSERT_TRUE(m) << m.error().message;
+    double lArea = 0.0;
+    std::size_t lTris = 0;
+    for (std::size_t i = 0; i < m->triangles.size(); ++i)
+        if (m->building[i] == 0) {
+            lArea += triangleArea(m->triangles[i]);
+            ++lTris;
+            // Every triangle lies inside the L (its centroid is not in the notch x > 2, z > 1).
+            const glm::dvec3 c = (m->triangles[i].v[0] + m->triangles[i].v[1] + m->triangles[i].v[2]) / 3.0;
+            EXPECT_FALSE(c.x > 2.0 && c.z > 1.0) << "triangle " << i << " fills the notch";
+        }
+    EXPECT_EQ(lTris, 4u);
+    EXPECT_NEAR(lArea, 2.0 * 4.0 + 2.0 * 1.0, 1e-9); // 8 + 2 m²
+    std::string all;
+    for (const auto& w : m->warnings) all += w + "\n";
+    EXPECT_NE(all.find("1 non-planar polygon"), std::string::npos) << all;
+}
+
+TEST(CityModelTest, TriangulatePolygonHandlesConvexConcaveAndDegenerate) {
+    using seasonview::city::detail::triangulatePolygon;
+    EXPECT_TRUE(triangulatePolygon({glm::dvec3(0, 0, 0), glm::dvec3(1, 0, 0)}).empty());
+    const auto quad = triangulatePolygon({glm::dvec3(0, 0, 0), glm::dvec3(1, 0, 0), glm::dvec3(1, 1, 0), glm::dvec3(0, 1, 0)});
+    EXPECT_EQ(quad.size(), 6u);
+    // Clockwise (seen from +z) concave arrow: still 3 triangles covering its area.
+    const std::vector<glm::dvec3> arrow = {glm::dvec3(0, 0, 0), glm::dvec3(1, 3, 0), glm::dvec3(2, 0, 0), glm::dvec3(1, 1, 0)};
+    const auto t = triangulatePolygon(arrow);
+    ASSERT_EQ(t.size(), 6u);
+    double area = 0.0;
+    for (std::size_t i = 0; i < t.size(); i += 3) {
+        TexturedTriangle tri;
+        tri.v = {arrow[t[i]], arrow[t[i + 1]], arrow[t[i + 2]]};
+        area += triangleArea(tri);
+    }
+    EXPECT_NEAR(area, 2.0, 1e-12); // 3 - 1
 }
