@@ -342,6 +342,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         cs.mode = *m.cityMode;
         cs.capacityBytes = std::uint64_t(std::max(1.0, a->cityCapacityMb) * 1048576.0);
         cs.tpp = a->cityTpp;
+        cs.anisotropy = m.anisotropy;
         cs.season = *view == ImageryView::LeafOff ? 1 : 0;
         auto c = city::CityRendererGL::create(*scene, cityTree.string(), cs);
         if (!c)

@@ -129,6 +129,7 @@ Runner addRenderCommand(CLI::App& app) {
         auto citySettings = args->city.settings();
         if (!citySettings) return fail(citySettings.message());
         settings.city = *citySettings;
+        if (settings.city) settings.city->anisotropy = args->aniso;
         if (settings.city && settings.renderer == RendererKind::Reference) return fail("--city needs --renderer clipmap");
         auto size = parseSize(args->size);
         if (!size) return fail(size.message());

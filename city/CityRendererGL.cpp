@@ -166,7 +166,7 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
     for (GLuint s : {r->m_atlasSampler.id(), r->m_repeatSampler.id(), r->m_clampSampler.id()}) {
         glSamplerParameteri(s, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
         glSamplerParameteri(s, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-        glSamplerParameterf(s, GL_TEXTURE_MAX_ANISOTROPY, 8.0f);
+        glSamplerParameterf(s, GL_TEXTURE_MAX_ANISOTROPY, std::clamp(settings.anisotropy, 1.0f, 16.0f));
     }
     for (GLuint s : {r->m_atlasSampler.id(), r->m_clampSampler.id()}) {
         glSamplerParameteri(s, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);

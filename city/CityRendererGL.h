@@ -33,6 +33,7 @@ struct CitySettings {
     bool threaded = true;                          // background loader (false: loads inside update())
     int season = 0;                                // roofs: 0 leaf-on, 1 leaf-off imagery
     bool placeOnTerrain = true;                    // a model in its own CRS: each building set on the scene's DEM
+    float anisotropy = 8.0f;                       // the samplers' maximum anisotropy (render/bench --aniso)
 };
 
 /// Per-frame counters (the issue's: nodes drawn, texture binds, draw calls, blocks resident, bytes, loader queue).
