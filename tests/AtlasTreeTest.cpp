@@ -633,9 +633,9 @@ TEST(AtlasPagingTest, ThreadedLoaderCompletesTheIdealSet) {
 
 TEST(AtlasTreeTest, SplitFillsLeavesInsteadOfQuartering) {
     // 40 walls of 64×54 atlas texels (border included) at dmin 200 m; a 128² atlas holds four. Quartering the
-    // texture groups area-evenly leaves 2–3 walls per leaf; the split cuts runs of leaf size (at most the target
-    // fill, 75 %: three walls) in Hilbert order instead, so the leaves are few and full, and each still holds
-    // whole texture groups.
+    // texture groups area-evenly leaves 2–3 walls per leaf (16 leaves); the build packs Hilbert-ordered runs of
+    // walls as long as they still pack instead, so the leaves are as few as the atlas allows and each still
+    // holds whole texture groups.
     test::TempDir dir("atlas_fill");
     const CityModel model = wallModel(dir.path(), 40);
     AtlasBuildSettings s;
@@ -654,8 +654,8 @@ TEST(AtlasTreeTest, SplitFillsLeavesInsteadOfQuartering) {
             ++full;
             EXPECT_LE(n.count, 4u * 2u) << "at most four walls fit a leaf";
         }
-    EXPECT_LE(full, 14) << "ceil(40 / 3) leaves";
-    EXPECT_GE(r->meanLeafFill, 0.55);
+    EXPECT_EQ(full, 10) << "40 walls, four per leaf";
+    EXPECT_GE(r->meanLeafFill, 0.8);
 }
 
 TEST(AtlasTreeTest, EmptyAtlasSpaceContinuesTheNearestArea) {
