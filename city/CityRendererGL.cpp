@@ -349,6 +349,7 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
             m_flatProgram.set("uSunDir", sun);
             m_flatProgram.set("uTexture", 0);
             m_flatProgram.set("uAlphaCut", -1.0f);
+            m_flatProgram.set("uMaxAniso", std::clamp(m_settings.anisotropy, 1.0f, 16.0f));
             m_flatProgram.use();
             bindTexture(m_dummy.id(), m_repeatSampler.id());
             glDrawArrays(GL_TRIANGLES, 0, GLsizei(tree.vertices.size()));
@@ -362,6 +363,7 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
             m_originalProgram.set("uSunDir", sun);
             m_originalProgram.set("uTexture", 0);
             m_originalProgram.set("uAlphaCut", alphaCut);
+            m_originalProgram.set("uMaxAniso", std::clamp(m_settings.anisotropy, 1.0f, 16.0f));
             m_originalProgram.use();
             const auto& trav = *m_traversals[t];
             for (std::uint32_t n = 0; n < tree.nodes.size(); ++n) {
@@ -399,6 +401,7 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
             p->set("uSunDir", sun);
             p->set("uTexture", 0);
             p->set("uAlphaCut", alphaCut);
+            p->set("uMaxAniso", std::clamp(m_settings.anisotropy, 1.0f, 16.0f));
         }
         const gl::ShaderProgram* current = nullptr;
         for (const AtlasDraw& d : result.draws) {

@@ -15,6 +15,7 @@ in vec2 vImageUv;
 #else
 uniform sampler2D uTexture;
 uniform float uLevelScale; // ATLAS: 2^level
+uniform float uMaxAniso;   // ORIGINAL, FLAT: the sampler's maximum anisotropy
 #endif
 uniform vec3 uSunDir;
 uniform vec3 uPlainColour;
@@ -33,7 +34,18 @@ void main() {
     vec2 s = vRoot * uLevelScale;
     c = textureGrad(uTexture, fract(s), dFdx(s), dFdy(s));
 #elif defined(ORIGINAL) || defined(FLAT)
-    c = texture(uTexture, vUv);
+    // llvmpipe's anisotropic filter (an EWA scan of the footprint's texels at the level it picks, from the
+    // coordinates' own quad differences) is unbounded once the level clamps at the last mip: a facade whose
+    // repeating texture spans hundreds of repetitions per pixel (seen edge-on from 885 m, frame 25 of
+    // data/paths/blockcity_pedestrian_overview.json) took 20-60 s for one 640x360 frame. Beyond the footprint
+    // the last mip can absorb, the filter returns that mip's mean whatever the coordinates, so the coordinates
+    // are scaled down by a power of two until it fits. k is per 2x2 quad (coarse derivatives), as the filter's
+    // own differences are; k = 1 (the coordinates untouched) everywhere else.
+    vec2 size = vec2(textureSize(uTexture, 0));
+    float major = max(length(dFdxCoarse(vUv) * size), length(dFdyCoarse(vUv) * size));
+    float room = uMaxAniso * max(size.x, size.y);
+    float k = major <= room ? 1.0 : (major < 1e30 ? exp2(ceil(log2(major / room))) : 1e30);
+    c = texture(uTexture, vUv / k);
 #elif defined(ROOF)
     light = 1.0; // the orthophoto carries its own light
     if (uHasImagery != 0 && all(greaterThanEqual(vImageUv, vec2(0.0))) && all(lessThanEqual(vImageUv, vec2(1.0)))) {
