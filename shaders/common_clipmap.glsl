@@ -53,13 +53,19 @@ ClipFootprint clipmapFootprint(vec2 p) {
     vec2 dir = dot(e1, e1) > dot(e2, e2) ? e1 : e2;
     dir = dot(dir, dir) > 1e-20 ? normalize(dir) : vec2(1.0, 0.0);
     ClipFootprint f;
-    float ratio = clamp(major / max(minor, 1e-8), 1.0, max(uClipAniso, 1.0));
-    f.probes = int(ceil(ratio - 1e-3));
-    f.axis = f.probes > 1 ? dir * major : vec2(0.0);
+    // Written so that non-finite derivatives (a surface seen exactly edge-on) give one probe at a finite level:
+    // comparisons with NaN are false. A NaN level would start sampleClipmap's level loop at int(NaN) = INT_MIN
+    // (2^31 iterations for one fragment).
+    float ratio = major / max(minor, 1e-8);
+    ratio = ratio >= 1.0 ? min(ratio, max(uClipAniso, 1.0)) : 1.0;
+    f.probes = clamp(int(ceil(ratio - 1e-3)), 1, 16);
+    f.axis = f.probes > 1 && major < 1e30 ? dir * major : vec2(0.0);
     // The level of the minor axis (of major / max anisotropy when clamped); not major / probes as GL allows,
     // which would undersample when the ratio is just above an integer.
-    f.lambda = log2(max(major / ratio, 1e-8));
-    f.lambdaIso = log2(max(max(length(dx), length(dy)), 1e-8));
+    float m = major / ratio;
+    f.lambda = m > 1e-8 ? log2(min(m, 1e30)) : log2(1e-8);
+    float iso = max(length(dx), length(dy));
+    f.lambdaIso = iso > 1e-8 ? log2(min(iso, 1e30)) : log2(1e-8);
     return f;
 }
 
@@ -86,7 +92,7 @@ vec4 coarseProbes(sampler2D coarse, vec2 p, float level, ClipFootprint f) {
 // The finest valid level at p, no finer than the level the footprint asks for; trilinear between it and the next
 // level. `usedLevel` receives the level actually used (uClipLevels or more: the coarse pyramid).
 vec4 sampleClipmap(sampler2DArray clip, sampler2D coarse, vec2 p, ClipFootprint f, out int usedLevel) {
-    float lambda = max(f.lambda, 0.0);
+    float lambda = f.lambda > 0.0 ? min(f.lambda, 64.0) : 0.0; // bounded: l0 below starts a loop
     int l0 = int(floor(lambda));
     float t = lambda - float(l0);
     vec4 a, b;
