@@ -321,7 +321,7 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
         !st)
         return st.error();
 
-    if (options.city) {
+    if (options.city && !objects.buildings.empty()) { // a scene without settlements has no city model
         stage(0.96, "city");
         synth::CityWriteOptions co;
         co.facadePhotos = options.facadePhotos;
@@ -343,7 +343,7 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
     j["leafon"] = "leafon.tif";
     j["leafoff"] = "leafoff.tif";
     j["elevation"] = "dem.tif";
-    if (options.city) j["buildings"] = "city/city.obj";
+    if (report.buildings > 0) j["buildings"] = "city/city.obj";
     j["truth"] = {{"deciduous", truth.fileName(0)}, {"conifer", truth.fileName(1)}, {"trees", "trees.csv"}};
     j["parameters"] = {{"tree_height_m", std::round(meanHeight * 100.0) / 100.0}};
     j["generator"] = {{"program", "seasonview synth"}, {"version", kSynthGeneratorVersion},      {"seed", options.seed},
