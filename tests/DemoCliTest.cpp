@@ -1,5 +1,5 @@
-// `seasonview demo` end to end on a small scene: the page and every image it shows exist, the canopy still among
-// them, the bench it ran left its files, and the offline segmentation scored every method against the truth.
+// `seasonview demo` end to end on a small scene: the page and every image it shows exist, the canopy and city
+// stills among them, the bench it ran left its files, and the offline segmentation scored every method against the truth.
 #include "TestUtil.h"
 
 #include <gtest/gtest.h>
@@ -16,7 +16,7 @@ using namespace seasonview::test;
 
 TEST(DemoCliTest, IndexHtmlAndEveryImageItShowsExist) {
     TempDir dir("demo-cli");
-    const CliResult r = runCli({"demo", "--out", (dir / "out").string(), "--size-m", "256", "--gsd", "0.5", "--size",
+    const CliResult r = runCli({"demo", "--out", (dir / "out").string(), "--size-m", "512", "--gsd", "0.5", "--size",
                                 "320x180", "--bench-frames", "2", "--cache", (dir / "cache").string()});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     std::ifstream f(dir / "out/index.html");
@@ -26,16 +26,18 @@ TEST(DemoCliTest, IndexHtmlAndEveryImageItShowsExist) {
     const std::string html = ss.str();
     const std::regex img("<img src=\"([^\"]+)\"");
     int images = 0;
-    bool canopy = false;
+    bool canopy = false, city = false;
     for (auto it = std::sregex_iterator(html.begin(), html.end(), img); it != std::sregex_iterator(); ++it) {
         const std::string src = (*it)[1];
         EXPECT_TRUE(std::filesystem::is_regular_file(dir / "out" / src)) << src;
         EXPECT_GT(std::filesystem::file_size(dir / "out" / src), 1000u) << src;
         canopy = canopy || src == "canopy_trunks.png";
+        city = city || src == "city_atlas.png";
         ++images;
     }
     EXPECT_GE(images, 10);
     EXPECT_TRUE(canopy);
+    EXPECT_TRUE(city) << "512 m at seed 1 has a village: its buildings get a still through their atlas tree";
     for (const char* file : {"bench/summary.json", "bench/frames.csv", "bench/plot.png"})
         EXPECT_TRUE(std::filesystem::is_regular_file(dir / "out" / file)) << file;
 
