@@ -286,30 +286,9 @@ struct Builder {
             r.insert(r.end(), tris.begin(), tris.end());
         }
         std::array<std::vector<std::uint32_t>, 4> parts;
-        if (byRun.size() < 2) { // a run that no longer packs alone (cannot happen: runs were packed) - quarter it
-            std::vector<glm::dvec3> mid;
-            std::vector<double> area;
-            std::vector<const std::vector<std::uint32_t>*> members;
-            for (const auto& [tex, tris] : byTexture) {
-                glm::dvec3 m(0.0);
-                double a = 0.0;
-                for (auto i : tris) {
-                    const double ta = std::max(triangleArea(in.tris[i]), 1e-12);
-                    m += ta * (in.tris[i].v[0] + in.tris[i].v[1] + in.tris[i].v[2]) / 3.0;
-                    a += ta;
-                }
-                mid.push_back(m / a);
-                area.push_back(a);
-                members.push_back(&tris);
-            }
-            std::vector<std::uint32_t> all(mid.size());
-            std::iota(all.begin(), all.end(), 0u);
-            const auto groups = splitPointsByArea(mid, area, all);
-            for (int c = 0; c < 4; ++c)
-                for (auto g : groups[std::size_t(c)])
-                    parts[std::size_t(c)].insert(parts[std::size_t(c)].end(), members[g]->begin(), members[g]->end());
-            return parts;
-        }
+        // One run packs (planRuns tried exactly its triangles), so a node that did not pack holds two or more;
+        // should that ever fail, the thesis's triangle split still ends the recursion.
+        if (byRun.size() < 2) return splitByArea(in.tris, ids);
         const std::size_t m = byRun.size();
         std::size_t k = 0;
         for (const auto& [run, tris] : byRun) {
