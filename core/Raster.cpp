@@ -34,7 +34,7 @@ struct GtifCloser {
 // Reads GeoTIFF tags. Returns an empty optional when the file has none; an error for unsupported CRS.
 Result<std::optional<Georef>> readGeoTags(const std::filesystem::path& path, std::optional<double>& nodata) {
     std::string tiffError;
-    std::unique_ptr<TIFF, TiffCloser> tif(tiff::open(path, "r", &tiffError));
+    std::unique_ptr<TIFF, TiffCloser> tif(tiff::open(path, "rm", &tiffError)); // tags only: no memory map
     if (!tif) return std::optional<Georef>{};
     char* nodataText = nullptr;
     if (TIFFGetField(tif.get(), tiff::kTagGdalNodata, &nodataText) && nodataText) {
