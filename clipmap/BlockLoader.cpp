@@ -88,13 +88,11 @@ void BlockLoader::want(const std::vector<BlockKey>& blocks) {
         m_queue.clear(); // no longer wanted (or re-added below in the new priority order)
         // Finished blocks the windows have left would only be dropped at upload, after holding memory and the
         // upload budget's place: drop them now (a fast camera otherwise piles up gigabytes of stale blocks).
-        const auto before = m_done.size();
         std::erase_if(m_done, [&](const LoadedBlock& b) {
             if (intersect(m_schedule.window(b.key.level), b.texels) == b.texels) return false;
             m_doneBytes -= blockBytes(b);
             return true;
         });
-        if (m_done.size() != before) m_idle.notify_all();
         for (const BlockKey& k : blocks)
             if (!isPending(k)) m_queue.push_back({k, m_schedule.blockTexels(k)});
     }
