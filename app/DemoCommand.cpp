@@ -261,7 +261,8 @@ Runner addDemoCommand(CLI::App& app) {
         const double renderSeconds = std::chrono::duration<double>(clock::now() - tr).count();
 
         // The scene's buildings through their texture-atlas tree (built into the cache on first use), seen
-        // obliquely from 30° down over the leaf holding the most triangles.
+        // obliquely from 30° down over the leaf holding the most triangles. The demo's scene is always synth's,
+        // whose OBJ is in the scene's frame, so the tree's bounds are scene coordinates.
         std::optional<Still> cityStill;
         double citySeconds = 0.0;
         std::string cityNote;
