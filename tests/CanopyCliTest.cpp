@@ -12,35 +12,15 @@ using namespace seasonview::test;
 
 namespace {
 
-struct CanopyScene {
-    TempDir dir{"canopy-cli"};
-    CanopyScene() {
-        const CliResult r = runCli({"synth", "--out", (dir / "s").string(), "--size-m", "256", "--gsd", "0.25", "--seed", "7"});
-        EXPECT_EQ(r.exitCode, 0) << r.err;
-    }
-    CliResult render(const std::string& out, std::vector<std::string> extra) const {
-        std::vector<std::string> a = {"render", (dir / "s/scene.json").string(), "--size", "320x240", "--camera",
-                                      "-40,40,+60,150,-45", "--clip-size", "512", "--cache", (dir / "cache").string(),
-                                      "--out", (dir / out).string()};
-        a.insert(a.end(), extra.begin(), extra.end());
-        return runCli(a);
-    }
-    Image<std::uint8_t> image(const std::string& name) const {
-        auto img = readImageU8(dir / name, 3);
-        EXPECT_TRUE(img.ok()) << img.message();
-        return img ? std::move(*img) : Image<std::uint8_t>{};
-    }
-};
-
-CanopyScene& scene() {
-    static CanopyScene s;
+CliScene& scene() {
+    static CliScene s("canopy-cli", {"--size-m", "256", "--gsd", "0.25", "--seed", "7"}, "320x240", "-40,40,+60,150,-45");
     return s;
 }
 
 } // namespace
 
 TEST(CanopyCliTest, CanopyViewGoldens) {
-    const CanopyScene& s = scene();
+    const CliScene& s = scene();
     for (auto [layers, trunks, golden] : {std::tuple{"16", "on", "canopy_layers16"}, std::tuple{"16", "off", "canopy_layers16_no_trunks"},
                                           std::tuple{"off", "on", "canopy_ground"}}) {
         const CliResult r = s.render(std::string(golden) + ".png", {"--view", "canopy", "--canopy-layers", layers, "--trunks", trunks});
@@ -54,7 +34,7 @@ TEST(CanopyCliTest, CanopyViewGoldens) {
 // The ground alone differs from plain leaf-on exactly where the canopy is (leaf-off there), and the layers change
 // the picture again (crowns standing up, hiding ground behind them).
 TEST(CanopyCliTest, GroundUnderTheCanopyIsLeafOffAndLayersStandUp) {
-    const CanopyScene& s = scene();
+    const CliScene& s = scene();
     ASSERT_EQ(s.render("on.png", {"--view", "leafon"}).exitCode, 0);
     ASSERT_EQ(s.render("ground.png", {"--view", "canopy", "--canopy-layers", "off"}).exitCode, 0);
     ASSERT_EQ(s.render("layers.png", {"--view", "canopy"}).exitCode, 0);
@@ -79,7 +59,7 @@ TEST(CanopyCliTest, GroundUnderTheCanopyIsLeafOffAndLayersStandUp) {
 
 // Both ground seasons are flags: leaf-on everywhere is the leaf-on view, leaf-off everywhere the leaf-off view.
 TEST(CanopyCliTest, GroundSeasonsAreConfigurable) {
-    const CanopyScene& s = scene();
+    const CliScene& s = scene();
     for (const char* season : {"leafon", "leafoff"}) {
         ASSERT_EQ(s.render(std::string(season) + "_view.png", {"--view", season}).exitCode, 0);
         const CliResult r = s.render(std::string(season) + "_ground.png",
@@ -97,7 +77,7 @@ TEST(CanopyCliTest, GroundSeasonsAreConfigurable) {
 // Trunks stand under the crowns, which are lifted to their base: on and off differ, and the trunks' bark colour
 // (brown, red above green and blue) appears only with them.
 TEST(CanopyCliTest, TrunksStandUnderTheCrowns) {
-    const CanopyScene& s = scene();
+    const CliScene& s = scene();
     // Leaf-on ground under the crowns here, so that the lifted crowns uncover no brown leaf-off ground.
     ASSERT_EQ(s.render("trunks_on.png", {"--view", "canopy", "--trunks", "on", "--ground-under-canopy", "leafon"}).exitCode, 0);
     ASSERT_EQ(s.render("trunks_off.png", {"--view", "canopy", "--trunks", "off", "--ground-under-canopy", "leafon"}).exitCode, 0);
@@ -117,7 +97,7 @@ TEST(CanopyCliTest, TrunksStandUnderTheCrowns) {
 }
 
 TEST(CanopyCliTest, BadCanopyFlagsFailWithOneLine) {
-    const CanopyScene& s = scene();
+    const CliScene& s = scene();
     for (auto [args, needle] : {std::pair{std::vector<std::string>{"--view", "canopy", "--canopy-layers", "0"}, "--canopy-layers"},
                                 std::pair{std::vector<std::string>{"--view", "canopy", "--canopy-layers", "x"}, "--canopy-layers"},
                                 std::pair{std::vector<std::string>{"--view", "canopy", "--method", "magic"}, "--method"},

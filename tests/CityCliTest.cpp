@@ -36,37 +36,17 @@ RegionDiff diffWhere(const Image<std::uint8_t>& a, const Image<std::uint8_t>& b,
     return r;
 }
 
-struct CityScene {
-    TempDir dir{"city-cli"};
-    CityScene() {
-        // 512 m at 0.5 m: eight houses in the north-east corner (seed 1).
-        const CliResult r = runCli({"synth", "--out", (dir / "s").string(), "--size-m", "512", "--gsd", "0.5",
-                                    "--facade-size", "128"});
-        EXPECT_EQ(r.exitCode, 0) << r.err;
-    }
-    CliResult render(const std::string& out, std::vector<std::string> extra) const {
-        std::vector<std::string> a = {"render", (dir / "s/scene.json").string(), "--size", "400x250", "--camera",
-                                      "195,140,+18,35,-18,60", "--clip-size", "512", "--cache", (dir / "cache").string(),
-                                      "--out", (dir / out).string()};
-        a.insert(a.end(), extra.begin(), extra.end());
-        return runCli(a);
-    }
-    Image<std::uint8_t> image(const std::string& name) const {
-        auto img = readImageU8(dir / name, 3);
-        EXPECT_TRUE(img.ok()) << img.message();
-        return img ? std::move(*img) : Image<std::uint8_t>{};
-    }
-};
-
-CityScene& scene() {
-    static CityScene s;
+// 512 m at 0.5 m: eight houses in the north-east corner (seed 1).
+CliScene& scene() {
+    static CliScene s("city-cli", {"--size-m", "512", "--gsd", "0.5", "--facade-size", "128"}, "400x250",
+                      "195,140,+18,35,-18,60");
     return s;
 }
 
 } // namespace
 
 TEST(CityCliTest, SyntheticCityGoldensAndModes) {
-    const CityScene& s = scene();
+    const CliScene& s = scene();
     ASSERT_EQ(s.render("none.png", {}).exitCode, 0);
     const CliResult atlas = s.render("city_synth_atlas.png", {"--city", "atlas"});
     ASSERT_EQ(atlas.exitCode, 0) << atlas.err;
@@ -89,7 +69,7 @@ TEST(CityCliTest, SyntheticCityGoldensAndModes) {
 }
 
 TEST(CityCliTest, RoofsComeFromTheImageryOfTheSeason) {
-    const CityScene& s = scene();
+    const CliScene& s = scene();
     ASSERT_EQ(s.render("on.png", {"--city", "flat", "--view", "leafon"}).exitCode, 0);
     ASSERT_EQ(s.render("off.png", {"--city", "flat", "--view", "leafoff"}).exitCode, 0);
     ASSERT_EQ(s.render("plain_on.png", {"--view", "leafon"}).exitCode, 0);
@@ -104,7 +84,7 @@ TEST(CityCliTest, RoofsComeFromTheImageryOfTheSeason) {
 }
 
 TEST(CityCliTest, AtlasBuildAndInfo) {
-    const CityScene& s = scene();
+    const CliScene& s = scene();
     const auto tree = (s.dir / "t.svat").string();
     const CliResult b = runCli({"atlas", "build", (s.dir / "s/city/city.obj").string(), "--obj-local", "--out", tree,
                                 "--atlas-size", "256", "--report", (s.dir / "t.json").string()});
@@ -125,7 +105,7 @@ TEST(CityCliTest, AtlasBuildAndInfo) {
 }
 
 TEST(CityCliTest, BadInput) {
-    const CityScene& s = scene();
+    const CliScene& s = scene();
     auto fails = [](const CliResult& r, const std::string& needle) {
         EXPECT_EQ(r.exitCode, 1) << r.out << r.err;
         EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
@@ -193,7 +173,7 @@ TEST(CityCliTest, RealBerlinAndTokyoModelsWithTheirPhotoTextures) {
 }
 
 TEST(CityCliTest, ViewerDrawsTheCityAndKeyBHidesIt) {
-    const CityScene& s = scene();
+    const CliScene& s = scene();
     {
         std::ofstream f(s.dir / "city_script.json");
         f << R"([{"t": 0.5, "key": "B"}, {"t": 0.9, "set": "city", "value": true}])";

@@ -244,6 +244,28 @@ CliResult runWithPrefix(const std::string& prefix, const std::vector<std::string
 
 CliResult runCli(const std::vector<std::string>& args) { return runWithPrefix("", args); }
 
+CliScene::CliScene(const std::string& name, const std::vector<std::string>& synthArgs, std::string size_,
+                   std::string camera_)
+    : dir(name), size(std::move(size_)), camera(std::move(camera_)) {
+    std::vector<std::string> a = {"synth", "--out", (dir / "s").string()};
+    a.insert(a.end(), synthArgs.begin(), synthArgs.end());
+    const CliResult r = runCli(a);
+    EXPECT_EQ(r.exitCode, 0) << r.err;
+}
+
+CliResult CliScene::render(const std::string& out, const std::vector<std::string>& extra) const {
+    std::vector<std::string> a = {"render", (dir / "s/scene.json").string(), "--size", size, "--camera", camera,
+                                  "--clip-size", "512", "--cache", (dir / "cache").string(), "--out", (dir / out).string()};
+    a.insert(a.end(), extra.begin(), extra.end());
+    return runCli(a);
+}
+
+Image<std::uint8_t> CliScene::image(const std::string& name) const {
+    auto img = readImageU8(dir / name, 3);
+    EXPECT_TRUE(img.ok()) << img.message();
+    return img ? std::move(*img) : Image<std::uint8_t>{};
+}
+
 std::optional<CliResult> runCliWithDisplay(const std::vector<std::string>& args) {
     if (std::getenv("DISPLAY")) return runWithPrefix("", args);
     if (std::system("command -v xvfb-run >/dev/null 2>&1") != 0) return std::nullopt;

@@ -84,6 +84,16 @@ struct CliResult {
 };
 /// Runs the seasonview binary with `args` (shell-quoted here), capturing stdout and stderr.
 CliResult runCli(const std::vector<std::string>& args);
+/// A synthetic scene generated once (`synth` with `synthArgs`, into dir/s) that a CLI test renders at one size
+/// and camera with per-call flags (`render`, cache in dir/cache, output dir/out).
+struct CliScene {
+    TempDir dir;
+    std::string size, camera;
+    CliScene(const std::string& name, const std::vector<std::string>& synthArgs, std::string size, std::string camera);
+    CliResult render(const std::string& out, const std::vector<std::string>& extra) const;
+    /// dir/name as RGB (a test failure, and an empty image, when unreadable).
+    Image<std::uint8_t> image(const std::string& name) const;
+};
 /// The same with a display: directly when DISPLAY is set, else under `xvfb-run -a`; nothing when neither exists.
 std::optional<CliResult> runCliWithDisplay(const std::vector<std::string>& args);
 
