@@ -184,39 +184,40 @@ struct Builder {
 
     glm::dvec2 cap(int texture) const { return capOf(textures[std::size_t(texture)]); }
 
+    /// The atlas areas of one texture's triangles `texIds`: one per cluster of overlapping texture rectangles
+    /// (rectangles whose borders would touch share one area), each with its triangles.
+    void textureAreas(int tex, const std::vector<std::uint32_t>& texIds, std::vector<AtlasArea>& areas,
+                      std::vector<std::vector<std::uint32_t>>& areaTris) const {
+        const glm::dvec2 c = cap(tex);
+        const glm::dvec2 margin = std::isfinite(c.x) ? 2.0 * double(s.border) / c : glm::dvec2(0.0);
+        for (auto& group : clusterByUv(in.tris, texIds, margin)) {
+            std::vector<const TexturedTriangle*> tris;
+            for (auto i : group) tris.push_back(&in.tris[i]);
+            areas.push_back(requiredAtlasArea(tris, fproj, s.border, c));
+            areaTris.push_back(std::move(group));
+        }
+    }
+
     /// Tries to pack `ids`; on success returns the plan.
-    std::optional<LeafPlan> tryPack(const std::vector<std::uint32_t>& ids, double* fill) {
+    std::optional<LeafPlan> tryPack(const std::vector<std::uint32_t>& ids, double* fill) const {
         std::map<int, std::vector<std::uint32_t>> byTexture;
         for (auto i : ids) byTexture[in.tris[i].texture].push_back(i);
         LeafPlan plan;
-        for (auto& [tex, texIds] : byTexture) {
-            const glm::dvec2 c = cap(tex);
-            // Rectangles whose borders would touch share one area.
-            const glm::dvec2 margin = std::isfinite(c.x) ? 2.0 * double(s.border) / c : glm::dvec2(0.0);
-            for (auto& group : clusterByUv(in.tris, texIds, margin)) {
-                std::vector<const TexturedTriangle*> tris;
-                for (auto i : group) tris.push_back(&in.tris[i]);
-                plan.areas.push_back(requiredAtlasArea(tris, fproj, s.border, c));
-                if (!fits(plan.areas.back(), s.atlasSize)) return std::nullopt;
-                plan.areaTris.push_back(std::move(group));
-            }
-        }
+        for (auto& [tex, texIds] : byTexture) textureAreas(tex, texIds, plan.areas, plan.areaTris);
+        for (const auto& a : plan.areas)
+            if (!fits(a, s.atlasSize)) return std::nullopt;
         if (!packAtlas(plan.areas, s.atlasSize, fill)) return std::nullopt;
         return plan;
     }
 
-    /// Atlas texels the triangles `texIds` (all of one texture) need at the leaves' resolution: their uv
-    /// clusters' areas as tryPack would place them (a quick upper bound before a trial packing).
+    /// Atlas texels the triangles `texIds` (all of one texture) need at the leaves' resolution, as tryPack would
+    /// place them (a quick upper bound before a trial packing).
     double atlasTexels(int tex, const std::vector<std::uint32_t>& texIds) const {
-        const glm::dvec2 c = cap(tex);
-        const glm::dvec2 margin = std::isfinite(c.x) ? 2.0 * double(s.border) / c : glm::dvec2(0.0);
+        std::vector<AtlasArea> areas;
+        std::vector<std::vector<std::uint32_t>> areaTris;
+        textureAreas(tex, texIds, areas, areaTris);
         double texels = 0.0;
-        for (auto& group : clusterByUv(in.tris, texIds, margin)) {
-            std::vector<const TexturedTriangle*> tris;
-            for (auto i : group) tris.push_back(&in.tris[i]);
-            const AtlasArea a = requiredAtlasArea(tris, fproj, s.border, c);
-            texels += double(a.size.x) * double(a.size.y);
-        }
+        for (const auto& a : areas) texels += double(a.size.x) * double(a.size.y);
         return texels;
     }
 
