@@ -52,6 +52,7 @@ struct Mode {
     int canopyLayers = -1;        // -1: as --view says; 0: no canopy (leaf-on terrain); N: canopy view, N layers
     bool perFrameSegmentation = false; // the canopy layer re-derived every frame (the paper's per-frame evaluation)
     bool terrainOnly = false;     // scene=terrain: the relief alone (geometry, no imagery, no canopy)
+    std::optional<CanopyDrawMode> canopyDraw; // canopy-draw=...: this mode's way of drawing the layers
     std::optional<city::CityMode> cityMode; // the city model drawn after the terrain (nullopt: none)
     std::unique_ptr<city::CityRendererGL> city;
     std::unique_ptr<ClipmapGL> clipmap;
@@ -149,10 +150,11 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     const size_t eq = a.compare.find('=');
     const std::string key = a.compare.substr(0, eq);
     if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso" && key != "canopy" &&
-                                    key != "segmentation" && key != "scene" && key != "city"))
+                                    key != "canopy-draw" && key != "segmentation" && key != "scene" && key != "city"))
         return Error{"--compare '" + a.compare +
                      "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
-                     "segmentation=upload,perframe, scene=terrain,full or city=atlas,original,flat,off"};
+                     "canopy-draw=layers,march, segmentation=upload,perframe, scene=terrain,full or "
+                     "city=atlas,original,flat,off"};
     std::stringstream list(a.compare.substr(eq + 1));
     std::string v;
     while (std::getline(list, v, ',')) {
@@ -175,6 +177,16 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
             if (!c)
                 return Error{"--compare: canopy '" + v + "' is not off or 1..32"};
             m->canopyLayers = c->layers;
+        } else if (key == "canopy-draw") {
+            // The canopy view with --canopy-layers layers, drawn each way.
+            CanopyRenderSettings d;
+            if (auto st = parseCanopyDrawArg(v, d); !st)
+                return Error{"--compare: canopy-draw '" + v + "' (expected layers|march)"};
+            auto c = parseCanopyArgs(a.canopyLayers, a.method, a.k);
+            if (!c)
+                return Error{c.message()};
+            m->canopyLayers = std::max(1, c->layers);
+            m->canopyDraw = d.draw;
         } else if (key == "scene") {
             // terrain: the geometry clipmaps shaded, no imagery; full: both seasons (leaf-off under the crowns,
             // leaf-on elsewhere), the stacked canopy layers (--canopy-layers, default 16) and the trunks.
@@ -225,6 +237,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         return fail(canopyArgs.message());
     CanopyRenderSettings canopy = *canopyArgs;
     if (auto st = parseTrunksArg(a->trunks, canopy); !st)
+        return fail(st.message());
+    if (auto st = parseCanopyDrawArg(a->canopyDraw, canopy); !st)
         return fail(st.message());
     auto view = parseImageryView(a->view);
     if (!view)
@@ -392,6 +406,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
             im.view = ImageryView::Relief;
         CanopyRenderSettings modeCanopy = canopy;
         modeCanopy.trunks = m.trunks != nullptr;
+        if (m.canopyDraw)
+            modeCanopy.draw = *m.canopyDraw;
         const CanopyDrawSettings cd = canopyDrawSettings(*scene, modeCanopy, im);
         if (m.canopy && m.canopyLayers > 0 && cd.crownBase <= 0.0)
             im.canopyBase = cd.darkest; // the ground draws layer 0 under the stacked ones
@@ -518,6 +534,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
           {"segmentation_method", a->method},
           {"segmentation_k", a->k},
           {"trunks", a->trunks},
+          {"canopy_draw", a->canopyDraw},
           {"ground_under_canopy", a->groundUnder},
           {"ground_elsewhere", a->groundElsewhere},
           {"tree_height_m", scene->sources.treeHeightM}}},

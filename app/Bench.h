@@ -26,7 +26,7 @@ struct BenchSettings {
     std::int64_t uploadBudget = std::int64_t(1) << 20;
     // canopy view: stacked layers ("off" or 1..32), the canopy layer's segmentation method and k.
     std::string canopyLayers = "16", method = "default", groundUnder = "leafoff", groundElsewhere = "leafon";
-    std::string trunks = "on";
+    std::string trunks = "on", canopyDraw = "march";
     int k = 5;
     std::filesystem::path cacheDir;
     // The scene's city model: off | atlas | original | flat, its tree (empty: built into the cache), capacity, τ.

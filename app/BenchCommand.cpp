@@ -29,12 +29,15 @@ Runner addBenchCommand(CLI::App& app) {
     cmd->add_option("--compare", a->b.compare,
                     "Modes run interleaved over the same path: \"centers=" + placementNames() +
                         "\" (comma-separated), \"renderer=clipmap,reference\", \"aniso=1,8,...\", \"canopy=off,16\" "
-                        "(no canopy vs the canopy view with N layers) or \"segmentation=upload,perframe\" (canopy "
+                        "(no canopy vs the canopy view with N layers), \"canopy-draw=layers,march\" (the layers "
+                        "rasterised each vs intersected per pixel) or \"segmentation=upload,perframe\" (canopy "
                         "layer derived when blocks arrive vs re-derived every frame)");
     cmd->add_option("--canopy-layers", a->b.canopyLayers, "canopy view: stacked layers 1..32 or off")
         ->capture_default_str();
     cmd->add_option("--method", a->b.method, "canopy view: pixel|neighborhood|equalized|default")->capture_default_str();
     cmd->add_option("--trunks", a->b.trunks, "canopy view: trunks under the crowns, on|off")->capture_default_str();
+    cmd->add_option("--canopy-draw", a->b.canopyDraw, "canopy view: how the stacked layers are drawn, layers|march")
+        ->capture_default_str();
     cmd->add_option("--ground-under-canopy", a->b.groundUnder, "canopy view: ground season under the crowns, leafon|leafoff")
         ->capture_default_str();
     cmd->add_option("--ground-elsewhere", a->b.groundElsewhere, "canopy view: ground season elsewhere, leafon|leafoff")

@@ -17,7 +17,7 @@ struct RenderArgs {
     int clipSize = 2048, gridSize = 255, clipLevels = 0;
     bool window = false;
     std::string canopyLayers = "16", method = "default", groundUnder = "leafoff", groundElsewhere = "leafon";
-    std::string trunks = "on";
+    std::string trunks = "on", canopyDraw = "march";
     CityArgs city;
     std::string cityAccuracy;
     int k = kSegDefaultK;
@@ -73,6 +73,10 @@ Runner addRenderCommand(CLI::App& app) {
                     "canopy view: trunks at the crown centres found in the canopy layer, the crowns lifted to their "
                     "base; on|off")
         ->capture_default_str();
+    cmd->add_option("--canopy-draw", args->canopyDraw,
+                    "canopy view: how the stacked layers are drawn: march (the top layer rasterised, each pixel's ray "
+                    "intersected with the layers below) or layers (every layer rasterised, §4.2 as written); layers|march")
+        ->capture_default_str();
     cmd->add_option("--ground-under-canopy", args->groundUnder,
                     "canopy view: season of the ground under the crowns (seen where layers are off), leafon|leafoff")
         ->capture_default_str();
@@ -119,6 +123,7 @@ Runner addRenderCommand(CLI::App& app) {
         if (auto c = parseCanopyArgs(args->canopyLayers, args->method, args->k); !c) return fail(c.message());
         else settings.canopy = *c;
         if (auto st = parseTrunksArg(args->trunks, settings.canopy); !st) return fail(st.message());
+        if (auto st = parseCanopyDrawArg(args->canopyDraw, settings.canopy); !st) return fail(st.message());
         settings.cacheDir = args->scene.cache.empty() ? defaultCacheDir() : std::filesystem::path(args->scene.cache);
         if (settings.renderer == RendererKind::Reference && view != ImageryView::LeafOn && view != ImageryView::LeafOff)
             return fail("--view " + args->view + " needs --renderer clipmap");

@@ -205,9 +205,16 @@ Status parseTrunksArg(const std::string& value, CanopyRenderSettings& settings) 
     return Ok{};
 }
 
+Status parseCanopyDrawArg(const std::string& value, CanopyRenderSettings& settings) {
+    if (value != "layers" && value != "march") return Error{"--canopy-draw '" + value + "': expected layers|march"};
+    settings.draw = value == "layers" ? CanopyDrawMode::Layers : CanopyDrawMode::March;
+    return Ok{};
+}
+
 CanopyDrawSettings canopyDrawSettings(const Scene& scene, const CanopyRenderSettings& canopy,
                                       const ImagerySettings& imagery) {
     CanopyDrawSettings cd;
+    cd.mode = canopy.draw;
     cd.treeHeight = scene.sources.treeHeightM;
     cd.anisotropy = imagery.anisotropy;
     cd.shading = imagery.shading;

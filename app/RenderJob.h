@@ -63,10 +63,13 @@ struct CanopyRenderSettings {
     int layers = 16;            // stacked layers; 0 = off (the ground alone: leaf-off under the crowns)
     bool trunks = true;         // trunks under the crowns (foliage/TrunksGL.h), the layers lifted to the crowns' base
     double crownBaseFraction = 0.35; // with trunks: the crowns' base, fraction of the tree height
+    CanopyDrawMode draw = CanopyDrawMode::March; // how the layers are drawn (CanopyRendererGL.h)
 };
 
 /// --trunks on|off -> settings.trunks; errors name the flag.
 Status parseTrunksArg(const std::string& value, CanopyRenderSettings& settings);
+/// --canopy-draw layers|march -> settings.draw; errors name the flag.
+Status parseCanopyDrawArg(const std::string& value, CanopyRenderSettings& settings);
 /// The canopy's draw settings for a scene (tree height, crown base with trunks, the terrain's filtering and shading).
 CanopyDrawSettings canopyDrawSettings(const Scene& scene, const CanopyRenderSettings& canopy,
                                       const ImagerySettings& imagery);

@@ -46,6 +46,7 @@ struct ViewArgs {
     double quitAt = -1.0, fixedDt = -1.0;
     int clipSize = 1024, gridSize = 255;
     std::string view = "leafon", canopyLayers = "16", method = "default", trunks = "on", centers = "footprint";
+    std::string canopyDraw = "march";
     int k = kSegDefaultK;
     bool noPanel = false;
     CityArgs city;
@@ -72,6 +73,7 @@ struct ViewerSettings {
     float blend = 0.5f, swipe = 0.5f, shading = 0.0f;
     int layers = 16; // 0: off
     bool trunks = true;
+    bool marchLayers = true; // CanopyDrawMode::March (false: every layer rasterised)
     CenterPlacement centers = CenterPlacement::Footprint;
     SegmentationParams params{SegmentationMethod::Default, kSegDefaultK};
     bool panel = true;
@@ -172,6 +174,7 @@ struct LiveScene {
         cs.params = s.params;
         cs.layers = s.layers;
         cs.trunks = trunks != nullptr;
+        cs.draw = s.marchLayers ? CanopyDrawMode::March : CanopyDrawMode::Layers;
         const CanopyDrawSettings cd = canopyDrawSettings(*scene, cs, im);
         const bool stacked = canopyView && canopy && s.layers > 0;
         if (stacked && cd.crownBase <= 0.0) im.canopyBase = cd.darkest;
@@ -226,6 +229,8 @@ bool applySetting(ViewerSettings& s, const std::string& name, const nlohmann::js
         s.cityTpp = std::clamp(v.get<float>(), 0.05f, 16.0f);
     } else if (name == "trunks" && v.is_boolean()) {
         s.trunks = v.get<bool>();
+    } else if (name == "canopy_draw" && (str() == "layers" || str() == "march")) {
+        s.marchLayers = str() == "march";
     } else if (name == "centers") {
         auto c = parsePlacement(str());
         if (!c) return err = "centers '" + str() + "' unknown", false;
@@ -369,6 +374,8 @@ Runner addViewCommand(CLI::App& app) {
     cmd->add_option("--method", a->method, "Segmentation method of the canopy")->capture_default_str();
     cmd->add_option("--k", a->k, "Neighbourhood size of the canopy's rule (odd)")->capture_default_str();
     cmd->add_option("--trunks", a->trunks, "Trunks under the crowns: on | off")->capture_default_str();
+    cmd->add_option("--canopy-draw", a->canopyDraw, "How the stacked layers are drawn: layers | march")
+        ->capture_default_str();
     cmd->add_option("--centers", a->centers, "Clipmap level centres: concentric | offset | footprint")->capture_default_str();
     cmd->add_option("--clip-size", a->clipSize, "Clipmap level size N")->capture_default_str();
     a->city.addTo(*cmd);
@@ -405,6 +412,8 @@ Runner addViewCommand(CLI::App& app) {
             CanopyRenderSettings tr;
             if (auto st = parseTrunksArg(a->trunks, tr); !st) return fail(st.message());
             s.trunks = tr.trunks;
+            if (auto st = parseCanopyDrawArg(a->canopyDraw, tr); !st) return fail(st.message());
+            s.marchLayers = tr.draw == CanopyDrawMode::March;
             auto c = parsePlacement(a->centers);
             if (!c) return fail("--centers '" + a->centers + "': expected concentric, offset or footprint");
             s.centers = *c;
@@ -751,6 +760,7 @@ Runner addViewCommand(CLI::App& app) {
                     if (ImGui::Checkbox("canopy layers", &layersOn)) s.layers = layersOn ? 16 : 0;
                     if (layersOn && ImGui::SliderInt("layers", &n, 1, 32)) s.layers = n;
                     ImGui::Checkbox("trunks", &s.trunks);
+                    ImGui::Checkbox("march the layers per pixel", &s.marchLayers);
                     if (live.city) {
                         ImGui::Checkbox("city (B)", &s.city);
                         ImGui::SliderFloat("city pixels per texel", &s.cityTpp, 0.25f, 8.0f, "%.2f",

@@ -11,6 +11,7 @@ namespace seasonview {
 
 namespace {
 constexpr int kTile = 32;            // output tile of one work group (canopy_derive.comp)
+constexpr int kCell = 8;             // texels per side of a cell with its own maximum (canopy_derive.comp CELL)
 constexpr int kMaxDispatchBlocks = 4096;
 constexpr int kMaxLayers = 32;       // uLayerK[32]
 std::int32_t blockTag(int bx, int by) { return bx | (by << 16); }
@@ -69,21 +70,25 @@ Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL
     c->m_blocks = gl::Buffer::create();
     glNamedBufferStorage(c->m_blocks.id(), kMaxDispatchBlocks * 16, nullptr, GL_DYNAMIC_STORAGE_BIT);
 
-    // Per-block maxima of every slot of every clip level, then of the coarse base's blocks.
+    // Cell maxima (a byte per kCell² texels) of every slot of every clip level, then of the coarse base's blocks.
     c->m_slotCount = slots * slots;
     c->m_coarseBlocksX = (coarse.x + L.block - 1) / L.block;
+    c->m_cellsPerSide = L.block / kCell;
+    const size_t cellsPerBlock = size_t(c->m_cellsPerSide) * size_t(c->m_cellsPerSide);
     const int coarseBlocks = c->m_coarseBlocksX * ((coarse.y + L.block - 1) / L.block);
     const size_t entries = size_t(clipLevels) * size_t(c->m_slotCount) + size_t(coarseBlocks);
-    const std::vector<std::uint32_t> zeros(entries, 0u);
+    const size_t bytes = entries * cellsPerBlock;
+    const std::vector<std::uint8_t> zeros(bytes, 0);
     c->m_blockMax = gl::Buffer::create();
-    glNamedBufferStorage(c->m_blockMax.id(), GLsizeiptr(entries * 4), zeros.data(), GL_DYNAMIC_STORAGE_BIT);
+    glNamedBufferStorage(c->m_blockMax.id(), GLsizeiptr(bytes), zeros.data(), GL_DYNAMIC_STORAGE_BIT);
     c->m_maxReadback = gl::Buffer::create();
     const GLbitfield mapFlags = GL_MAP_READ_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
-    glNamedBufferStorage(c->m_maxReadback.id(), GLsizeiptr(entries * 4), nullptr, mapFlags);
-    c->m_maxMapped = static_cast<const std::uint32_t*>(
-        glMapNamedBufferRange(c->m_maxReadback.id(), 0, GLsizeiptr(entries * 4), mapFlags));
-    if (!c->m_maxMapped) return Error{"canopy layer: cannot map the block maxima's readback buffer"};
+    glNamedBufferStorage(c->m_maxReadback.id(), GLsizeiptr(bytes), nullptr, mapFlags);
+    c->m_maxMapped = static_cast<const std::uint8_t*>(
+        glMapNamedBufferRange(c->m_maxReadback.id(), 0, GLsizeiptr(bytes), mapFlags));
+    if (!c->m_maxMapped) return Error{"canopy layer: cannot map the cell maxima's readback buffer"};
     c->m_maxKnown.assign(entries, -1);
+    c->m_cellMax.assign(bytes, 0);
     c->m_maxGeneration.assign(entries, 0);
 
     // The coarse base is resident whole: derive all of it now.
@@ -133,15 +138,19 @@ void CanopyClipmapGL::collectMaxima(bool wait) {
             glDeleteSync(m_maxFence);
             m_maxFence = nullptr;
             // Entries derived again after the copy keep waiting for the next one.
+            const size_t cells = size_t(m_cellsPerSide) * size_t(m_cellsPerSide);
             for (size_t i = 0; i < m_maxKnown.size(); ++i)
-                if (m_maxGeneration[i] <= m_fenceGeneration) m_maxKnown[i] = int(m_maxMapped[i]);
+                if (m_maxGeneration[i] <= m_fenceGeneration && m_maxGeneration[i] > m_collectedGeneration) {
+                    const std::uint8_t* src = m_maxMapped + i * cells;
+                    std::copy(src, src + cells, m_cellMax.begin() + std::ptrdiff_t(i * cells));
+                    m_maxKnown[i] = *std::max_element(src, src + cells);
+                }
             m_collectedGeneration = m_fenceGeneration;
         }
         if (m_generation <= m_collectedGeneration) return;
         // Something derived since the last copy: copy again (the fence tells when it has landed).
         glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT);
-        glCopyNamedBufferSubData(m_blockMax.id(), m_maxReadback.id(), 0, 0,
-                                 GLsizeiptr(m_maxKnown.size() * sizeof(std::uint32_t)));
+        glCopyNamedBufferSubData(m_blockMax.id(), m_maxReadback.id(), 0, 0, GLsizeiptr(m_cellMax.size()));
         m_maxFence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
         m_fenceGeneration = m_generation;
         if (!wait) return;
@@ -149,34 +158,52 @@ void CanopyClipmapGL::collectMaxima(bool wait) {
 }
 
 int CanopyClipmapGL::maxValueOver(glm::dvec2 lo, glm::dvec2 hi) const {
+    return maxValueOver(lo, hi, 0, m_source.schedule().layout().clipLevels());
+}
+
+int CanopyClipmapGL::maxValueOver(glm::dvec2 lo, glm::dvec2 hi, int minLevel, int maxLevel) const {
     const ClipmapSchedule& s = m_source.schedule();
     const ClipmapLayout& L = s.layout();
     const int slots = s.slotsPerSide(), all = m_options.layers;
     int m = 0;
-    for (int level = 0; level <= L.clipLevels(); ++level) {
+    bool coarser = false; // a block of the last level scanned was not derived: fragments there read a coarser one
+    for (int level = std::clamp(minLevel, 0, L.clipLevels()); level <= L.clipLevels(); ++level) {
+        if (level > maxLevel && !coarser) break;
+        coarser = false;
         const bool coarse = level == L.clipLevels();
-        const double texel = std::ldexp(1.0, level) * double(L.block); // level-0 pixels per block
+        const double texel = std::ldexp(1.0, level); // level-0 pixels per texel of this level
         const glm::ivec2 size = L.levelSizes[size_t(level)];
-        const int nbx = (size.x + L.block - 1) / L.block, nby = (size.y + L.block - 1) / L.block;
-        const int bx0 = std::clamp(int(std::floor(lo.x / texel)), 0, nbx - 1);
-        const int by0 = std::clamp(int(std::floor(lo.y / texel)), 0, nby - 1);
-        const int bx1 = std::clamp(int(std::floor(hi.x / texel)), 0, nbx - 1);
-        const int by1 = std::clamp(int(std::floor(hi.y / texel)), 0, nby - 1);
-        if ((bx1 - bx0 + 1) * (by1 - by0 + 1) > 256) return all;
-        for (int by = by0; by <= by1; ++by)
-            for (int bx = bx0; bx <= bx1; ++bx) {
+        // The texels a fragment in the box may read here (nearest texel of its position: floor), clamped to the
+        // level like the shader's fetches.
+        const glm::ivec2 t0 = glm::clamp(glm::ivec2(glm::floor(lo / texel)), glm::ivec2(0), size - 1);
+        const glm::ivec2 t1 = glm::clamp(glm::ivec2(glm::floor(hi / texel)), glm::ivec2(0), size - 1);
+        const glm::ivec2 b0 = t0 / L.block, b1 = t1 / L.block;
+        if ((b1.x - b0.x + 1) * (b1.y - b0.y + 1) > 256) return all;
+        for (int by = b0.y; by <= b1.y; ++by)
+            for (int bx = b0.x; bx <= b1.x; ++bx) {
                 int index = 0;
                 if (coarse) {
                     index = maxIndex(L.clipLevels(), 0) + by * m_coarseBlocksX + bx;
                 } else {
                     const int slot = wrapTexel(by, slots) * slots + wrapTexel(bx, slots);
-                    // Not derived here: a fragment falls back to a coarser level, which this loop covers too.
-                    if (m_tags[size_t(level)][size_t(slot)] != blockTag(bx, by)) continue;
+                    if (m_tags[size_t(level)][size_t(slot)] != blockTag(bx, by)) { // not derived here
+                        coarser = true;
+                        continue;
+                    }
                     index = maxIndex(level, slot);
                 }
                 const int v = m_maxKnown[size_t(index)];
                 if (v < 0) return all;
-                m = std::max(m, v);
+                if (v <= m) continue;
+                // The cells of the block inside the box.
+                const glm::ivec2 origin = glm::ivec2(bx, by) * L.block;
+                const glm::ivec2 c0 = (glm::max(t0, origin) - origin) / kCell;
+                const glm::ivec2 c1 = (glm::min(t1, origin + L.block - 1) - origin) / kCell;
+                const std::uint8_t* cells =
+                    m_cellMax.data() + size_t(index) * size_t(m_cellsPerSide) * size_t(m_cellsPerSide);
+                for (int cy = c0.y; cy <= c1.y; ++cy)
+                    for (int cx = c0.x; cx <= c1.x; ++cx) m = std::max(m, int(cells[cy * m_cellsPerSide + cx]));
+                if (m >= all) return all;
             }
     }
     return m;
@@ -206,14 +233,11 @@ void CanopyClipmapGL::derive(int level, bool coarse, const std::vector<glm::ivec
     for (size_t first = 0; first < blocks.size(); first += kMaxDispatchBlocks) {
         const size_t n = std::min(blocks.size() - first, size_t(kMaxDispatchBlocks));
         std::vector<glm::ivec4> list(n);
-        const std::uint32_t zero = 0;
         for (size_t i = 0; i < n; ++i) {
             const glm::ivec2 b = blocks[first + i];
             const int index = coarse ? maxIndex(L.clipLevels(), 0) + b.y * m_coarseBlocksX + b.x
                                      : maxIndex(level, wrapTexel(b.y, slots) * slots + wrapTexel(b.x, slots));
             list[i] = {b.x, b.y, level, index};
-            glClearNamedBufferSubData(m_blockMax.id(), GL_R32UI, GLintptr(index) * 4, 4, GL_RED_INTEGER,
-                                      GL_UNSIGNED_INT, &zero);
             m_maxKnown[size_t(index)] = -1;
             m_maxGeneration[size_t(index)] = m_generation;
         }

@@ -51,6 +51,8 @@ public:
     void bind(const gl::ShaderProgram& program, int firstUnit) const override;
 
     const CanopyOptions& options() const { return m_options; }
+    /// Toroidal clip levels; level clipLevels() is the coarse base.
+    int clipLevels() const { return m_source.schedule().layout().clipLevels(); }
     /// k of layer `layer` on clip level `level` (odd, >= 1; `pixel`: 1).
     int layerK(int layer, int level) const;
     /// The block derived in each slot, per clip level, row-major (ClipmapSchedule's tags; kEmptyTag: none).
@@ -65,6 +67,10 @@ public:
     /// back yet or the box
     /// spans too many blocks to look at.
     int maxValueOver(glm::dvec2 lo, glm::dvec2 hi) const;
+    /// The same for fragments that read clip level clamp(their level, minLevel, maxLevel) (the coarse base is level
+    /// clipLevels()) or, where that is not derived, the first coarser one derived: the maxima of the 8×8-texel cells
+    /// they may read there.
+    int maxValueOver(glm::dvec2 lo, glm::dvec2 hi, int minLevel, int maxLevel) const;
     std::int64_t totalBlocksDerived() const { return m_totalDerived; }
 
 private:
@@ -86,16 +92,18 @@ private:
     gl::ShaderProgram m_program;
     gl::Texture m_clip, m_coarse, m_tagTexture;
     gl::Buffer m_blocks, m_luts;
-    // Per-block maxima: GPU buffer (clip levels' slots, then the coarse base's blocks), a persistently mapped copy
+    // Cell maxima: GPU buffer (clip levels' slots, then the coarse base's blocks), a persistently mapped copy
     // taken after each derivation with a fence, and the CPU's view of them (-1: not back yet).
     // Takes the copy in flight when its fence has signalled (or waits for it), then copies again if blocks were
     // derived since; update() and the others call it, so maxValueOver sees the maxima a frame late at most.
     void collectMaxima(bool wait);
     int maxIndex(int level, int slot) const { return level * m_slotCount + slot; }
     gl::Buffer m_blockMax, m_maxReadback;
-    const std::uint32_t* m_maxMapped = nullptr;
+    const std::uint8_t* m_maxMapped = nullptr;
     GLsync m_maxFence = nullptr;
-    std::vector<int> m_maxKnown;
+    std::vector<int> m_maxKnown;           // per block: its largest value, -1 while not back
+    std::vector<std::uint8_t> m_cellMax;   // per block, per cell (row-major, m_cellsPerSide²): the cell's largest value
+    int m_cellsPerSide = 8;
     std::vector<std::uint64_t> m_maxGeneration; // derivation generation of each entry
     std::uint64_t m_generation = 0, m_fenceGeneration = 0, m_collectedGeneration = 0;
     int m_slotCount = 0, m_coarseBlocksX = 0;

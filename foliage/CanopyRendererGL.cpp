@@ -25,11 +25,35 @@ int canopyPieceLayers(const glm::dvec3& eye, double pixelsPerRadian, const glm::
     return std::clamp(int(std::ceil(stack / std::max(s.pixelsPerLayer, 1e-3))), 1, maxLayers);
 }
 
+CanopyLevelBounds::CanopyLevelBounds(const Camera& camera, double aspect, double pixelsPerRadian, double texelMetres)
+    : m_eye(camera.position), m_pixelsPerRadian(pixelsPerRadian), m_texelMetres(std::max(texelMetres, 1e-9)) {
+    // A pixel at angle α off the optical axis spans at least cos²(α) / ppr radians; α is largest at the corners.
+    const double ty = std::tan(glm::radians(camera.fovYDeg) / 2.0), tx = ty * aspect;
+    m_cornerCos2 = 1.0 / (1.0 + tx * tx + ty * ty);
+}
+
+glm::ivec2 CanopyLevelBounds::levels(const glm::dvec3& lo, const glm::dvec3& hi, int clipLevels) const {
+    // One level for the whole patch (like a geometry clipmap level, chosen per region rather than per pixel): the
+    // level of the footprint at its centre, d / (ppr sin θ) metres at distance d seen at elevation θ over a
+    // horizontal surface, the larger of the two screen-axis derivatives the ground pass takes its level from.
+    // The layer shader reads this level, so CanopyClipmapGL::maxValueOver over it bounds what any fragment reads.
+    const glm::dvec3 c = (lo + hi) / 2.0;
+    const double d = glm::length(c - m_eye);
+    const double sinElevation = std::max(std::abs(m_eye.z - c.z) / std::max(d, 1e-9), 0.05);
+    const double metres = d / (m_pixelsPerRadian * sinElevation);
+    const int l = metres <= m_texelMetres ? 0 : int(std::floor(std::log2(metres / m_texelMetres)));
+    const int level = std::clamp(l, 0, clipLevels);
+    return {level, level};
+}
+
 Result<std::unique_ptr<CanopyRendererGL>> CanopyRendererGL::create() {
     auto r = std::unique_ptr<CanopyRendererGL>(new CanopyRendererGL());
     auto p = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag", {"CANOPY_LAYER"});
     if (!p) return p.error();
     r->m_program = std::move(*p);
+    auto m = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag", {"CANOPY_LAYER", "CANOPY_MARCH"});
+    if (!m) return m.error();
+    r->m_marchProgram = std::move(*m);
     return r;
 }
 
@@ -42,26 +66,46 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
     target.bind();
     const double aspect = double(target.width()) / double(target.height());
     const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
-    terrain.bindTerrain(m_program, viewProj);
-    canopy.bind(m_program, kCanopyUnit);
-    m_program.set("uCanopyHeight", float(s.treeHeight));
-    m_program.set("uCrownBase", float(std::clamp(s.crownBase, 0.0, s.treeHeight)));
-    m_program.set("uFirstLayer", first);
-    m_program.set("uCanopyDark", std::clamp(s.darkest, 0.0f, 1.0f));
-    m_program.set("uLayerShift", s.shift);
-    m_program.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
+    const bool march = s.mode == CanopyDrawMode::March;
+    const gl::ShaderProgram& program = march ? m_marchProgram : m_program;
+    terrain.bindTerrain(program, viewProj);
+    canopy.bind(program, kCanopyUnit);
+    program.set("uCanopyHeight", float(s.treeHeight));
+    program.set("uCrownBase", float(std::clamp(s.crownBase, 0.0, s.treeHeight)));
+    program.set("uCanopyDark", std::clamp(s.darkest, 0.0f, 1.0f));
+    program.set("uLayerShift", s.shift);
+    program.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
     const float shade = std::clamp(s.shading, 0.0f, 1.0f);
-    m_program.set("uShade", shade);
-    m_program.set("uNormals", shade > 0.0f ? 1 : 0);
-    m_program.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
-    m_program.use();
+    program.set("uShade", shade);
+    // March: the terrain's normals give the local plane the rays are intersected over.
+    program.set("uNormals", shade > 0.0f || march ? 1 : 0);
+    program.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
+    program.set("uFirstLayer", first);
+    program.set("uEye", glm::vec3(camera.position));
+    // Local metres -> leaf-on pixels, linearised under the camera (exact for projected scenes).
+    glm::dmat2 toPixel(1.0);
+    if (s.scene) {
+        const glm::dvec2 c = glm::clamp(glm::dvec2(camera.position), s.scene->localMin, s.scene->localMax);
+        const glm::dvec2 p0 = s.scene->localToImagePixel(c);
+        toPixel = glm::dmat2(s.scene->localToImagePixel(c + glm::dvec2(1.0, 0.0)) - p0,
+                             s.scene->localToImagePixel(c + glm::dvec2(0.0, 1.0)) - p0);
+    }
+    const glm::mat2 toPixelF(toPixel);
+    glProgramUniformMatrix2fv(program.id(), glGetUniformLocation(program.id(), "uLocalToPixel"), 1, GL_FALSE,
+                              &toPixelF[0][0]);
+    program.use();
     // Layer 0 lies on the ground: equal depth wins (reversed Z, GL_GEQUAL), so the lowest layer covers the ground.
     glDepthFunc(GL_GEQUAL);
     const double pixelsPerRadian = double(target.height()) / (2.0 * std::tan(glm::radians(camera.fovYDeg) / 2.0));
-    // Texels a layer's fragment may reach past its piece: the per-layer shift of the top layer, and one.
+    // Texels a layer's fragment may reach past its patch: the per-layer shift of the top layer, and one.
     const double reach = std::max(std::abs(s.shift.x), std::abs(s.shift.y)) * double(layers) + 1.0;
-    auto instances = [&](int, glm::dvec3 lo, glm::dvec3 hi) {
-        int top = layers - 1; // the highest layer any texel under the piece belongs to
+    const double texelMetres = s.scene ? s.scene->gsd : 1.0;
+    const CanopyLevelBounds levelBounds(camera, aspect, pixelsPerRadian, texelMetres);
+    const int clipLevels = canopy.clipLevels();
+    const double stackHeight = s.treeHeight - std::clamp(s.crownBase, 0.0, s.treeHeight);
+    auto instances = [&](int, glm::dvec3 lo, glm::dvec3 hi, std::vector<glm::ivec2>& out) {
+        int top = layers - 1; // the highest layer any texel the patch's fragments read belongs to
+        glm::ivec2 levels(0, 255);
         if (s.scene) {
             glm::dvec2 pmin(1e300), pmax(-1e300);
             for (const glm::dvec2 c : {glm::dvec2(lo), glm::dvec2(hi), glm::dvec2(lo.x, hi.y), glm::dvec2(hi.x, lo.y)}) {
@@ -69,14 +113,31 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
                 pmin = glm::min(pmin, p);
                 pmax = glm::max(pmax, p);
             }
-            top = canopy.maxValueOver(pmin - reach, pmax + reach) - 1;
+            levels = levelBounds.levels(lo, glm::dvec3(hi.x, hi.y, hi.z + s.treeHeight), clipLevels);
+            double marchReach = 0.0; // level-0 pixels a ray entering the patch's top may travel down the stack
+            if (march) {
+                // Horizontal metres per metre of descent, at most over the box (the eye's lowest elevation angle
+                // to it); rays nearly level with the top reach far, and such patches look at everything.
+                const glm::dvec2 e(camera.position);
+                const double horizontal = glm::length(glm::max(glm::abs(glm::dvec2(lo) - e), glm::abs(glm::dvec2(hi) - e)));
+                const double dz = camera.position.z - (hi.z + s.treeHeight);
+                marchReach = dz > 1e-3 ? std::min(stackHeight * horizontal / dz / texelMetres * 1.25, 1e6) : 1e6;
+            }
+            top = canopy.maxValueOver(pmin - reach - marchReach, pmax + reach + marchReach, levels.x, levels.y) - 1;
         }
-        if (top < first) return 0;
+        if (top < first) return;
+        const int packed = levels.x | (std::min(levels.y, 255) << 8);
+        if (march) {
+            out.push_back({top, packed}); // one fragment per pixel: the march starts at the top reachable layer
+            return;
+        }
         const int n = canopyPieceLayers(camera.position, pixelsPerRadian, lo, hi, s, top - first + 1);
-        m_program.set("uPieceTop", top);
-        return n;
+        const int span = top - first;
+        // Top first; thinned evenly, the top layer always among them.
+        for (int j = 0; j < n; ++j)
+            out.push_back({n <= 1 ? top : first + int(std::lround(double((n - 1 - j) * span) / double(n - 1))), packed});
     };
-    GeometryFrameStats st = terrain.geometry().drawInstanced(m_program, viewProj, s.treeHeight, instances);
+    GeometryFrameStats st = terrain.geometry().drawPatches(program, viewProj, s.treeHeight, instances);
     glBindVertexArray(0);
     glDepthFunc(GL_GREATER);
     return st;

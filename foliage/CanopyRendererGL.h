@@ -15,7 +15,15 @@
 
 namespace seasonview {
 
+/// How the stacked layers are drawn. Layers: each layer is its own lifted copy of the geometry clipmap's patches,
+/// rasterised, its fragments kept where the canopy reaches the layer (the paper's §4.2 as written: up to N fragments
+/// per pixel). March: only the top layer is rasterised, and each of its fragments intersects its view ray with the
+/// layers below in turn, over the terrain's local plane, keeping the first layer whose canopy it meets (one fragment
+/// per pixel, N cheap fetches at most; the same layers, exact on planar terrain).
+enum class CanopyDrawMode { Layers, March };
+
 struct CanopyDrawSettings {
+    CanopyDrawMode mode = CanopyDrawMode::March;
     double treeHeight = 15.0;       // metres: the top layer's lift (the scene's tree_height_m)
     float darkest = 0.5f;           // colour factor of the lowest layer (the top layer keeps the leaf-on colour)
     glm::vec2 shift{0.3f, 0.2f};    // texture shift per layer, level-0 texels (§4.2)
@@ -37,6 +45,19 @@ struct CanopyDrawSettings {
 int canopyPieceLayers(const glm::dvec3& eye, double pixelsPerRadian, const glm::dvec3& lo, const glm::dvec3& hi,
                       const CanopyDrawSettings& settings, int maxLayers);
 
+/// The canopy levels the fragments of a stacked layer over a box (local metres) may read from a camera: the levels
+/// of the pixel footprints possible there, clamped to 0 .. clipLevels (the coarse base). The layer shader clamps its
+/// level to them, so CanopyClipmapGL::maxValueOver over these levels bounds what any fragment of the box reads.
+class CanopyLevelBounds {
+public:
+    CanopyLevelBounds(const Camera& camera, double aspect, double pixelsPerRadian, double texelMetres);
+    glm::ivec2 levels(const glm::dvec3& lo, const glm::dvec3& hi, int clipLevels) const;
+
+private:
+    glm::dvec3 m_eye;
+    double m_pixelsPerRadian, m_texelMetres, m_cornerCos2 = 1.0;
+};
+
 class CanopyRendererGL {
 public:
     static Result<std::unique_ptr<CanopyRendererGL>> create();
@@ -47,7 +68,7 @@ public:
 
 private:
     CanopyRendererGL() = default;
-    gl::ShaderProgram m_program;
+    gl::ShaderProgram m_program, m_marchProgram;
 };
 
 } // namespace seasonview

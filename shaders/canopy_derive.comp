@@ -33,9 +33,13 @@ layout(r8ui, binding = 1) uniform writeonly uimage2D uCanopyCoarseOut;
 layout(std430, binding = 0) readonly buffer Blocks { ivec4 blocks[]; };
 // Equalisation tables (method equalized): on r, g, b, off r, g, b; 256 entries each.
 layout(std430, binding = 1) readonly buffer Luts { uint luts[]; };
-// Per derived block the largest value written (blocks[i].w indexes it; zeroed before the dispatch): the renderer
-// skips the layers no texel of a piece's blocks reaches (CanopyClipmapGL::maxValueOver, read back without waiting).
-layout(std430, binding = 2) buffer BlockMax { uint blockMax[]; };
+// Per derived block the largest value of each cell of CELL × CELL texels, a byte each, four cells of a row to a uint
+// (blocks[i].w indexes the block's (uBlockSize / CELL)² / 4 uints, each written whole by the work group that owns its
+// cells): the renderer draws a patch only with the layers its canopy reaches (CanopyClipmapGL::maxValueOver, read
+// back without waiting).
+const int CELL = 8;
+layout(std430, binding = 2) writeonly buffer CellMax { uint cellMax[]; };
+shared uint sCellMax[(TILE / CELL) * (TILE / CELL)];
 
 uniform int uLevel;        // the level derived; uCoarsePass: the coarse base
 uniform int uCoarsePass;   // 1: read the coarse textures' base, write uCanopyCoarseOut
@@ -76,6 +80,7 @@ void main() {
     const ivec2 tileOrigin = blk.xy * uBlockSize + ivec2(gl_WorkGroupID.xy) * TILE;
     const int lid = int(gl_LocalInvocationIndex);
     const bool texture = uMethod == 3;
+    if (lid < (TILE / CELL) * (TILE / CELL)) sCellMax[lid] = 0u;
 
     // 1. Fetch: default keeps brightness r+g+b (bits 0..9) and the drop test (bit 15); the others the two §4.1
     //    conditions (bit 0: leaf-on green, bit 1: leaf-off not green).
@@ -120,35 +125,64 @@ void main() {
         }
     }
     barrier();
-    // 4. Votes over growing windows: the highest layer whose k × k window has a majority.
+    // 4. Votes over growing windows: the highest layer whose k × k window has a majority. Window counts from a
+    //    summed-area table of the votes (four reads per window whatever k), kept in sIn, which is free now: both
+    //    counts packed in one uint (a + b · 65536; each is at most BITS² < 65536, so packed sums and differences are
+    //    exact). Row prefix sums, then column prefix sums; entry (y, x) sums the votes above and left of it.
+    const int SAT = BITS + 1;
+    for (int y = lid; y < SAT; y += 256) {
+        uint run = 0u;
+        sIn[y * SAT] = 0u;
+        for (int x = 1; x < SAT; ++x) {
+            if (y > 0) {
+                uint v = sBits[(y - 1) * BITS + x - 1];
+                run += (v & 1u) | (((v >> 1) & 1u) << 16);
+            }
+            sIn[y * SAT + x] = run;
+        }
+    }
+    barrier();
+    for (int x = lid; x < SAT; x += 256) {
+        uint run = 0u;
+        for (int y = 0; y < SAT; ++y) {
+            run += sIn[y * SAT + x];
+            sIn[y * SAT + x] = run;
+        }
+    }
+    barrier();
     for (int o = 0; o < 4; ++o) {
         ivec2 out2 = ivec2(gl_LocalInvocationID.xy) * 2 + ivec2(o & 1, o >> 1);
         ivec2 g = tileOrigin + out2;
         if (any(greaterThanEqual(g, size))) continue;
-        int a = 0, b = 0; // default: votes; others: leaf-on green, leaf-off not green
-        int top = 0, layer = 0;
+        int top = 0, lastK = 0, a = 0, b = 0; // default: votes; others: leaf-on green, leaf-off not green
         ivec2 c = out2 + VOTE_HALO;
-        for (int r = 0; r <= VOTE_HALO && layer < uLayers; ++r) {
-            // Ring r of the window around c.
-            for (int dy = -r; dy <= r; ++dy)
-                for (int dx = -r; dx <= r; dx += (abs(dy) == r ? 1 : 2 * r)) {
-                    uint v = sBits[(c.y + dy) * BITS + c.x + dx];
-                    a += int(v & 1u);
-                    b += int((v >> 1) & 1u);
-                    if (r == 0) break;
-                }
-            int k = 2 * r + 1;
-            while (layer < uLayers && uLayerK[layer] == k) {
-                bool yes = texture ? svIsMajority(a, k) : svIsMajority(a, k) && svIsMajority(b, k);
-                if (yes) top = layer + 1;
-                ++layer;
+        for (int layer = 0; layer < uLayers; ++layer) {
+            int k = uLayerK[layer];
+            if (k != lastK) {
+                int r = k / 2;
+                ivec2 lo = c - r, hi = c + r + 1; // SAT corners
+                uint n = sIn[hi.y * SAT + hi.x] - sIn[lo.y * SAT + hi.x] - sIn[hi.y * SAT + lo.x] + sIn[lo.y * SAT + lo.x];
+                a = int(n & 0xFFFFu);
+                b = int(n >> 16);
+                lastK = k;
             }
+            bool yes = texture ? svIsMajority(a, k) : svIsMajority(a, k) && svIsMajority(b, k);
+            if (yes) top = layer + 1;
         }
-        if (top > 0) atomicMax(blockMax[blk.w], uint(top));
+        if (top > 0) atomicMax(sCellMax[(out2.y / CELL) * (TILE / CELL) + out2.x / CELL], uint(top));
         if (uCoarsePass != 0) {
             imageStore(uCanopyCoarseOut, g, uvec4(uint(top)));
         } else {
             imageStore(uCanopyClipOut, ivec3(g % int(uClipSize), uLevel), uvec4(uint(top)));
         }
+    }
+    // 5. The tile's cell maxima: one uint per row of its TILE / CELL (= 4) cells.
+    barrier();
+    if (lid < TILE / CELL) {
+        uint word = 0u;
+        for (int i = 0; i < TILE / CELL; ++i) word |= min(sCellMax[lid * (TILE / CELL) + i], 255u) << (8 * i);
+        const int cellsPerSide = uBlockSize / CELL, wordsPerRow = cellsPerSide / (TILE / CELL);
+        const int row = int(gl_WorkGroupID.y) * (TILE / CELL) + lid;
+        cellMax[blk.w * cellsPerSide * wordsPerRow + row * wordsPerRow + int(gl_WorkGroupID.x)] = word;
     }
 }

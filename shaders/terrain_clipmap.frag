@@ -28,6 +28,19 @@ in vec3 vNormal;
 flat in int vLevel;
 #ifdef CANOPY_LAYER
 flat in int vLayer;
+flat in ivec2 vCanopyLevels; // the canopy levels this patch may read (CanopyRendererGL bounds its layers by them)
+#endif
+#ifdef CANOPY_MARCH
+// The stacked layers intersected per pixel (foliage/CanopyRendererGL.h, CanopyDrawMode::March): this fragment lies on
+// the top layer; the ray from the eye through it meets layer i where it has come down the height between the two,
+// over the terrain's local plane (its normal).
+in vec3 vLocal;
+uniform vec3 uEye;            // local metres
+uniform mat2 uLocalToPixel;   // d(level-0 pixels) / d(local metres)
+uniform mat4 uViewProj;
+uniform float uCanopyHeight;
+uniform float uCrownBase;
+uniform int uFirstLayer;
 #endif
 out vec4 fragColor;
 
@@ -40,18 +53,54 @@ void main() {
     }
 #endif
     vec2 p = vImageUv * uLevel0Size;
-#ifdef CANOPY_LAYER
+    int used;
+#if defined(CANOPY_LAYER) && !defined(CANOPY_MARCH)
     p += uLayerShift * float(vLayer);
 #endif
-#ifdef CANOPY_LAYER
+#ifdef CANOPY_MARCH
+    {
+        // Level and footprint from this pixel's own position (uniform control flow), used at the hit.
+        ClipFootprint fm = clipmapFootprint(p);
+        int canopyLevel = vCanopyLevels.x;
+        vec3 dir = vLocal - uEye;
+        vec3 n = normalize(vNormal);
+        vec2 grad = n.z > 0.2 ? -n.xy / n.z : vec2(0.0); // terrain slope, metres per metre
+        float descent = -dir.z + dot(grad, dir.xy);       // height over the terrain lost per unit of t
+        float step = (uCanopyHeight - uCrownBase) / float(max(uCanopyLayers - 1, 1));
+        int hit = -1;
+        vec3 at = vLocal;
+        vec2 pAt = p;
+        for (int i = vLayer; i >= uFirstLayer; --i) {
+            float drop = float(uCanopyLayers - 1 - i) * step; // below the top layer
+            if (drop > 0.0 && descent <= 0.0) break;           // the ray does not come down to this layer
+            float t = drop > 0.0 ? drop / descent : 0.0;
+            vec2 q = p + uLocalToPixel * (t * dir.xy) + uLayerShift * float(i);
+            if (canopyAt(q, canopyLevel) > i) {
+                hit = i;
+                at = vLocal + t * dir;
+                pAt = q;
+                break;
+            }
+        }
+        if (hit < 0) discard;
+        vec3 lc = sampleClipmap(uClip0, uCoarse0, pAt, fm, used).rgb;
+        lc *= mix(uCanopyDark, 1.0, float(hit) / float(max(uCanopyLayers - 1, 1)));
+        if (uShade > 0.0) lc *= mix(1.0, 0.25 + 0.75 * max(dot(n, uSunDir), 0.0), uShade);
+        vec4 clip = uViewProj * vec4(at, 1.0);
+        gl_FragDepth = clip.z / clip.w;
+        fragColor = vec4(lc, 1.0);
+        return;
+    }
+#endif
+#if defined(CANOPY_LAYER) && !defined(CANOPY_MARCH)
     // The canopy at the level the footprint asks for (its isotropic level, computed alone: most layer fragments
-    // stop here): one fetch, then the leaf-on colour only for kept fragments, darker towards the ground
-    // (self-shadowing inside the crown).
+    // stop here), within the levels the patch's layers were chosen for: one fetch, then the leaf-on colour only for
+    // kept fragments, darker towards the ground (self-shadowing inside the crown).
     float lambdaIso = log2(max(max(length(dFdx(p)), length(dFdy(p))), 1e-8));
-    if (canopyAt(p, int(floor(max(lambdaIso, 0.0)))) <= vLayer) discard;
+    int canopyLevel = clamp(int(floor(max(lambdaIso, 0.0))), vCanopyLevels.x, vCanopyLevels.y);
+    if (canopyAt(p, canopyLevel) <= vLayer) discard;
 #endif
     ClipFootprint f = clipmapFootprint(p);
-    int used;
 #ifdef CANOPY_LAYER
     vec3 lc = sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
     lc *= mix(uCanopyDark, 1.0, float(vLayer) / float(max(uCanopyLayers - 1, 1)));

@@ -28,17 +28,16 @@ uniform int uNormals;        // 0: skip the normals (no view needs them)
 #ifdef CANOPY_LAYER
 // Stacked canopy layers (Ropinski et al. 2007 §4.2, foliage/CanopyRendererGL.h): layer j is lifted to
 // base + (H - base) j / (N - 1), H the tree height, base 0 or the crowns' base over trunks. On the ground layer 0
-// is drawn by the ground pass (uFirstLayer 1). A piece draws uPieceInstances of layers uFirstLayer .. uPieceTop (the
-// highest any canopy texel under it reaches), evenly thinned where its stack is only a few pixels high on screen,
-// the top one always among them and drawn first: a kept fragment of a higher layer then hides the lower ones behind it before they are shaded (early depth
-// test; 15 % less time on llvmpipe than bottom-up).
+// is drawn by the ground pass. The rings are drawn as small patches (GeometryClipmapGL::drawPatches), one instance
+// per patch and layer: aInstance = (patch origin in level cells, layer, canopy levels the fragments may read:
+// lowest | highest << 8), only the layers the canopy under the patch reaches, thinned where its stack is only a few
+// pixels high on screen, each draw's instances top layer first (early depth tests spare the lower layers).
+layout(location = 1) in ivec4 aInstance;
 uniform float uCanopyHeight;
 uniform float uCrownBase;
-uniform int uFirstLayer;
 uniform int uCanopyLayers;
-uniform int uPieceInstances;
-uniform int uPieceTop;       // the highest layer any canopy texel under the piece reaches (CanopyRendererGL)
 flat out int vLayer;
+flat out ivec2 vCanopyLevels;
 #endif
 
 invariant gl_Position; // layer 0 lies exactly on the ground and must land on the same depth
@@ -72,7 +71,11 @@ vec3 normalAt(int level, vec2 s, float step) {
 }
 
 void main() {
+#ifdef CANOPY_LAYER
+    vec2 cell = aGrid + vec2(aInstance.xy);
+#else
     vec2 cell = aGrid + uPieceOffset;
+#endif
     if (uBlendToCoarser != 0) {
         // The outer edge meets the coarser level's inner edge, which has a vertex at every other one of this
         // level's (§2.4.2). Each odd vertex of the outer edge is moved onto its even neighbour: the two triangles
@@ -100,10 +103,13 @@ void main() {
         if (uNormals != 0) n = mix(n, normalAt(uLevel + 1, s, max(2.0 * uCell, 1.0)), alpha);
     }
 #ifdef CANOPY_LAYER
-    int span = uPieceTop - uFirstLayer;
-    vLayer = uPieceInstances <= 1 ? uPieceTop
-                                  : uFirstLayer + int(round(float((uPieceInstances - 1 - gl_InstanceID) * span) / float(uPieceInstances - 1)));
+    vLayer = aInstance.z;
+    vCanopyLevels = ivec2(aInstance.w & 255, aInstance.w >> 8);
+#ifdef CANOPY_MARCH
+    z += uCanopyHeight; // the top layer, where the fragment's ray enters the stack (vLayer: the first layer it tests)
+#else
     z += uCrownBase + (uCanopyHeight - uCrownBase) * float(vLayer) / float(max(uCanopyLayers - 1, 1));
+#endif
 #endif
     vec2 local = vec2(uGridOrigin.x + s.x * uGridSpacing, uGridOrigin.y - s.y * uGridSpacing);
     vLocal = vec3(local, z);

@@ -151,6 +151,26 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
                 }
         }
     }
+    // drawPatches(): every patch shape up to layerPatchCells² cells, the instance buffer as attribute 1.
+    g->m_options.layerPatchCells = std::clamp(options.layerPatchCells, 1, g->m_options.layerN - 1);
+    g->m_instances = gl::Buffer::create();
+    glNamedBufferData(g->m_instances.id(), 16, nullptr, GL_STREAM_DRAW);
+    for (int h = 1; h <= g->m_options.layerPatchCells; ++h)
+        for (int w = 1; w <= g->m_options.layerPatchCells; ++w) {
+            std::vector<float> v;
+            for (int y = 0; y <= h; ++y)
+                for (int x = 0; x <= w; ++x) {
+                    v.push_back(float(x));
+                    v.push_back(float(y));
+                }
+            Mesh& m = g->m_patchMeshes[{w, h}];
+            upload(m, v, pieceTriangles(w, h));
+            glVertexArrayVertexBuffer(m.vao.id(), 1, g->m_instances.id(), 0, sizeof(glm::ivec4));
+            glVertexArrayBindingDivisor(m.vao.id(), 1, 1);
+            glEnableVertexArrayAttrib(m.vao.id(), 1);
+            glVertexArrayAttribIFormat(m.vao.id(), 1, 4, GL_INT, 0);
+            glVertexArrayAttribBinding(m.vao.id(), 1, 1);
+        }
     return g;
 }
 
@@ -206,13 +226,13 @@ GeometryFrameStats GeometryClipmapGL::draw(const gl::ShaderProgram& program, con
     return drawPieces(program, viewProj, 0.0, nullptr);
 }
 
-GeometryFrameStats GeometryClipmapGL::drawInstanced(const gl::ShaderProgram& program, const glm::dmat4& viewProj,
-                                                    double lift, const PieceInstances& instances) const {
+GeometryFrameStats GeometryClipmapGL::drawPatches(const gl::ShaderProgram& program, const glm::dmat4& viewProj,
+                                                  double lift, const PatchInstances& instances) const {
     return drawPieces(program, viewProj, lift, &instances);
 }
 
 GeometryFrameStats GeometryClipmapGL::drawPieces(const gl::ShaderProgram& program, const glm::dmat4& viewProj,
-                                                 double lift, const PieceInstances* instances) const {
+                                                 double lift, const PatchInstances* instances) const {
     GeometryFrameStats st;
     const FrustumPlanes frustum = FrustumPlanes::fromViewProj(viewProj);
     const double s = m_grid.spacing;
@@ -224,7 +244,7 @@ GeometryFrameStats GeometryClipmapGL::drawPieces(const gl::ShaderProgram& progra
     program.set("uTransitionWidth", float(std::max(2, n / 10)));
     const double half = double(n - 1) / 2.0;
     const double unit = std::ldexp(1.0, -m_subLevels); // DEM samples per placement unit (exact in float)
-    for (int l = placement.finest; l < m_levels; ++l) {
+    auto setLevel = [&](int l) {
         const GeometryLevel& g = placement.levels[size_t(l)];
         // The shader works in DEM samples: uLevel is the DEM level (negative below the DEM's resolution).
         program.set("uLevel", l - m_subLevels);
@@ -233,6 +253,19 @@ GeometryFrameStats GeometryClipmapGL::drawPieces(const gl::ShaderProgram& progra
         program.set("uCell", float(double(g.cell) * unit));
         program.set("uLevelCentre", glm::vec2((glm::dvec2(g.origin) + half * double(g.cell)) * unit));
         program.set("uBlendToCoarser", m_options.stitchLevels && l + 1 < m_levels ? 1 : 0);
+    };
+    // drawPatches(): per level and patch shape, the instances (x0, y0, a, b); drawn once all are known, from one
+    // buffer.
+    struct PatchDraw {
+        int level;
+        std::pair<int, int> shape;
+        std::vector<glm::ivec4> records;
+    };
+    std::vector<PatchDraw> patchDraws;
+    std::vector<glm::ivec2> patchOut;
+    for (int l = placement.finest; l < m_levels; ++l) {
+        const GeometryLevel& g = placement.levels[size_t(l)];
+        if (!instances) setLevel(l);
         bool any = false;
         // Placement units -> local box (j runs south).
         auto box = [&](int x0, int y0, int x1, int y1) {
@@ -263,27 +296,68 @@ GeometryFrameStats GeometryClipmapGL::drawPieces(const gl::ShaderProgram& progra
             return !frustum.outside({a.x - s, a.y - s, double(hr.x) - 1.0},
                                     {b.x + s, b.y + s, double(hr.y) + 1.0 + std::max(lift, 0.0)});
         };
+        const size_t levelFirstDraw = patchDraws.size();
         for (const GridRect& r : levelPieces(ring, placement, l)) {
             if (!visible(r.x0, r.y0, r.x1, r.y1)) {
                 ++st.piecesCulled;
                 continue;
             }
-            int count = 1;
             if (instances) {
-                const auto [a, b] = box(r.x0, r.y0, r.x1, r.y1);
-                count = (*instances)(l, glm::dvec3(a, hr.x), glm::dvec3(b, hr.y));
-                if (count <= 0) continue;
-                program.set("uPieceInstances", count);
+                // Patches of at most P × P cells, each culled and given its own instances.
+                const int P = m_options.layerPatchCells;
+                for (int y0 = r.y0; y0 < r.y1; y0 += P)
+                    for (int x0 = r.x0; x0 < r.x1; x0 += P) {
+                        const int x1 = std::min(x0 + P, r.x1), y1 = std::min(y0 + P, r.y1);
+                        if (!visible(x0, y0, x1, y1)) continue;
+                        const auto [a, b] = box(x0, y0, x1, y1);
+                        patchOut.clear();
+                        (*instances)(l, glm::dvec3(a, hr.x), glm::dvec3(b, hr.y), patchOut);
+                        if (patchOut.empty()) continue;
+                        const std::pair<int, int> shape{x1 - x0, y1 - y0};
+                        auto it = std::find_if(patchDraws.begin() + std::ptrdiff_t(levelFirstDraw), patchDraws.end(),
+                                               [&](const PatchDraw& d) { return d.shape == shape; });
+                        if (it == patchDraws.end()) it = patchDraws.insert(patchDraws.end(), PatchDraw{l, shape, {}});
+                        for (const glm::ivec2 v : patchOut) it->records.push_back({x0, y0, v.x, v.y});
+                    }
+                continue;
             }
             const auto it = m_meshes.find({r.cellsX(), r.cellsY()});
             assert(it != m_meshes.end() && "GeometryClipmapGL: piece shape without a mesh");
             program.set("uPieceOffset", glm::vec2(float(r.x0), float(r.y0)));
-            drawMesh(it->second, count);
-            st.triangles += std::int64_t(it->second.indexCount / 3) * count;
+            drawMesh(it->second, 1);
+            st.triangles += std::int64_t(it->second.indexCount / 3);
             ++st.drawCalls;
             any = true;
         }
         st.levelsDrawn += any ? 1 : 0;
+    }
+    if (instances && !patchDraws.empty()) {
+        // Higher instances first within each draw (stacked layers: the top one first, so early depth tests spare
+        // the fragments of lower ones behind its kept ones).
+        std::vector<glm::ivec4> all;
+        std::vector<GLuint> base;
+        for (PatchDraw& d : patchDraws) {
+            std::stable_sort(d.records.begin(), d.records.end(),
+                             [](const glm::ivec4& p, const glm::ivec4& q) { return p.z > q.z; });
+            base.push_back(GLuint(all.size()));
+            all.insert(all.end(), d.records.begin(), d.records.end());
+        }
+        glNamedBufferData(m_instances.id(), GLsizeiptr(all.size() * sizeof(glm::ivec4)), all.data(), GL_STREAM_DRAW);
+        int level = -1;
+        for (size_t i = 0; i < patchDraws.size(); ++i) {
+            const PatchDraw& d = patchDraws[i];
+            if (d.level != level) {
+                setLevel(d.level);
+                level = d.level;
+                ++st.levelsDrawn;
+            }
+            const Mesh& mesh = m_patchMeshes.at(d.shape);
+            glBindVertexArray(mesh.vao.id());
+            glDrawElementsInstancedBaseInstance(GL_TRIANGLES, mesh.indexCount, GL_UNSIGNED_INT, nullptr,
+                                                GLsizei(d.records.size()), base[i]);
+            st.triangles += std::int64_t(mesh.indexCount / 3) * std::int64_t(d.records.size());
+            ++st.drawCalls;
+        }
     }
     glBindVertexArray(0);
     return st;

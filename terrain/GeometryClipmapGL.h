@@ -25,6 +25,7 @@
 #include <map>
 #include <memory>
 #include <utility>
+#include <vector>
 
 namespace seasonview {
 
@@ -43,6 +44,9 @@ struct GeometryClipmapOptions {
     // same levels around the viewer with 4× coarser cells at a given distance and 1/16 of the triangles per level
     // (31 is cheaper still, but its layers cut into hilly terrain).
     int layerN = 63;
+    // drawPatches(): the layer rings' pieces cut into patches of at most this many cells per side, each with its own
+    // instances, so stacked layers are drawn only over the patches whose canopy reaches them.
+    int layerPatchCells = 3;
     // false: no transition blending and no edge triangles between levels, for showing the cracks they close
     // (tests); never for rendering.
     bool stitchLevels = true;
@@ -73,14 +77,15 @@ public:
     /// Draws the pieces inside the frustum with `program` (bound by the caller, bind() called).
     GeometryFrameStats draw(const gl::ShaderProgram& program, const glm::dmat4& viewProj) const;
 
-    /// Instances of one piece: level, its box in the local frame (metres, x east, y north, z its terrain heights,
-    /// before any lift). 0 = skip it. The count is also set as the int uniform `uPieceInstances`.
-    using PieceInstances = std::function<int(int level, glm::dvec3 lo, glm::dvec3 hi)>;
-    /// The rings of options.layerN vertices, each piece drawn as `instances` says (gl_InstanceID tells them
-    /// apart), culled against the frustum with their boxes raised by up to `lift` metres; no edge triangles
-    /// (stacked layers, foliage/).
-    GeometryFrameStats drawInstanced(const gl::ShaderProgram& program, const glm::dmat4& viewProj, double lift,
-                                     const PieceInstances& instances) const;
+    /// Instances over one patch: level, its box in the local frame (metres, x east, y north, z its terrain heights,
+    /// before any lift); appends one (a, b) per instance to draw over it, none to skip it. The vertex shader gets
+    /// ivec4(patch x0, patch y0, a, b) as the per-instance attribute 1 (`aInstance`, level cells).
+    using PatchInstances = std::function<void(int level, glm::dvec3 lo, glm::dvec3 hi, std::vector<glm::ivec2>& out)>;
+    /// The rings of options.layerN vertices cut into patches of at most options.layerPatchCells² cells, each patch
+    /// culled against the frustum with its box raised by up to `lift` metres and drawn as `instances` says (stacked
+    /// layers, foliage/): per level and patch shape one instanced draw, its instances in descending order of a.
+    GeometryFrameStats drawPatches(const gl::ShaderProgram& program, const glm::dmat4& viewProj, double lift,
+                                   const PatchInstances& instances) const;
 
     /// Placement in geometry levels g = 0 .. levelCount() − 1, coordinates in units of 2^−subLevels() DEM samples:
     /// level g has cells of 2^(g − subLevels()) DEM samples (the first subLevels() levels are finer than the DEM).
@@ -103,7 +108,7 @@ private:
     const Mesh& meshFor(int cellsX, int cellsY);
     void drawMesh(const Mesh& mesh, int instances = 1) const;
     GeometryFrameStats drawPieces(const gl::ShaderProgram& program, const glm::dmat4& viewProj, double lift,
-                                  const PieceInstances* instances) const;
+                                  const PatchInstances* instances) const;
 
     const Scene* m_scene = nullptr;
     ElevationGrid m_grid;
@@ -117,6 +122,8 @@ private:
     std::unique_ptr<ClipmapGL> m_elevation;
     std::vector<glm::ivec2> m_elevationLevelSizes;
     std::map<std::pair<int, int>, Mesh> m_meshes;
+    std::map<std::pair<int, int>, Mesh> m_patchMeshes; // drawPatches(): binding 1 = m_instances, divisor 1
+    mutable gl::Buffer m_instances;                    // re-specified by each drawPatches()
     gl::Texture m_localToImage;
     glm::dvec2 m_lookupMin{0.0}, m_lookupSize{1.0};
     glm::mat2 m_lookupSlope{1.0f};

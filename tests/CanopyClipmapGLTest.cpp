@@ -257,6 +257,57 @@ TEST(CanopyClipmapGLTest, BlockMaximaBoundEveryLevelsValues) {
     EXPECT_EQ(gl::drainErrors(), "");
 }
 
+// The cell maxima at one level (the level a patch of stacked layers reads, CanopyLevelBounds): at least every value
+// a fragment reading that level (or, where it is not derived, the first coarser level derived) finds in the box, and
+// well under all layers for small boxes, which is what lets the layers skip open ground between crowns.
+TEST(CanopyClipmapGLTest, CellMaximaBoundOneLevelsValues) {
+    ASSERT_TRUE(headlessContext());
+    SynthCanopy c = synthCanopy(true);
+    ASSERT_TRUE(c.canopy);
+    const auto& clip = c.clip;
+    const auto& canopy = c.canopy;
+    const ClipmapLayout& L = clip->schedule().layout();
+    const CanopyOptions o = canopy->options();
+    std::vector<std::vector<std::uint8_t>> levels;
+    for (int l = 0; l < L.clipLevels(); ++l) levels.push_back(canopy->readClipLevel(l));
+    const std::vector<std::uint8_t> coarse = canopy->readCoarse();
+    const int slots = clip->schedule().slotsPerSide();
+    // What canopyAt() returns for level-0 pixel (x, y) asked at `level`.
+    auto read = [&](int x, int y, int level) {
+        for (int l = level; l < L.clipLevels(); ++l) {
+            const glm::ivec2 size = L.levelSizes[size_t(l)];
+            const int qx = std::min(x >> l, size.x - 1), qy = std::min(y >> l, size.y - 1);
+            const int bx = qx / L.block, by = qy / L.block;
+            const size_t slot = size_t(wrapTexel(by, slots)) * size_t(slots) + size_t(wrapTexel(bx, slots));
+            if (canopy->slotTags(l)[slot] != (bx | (by << 16))) continue;
+            return int(levels[size_t(l)][size_t(wrapTexel(qy, L.size)) * size_t(L.size) + size_t(wrapTexel(qx, L.size))]);
+        }
+        const glm::ivec2 size = L.levelSizes[size_t(L.clipLevels())];
+        const int qx = std::min(x >> L.clipLevels(), size.x - 1), qy = std::min(y >> L.clipLevels(), size.y - 1);
+        return int(coarse[size_t(qy) * size_t(size.x) + size_t(qx)]);
+    };
+    std::mt19937 rng(5);
+    std::uniform_int_distribution<int> pos(0, 1000), size(1, 24), lev(0, L.clipLevels());
+    int below = 0, trials = 0;
+    for (int trial = 0; trial < 400; ++trial) {
+        const int x0 = pos(rng), y0 = pos(rng), x1 = std::min(1024, x0 + size(rng)), y1 = std::min(1024, y0 + size(rng));
+        const int level = lev(rng);
+        int truth = 0;
+        for (int y = y0; y < y1; ++y)
+            for (int x = x0; x < x1; ++x) truth = std::max(truth, read(x, y, level));
+        const int got = canopy->maxValueOver({double(x0), double(y0)}, {double(x1) - 1e-3, double(y1) - 1e-3}, level, level);
+        ASSERT_GE(got, truth) << x0 << "," << y0 << " " << x1 << "," << y1 << " level " << level;
+        if (level == 0) {
+            ++trials;
+            below += got < o.layers ? 1 : 0;
+        }
+    }
+    // Level 0's cells are 8 texels: over half the small boxes there (75 of 133) stay below all layers, where the
+    // block maxima of every level left 13 of 300.
+    EXPECT_GT(below, trials / 3) << below << " of " << trials;
+    EXPECT_EQ(gl::drainErrors(), "");
+}
+
 TEST(CanopyClipmapGLTest, RealSentinelPairAgreesWithTheCpu) {
     ASSERT_TRUE(headlessContext());
     const auto data = realDataDir();
