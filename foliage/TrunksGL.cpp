@@ -53,6 +53,8 @@ Result<std::unique_ptr<TrunksGL>> TrunksGL::create(const Scene& scene, const Cli
     const int size = imagery.schedule().layout().size;
     t->m_distance = gl::Texture::create(GL_TEXTURE_2D);
     glTextureStorage2D(t->m_distance.id(), 1, GL_R32F, size, size);
+    t->m_column = gl::Texture::create(GL_TEXTURE_2D);
+    glTextureStorage2D(t->m_column.id(), 1, GL_RG32F, size, size);
     return t;
 }
 
@@ -87,8 +89,9 @@ int TrunksGL::find() {
     m_find.use();
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_buffer.id());
     glBindImageTexture(0, m_distance.id(), 0, GL_FALSE, 0, GL_READ_WRITE, GL_R32F);
+    glBindImageTexture(1, m_column.id(), 0, GL_FALSE, 0, GL_READ_WRITE, GL_RG32F);
     const GLuint groups = GLuint((L.size + 15) / 16);
-    for (int pass : {0, 1}) {
+    for (int pass : {0, 1, 2}) {
         m_find.set("uPass", pass);
         glDispatchCompute(groups, groups, 1);
         glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT |
@@ -96,6 +99,7 @@ int TrunksGL::find() {
     }
     std::uint32_t n = 0;
     glGetNamedBufferSubData(m_buffer.id(), 4, 4, &n);
+
     m_count = int(std::min<std::uint32_t>(n, std::uint32_t(m_options.capacity)));
     return m_count;
 }

@@ -68,7 +68,8 @@ private:
     gl::VertexArray m_vao;
     glm::dmat3 m_imageToLocal{1.0};
     double m_metresPerPixel = 1.0;
-    gl::Texture m_distance; // pass 0's distances, N×N R32F, toroidal like the level
+    gl::Texture m_distance; // pass 1's distances, N×N R32F, toroidal like the level
+    gl::Texture m_column;   // pass 0's column distances (outside, unknown), N×N RG32F
     float m_minRadius = 1.0f;
     int m_level = 0, m_maxRadius = 2, m_count = 0;
     std::vector<std::int32_t> m_searchedTags; // the level's derived blocks at the last search

@@ -1,8 +1,9 @@
 // Crown centres at runtime (Ropinski et al. 2007 Fig. 6c; foliage/TrunksGL.h), per clip level region, the GPU
 // counterpart of CrownCentres.h: over one toroidal level of the derived canopy layer (common_canopy.glsl; a texel
-// is canopy where it belongs to the ground layer, value >= 1), pass 0 stores each canopy texel's Euclidean
-// distance to the nearest texel outside the canopy (square rings searched outwards until no nearer one can come,
-// clamped at uMaxRadius; -1 where a block on the way is not derived yet), pass 1 keeps the maxima of that distance
+// is canopy where it belongs to the ground layer, value >= 1), passes 0 and 1 store each canopy texel's Euclidean
+// distance to the nearest texel outside the canopy (separably: the nearest along each column, then the nearest
+// over the row's columns; clamped at uMaxRadius; -1 where a texel not derived yet could be nearer), pass 2 keeps the
+// maxima of that distance
 // at least uMinRadius, each the largest within 0.75 × its distance (ties: the first in row order), and appends them
 // to the trunk buffer, whose head is a DrawArraysIndirectCommand: the draw takes them without a readback.
 
@@ -17,7 +18,7 @@ uniform vec2 uCoarseSize;
 
 layout(local_size_x = 16, local_size_y = 16) in;
 
-uniform int uPass;        // 0: distances, 1: maxima
+uniform int uPass;        // 0: distances along columns, 1: along rows (the distance), 2: maxima
 uniform int uLevel;       // the clip level searched
 uniform ivec2 uWindow0;   // its window's first texel (level texels)
 uniform ivec2 uWindow1;   // one past its last
@@ -26,6 +27,7 @@ uniform int uMaxRadius;   // texels
 uniform int uCapacity;
 
 layout(r32f, binding = 0) uniform image2D uDistance; // N×N, toroidal like the level
+layout(rg32f, binding = 1) uniform image2D uColumn;  // pass 0: per texel the column's nearest outside / unknown texel
 
 layout(std430, binding = 0) buffer Trunks {
     uint vertexCount;     // DrawArraysIndirectCommand
@@ -55,24 +57,62 @@ void main() {
     // The level texel stored at t: the one of the window congruent to t modulo N.
     ivec2 q = uWindow0 + ((t - uWindow0 % n + n) % n);
     if (uPass == 0) {
+        // Along the column: the nearest texel outside the canopy up or down (0 on one), and the nearest unknown one
+        // met before it (farther unknowns cannot come nearer than that outside texel), both clamped past uMaxRadius.
         int v = valueAt(q);
-        float d = 0.0;
+        float zero = float(uMaxRadius + 1), unknown = float(uMaxRadius + 1);
         if (v < 0) {
-            d = -1.0;
-        } else if (v > 0) {
-            float best2 = float(uMaxRadius * uMaxRadius);
-            bool unknown = false;
-            for (int r = 1; r <= uMaxRadius && float(r * r) < best2 && !unknown; ++r) {
-                for (int k = -r; k <= r; ++k) {
-                    ivec2 o[4] = ivec2[4](ivec2(k, -r), ivec2(k, r), ivec2(-r, k), ivec2(r, k));
-                    for (int j = 0; j < 4; ++j) {
-                        int w = valueAt(q + o[j]);
-                        if (w < 0) unknown = true;
-                        else if (w == 0) best2 = min(best2, float(dot(o[j], o[j])));
+            zero = -1.0;
+        } else if (v == 0) {
+            zero = 0.0;
+        } else {
+            bool up = true, down = true;
+            for (int r = 1; r <= uMaxRadius && (up || down); ++r) {
+                for (int side = 0; side < 2; ++side) {
+                    if (side == 0 ? !up : !down) continue;
+                    int w = valueAt(q + ivec2(0, side == 0 ? -r : r));
+                    if (w < 0) {
+                        unknown = min(unknown, float(r));
+                        if (side == 0) up = false; else down = false;
+                    } else if (w == 0) {
+                        zero = min(zero, float(r));
+                        up = false;
+                        down = false;
                     }
                 }
             }
-            d = unknown ? -1.0 : sqrt(best2);
+        }
+        imageStore(uColumn, t, vec4(zero, unknown, 0.0, 0.0));
+        return;
+    }
+    if (uPass == 1) {
+        // Along the row, over the columns' nearest outside texels (a separable Euclidean distance transform, exact
+        // within uMaxRadius): d² = min over dx of dx² + column(x + dx)²; unknown if an unknown texel lies nearer
+        // than that (or the row leaves the window within it).
+        vec2 c = imageLoad(uColumn, t).rg;
+        float d = 0.0;
+        if (c.r < 0.0) {
+            d = -1.0;
+        } else if (c.r > 0.0) {
+            float best2 = float(uMaxRadius * uMaxRadius), unknown2 = c.g * c.g;
+            best2 = min(best2, c.r * c.r);
+            for (int dx = 1; dx <= uMaxRadius && float(dx * dx) < best2; ++dx) {
+                for (int side = -1; side <= 1; side += 2) {
+                    ivec2 o = q + ivec2(side * dx, 0);
+                    if (!inWindow(o)) {
+                        unknown2 = min(unknown2, float(dx * dx));
+                        continue;
+                    }
+                    vec2 w = imageLoad(uColumn, o % n).rg;
+                    if (w.r < 0.0) {
+                        unknown2 = min(unknown2, float(dx * dx));
+                        continue;
+                    }
+                    best2 = min(best2, float(dx * dx) + w.r * w.r);
+                    unknown2 = min(unknown2, float(dx * dx) + w.g * w.g);
+                }
+            }
+            d = unknown2 < best2 ? -1.0 : sqrt(best2);
         }
         imageStore(uDistance, t, vec4(d));
         return;
