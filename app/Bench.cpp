@@ -412,20 +412,12 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         if (m.canopy && m.canopyLayers > 0 && cd.crownBase <= 0.0)
             im.canopyBase = cd.darkest; // the ground draws layer 0 under the stacked ones
         if (m.clipmap) {
-            const GeometryFrameStats ground = m.clipRenderer->render(cam, im, target);
-            row.drawCalls = ground.drawCalls;
-            row.triangles = ground.triangles;
-            if (m.canopy && m.canopyLayers > 0) {
-                const GeometryFrameStats layers = m.canopyRenderer->render(cam, *m.clipRenderer, *m.canopy, cd, target);
-                row.drawCalls += layers.drawCalls;
-                row.triangles += layers.triangles;
-                if (m.trunks) {
-                    const GeometryFrameStats t = m.trunks->draw(
-                        cam, *m.clipRenderer, cd.crownBase + 0.1 * (cd.treeHeight - cd.crownBase), target);
-                    row.drawCalls += t.drawCalls;
-                    row.triangles += t.triangles;
-                }
-            }
+            const bool stacked = m.canopy && m.canopyLayers > 0;
+            const GeometryFrameStats drawn =
+                stacked ? m.canopyRenderer->renderView(cam, *m.clipRenderer, im, *m.canopy, cd, m.trunks.get(), target)
+                        : m.clipRenderer->render(cam, im, target);
+            row.drawCalls = drawn.drawCalls;
+            row.triangles = drawn.triangles;
             if (m.city) {
                 m.city->update(cam, w, h);
                 row.city = m.city->draw(cam, m.clipRenderer.get(), target);

@@ -332,18 +332,9 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
         ImagerySettings imagery = s.imagery;
         // Layers on the ground: the ground draws layer 0; over trunks it shows its own season under the crowns.
         if (stacked && cd.crownBase <= 0.0) imagery.canopyBase = cd.darkest;
-        GeometryFrameStats drawn = (*renderer)->render(s.camera, imagery, target);
-        if (stacked) {
-            const GeometryFrameStats layers = canopyRenderer->render(s.camera, **renderer, *canopy, cd, target);
-            drawn.triangles += layers.triangles;
-            drawn.drawCalls += layers.drawCalls;
-            if (trunks) {
-                // Up into the lowest layers, so no gap shows between a trunk and its crown.
-                const GeometryFrameStats t = trunks->draw(s.camera, **renderer, cd.crownBase + 0.1 * (cd.treeHeight - cd.crownBase), target);
-                drawn.triangles += t.triangles;
-                drawn.drawCalls += t.drawCalls;
-            }
-        }
+        GeometryFrameStats drawn = stacked ? canopyRenderer->renderView(s.camera, **renderer, imagery, *canopy, cd,
+                                                                        trunks.get(), target)
+                                           : (*renderer)->render(s.camera, imagery, target);
         if (cityRenderer) {
             std::vector<std::uint8_t> ground;
             if (!s.cityAccuracyOut.empty()) ground = target.readRgba();

@@ -178,18 +178,8 @@ struct LiveScene {
         const CanopyDrawSettings cd = canopyDrawSettings(*scene, cs, im);
         const bool stacked = canopyView && canopy && s.layers > 0;
         if (stacked && cd.crownBase <= 0.0) im.canopyBase = cd.darkest;
-        GeometryFrameStats drawn = terrain->render(cam, im, target);
-        if (stacked) {
-            const GeometryFrameStats l = canopyRenderer->render(cam, *terrain, *canopy, cd, target);
-            drawn.triangles += l.triangles;
-            drawn.drawCalls += l.drawCalls;
-            if (trunks) {
-                const GeometryFrameStats t =
-                    trunks->draw(cam, *terrain, cd.crownBase + 0.1 * (cd.treeHeight - cd.crownBase), target);
-                drawn.triangles += t.triangles;
-                drawn.drawCalls += t.drawCalls;
-            }
-        }
+        GeometryFrameStats drawn = stacked ? canopyRenderer->renderView(cam, *terrain, im, *canopy, cd, trunks.get(), target)
+                                           : terrain->render(cam, im, target);
         cityStats = {};
         if (city && s.city) {
             city->settings().tpp = std::max(0.05f, s.cityTpp);

@@ -1,6 +1,7 @@
 #include "CanopyRendererGL.h"
 
-#include "TerrainMeshGL.h" // kNearPlane
+#include "ReferenceRendererGL.h" // kBackgroundColor
+#include "TerrainMeshGL.h"       // kNearPlane, beginTerrainPass
 
 #include <algorithm>
 #include <cmath>
@@ -44,6 +45,32 @@ glm::ivec2 CanopyLevelBounds::levels(const glm::dvec3& lo, const glm::dvec3& hi,
     const int l = metres <= m_texelMetres ? 0 : int(std::floor(std::log2(metres / m_texelMetres)));
     const int level = std::clamp(l, 0, clipLevels);
     return {level, level};
+}
+
+GeometryFrameStats CanopyRendererGL::renderView(const Camera& camera, const ClipmapTerrainRendererGL& terrain,
+                                                ImagerySettings imagery, const CanopyClipmapGL& canopy,
+                                                const CanopyDrawSettings& s, const TrunksGL* trunks,
+                                                const gl::RenderTarget& target) const {
+    GeometryFrameStats st;
+    auto add = [&](const GeometryFrameStats& x) {
+        st.triangles += x.triangles;
+        st.drawCalls += x.drawCalls;
+        st.piecesCulled += x.piecesCulled;
+        st.levelsDrawn = std::max(st.levelsDrawn, x.levelsDrawn);
+    };
+    if (s.mode == CanopyDrawMode::March) {
+        target.bind();
+        beginTerrainPass(kBackgroundColor.r, kBackgroundColor.g, kBackgroundColor.b, kBackgroundColor.a);
+        add(render(camera, terrain, canopy, s, target));
+        imagery.clear = false;
+        add(terrain.render(camera, imagery, target));
+    } else {
+        add(terrain.render(camera, imagery, target));
+        add(render(camera, terrain, canopy, s, target));
+    }
+    // Up into the lowest layers, so no gap shows between a trunk and its crown.
+    if (trunks) add(trunks->draw(camera, terrain, s.crownBase + 0.1 * (s.treeHeight - s.crownBase), target));
+    return st;
 }
 
 Result<std::unique_ptr<CanopyRendererGL>> CanopyRendererGL::create() {

@@ -9,6 +9,7 @@
 #include "CanopyClipmapGL.h"
 #include "ClipmapTerrainRendererGL.h"
 #include "Scene.h"
+#include "TrunksGL.h"
 
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
@@ -62,7 +63,15 @@ class CanopyRendererGL {
 public:
     static Result<std::unique_ptr<CanopyRendererGL>> create();
 
-    /// Draws canopy.options().layers layers over the frame `terrain` just rendered into `target`.
+    /// The canopy view whole: the ground (`imagery`, its canopyBase set when layer 0 lies on it), the layers and,
+    /// when given, the trunks, in the order that spares the most work. Marched layers go first: the depth they write
+    /// hides the ground under the crowns before its (anisotropic, two-season) fragments are shaded. Rasterised layers
+    /// go after the ground, whose pass draws their layer 0 on it.
+    GeometryFrameStats renderView(const Camera& camera, const ClipmapTerrainRendererGL& terrain, ImagerySettings imagery,
+                                  const CanopyClipmapGL& canopy, const CanopyDrawSettings& settings,
+                                  const TrunksGL* trunks, const gl::RenderTarget& target) const;
+    /// Draws canopy.options().layers layers over the frame `terrain` just rendered into `target` (or, marched, into
+    /// a target whose depth test state beginTerrainPass() set).
     GeometryFrameStats render(const Camera& camera, const ClipmapTerrainRendererGL& terrain, const CanopyClipmapGL& canopy,
                               const CanopyDrawSettings& settings, const gl::RenderTarget& target) const;
 

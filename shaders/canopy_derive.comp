@@ -106,23 +106,41 @@ void main() {
         }
     }
     barrier();
-    // 3. Per-texel votes (default: drop on a textured canopy, its 5×5 window of 3×3 sums).
-    for (int i = lid; i < BITS * BITS; i += 256) {
-        int x = i % BITS, y = i / BITS;
-        uint centre = sIn[(y + SV_SEG_TEXTURE_HALO) * IN + x + SV_SEG_TEXTURE_HALO];
-        if (texture) {
-            double sum = 0.0, sumSq = 0.0;
-            for (int dy = 0; dy < SV_SEG_TEXTURE_WINDOW; ++dy)
-                for (int dx = 0; dx < SV_SEG_TEXTURE_WINDOW; ++dx) {
-                    int s = sSmooth[(y + dy) * SM + x + dx];
-                    sum += double(s);
-                    sumSq += double(s * s);
+    // 3. Per-texel votes (default: drop on a textured canopy, its 5×5 window of 3×3 sums). The window's sum and sum
+    //    of squares slide down each column (half a column per invocation): each row of the window is summed once,
+    //    added on entering and taken off on leaving. Integer sums, exact (25 · 6885² < 2^32), as on the CPU.
+    if (texture) {
+        const int W = SV_SEG_TEXTURE_WINDOW, HALF = (BITS + 1) / 2;
+        for (int task = lid; task < 2 * BITS; task += 256) {
+            int x = task % BITS, y0 = (task / BITS) * HALF, y1 = min(y0 + HALF, BITS);
+            uint rowS[W], rowQ[W];
+            uint sum = 0u, sumSq = 0u;
+            for (int y = y0; y < y1 + W - 1; ++y) { // smoothed rows y0 .. y1 + W - 2
+                uint hs = 0u, hq = 0u;
+                for (int dx = 0; dx < W; ++dx) {
+                    uint v = uint(sSmooth[y * SM + x + dx]);
+                    hs += v;
+                    hq += v * v;
                 }
-            bool t = svTextured(double(SV_SEG_TEXTURE_WINDOW * SV_SEG_TEXTURE_WINDOW), sum, sumSq);
-            sBits[i] = svDefaultTexel((centre & 0x8000u) != 0u, t) ? 1u : 0u;
-        } else {
-            sBits[i] = centre;
+                int slot = (y - y0) % W;
+                if (y - y0 >= W) {
+                    sum -= rowS[slot];
+                    sumSq -= rowQ[slot];
+                }
+                rowS[slot] = hs;
+                rowQ[slot] = hq;
+                sum += hs;
+                sumSq += hq;
+                int oy = y - (W - 1); // the vote texel whose window ends on this row
+                if (oy < y0) continue;
+                uint centre = sIn[(oy + SV_SEG_TEXTURE_HALO) * IN + x + SV_SEG_TEXTURE_HALO];
+                bool t = svTextured(double(W * W), double(sum), double(sumSq));
+                sBits[oy * BITS + x] = svDefaultTexel((centre & 0x8000u) != 0u, t) ? 1u : 0u;
+            }
         }
+    } else {
+        for (int i = lid; i < BITS * BITS; i += 256)
+            sBits[i] = sIn[(i / BITS + SV_SEG_TEXTURE_HALO) * IN + i % BITS + SV_SEG_TEXTURE_HALO];
     }
     barrier();
     // 4. Votes over growing windows: the highest layer whose k × k window has a majority. Window counts from a

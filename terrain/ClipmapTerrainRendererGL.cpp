@@ -88,7 +88,7 @@ GeometryFrameStats ClipmapTerrainRendererGL::draw(const gl::ShaderProgram& progr
 GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const ImagerySettings& s,
                                                     const gl::RenderTarget& target) const {
     target.bind();
-    beginTerrainPass(kBackgroundColor.r, kBackgroundColor.g, kBackgroundColor.b, kBackgroundColor.a);
+    beginTerrainPass(kBackgroundColor.r, kBackgroundColor.g, kBackgroundColor.b, kBackgroundColor.a, s.clear);
     m_program.set("uView", int(s.view));
     m_program.set("uBlend", std::clamp(s.blend, 0.0f, 1.0f));
     m_program.set("uSwipeX", std::clamp(s.swipe, 0.0f, 1.0f) * float(target.width()));

@@ -39,6 +39,8 @@ struct ImagerySettings {
     // Canopy view with stacked layers: > 0 makes the ground draw the lowest layer (leaf-on times this factor, the
     // layers' CanopyDrawSettings::darkest) where the canopy is, so the layers start one above it; 0 without layers.
     float canopyBase = 0.0f;
+    // false: draw over what the target holds (colour and depth), e.g. canopy drawn first to hide the ground under it.
+    bool clear = true;
 };
 
 /// A per-texel canopy layer the ground pass can read (foliage/CanopyClipmapGL.h implements it): binds the samplers

@@ -26,14 +26,14 @@ void TerrainMeshGL::draw() const {
     glBindVertexArray(0);
 }
 
-void beginTerrainPass(float r, float g, float b, float a) {
+void beginTerrainPass(float r, float g, float b, float a, bool clear) {
     glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE); // reversed Z: far = 0
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_GREATER);
     glDisable(GL_CULL_FACE);
     glClearColor(r, g, b, a);
     glClearDepth(0.0);
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    if (clear) glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
 }
 
 } // namespace seasonview

@@ -25,6 +25,6 @@ inline constexpr double kNearPlane = 0.05;
 
 /// Clears the bound framebuffer (colour to r,g,b,a; depth for reversed Z) and sets the depth state every terrain pass
 /// uses (glClipControl zero-to-one, GL_GREATER).
-void beginTerrainPass(float r, float g, float b, float a);
+void beginTerrainPass(float r, float g, float b, float a, bool clear = true);
 
 } // namespace seasonview
