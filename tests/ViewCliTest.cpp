@@ -56,6 +56,7 @@ TEST(ViewCliTest, ScriptedSessionScreenshotsAndRecordedPath) {
         {"t": 1.9, "key": "4"},
         {"t": 2.0, "drag": [[160, 100], [80, 100]], "duration": 0.2},
         {"t": 2.4, "key": "5"},
+        {"t": 2.55, "set": "canopy_draw", "value": "layers"},
         {"t": 2.8, "key": "C"},
         {"t": 3.1, "key": "F"},
         {"t": 3.2, "hold": "W", "duration": 0.4},
@@ -73,6 +74,7 @@ TEST(ViewCliTest, ScriptedSessionScreenshotsAndRecordedPath) {
                                       "--screenshot-at", std::string("1.5:") + png("leafon.png"),
                                       "--screenshot-at", std::string("1.8:") + png("leafoff.png"),
                                       "--screenshot-at", std::string("2.3:") + png("swipe.png"),
+                                      "--screenshot-at", std::string("2.5:") + png("canopy_march.png"),
                                       "--screenshot-at", std::string("2.7:") + png("canopy.png"),
                                       "--screenshot-at", std::string("3.0:") + png("canopy_off.png"),
                                       "--quit-at", "3.75"});
@@ -102,6 +104,14 @@ TEST(ViewCliTest, ScriptedSessionScreenshotsAndRecordedPath) {
     // The canopy layers (C toggles them off) change the canopy view.
     EXPECT_GT(meanDiff(shots["canopy"], shots["canopy_off"], 0, 320), 1.0);
     EXPECT_GT(meanDiff(shots["canopy"], shots["leafon"], 0, 320), 1.0);
+    // The layers marched (the default, before the `set` at 2.55 s) and rasterised (the golden's) show the same
+    // canopy but for crown edges.
+    auto march = readImageU8(dir / "canopy_march.png", 3);
+    ASSERT_TRUE(march.ok()) << march.message();
+    const double modes = meanDiff(*march, shots["canopy"], 0, 320);
+    EXPECT_GT(modes, 0.0) << "the set event switched the draw mode";
+    EXPECT_LT(modes, 3.0);
+    EXPECT_GT(meanDiff(*march, shots["canopy_off"], 0, 320), 2.0 * modes);
 
     // The recorded flight (a keyframe every 8 frames of 1/30 s from t = 0) replays in `bench` through the same poses:
     // with one frame per keyframe the path hits each keyframe exactly.
