@@ -172,6 +172,33 @@ SynthCanopy synthCanopy(bool derived) {
     return c;
 }
 
+// The derived canopy as the GPU holds it, read back: every toroidal clip level and the coarse base.
+struct CanopyReadBack {
+    const ClipmapLayout& L;
+    const CanopyClipmapGL& canopy;
+    int slots;
+    std::vector<std::vector<std::uint8_t>> levels;
+    std::vector<std::uint8_t> coarse;
+
+    explicit CanopyReadBack(const SynthCanopy& c)
+        : L(c.clip->schedule().layout()), canopy(*c.canopy), slots(c.clip->schedule().slotsPerSide()),
+          coarse(c.canopy->readCoarse()) {
+        for (int l = 0; l < L.clipLevels(); ++l) levels.push_back(canopy.readClipLevel(l));
+    }
+    /// Level-l texel (x, y) (clamped to the level), or -1 where its block is not derived; l = clipLevels(): the
+    /// coarse base.
+    int texel(int l, int x, int y) const {
+        const glm::ivec2 size = L.levelSizes[size_t(l)];
+        x = std::min(x, size.x - 1);
+        y = std::min(y, size.y - 1);
+        if (l == L.clipLevels()) return int(coarse[size_t(y) * size_t(size.x) + size_t(x)]);
+        const int bx = x / L.block, by = y / L.block;
+        const size_t slot = size_t(wrapTexel(by, slots)) * size_t(slots) + size_t(wrapTexel(bx, slots));
+        if (canopy.slotTags(l)[slot] != (bx | (by << 16))) return -1;
+        return int(levels[size_t(l)][size_t(wrapTexel(y, L.size)) * size_t(L.size) + size_t(wrapTexel(x, L.size))]);
+    }
+};
+
 } // namespace
 
 TEST(CanopyClipmapGLTest, DefaultMethodAgreesWithTheCpuOnEveryLayer) {
@@ -211,16 +238,11 @@ TEST(CanopyClipmapGLTest, CrownsThinTowardsTheTopLayer) {
 // fields, or culling would never happen.
 TEST(CanopyClipmapGLTest, BlockMaximaBoundEveryLevelsValues) {
     ASSERT_TRUE(headlessContext());
-    SynthCanopy c = synthCanopy(true);
+    const SynthCanopy c = synthCanopy(true);
     ASSERT_TRUE(c.canopy);
-    const auto& clip = c.clip;
-    const auto& canopy = c.canopy;
-    const ClipmapLayout& L = clip->schedule().layout();
-    const CanopyOptions o = canopy->options();
-    std::vector<std::vector<std::uint8_t>> levels;
-    for (int l = 0; l < L.clipLevels(); ++l) levels.push_back(canopy->readClipLevel(l));
-    const std::vector<std::uint8_t> coarse = canopy->readCoarse();
-    const int slots = clip->schedule().slotsPerSide();
+    const CanopyReadBack rb(c);
+    const ClipmapLayout& L = rb.L;
+    const int all = c.canopy->options().layers;
     // The true largest value over level-0 pixel box [x0, x1) × [y0, y1) at every level where it is derived.
     auto truth = [&](int x0, int y0, int x1, int y1) {
         int m = 0;
@@ -228,17 +250,7 @@ TEST(CanopyClipmapGLTest, BlockMaximaBoundEveryLevelsValues) {
             const int s = 1 << l;
             const glm::ivec2 size = L.levelSizes[size_t(l)];
             for (int y = y0 / s; y <= std::min((y1 - 1) / s, size.y - 1); ++y)
-                for (int x = x0 / s; x <= std::min((x1 - 1) / s, size.x - 1); ++x) {
-                    if (l == L.clipLevels()) {
-                        m = std::max(m, int(coarse[size_t(y) * size_t(size.x) + size_t(x)]));
-                        continue;
-                    }
-                    const int bx = x / L.block, by = y / L.block;
-                    const size_t slot = size_t(wrapTexel(by, slots)) * size_t(slots) + size_t(wrapTexel(bx, slots));
-                    if (canopy->slotTags(l)[slot] != (bx | (by << 16))) continue;
-                    m = std::max(m, int(levels[size_t(l)][size_t(wrapTexel(y, L.size)) * size_t(L.size) +
-                                                          size_t(wrapTexel(x, L.size))]));
-                }
+                for (int x = x0 / s; x <= std::min((x1 - 1) / s, size.x - 1); ++x) m = std::max(m, rb.texel(l, x, y));
         }
         return m;
     };
@@ -247,9 +259,9 @@ TEST(CanopyClipmapGLTest, BlockMaximaBoundEveryLevelsValues) {
     int below = 0;
     for (int trial = 0; trial < 300; ++trial) {
         const int x0 = pos(rng), y0 = pos(rng), x1 = std::min(1024, x0 + size(rng)), y1 = std::min(1024, y0 + size(rng));
-        const int got = canopy->maxValueOver({double(x0), double(y0)}, {double(x1) - 1e-3, double(y1) - 1e-3});
+        const int got = c.canopy->maxValueOver({double(x0), double(y0)}, {double(x1) - 1e-3, double(y1) - 1e-3});
         ASSERT_GE(got, truth(x0, y0, x1, y1)) << x0 << "," << y0 << " " << x1 << "," << y1;
-        below += got < o.layers ? 1 : 0;
+        below += got < all ? 1 : 0;
     }
     // Some boxes (13 of these 300) get fewer than all layers: the coarse levels' 64-texel blocks span up to 512
     // pixels here and mostly hold some canopy, so culling by block maxima helps only over wide open ground.
@@ -262,29 +274,16 @@ TEST(CanopyClipmapGLTest, BlockMaximaBoundEveryLevelsValues) {
 // well under all layers for small boxes, which is what lets the layers skip open ground between crowns.
 TEST(CanopyClipmapGLTest, CellMaximaBoundOneLevelsValues) {
     ASSERT_TRUE(headlessContext());
-    SynthCanopy c = synthCanopy(true);
+    const SynthCanopy c = synthCanopy(true);
     ASSERT_TRUE(c.canopy);
-    const auto& clip = c.clip;
-    const auto& canopy = c.canopy;
-    const ClipmapLayout& L = clip->schedule().layout();
-    const CanopyOptions o = canopy->options();
-    std::vector<std::vector<std::uint8_t>> levels;
-    for (int l = 0; l < L.clipLevels(); ++l) levels.push_back(canopy->readClipLevel(l));
-    const std::vector<std::uint8_t> coarse = canopy->readCoarse();
-    const int slots = clip->schedule().slotsPerSide();
+    const CanopyReadBack rb(c);
+    const ClipmapLayout& L = rb.L;
+    const int all = c.canopy->options().layers;
     // What canopyAt() returns for level-0 pixel (x, y) asked at `level`.
     auto read = [&](int x, int y, int level) {
-        for (int l = level; l < L.clipLevels(); ++l) {
-            const glm::ivec2 size = L.levelSizes[size_t(l)];
-            const int qx = std::min(x >> l, size.x - 1), qy = std::min(y >> l, size.y - 1);
-            const int bx = qx / L.block, by = qy / L.block;
-            const size_t slot = size_t(wrapTexel(by, slots)) * size_t(slots) + size_t(wrapTexel(bx, slots));
-            if (canopy->slotTags(l)[slot] != (bx | (by << 16))) continue;
-            return int(levels[size_t(l)][size_t(wrapTexel(qy, L.size)) * size_t(L.size) + size_t(wrapTexel(qx, L.size))]);
-        }
-        const glm::ivec2 size = L.levelSizes[size_t(L.clipLevels())];
-        const int qx = std::min(x >> L.clipLevels(), size.x - 1), qy = std::min(y >> L.clipLevels(), size.y - 1);
-        return int(coarse[size_t(qy) * size_t(size.x) + size_t(qx)]);
+        for (int l = level; l < L.clipLevels(); ++l)
+            if (const int v = rb.texel(l, x >> l, y >> l); v >= 0) return v;
+        return rb.texel(L.clipLevels(), x >> L.clipLevels(), y >> L.clipLevels());
     };
     std::mt19937 rng(5);
     std::uniform_int_distribution<int> pos(0, 1000), size(1, 24), lev(0, L.clipLevels());
@@ -295,11 +294,11 @@ TEST(CanopyClipmapGLTest, CellMaximaBoundOneLevelsValues) {
         int truth = 0;
         for (int y = y0; y < y1; ++y)
             for (int x = x0; x < x1; ++x) truth = std::max(truth, read(x, y, level));
-        const int got = canopy->maxValueOver({double(x0), double(y0)}, {double(x1) - 1e-3, double(y1) - 1e-3}, level, level);
+        const int got = c.canopy->maxValueOver({double(x0), double(y0)}, {double(x1) - 1e-3, double(y1) - 1e-3}, level, level);
         ASSERT_GE(got, truth) << x0 << "," << y0 << " " << x1 << "," << y1 << " level " << level;
         if (level == 0) {
             ++trials;
-            below += got < o.layers ? 1 : 0;
+            below += got < all ? 1 : 0;
         }
     }
     // Level 0's cells are 8 texels: over half the small boxes there (75 of 133) stay below all layers, where the
