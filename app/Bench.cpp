@@ -40,6 +40,8 @@ struct FrameRow {
     std::int64_t triangles = 0, texelsUploaded = 0, exposedTexels = 0, residentBytes = 0, loaderCacheBytes = 0,
                  rssBytes = 0, heapInUseBytes = 0, heapMappedBytes = 0;
     int blocksMissing = 0;
+    int canopyBlocksDerived = 0; // canopy view: blocks the segmentation rule ran on this frame
+    int trunkSearches = 0;       // canopy view with trunks: 1 when the crown centres were searched this frame
     double coverage = NAN;
     city::CityFrameStats city; // zeros without a city
 };
@@ -391,10 +393,10 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                 derived = m.canopy->rederiveAll();
             else
                 derived = m.canopy->update();
+            row.canopyBlocksDerived = derived.blocksDerived;
             // Crown centres of the trunks: searched again when the searched level's derived blocks changed.
-            (void)derived;
             if (m.trunks)
-                m.trunks->update();
+                row.trunkSearches = m.trunks->update() ? 1 : 0;
         }
         imagery.anisotropy = m.anisotropy;
         ImagerySettings im = imagery;
@@ -481,13 +483,14 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     csv << "mode,frame,x,y,z,yaw,pitch,cpu_ms,gpu_ms,frame_ms,draw_calls,triangles,texels_uploaded,exposed_texels,"
            "blocks_missing,resident_texture_bytes,loader_cache_bytes,rss_bytes,coverage,city_atlas_nodes,"
            "city_texture_binds,city_draw_calls,city_triangles,city_blocks_resident,city_resident_bytes,"
-           "city_loader_queue,city_coarser_than_wanted,heap_in_use_bytes,heap_mapped_bytes\n";
+           "city_loader_queue,city_coarser_than_wanted,heap_in_use_bytes,heap_mapped_bytes,canopy_blocks_derived,"
+           "trunk_searches\n";
     for (const Mode& m : *modes)
         for (const FrameRow& r : m.rows) {
             char line[512];
             std::snprintf(line, sizeof line,
                           "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s,"
-                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld\n",
+                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d\n",
                           m.label.c_str(), r.frame, r.camera.position.x, r.camera.position.y, r.camera.position.z,
                           r.camera.yawDeg, r.camera.pitchDeg, r.cpuMs, r.gpuMs, r.frameMs, r.drawCalls,
                           (long long)r.triangles, (long long)r.texelsUploaded, (long long)r.exposedTexels,
@@ -495,7 +498,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                           (long long)r.rssBytes, std::isfinite(r.coverage) ? std::to_string(r.coverage).c_str() : "",
                           r.city.atlasNodes, r.city.textureBinds, r.city.drawCalls, (long long)r.city.triangles,
                           r.city.blocksResident, (unsigned long long)r.city.residentBytes, r.city.loaderQueue,
-                          r.city.coarserThanWanted, (long long)r.heapInUseBytes, (long long)r.heapMappedBytes);
+                          r.city.coarserThanWanted, (long long)r.heapInUseBytes, (long long)r.heapMappedBytes,
+                          r.canopyBlocksDerived, r.trunkSearches);
             csv << line;
         }
     std::string err;
@@ -574,6 +578,11 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         if (!std::isfinite(baseMedian))
             baseMedian = median;
         auto num = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
+        int canopyBlocks = 0, trunkSearches = 0;
+        for (const FrameRow& r : m.rows) {
+            canopyBlocks += r.canopyBlocksDerived;
+            trunkSearches += r.trunkSearches;
+        }
         summary["modes"][m.label] = {{"frame_ms", figure(frame)},
                                      {"cpu_ms", figure(cpu)},
                                      {"gpu_ms", figure(gpu)},
@@ -595,7 +604,9 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                                       {{"texels_uploaded", uploaded},
                                        {"exposed_texels_per_layer", exposed},
                                        {"upload_over_geometric_minimum", num(uploadRatio)},
-                                       {"triangles_per_frame", m.rows.front().triangles}}}};
+                                       {"triangles_per_frame", m.rows.front().triangles},
+                                       {"canopy_blocks_derived", canopyBlocks},
+                                       {"trunk_searches", trunkSearches}}}};
         compare.push_back({{"mode", m.label},
                            {"median_frame_ms", median},
                            {"ratio_to_first", median / baseMedian},

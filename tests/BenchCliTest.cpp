@@ -46,13 +46,16 @@ TEST(BenchCli, CompareWritesFramesSummaryCompareAndPlot) {
 // The canopy comparison (no canopy vs 16 layers with trunks) in one run: both modes draw, the canopy adds
 // triangles and draw calls, its settings are recorded, and the per-frame uploads add up to the mode's total.
 // Both comparisons that add the canopy: canopy=off,16 (leaf-on terrain vs the canopy view) and scene=terrain,full
-// (the relief alone vs both seasons, 16 layers and trunks).
+// (the relief alone vs both seasons, 16 layers and trunks); and canopy-draw=march,layers (the layers rasterised draw
+// more triangles than the top one marched). The canopy's counters (blocks derived, trunk searches) add up too.
 TEST(BenchCli, CanopyCompareAddsLayersAndTrunks) {
     TempDir dir("bench-canopy");
     const CliResult s = runCli({"synth", "--out", (dir / "scene").string(), "--size-m", "256", "--gsd", "0.25"});
     ASSERT_EQ(s.exitCode, 0) << s.err;
     for (auto [compare, without, with] : {std::tuple{"canopy=off,16", "canopy=off", "canopy=16"},
-                                          std::tuple{"scene=terrain,full", "scene=terrain", "scene=full"}}) {
+                                          std::tuple{"scene=terrain,full", "scene=terrain", "scene=full"},
+                                          std::tuple{"canopy-draw=march,layers", "canopy-draw=march", "canopy-draw=layers"}}) {
+        const bool bothCanopy = std::string(compare).rfind("canopy-draw", 0) == 0;
         const std::string out = (dir / ("out-" + std::string(without))).string();
         const CliResult r = runCli({"bench", (dir / "scene/scene.json").string(), "--path", "flyover", "--frames", "4",
                                     "--warmup", "1", "--size", "160x90", "--clip-size", "512", "--view", "canopy",
@@ -70,7 +73,11 @@ TEST(BenchCli, CanopyCompareAddsLayersAndTrunks) {
             return -1;
         };
         const int mode = column("mode"), tri = column("triangles"), draws = column("draw_calls"),
-                  up = column("texels_uploaded");
+                  up = column("texels_uploaded"), derivedColumn = column("canopy_blocks_derived"),
+                  searchColumn = column("trunk_searches");
+        ASSERT_GE(derivedColumn, 0);
+        ASSERT_GE(searchColumn, 0);
+        std::map<std::string, std::int64_t> derived, searches;
         ASSERT_GE(mode, 0);
         std::map<std::string, std::vector<std::int64_t>> triangles, drawCalls;
         std::map<std::string, std::int64_t> uploaded;
@@ -81,20 +88,30 @@ TEST(BenchCli, CanopyCompareAddsLayersAndTrunks) {
             triangles[cells[size_t(mode)]].push_back(std::stoll(cells[size_t(tri)]));
             drawCalls[cells[size_t(mode)]].push_back(std::stoll(cells[size_t(draws)]));
             uploaded[cells[size_t(mode)]] += std::stoll(cells[size_t(up)]);
+            derived[cells[size_t(mode)]] += std::stoll(cells[size_t(derivedColumn)]);
+            searches[cells[size_t(mode)]] += std::stoll(cells[size_t(searchColumn)]);
         }
         ASSERT_EQ(triangles[without].size(), 4u) << compare;
         ASSERT_EQ(triangles[with].size(), 4u) << compare;
         for (size_t i = 0; i < 4; ++i) {
             EXPECT_GT(triangles[with][i], triangles[without][i]) << compare << " " << i;
-            EXPECT_GT(drawCalls[with][i], drawCalls[without][i]) << compare << " " << i;
+            if (!bothCanopy) {
+                EXPECT_GT(drawCalls[with][i], drawCalls[without][i]) << compare << " " << i;
+            }
         }
         std::ifstream sj(out + "/summary.json");
         const auto summary = nlohmann::json::parse(sj);
         EXPECT_EQ(summary["settings"]["trunks"], "on");
         EXPECT_EQ(summary["settings"]["canopy_layers"], "16");
         EXPECT_EQ(summary["settings"]["ground_under_canopy"], "leafoff");
-        for (const char* m : {without, with})
+        for (const char* m : {without, with}) {
             EXPECT_EQ(summary["modes"][m]["totals"]["texels_uploaded"].get<std::int64_t>(), uploaded[m]) << m;
+            EXPECT_EQ(summary["modes"][m]["totals"]["canopy_blocks_derived"].get<std::int64_t>(), derived[m]) << m;
+            EXPECT_EQ(summary["modes"][m]["totals"]["trunk_searches"].get<std::int64_t>(), searches[m]) << m;
+        }
+        // The flight exposes new blocks: the canopy modes derive them; the modes without a canopy derive nothing.
+        EXPECT_GT(derived[with], 0) << compare;
+        EXPECT_EQ(derived[without] > 0, bothCanopy) << compare;
     }
     const CliResult bad = runCli({"bench", (dir / "scene/scene.json").string(), "--compare", "scene=terrain,city",
                                   "--out", (dir / "bad").string()});
