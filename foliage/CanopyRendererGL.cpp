@@ -26,6 +26,17 @@ int canopyPieceLayers(const glm::dvec3& eye, double pixelsPerRadian, const glm::
     return std::clamp(int(std::ceil(stack / std::max(s.pixelsPerLayer, 1e-3))), 1, maxLayers);
 }
 
+bool canopyPatchMarches(const glm::dvec3& eye, const glm::dvec3& lo, const glm::dvec3& hi, double treeHeight) {
+    const double dz = eye.z - (hi.z + treeHeight);
+    if (dz <= 0.0) return false;
+    const glm::dvec2 e(eye);
+    const double horizontal = glm::length(glm::max(glm::abs(glm::dvec2(lo) - e), glm::abs(glm::dvec2(hi) - e)));
+    const double descent = dz / std::max(horizontal, 1e-9); // tan of the lowest elevation angle of a ray over the box
+    const double size = std::max(std::min(hi.x - lo.x, hi.y - lo.y), 1e-9);
+    const double slope = (hi.z - lo.z) / size; // at least the terrain's steepest rise across the box, about
+    return descent > slope + 0.05;
+}
+
 CanopyLevelBounds::CanopyLevelBounds(const Camera& camera, double aspect, double pixelsPerRadian, double texelMetres)
     : m_eye(camera.position), m_pixelsPerRadian(pixelsPerRadian), m_texelMetres(std::max(texelMetres, 1e-9)) {
     // A pixel at angle α off the optical axis spans at least cos²(α) / ppr radians; α is largest at the corners.
@@ -61,13 +72,11 @@ GeometryFrameStats CanopyRendererGL::renderView(const Camera& camera, const Clip
     if (s.mode == CanopyDrawMode::March) {
         target.bind();
         beginTerrainPass(kBackgroundColor.r, kBackgroundColor.g, kBackgroundColor.b, kBackgroundColor.a);
-        add(render(camera, terrain, canopy, s, target));
+        add(render(camera, terrain, canopy, s, target, CanopyPass::Marched));
         imagery.clear = false;
-        add(terrain.render(camera, imagery, target));
-    } else {
-        add(terrain.render(camera, imagery, target));
-        add(render(camera, terrain, canopy, s, target));
     }
+    add(terrain.render(camera, imagery, target));
+    add(render(camera, terrain, canopy, s, target, CanopyPass::Rasterised));
     // Up into the lowest layers, so no gap shows between a trunk and its crown.
     if (trunks) add(trunks->draw(camera, terrain, s.crownBase + 0.1 * (s.treeHeight - s.crownBase), target));
     return st;
@@ -86,14 +95,15 @@ Result<std::unique_ptr<CanopyRendererGL>> CanopyRendererGL::create() {
 
 GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapTerrainRendererGL& terrain,
                                             const CanopyClipmapGL& canopy, const CanopyDrawSettings& s,
-                                            const gl::RenderTarget& target) const {
+                                            const gl::RenderTarget& target, CanopyPass pass) const {
     const int layers = canopy.options().layers;
     const int first = s.crownBase > 0.0 ? 0 : 1; // on the ground, layer 0 is the ground pass's
     if (layers - first < 1 || s.treeHeight <= 0.0) return {};
     target.bind();
     const double aspect = double(target.width()) / double(target.height());
     const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
-    const bool march = s.mode == CanopyDrawMode::March;
+    const bool march = pass == CanopyPass::Marched;
+    if (march && s.mode != CanopyDrawMode::March) return {};
     const gl::ShaderProgram& program = march ? m_marchProgram : m_program;
     terrain.bindTerrain(program, viewProj);
     canopy.bind(program, kCanopyUnit);
@@ -131,6 +141,9 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
     const int clipLevels = canopy.clipLevels();
     const double stackHeight = s.treeHeight - std::clamp(s.crownBase, 0.0, s.treeHeight);
     auto instances = [&](int, glm::dvec3 lo, glm::dvec3 hi, std::vector<glm::ivec2>& out) {
+        // In march mode each patch is drawn by one of the two passes.
+        if (s.mode == CanopyDrawMode::March && canopyPatchMarches(camera.position, lo, hi, s.treeHeight) != march)
+            return;
         int top = layers - 1; // the highest layer any texel the patch's fragments read belongs to
         glm::ivec2 levels(0, 255);
         if (s.scene) {

@@ -49,6 +49,19 @@ int canopyPieceLayers(const glm::dvec3& eye, double pixelsPerRadian, const glm::
 /// The canopy levels the fragments of a stacked layer over a box (local metres) may read from a camera: the levels
 /// of the pixel footprints possible there, clamped to 0 .. clipLevels (the coarse base). The layer shader clamps its
 /// level to them, so CanopyClipmapGL::maxValueOver over these levels bounds what any fragment of the box reads.
+/// Whether the marched layers draw a patch (box in local metres, z its terrain heights) seen from `eye`: only where
+/// every ray into its stack comes down through it faster than the terrain under it can rise (the tangent of the
+/// lowest elevation angle over the box above the box's height range over its smaller side, plus 0.05; the boxes
+/// carry their heights two cells past the patch, so the slope is overestimated). Rays looking up a slope, along it or level with the crowns would leave the stack through its side,
+/// where no top layer is drawn to march from: such patches are rasterised layer by layer instead.
+bool canopyPatchMarches(const glm::dvec3& eye, const glm::dvec3& lo, const glm::dvec3& hi, double treeHeight);
+
+/// Which patches a CanopyRendererGL::render call draws.
+enum class CanopyPass {
+    Marched,    // CanopyDrawMode::March: the patches canopyPatchMarches() accepts, marched (before the ground)
+    Rasterised, // the others (all of them in CanopyDrawMode::Layers), every layer rasterised (after the ground)
+};
+
 class CanopyLevelBounds {
 public:
     CanopyLevelBounds(const Camera& camera, double aspect, double pixelsPerRadian, double texelMetres);
@@ -70,10 +83,10 @@ public:
     GeometryFrameStats renderView(const Camera& camera, const ClipmapTerrainRendererGL& terrain, ImagerySettings imagery,
                                   const CanopyClipmapGL& canopy, const CanopyDrawSettings& settings,
                                   const TrunksGL* trunks, const gl::RenderTarget& target) const;
-    /// Draws canopy.options().layers layers over the frame `terrain` just rendered into `target` (or, marched, into
-    /// a target whose depth test state beginTerrainPass() set).
+    /// Draws the patches of `pass` of the canopy.options().layers layers over the frame `terrain` just rendered into
+    /// `target` (or, marched, into a target whose depth test state beginTerrainPass() set).
     GeometryFrameStats render(const Camera& camera, const ClipmapTerrainRendererGL& terrain, const CanopyClipmapGL& canopy,
-                              const CanopyDrawSettings& settings, const gl::RenderTarget& target) const;
+                              const CanopyDrawSettings& settings, const gl::RenderTarget& target, CanopyPass pass) const;
 
 private:
     CanopyRendererGL() = default;

@@ -41,3 +41,19 @@ TEST(CanopyLayersTest, LayersFollowTheStackOnScreen) {
     EXPECT_EQ(layersAt(20.0, 10.0, s, 0), 0);
     EXPECT_EQ(layersAt(20.0, 10.0, s, 4), 4);
 }
+
+// Which patches the marched layers take: those every ray comes down through faster than the terrain under them
+// rises; the rest are rasterised layer by layer.
+TEST(CanopyLayersTest, PatchesMarchOnlyWhereRaysComeDownThroughTheStack) {
+    const double h = 15.0;
+    // Flat ground seen from above, down to about 6° over the horizon: marched.
+    EXPECT_TRUE(canopyPatchMarches({0.0, 0.0, 200.0}, {-5.0, -5.0, 0.0}, {5.0, 5.0, 0.0}, h));
+    EXPECT_TRUE(canopyPatchMarches({0.0, 0.0, 200.0}, {500.0, 0.0, 0.0}, {510.0, 10.0, 0.0}, h));
+    // Nearly level with the crowns, below them, or level with them: rasterised.
+    EXPECT_FALSE(canopyPatchMarches({0.0, 0.0, 30.0}, {500.0, 0.0, 0.0}, {510.0, 10.0, 0.0}, h));
+    EXPECT_FALSE(canopyPatchMarches({0.0, 0.0, 10.0}, {20.0, 0.0, 0.0}, {30.0, 10.0, 0.0}, h));
+    EXPECT_FALSE(canopyPatchMarches({0.0, 0.0, 15.0}, {-5.0, -5.0, 0.0}, {5.0, 5.0, 0.0}, h));
+    // The same view down at 45° marches over gentle ground and not over a slope as steep as the rays.
+    EXPECT_TRUE(canopyPatchMarches({0.0, 0.0, 215.0}, {190.0, 0.0, 0.0}, {200.0, 10.0, 1.0}, h));
+    EXPECT_FALSE(canopyPatchMarches({0.0, 0.0, 215.0}, {190.0, 0.0, -10.0}, {200.0, 10.0, 0.0}, h));
+}
