@@ -26,13 +26,14 @@ int canopyPieceLayers(const glm::dvec3& eye, double pixelsPerRadian, const glm::
     return std::clamp(int(std::ceil(stack / std::max(s.pixelsPerLayer, 1e-3))), 1, maxLayers);
 }
 
-bool canopyPatchMarches(const glm::dvec3& eye, const glm::dvec3& lo, const glm::dvec3& hi, double treeHeight) {
+bool canopyPatchMarches(const glm::dvec3& eye, const glm::dvec3& lo, const glm::dvec3& hi, double treeHeight,
+                        double heightMargin) {
     const double dz = eye.z - (hi.z + treeHeight);
     if (dz <= 0.0) return false;
     const glm::dvec2 e(eye);
     const double horizontal = glm::length(glm::max(glm::abs(glm::dvec2(lo) - e), glm::abs(glm::dvec2(hi) - e)));
     const double descent = dz / std::max(horizontal, 1e-9); // tan of the lowest elevation angle of a ray over the box
-    const double size = std::max(std::min(hi.x - lo.x, hi.y - lo.y), 1e-9);
+    const double size = std::max(std::min(hi.x - lo.x, hi.y - lo.y) + 2.0 * std::max(heightMargin, 0.0), 1e-9);
     const double slope = (hi.z - lo.z) / size; // at least the terrain's steepest rise across the box, about
     return descent > slope + 0.05;
 }
@@ -140,9 +141,11 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
     const CanopyLevelBounds levelBounds(camera, aspect, pixelsPerRadian, texelMetres);
     const int clipLevels = canopy.clipLevels();
     const double stackHeight = s.treeHeight - std::clamp(s.crownBase, 0.0, s.treeHeight);
-    auto instances = [&](int, glm::dvec3 lo, glm::dvec3 hi, std::vector<glm::ivec2>& out) {
-        // In march mode each patch is drawn by one of the two passes.
-        if (s.mode == CanopyDrawMode::March && canopyPatchMarches(camera.position, lo, hi, s.treeHeight) != march)
+    auto instances = [&](int level, glm::dvec3 lo, glm::dvec3 hi, std::vector<glm::ivec2>& out) {
+        // In march mode each patch is drawn by one of the two passes. The patch's heights reach two of its level's
+        // cells past it (GeometryClipmapGL's culling boxes).
+        if (s.mode == CanopyDrawMode::March &&
+            canopyPatchMarches(camera.position, lo, hi, s.treeHeight, 2.0 * terrain.geometry().cellMetres(level)) != march)
             return;
         int top = layers - 1; // the highest layer any texel the patch's fragments read belongs to
         glm::ivec2 levels(0, 255);

@@ -77,8 +77,8 @@ public:
     /// Draws the pieces inside the frustum with `program` (bound by the caller, bind() called).
     GeometryFrameStats draw(const gl::ShaderProgram& program, const glm::dmat4& viewProj) const;
 
-    /// Instances over one patch: level, its box in the local frame (metres, x east, y north, z its terrain heights,
-    /// before any lift); appends one (a, b) per instance to draw over it, none to skip it. The vertex shader gets
+    /// Instances over one patch: level, its box in the local frame (metres, x east, y north, z the terrain's heights
+    /// within two of the level's cells around it, before any lift); appends one (a, b) per instance to draw over it, none to skip it. The vertex shader gets
     /// ivec4(patch x0, patch y0, a, b) as the per-instance attribute 1 (`aInstance`, level cells).
     using PatchInstances = std::function<void(int level, glm::dvec3 lo, glm::dvec3 hi, std::vector<glm::ivec2>& out)>;
     /// The rings of options.layerN vertices cut into patches of at most options.layerPatchCells² cells, each patch
