@@ -79,8 +79,8 @@ Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL
     const size_t entries = size_t(clipLevels) * size_t(c->m_slotCount) + size_t(coarseBlocks);
     const size_t bytes = entries * cellsPerBlock;
     const std::vector<std::uint8_t> zeros(bytes, 0);
-    c->m_blockMax = gl::Buffer::create();
-    glNamedBufferStorage(c->m_blockMax.id(), GLsizeiptr(bytes), zeros.data(), GL_DYNAMIC_STORAGE_BIT);
+    c->m_cellMaxBuffer = gl::Buffer::create();
+    glNamedBufferStorage(c->m_cellMaxBuffer.id(), GLsizeiptr(bytes), zeros.data(), GL_DYNAMIC_STORAGE_BIT);
     c->m_maxReadback = gl::Buffer::create();
     const GLbitfield mapFlags = GL_MAP_READ_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
     glNamedBufferStorage(c->m_maxReadback.id(), GLsizeiptr(bytes), nullptr, mapFlags);
@@ -150,7 +150,7 @@ void CanopyClipmapGL::collectMaxima(bool wait) {
         if (m_generation <= m_collectedGeneration) return;
         // Something derived since the last copy: copy again (the fence tells when it has landed).
         glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT);
-        glCopyNamedBufferSubData(m_blockMax.id(), m_maxReadback.id(), 0, 0, GLsizeiptr(m_cellMax.size()));
+        glCopyNamedBufferSubData(m_cellMaxBuffer.id(), m_maxReadback.id(), 0, 0, GLsizeiptr(m_cellMax.size()));
         m_maxFence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
         m_fenceGeneration = m_generation;
         if (!wait) return;
@@ -228,7 +228,7 @@ void CanopyClipmapGL::derive(int level, bool coarse, const std::vector<glm::ivec
     glBindImageTexture(1, m_coarse.id(), 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R8UI);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_blocks.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_luts.id());
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, m_blockMax.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, m_cellMaxBuffer.id());
     m_program.use();
     for (size_t first = 0; first < blocks.size(); first += kMaxDispatchBlocks) {
         const size_t n = std::min(blocks.size() - first, size_t(kMaxDispatchBlocks));

@@ -98,7 +98,7 @@ private:
     // derived since; update() and the others call it, so maxValueOver sees the maxima a frame late at most.
     void collectMaxima(bool wait);
     int maxIndex(int level, int slot) const { return level * m_slotCount + slot; }
-    gl::Buffer m_blockMax, m_maxReadback;
+    gl::Buffer m_cellMaxBuffer, m_maxReadback;
     const std::uint8_t* m_maxMapped = nullptr;
     GLsync m_maxFence = nullptr;
     std::vector<int> m_maxKnown;           // per block: its largest value, -1 while not back

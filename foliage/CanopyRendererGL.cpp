@@ -26,24 +26,25 @@ int canopyPieceLayers(const glm::dvec3& eye, double pixelsPerRadian, const glm::
     return std::clamp(int(std::ceil(stack / std::max(s.pixelsPerLayer, 1e-3))), 1, maxLayers);
 }
 
-bool canopyPatchMarches(const glm::dvec3& eye, const glm::dvec3& lo, const glm::dvec3& hi, double treeHeight,
-                        double heightMargin) {
+double lowestElevationTan(const glm::dvec3& eye, const glm::dvec3& lo, const glm::dvec3& hi, double treeHeight) {
     const double dz = eye.z - (hi.z + treeHeight);
-    if (dz <= 0.0) return false;
+    if (dz <= 0.0) return 0.0;
     const glm::dvec2 e(eye);
     const double horizontal = glm::length(glm::max(glm::abs(glm::dvec2(lo) - e), glm::abs(glm::dvec2(hi) - e)));
-    const double descent = dz / std::max(horizontal, 1e-9); // tan of the lowest elevation angle of a ray over the box
+    return dz / std::max(horizontal, 1e-9);
+}
+
+bool canopyPatchMarches(const glm::dvec3& eye, const glm::dvec3& lo, const glm::dvec3& hi, double treeHeight,
+                        double heightMargin) {
+    const double descent = lowestElevationTan(eye, lo, hi, treeHeight); // of every ray into the stack
+    if (descent <= 0.0) return false;
     const double size = std::max(std::min(hi.x - lo.x, hi.y - lo.y) + 2.0 * std::max(heightMargin, 0.0), 1e-9);
     const double slope = (hi.z - lo.z) / size; // at least the terrain's steepest rise across the box, about
     return descent > slope + 0.05;
 }
 
-CanopyLevelBounds::CanopyLevelBounds(const Camera& camera, double aspect, double pixelsPerRadian, double texelMetres)
-    : m_eye(camera.position), m_pixelsPerRadian(pixelsPerRadian), m_texelMetres(std::max(texelMetres, 1e-9)) {
-    // A pixel at angle α off the optical axis spans at least cos²(α) / ppr radians; α is largest at the corners.
-    const double ty = std::tan(glm::radians(camera.fovYDeg) / 2.0), tx = ty * aspect;
-    m_cornerCos2 = 1.0 / (1.0 + tx * tx + ty * ty);
-}
+CanopyLevelBounds::CanopyLevelBounds(const Camera& camera, double pixelsPerRadian, double texelMetres)
+    : m_eye(camera.position), m_pixelsPerRadian(pixelsPerRadian), m_texelMetres(std::max(texelMetres, 1e-9)) {}
 
 glm::ivec2 CanopyLevelBounds::levels(const glm::dvec3& lo, const glm::dvec3& hi, int clipLevels) const {
     // One level for the whole patch (like a geometry clipmap level, chosen per region rather than per pixel): the
@@ -138,7 +139,7 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
     // Texels a layer's fragment may reach past its patch: the per-layer shift of the top layer, and one.
     const double reach = std::max(std::abs(s.shift.x), std::abs(s.shift.y)) * double(layers) + 1.0;
     const double texelMetres = s.scene ? s.scene->gsd : 1.0;
-    const CanopyLevelBounds levelBounds(camera, aspect, pixelsPerRadian, texelMetres);
+    const CanopyLevelBounds levelBounds(camera, pixelsPerRadian, texelMetres);
     const int clipLevels = canopy.clipLevels();
     const double stackHeight = s.treeHeight - std::clamp(s.crownBase, 0.0, s.treeHeight);
     auto instances = [&](int level, glm::dvec3 lo, glm::dvec3 hi, std::vector<glm::ivec2>& out) {
@@ -161,10 +162,8 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
             if (march) {
                 // Horizontal metres per metre of descent, at most over the box (the eye's lowest elevation angle
                 // to it); rays nearly level with the top reach far, and such patches look at everything.
-                const glm::dvec2 e(camera.position);
-                const double horizontal = glm::length(glm::max(glm::abs(glm::dvec2(lo) - e), glm::abs(glm::dvec2(hi) - e)));
-                const double dz = camera.position.z - (hi.z + s.treeHeight);
-                marchReach = dz > 1e-3 ? std::min(stackHeight * horizontal / dz / texelMetres * 1.25, 1e6) : 1e6;
+                const double descent = lowestElevationTan(camera.position, lo, hi, s.treeHeight);
+                marchReach = descent > 1e-6 ? std::min(stackHeight / descent / texelMetres * 1.25, 1e6) : 1e6;
             }
             top = canopy.maxValueOver(pmin - reach - marchReach, pmax + reach + marchReach, levels.x, levels.y) - 1;
         }

@@ -46,14 +46,12 @@ struct CanopyDrawSettings {
 int canopyPieceLayers(const glm::dvec3& eye, double pixelsPerRadian, const glm::dvec3& lo, const glm::dvec3& hi,
                       const CanopyDrawSettings& settings, int maxLayers);
 
-/// The canopy levels the fragments of a stacked layer over a box (local metres) may read from a camera: the levels
-/// of the pixel footprints possible there, clamped to 0 .. clipLevels (the coarse base). The layer shader clamps its
-/// level to them, so CanopyClipmapGL::maxValueOver over these levels bounds what any fragment of the box reads.
 /// Whether the marched layers draw a patch (box in local metres, z its terrain heights) seen from `eye`: only where
 /// every ray into its stack comes down through it faster than the terrain under it can rise (the tangent of the
 /// lowest elevation angle over the box above the box's height range over its smaller side widened by `heightMargin`
-/// on each side, the metres past the box its heights were taken over, plus 0.05). Rays looking up a slope, along it or level with the crowns would leave the stack through its side,
-/// where no top layer is drawn to march from: such patches are rasterised layer by layer instead.
+/// /// on each side, the metres past the box its heights were taken over, plus 0.05). Rays looking up a slope, along it
+/// or level with the crowns would leave the stack through its side, where no top layer is drawn to march from: such
+/// patches are rasterised layer by layer instead.
 bool canopyPatchMarches(const glm::dvec3& eye, const glm::dvec3& lo, const glm::dvec3& hi, double treeHeight,
                         double heightMargin = 0.0);
 
@@ -63,14 +61,22 @@ enum class CanopyPass {
     Rasterised, // the others (all of them in CanopyDrawMode::Layers), every layer rasterised (after the ground)
 };
 
+/// The tangent of the lowest elevation angle at which `eye` sees the top of a box's stack (local metres, z its
+/// terrain heights, the stack `treeHeight` above them); 0 where the eye is not above it.
+double lowestElevationTan(const glm::dvec3& eye, const glm::dvec3& lo, const glm::dvec3& hi, double treeHeight);
+
+/// The canopy level a stacked layer over a box (local metres) reads, from a camera: one level for the whole box, the
+/// level of the pixel footprint at its centre, clamped to 0 .. clipLevels (the coarse base), returned as (lowest,
+/// highest) = (it, it). The layer shader clamps its level to them, so CanopyClipmapGL::maxValueOver over them bounds
+/// what any fragment of the box reads.
 class CanopyLevelBounds {
 public:
-    CanopyLevelBounds(const Camera& camera, double aspect, double pixelsPerRadian, double texelMetres);
+    CanopyLevelBounds(const Camera& camera, double pixelsPerRadian, double texelMetres);
     glm::ivec2 levels(const glm::dvec3& lo, const glm::dvec3& hi, int clipLevels) const;
 
 private:
     glm::dvec3 m_eye;
-    double m_pixelsPerRadian, m_texelMetres, m_cornerCos2 = 1.0;
+    double m_pixelsPerRadian, m_texelMetres;
 };
 
 class CanopyRendererGL {

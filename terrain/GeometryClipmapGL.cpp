@@ -117,6 +117,16 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
     glTextureParameteri(g->m_localToImage.id(), GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
     glTextureParameteri(g->m_localToImage.id(), GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
 
+    // The vertices of a piece of w × h cells: its grid positions in cells, x fastest (aGrid).
+    auto gridVertices = [](int w, int h) {
+        std::vector<float> v;
+        for (int y = 0; y <= h; ++y)
+            for (int x = 0; x <= w; ++x) {
+                v.push_back(float(x));
+                v.push_back(float(y));
+            }
+        return v;
+    };
     auto upload = [](Mesh& m, const std::vector<float>& v, const std::vector<std::uint32_t>& idx) {
         m.vertices = gl::Buffer::create();
         m.indices = gl::Buffer::create();
@@ -141,13 +151,7 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
                 for (const GridRect& r : levelPieces(*ring, probe, level)) {
                     const auto key = std::make_pair(r.cellsX(), r.cellsY());
                     if (g->m_meshes.count(key)) continue;
-                    std::vector<float> v;
-                    for (int y = 0; y <= r.cellsY(); ++y)
-                        for (int x = 0; x <= r.cellsX(); ++x) {
-                            v.push_back(float(x));
-                            v.push_back(float(y));
-                        }
-                    upload(g->m_meshes[key], v, pieceTriangles(r.cellsX(), r.cellsY()));
+                    upload(g->m_meshes[key], gridVertices(r.cellsX(), r.cellsY()), pieceTriangles(r.cellsX(), r.cellsY()));
                 }
         }
     }
@@ -157,14 +161,8 @@ Result<std::unique_ptr<GeometryClipmapGL>> GeometryClipmapGL::create(const Scene
     glNamedBufferData(g->m_instances.id(), 16, nullptr, GL_STREAM_DRAW);
     for (int h = 1; h <= g->m_options.layerPatchCells; ++h)
         for (int w = 1; w <= g->m_options.layerPatchCells; ++w) {
-            std::vector<float> v;
-            for (int y = 0; y <= h; ++y)
-                for (int x = 0; x <= w; ++x) {
-                    v.push_back(float(x));
-                    v.push_back(float(y));
-                }
             Mesh& m = g->m_patchMeshes[{w, h}];
-            upload(m, v, pieceTriangles(w, h));
+            upload(m, gridVertices(w, h), pieceTriangles(w, h));
             glVertexArrayVertexBuffer(m.vao.id(), 1, g->m_instances.id(), 0, sizeof(glm::ivec4));
             glVertexArrayBindingDivisor(m.vao.id(), 1, 1);
             glEnableVertexArrayAttrib(m.vao.id(), 1);
