@@ -1,8 +1,8 @@
 #pragma once
 // Reads an image in bands of whole rows, tiled or scanline files alike, so memory stays bounded (a band) whatever
-// the image size. Deflate TIFFs (what GeoTiffStreamWriter and most GeoTIFF tools write: unsigned 8/16-bit, RGB or
-// grey, tiled or in strips) are decoded here, the compressed tiles of a band read raw through libtiff and inflated
-// by libdeflate on all cores (about twice zlib's speed); every other file, and any tile that does not decode, goes
+// the image size. Deflate and Zstandard TIFFs (what GeoTiffStreamWriter and most GeoTIFF tools write: unsigned
+// 8/16-bit, RGB or grey, tiled or in strips) are decoded here, the compressed tiles of a band read raw through libtiff
+// and decoded on all cores (libdeflate, about twice zlib's speed; libzstd, five times faster again); every other file, and any tile that does not decode, goes
 // through OpenImageIO: read_tiles for tiled files (its read_scanlines crashes on them in 2.4). Both give the same
 // samples.
 #include "Raster.h"
@@ -27,8 +27,8 @@ public:
     int channels() const { return m_channels; }    // in the file
     int bandRows() const { return m_bandRows; }    // rows per read (the last band may be shorter)
     SampleType type() const { return m_type; }     // as stored (U8, U16, I16, F32)
-    /// Whether reads of the stored sample type are decoded by libdeflate here (else by OpenImageIO).
-    bool decodesDeflateItself() const;
+    /// Whether reads of the stored sample type are decoded here by libdeflate or libzstd (else by OpenImageIO).
+    bool decodesTilesItself() const;
 
     /// Reads rows [y0, y1) (y0 a multiple of bandRows(), y1 - y0 <= bandRows()) of channels [0, channels) as
     /// 8-bit (`type` U8) or 16-bit (U16) interleaved samples into `out`. Errors name the file. Not thread-safe:

@@ -5,6 +5,7 @@
 #include "TiffSupport.h"
 
 #include <libdeflate.h>
+#include <zstd.h>
 
 #include <algorithm>
 #include <bit>
@@ -57,12 +58,16 @@ void floatingPointDiff(std::uint8_t* row, size_t bytes, size_t stride, std::vect
 
 struct CompressorDeleter {
     void operator()(libdeflate_compressor* c) const { libdeflate_free_compressor(c); }
+    void operator()(ZSTD_CCtx* c) const { ZSTD_freeCCtx(c); }
 };
 
 } // namespace
 
 struct GeoTiffStreamWriter::Encoder {
-    std::vector<std::unique_ptr<libdeflate_compressor, CompressorDeleter>> compressors; // per thread
+    TiffCompression compression = TiffCompression::Deflate;
+    int zstdLevel = 1;
+    std::vector<std::unique_ptr<libdeflate_compressor, CompressorDeleter>> compressors; // per thread (deflate)
+    std::vector<std::unique_ptr<ZSTD_CCtx, CompressorDeleter>> zstd;                     // per thread (zstd)
     std::vector<std::vector<std::uint8_t>> block, planes;                                 // per thread
     std::vector<std::vector<std::uint8_t>> compressed; // per block of a chunk, in order, reused across block rows
 };
@@ -111,7 +116,10 @@ Result<GeoTiffStreamWriter> GeoTiffStreamWriter::open(const std::filesystem::pat
         std::uint16_t extra = EXTRASAMPLE_UNASSALPHA;
         TIFFSetField(t, TIFFTAG_EXTRASAMPLES, std::uint16_t(1), &extra);
     }
-    TIFFSetField(t, TIFFTAG_COMPRESSION, COMPRESSION_ADOBE_DEFLATE);
+    // The tiles are compressed here and written raw: a ZSTD tile is one Zstandard frame, as libtiff's codec
+    // (tif_zstd.c) writes and reads it; a deflate tile one zlib stream.
+    TIFFSetField(t, TIFFTAG_COMPRESSION,
+                 options.compression == TiffCompression::Zstd ? COMPRESSION_ZSTD : COMPRESSION_ADOBE_DEFLATE);
     TIFFSetField(t, TIFFTAG_PREDICTOR, type == SampleType::F32 ? PREDICTOR_FLOATINGPOINT : PREDICTOR_HORIZONTAL);
     if (georef && !tiff::writeGeoTags(t, *georef, options.nodata)) return w.fail("cannot write GeoTIFF keys").error();
     if (w.m_tiled) {
@@ -124,9 +132,17 @@ Result<GeoTiffStreamWriter> GeoTiffStreamWriter::open(const std::filesystem::pat
     w.m_encoder = std::make_unique<Encoder>();
     const size_t blockBytes =
         size_t(w.m_blockWidth) * size_t(w.m_blockHeight) * size_t(channels) * size_t(w.m_sampleBytes);
+    w.m_encoder->compression = options.compression;
+    w.m_encoder->zstdLevel = std::clamp(options.zstdLevel, 1, ZSTD_maxCLevel());
     for (int i = 0; i < w.m_threads; ++i) {
-        w.m_encoder->compressors.emplace_back(libdeflate_alloc_compressor(std::clamp(options.deflateLevel, 1, 12)));
-        if (!w.m_encoder->compressors.back()) return w.fail("out of memory for the compressor").error();
+        if (options.compression == TiffCompression::Zstd) {
+            w.m_encoder->zstd.emplace_back(ZSTD_createCCtx());
+            if (!w.m_encoder->zstd.back()) return w.fail("out of memory for the compressor").error();
+        } else {
+            w.m_encoder->compressors.emplace_back(
+                libdeflate_alloc_compressor(std::clamp(options.deflateLevel, 1, 12)));
+            if (!w.m_encoder->compressors.back()) return w.fail("out of memory for the compressor").error();
+        }
         w.m_encoder->block.emplace_back(blockBytes);
         w.m_encoder->planes.emplace_back();
     }
@@ -238,10 +254,17 @@ Status GeoTiffStreamWriter::encodeBlockRow(const std::uint8_t* rows, int y0, int
                     break;
                 }
             }
-            libdeflate_compressor* c = enc.compressors[size_t(worker)].get();
             std::vector<std::uint8_t>& out = enc.compressed[size_t(i)];
-            out.resize(libdeflate_zlib_compress_bound(c, blockBytes));
-            out.resize(libdeflate_zlib_compress(c, block, blockBytes, out.data(), out.size()));
+            if (enc.compression == TiffCompression::Zstd) {
+                out.resize(ZSTD_compressBound(blockBytes));
+                const size_t n = ZSTD_compressCCtx(enc.zstd[size_t(worker)].get(), out.data(), out.size(), block,
+                                                   blockBytes, enc.zstdLevel);
+                out.resize(ZSTD_isError(n) ? 0 : n); // empty: reported as a write failure below
+            } else {
+                libdeflate_compressor* c = enc.compressors[size_t(worker)].get();
+                out.resize(libdeflate_zlib_compress_bound(c, blockBytes));
+                out.resize(libdeflate_zlib_compress(c, block, blockBytes, out.data(), out.size()));
+            }
         });
         for (int i = 0; i < count; ++i) {
             std::vector<std::uint8_t>& out = enc.compressed[size_t(i)];

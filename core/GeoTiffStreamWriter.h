@@ -1,7 +1,8 @@
 #pragma once
-// Streams a raster into a deflate-compressed TIFF (tiled, or in strips of 16 rows), optionally georeferenced, in
-// bounded memory: the caller hands over rows top to bottom in any amounts, the writer compresses each complete row
-// of tiles on several threads (libdeflate, TIFF predictor) and libtiff writes the tiles in order as raw tiles.
+// Streams a raster into a deflate- or Zstandard-compressed TIFF (tiled, or in strips of 16 rows), optionally
+// georeferenced, in bounded memory: the caller hands over rows top to bottom in any amounts, the writer compresses
+// each complete row of tiles on several threads (libdeflate or libzstd, TIFF predictor) and libtiff writes the tiles
+// in order as raw tiles.
 // Written to a temporary name next to the target and renamed by finish(), so a failed or abandoned file never
 // appears under its final name. The bytes depend only on the pixels and the options, not on how rows are split
 // between writeRows() calls or on the thread count. Used by writeGeoTiff, the synthetic scene generator and the

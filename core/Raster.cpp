@@ -198,6 +198,8 @@ Result<Image<float>> readImageF32(const std::filesystem::path& path, int maxChan
     return readPixels<float>(path, maxChannels, OIIO::TypeDesc::FLOAT);
 }
 
+const char* tiffCompressionName(TiffCompression c) { return c == TiffCompression::Zstd ? "zstd" : "deflate"; }
+
 Status writeGeoTiff(const std::filesystem::path& path, const void* data, SampleType type, int width, int height,
                     int channels, const Georef& georef, const GeoTiffWriteOptions& options) {
     assert(width > 0 && height > 0 && channels > 0 && "writeGeoTiff(): empty raster");

@@ -1,5 +1,5 @@
-// BandReader: the deflate TIFFs it decodes itself (libdeflate) give exactly the samples OpenImageIO gives, tiled or
-// in strips, 8- or 16-bit, RGB or grey, whole or some channels, any band height; the layouts it leaves to
+// BandReader: the deflate and Zstandard TIFFs it decodes itself (libdeflate, libzstd) give exactly the samples
+// OpenImageIO (libtiff's own codecs) gives, tiled or in strips, 8- or 16-bit, RGB or grey, whole or some channels, any band height; the layouts it leaves to
 // OpenImageIO still read; damaged tiles are one error naming the file.
 #include "BandReader.h"
 #include "Raster.h"
@@ -40,7 +40,7 @@ std::vector<T> readBands(const fs::path& path, int preferredRows, int channels, 
     auto r = BandReader::open(path, preferredRows);
     EXPECT_TRUE(r.ok()) << r.message();
     if (!r) return {};
-    EXPECT_EQ(r->decodesDeflateItself(), expectOwnDecoder) << path;
+    EXPECT_EQ(r->decodesTilesItself(), expectOwnDecoder) << path;
     std::vector<T> out(size_t(r->width()) * size_t(r->height()) * size_t(channels));
     for (int y = 0; y < r->height(); y += r->bandRows()) {
         const int y1 = std::min(r->height(), y + r->bandRows());
@@ -63,19 +63,23 @@ template <typename T> std::vector<T> readWhole(const fs::path& path, int channel
     }
 }
 
-template <typename T> void expectSameAsOiio(const fs::path& dir, int w, int h, int channels, int tile) {
+template <typename T>
+void expectSameAsOiio(const fs::path& dir, int w, int h, int channels, int tile,
+                      TiffCompression compression = TiffCompression::Deflate) {
     const SampleType type = sizeof(T) == 1 ? SampleType::U8 : SampleType::U16;
     const std::vector<T> data = pattern<T>(w, h, channels, unsigned(w * 7 + channels));
     GeoTiffWriteOptions o;
     o.tileSize = tile;
-    const fs::path path = dir / ("img_" + std::to_string(channels) + "_" + std::to_string(tile) + ".tif");
+    o.compression = compression;
+    const fs::path path = dir / ("img_" + std::to_string(channels) + "_" + std::to_string(tile) + "_" +
+                                 tiffCompressionName(compression) + ".tif");
     ASSERT_TRUE(writeGeoTiff(path, data.data(), type, w, h, channels, testGeoref(), o).ok());
     // 2 and 4 channels carry unassociated alpha, which OpenImageIO premultiplies: those stay with it.
     const bool own = channels == 1 || channels == 3;
     for (int wanted = 1; wanted <= channels; ++wanted) {
         const std::vector<T> whole = readWhole<T>(path, wanted);
         for (int rows : {1, 16, 50, 256, 1000}) {
-            SCOPED_TRACE("channels " + std::to_string(wanted) + " of " + std::to_string(channels) + ", tile " +
+            SCOPED_TRACE(std::string(tiffCompressionName(compression)) + ", " +"channels " + std::to_string(wanted) + " of " + std::to_string(channels) + ", tile " +
                          std::to_string(tile) + ", bands of " + std::to_string(rows));
             EXPECT_TRUE(readBands<T>(path, rows, wanted, own) == whole);
         }
@@ -96,6 +100,18 @@ TEST(BandReaderTest, OwnDeflateDecoderEqualsOpenImageIo) {
     expectSameAsOiio<std::uint8_t>(dir.path(), 1, 1, 3, 16);    // one pixel, one mostly empty tile
 }
 
+TEST(BandReaderTest, OwnZstdDecoderEqualsOpenImageIo) {
+    TempDir dir("bandreader-zstd");
+    constexpr TiffCompression zstd = TiffCompression::Zstd;
+    for (int tile : {0, 64, 256}) {
+        expectSameAsOiio<std::uint8_t>(dir.path(), 301, 197, 3, tile, zstd);
+        expectSameAsOiio<std::uint8_t>(dir.path(), 301, 197, 1, tile, zstd);
+        expectSameAsOiio<std::uint16_t>(dir.path(), 301, 197, 3, tile, zstd);
+    }
+    expectSameAsOiio<std::uint8_t>(dir.path(), 100, 90, 4, 64, zstd);
+    expectSameAsOiio<std::uint8_t>(dir.path(), 1, 1, 3, 16, zstd);
+}
+
 TEST(BandReaderTest, OtherFormatsStillReadThroughOpenImageIo) {
     TempDir dir("bandreader-other");
     const std::vector<std::uint8_t> grey = pattern<std::uint8_t>(77, 45, 1, 3);
@@ -112,25 +128,30 @@ TEST(BandReaderTest, OtherFormatsStillReadThroughOpenImageIo) {
 }
 
 TEST(BandReaderTest, DamagedTilesAreOneLineNamingTheFile) {
-    TempDir dir("bandreader-damaged");
-    const int w = 512, h = 512;
-    const std::vector<std::uint8_t> rgb = pattern<std::uint8_t>(w, h, 3, 5);
-    const fs::path path = dir / "a.tif";
-    ASSERT_TRUE(writeGeoTiff(path, rgb.data(), SampleType::U8, w, h, 3, testGeoref()).ok());
-    const std::string bytes = readBytes(path);
-    std::string garbled = bytes; // the directory (at the end) intact, tile data in the middle garbled
-    for (size_t i = bytes.size() / 4; i < bytes.size() / 2; ++i) garbled[i] = char(i * 13);
-    std::ofstream(path, std::ios::binary | std::ios::trunc) << garbled;
-    auto r = BandReader::open(path, 256);
-    ASSERT_TRUE(r.ok()) << r.message();
-    std::vector<std::uint8_t> out(size_t(w) * 256 * 3);
-    bool failed = false;
-    for (int y = 0; y < h; y += 256) {
-        const Status st = r->read(y, y + 256, 3, SampleType::U8, out.data());
-        if (st) continue;
-        failed = true;
-        EXPECT_EQ(st.message().rfind(path.string() + ": ", 0), 0u) << st.message();
-        EXPECT_EQ(st.message().find('\n'), std::string::npos) << st.message();
+    for (TiffCompression compression : {TiffCompression::Deflate, TiffCompression::Zstd}) {
+        SCOPED_TRACE(tiffCompressionName(compression));
+        TempDir dir("bandreader-damaged");
+        const int w = 512, h = 512;
+        const std::vector<std::uint8_t> rgb = pattern<std::uint8_t>(w, h, 3, 5);
+        const fs::path path = dir / "a.tif";
+        GeoTiffWriteOptions o;
+        o.compression = compression;
+        ASSERT_TRUE(writeGeoTiff(path, rgb.data(), SampleType::U8, w, h, 3, testGeoref(), o).ok());
+        const std::string bytes = readBytes(path);
+        std::string garbled = bytes; // the directory (at the end) intact, tile data in the middle garbled
+        for (size_t i = bytes.size() / 4; i < bytes.size() / 2; ++i) garbled[i] = char(i * 13);
+        std::ofstream(path, std::ios::binary | std::ios::trunc) << garbled;
+        auto r = BandReader::open(path, 256);
+        ASSERT_TRUE(r.ok()) << r.message();
+        std::vector<std::uint8_t> out(size_t(w) * 256 * 3);
+        bool failed = false;
+        for (int y = 0; y < h; y += 256) {
+            const Status st = r->read(y, y + 256, 3, SampleType::U8, out.data());
+            if (st) continue;
+            failed = true;
+            EXPECT_EQ(st.message().rfind(path.string() + ": ", 0), 0u) << st.message();
+            EXPECT_EQ(st.message().find('\n'), std::string::npos) << st.message();
+        }
+        EXPECT_TRUE(failed) << "garbled tiles must not read as pixels";
     }
-    EXPECT_TRUE(failed) << "garbled tiles must not read as pixels";
 }

@@ -4,6 +4,7 @@
 #include "Raster.h"
 #include "TestUtil.h"
 
+#include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -84,21 +85,30 @@ TEST(GeoTiffStreamWriterTest, RoundTripTiledRgbWithGeoref) {
 }
 
 TEST(GeoTiffStreamWriterTest, BytesDoNotDependOnRowBatchesOrThreads) {
-    TempDir dir("gtsw-bytes");
-    const int w = 200, h = 150;
-    const auto px = testRgb(w, h);
-    GeoTiffWriteOptions one;
-    one.tileSize = 32;
-    one.threads = 1;
-    GeoTiffWriteOptions three = one;
-    three.threads = 3;
-    writeInBatches(dir / "whole.tif", px, w, h, 3, SampleType::U8, testGeoref(), one, {h});
-    writeInBatches(dir / "rows.tif", px, w, h, 3, SampleType::U8, testGeoref(), three, {1, 7, 32, 45});
-    ASSERT_TRUE(writeGeoTiff(dir / "writeGeoTiff.tif", px.data(), SampleType::U8, w, h, 3, testGeoref(), one).ok());
-    const std::string whole = readBytes(dir / "whole.tif");
-    EXPECT_FALSE(whole.empty());
-    EXPECT_TRUE(whole == readBytes(dir / "rows.tif"));
-    EXPECT_TRUE(whole == readBytes(dir / "writeGeoTiff.tif"));
+    for (TiffCompression compression : {TiffCompression::Deflate, TiffCompression::Zstd}) {
+        SCOPED_TRACE(tiffCompressionName(compression));
+        TempDir dir("gtsw-bytes");
+        const int w = 200, h = 150;
+        const auto px = testRgb(w, h);
+        GeoTiffWriteOptions one;
+        one.tileSize = 32;
+        one.threads = 1;
+        one.compression = compression;
+        GeoTiffWriteOptions three = one;
+        three.threads = 3;
+        writeInBatches(dir / "whole.tif", px, w, h, 3, SampleType::U8, testGeoref(), one, {h});
+        writeInBatches(dir / "rows.tif", px, w, h, 3, SampleType::U8, testGeoref(), three, {1, 7, 32, 45});
+        ASSERT_TRUE(writeGeoTiff(dir / "writeGeoTiff.tif", px.data(), SampleType::U8, w, h, 3, testGeoref(), one).ok());
+        const std::string whole = readBytes(dir / "whole.tif");
+        EXPECT_FALSE(whole.empty());
+        EXPECT_TRUE(whole == readBytes(dir / "rows.tif"));
+        EXPECT_TRUE(whole == readBytes(dir / "writeGeoTiff.tif"));
+        // Tagged with the codec that compressed it, so that any libtiff reader decodes it.
+        auto in = OIIO::ImageInput::open((dir / "whole.tif").string());
+        ASSERT_TRUE(in);
+        EXPECT_EQ(in->spec().get_int_attribute("tiff:Compression"),
+                  compression == TiffCompression::Zstd ? 50000 /* COMPRESSION_ZSTD */ : 8 /* ADOBE_DEFLATE */);
+    }
 }
 
 TEST(GeoTiffStreamWriterTest, SampleTypesAndStripsRoundTrip) {
@@ -112,11 +122,15 @@ TEST(GeoTiffStreamWriterTest, SampleTypesAndStripsRoundTrip) {
     for (size_t i = 0; i < f32.size(); ++i) f32[i] = 250.0f + 40.0f * std::sin(float(i) * 0.37f) + float(i) * 1e-3f;
     f32[3] = std::numeric_limits<float>::quiet_NaN();
     f32[4] = -9999.0f;
-    for (int tile : {16, 0}) {
+    for (int round = 0; round < 4; ++round) { // tiled and strips with deflate, then with Zstandard
+        const int tile = round % 2 ? 0 : 16;
+        const TiffCompression compression = round < 2 ? TiffCompression::Deflate : TiffCompression::Zstd;
         GeoTiffWriteOptions o;
         o.tileSize = tile;
         o.nodata = -9999.0;
-        const std::string suffix = tile ? "-tiled.tif" : "-strips.tif";
+        o.compression = compression;
+        const std::string suffix =
+            std::string("-") + tiffCompressionName(compression) + (tile ? "-tiled.tif" : "-strips.tif");
         writeInBatches(dir / ("u16" + suffix), u16, w, h, 3, SampleType::U16, testGeoref(), o, {5, 16});
         writeInBatches(dir / ("i16" + suffix), i16, w, h, 1, SampleType::I16, testGeoref(), o, {3});
         writeInBatches(dir / ("f32" + suffix), f32, w, h, 1, SampleType::F32, testGeoref(), o, {h});
