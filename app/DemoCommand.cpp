@@ -42,7 +42,8 @@ bool cachedSceneMatches(const std::filesystem::path& dir, const SynthOptions& o)
     const auto& g = j["generator"];
     return g.value("version", 0) == kSynthGeneratorVersion && g.value("seed", std::uint64_t(0)) == o.seed &&
            g.value("size_m", 0.0) == o.sizeM &&
-           g.value("gsd", 0.0) == o.gsd && g.value("dem", std::string()) == o.dem.string();
+           g.value("gsd", 0.0) == o.gsd && g.value("dem", std::string()) == o.dem.string() &&
+           g.value("compression", std::string("deflate")) == tiffCompressionName(o.compression);
 }
 
 // One method of the demo's offline segmentation.

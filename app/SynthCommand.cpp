@@ -49,7 +49,7 @@ Result<SynthOptions> loadSynthPreset(const std::filesystem::path& path) {
 Runner addSynthCommand(CLI::App& app) {
     struct Args {
         SynthOptions o;
-        std::string out, dem, preset, facades, centre;
+        std::string out, dem, preset, facades, centre, compression = "zstd";
         bool noCity = false;
     };
     auto args = std::make_shared<Args>();
@@ -84,6 +84,11 @@ Runner addSynthCommand(CLI::App& app) {
     cmd->add_option("--centre", args->centre,
                     "LON,LAT (degrees) of the scene's centre, on its UTM zone's grid (e.g. under a real city model); "
                     "default near Münster, or the --dem's centre");
+    cmd->add_option("--compression", args->compression,
+                    "Imagery GeoTIFF compression: zstd (decodes five times faster) or deflate (for readers without "
+                    "Zstandard)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"zstd", "deflate"}));
     return [args, cmd]() -> int {
         if (!args->preset.empty()) {
             auto preset = loadSynthPreset(args->preset);
@@ -109,6 +114,7 @@ Runner addSynthCommand(CLI::App& app) {
             args->o.centreLonLat = glm::dvec2(lon, lat);
         }
         args->o.city = !args->noCity;
+        args->o.compression = args->compression == "deflate" ? TiffCompression::Deflate : TiffCompression::Zstd;
         const double pixels = args->o.sizeM / args->o.gsd;
         if (pixels > double(kMaxSynthPixels)) {
             std::fprintf(stderr, "seasonview synth: --size-m/--gsd gives %.0f pixels per side (max %d)\n", pixels,

@@ -84,7 +84,8 @@ Status writeTreesCsv(const std::filesystem::path& path, const Objects& o, float 
 // decode whole images), tiled 8-bit GeoTIFFs beyond.
 class TruthWriters {
 public:
-    Status open(const std::filesystem::path& dir, int size, int pngUpTo, const Georef& georef, int threads) {
+    Status open(const std::filesystem::path& dir, int size, int pngUpTo, const Georef& georef, int threads,
+                TiffCompression compression) {
         m_png = size <= pngUpTo;
         for (int k = 0; k < 2; ++k) {
             std::error_code ec; // a mask in the other format from an earlier run would contradict scene.json
@@ -97,6 +98,7 @@ public:
             } else {
                 GeoTiffWriteOptions options;
                 options.threads = threads;
+                options.compression = compression;
                 auto w = GeoTiffStreamWriter::open(path, size, size, 1, SampleType::U8, georef, options);
                 if (!w) return w.error();
                 m_tiffs[k] = std::move(*w);
@@ -256,13 +258,15 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
     for (int s = 0; s < 2; ++s) {
         GeoTiffWriteOptions o;
         o.threads = threads;
+        o.compression = options.compression;
         auto w = GeoTiffStreamWriter::open(outDir / (looks[s].leafOn ? "leafon.tif" : "leafoff.tif"), size, size, 3,
                                            SampleType::U8, georef, o);
         if (!w) return w.error();
         imagery[s] = std::move(*w);
     }
     TruthWriters truth;
-    if (auto st = truth.open(outDir, size, options.pngMasksUpTo, georef, threads); !st) return st.error();
+    if (auto st = truth.open(outDir, size, options.pngMasksUpTo, georef, threads, options.compression); !st)
+        return st.error();
 
     std::vector<std::uint32_t> ground;
     std::vector<std::uint8_t> shadow, rgb, masks[2];
@@ -348,6 +352,7 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
     j["parameters"] = {{"tree_height_m", std::round(meanHeight * 100.0) / 100.0}};
     j["generator"] = {{"program", "seasonview synth"}, {"version", kSynthGeneratorVersion},      {"seed", options.seed},
                       {"size_m", options.sizeM},       {"gsd", options.gsd}, {"dem", options.dem.string()}};
+    j["generator"]["compression"] = tiffCompressionName(options.compression);
     if (options.blockCity > 0) j["generator"]["block_city"] = options.blockCity;
     if (options.centreLonLat) j["generator"]["centre_lonlat"] = {options.centreLonLat->x, options.centreLonLat->y};
     std::string err;

@@ -1,5 +1,6 @@
 #pragma once
 // Deterministic synthetic two-season landscape with ground truth (`seasonview synth`).
+#include "Raster.h"
 #include "Result.h"
 
 #include <cstdint>
@@ -42,6 +43,8 @@ struct SynthOptions {
     std::filesystem::path facadePhotos; // facade photo folder for the city's textures (empty: procedural facades)
     int facadeSize = 256;              // facade texture side, texels
     int blockCity = 0;                 // > 0: a block city of this many buildings at the centre (placeBlockCity)
+    TiffCompression compression = TiffCompression::Zstd; // of the imagery and truth GeoTIFFs (Deflate: for readers
+                                                         // without Zstandard; decodes five times slower)
 };
 
 /// What was generated, for the CLI summary.

@@ -137,7 +137,7 @@ TEST(ImagePyramidTest, SixteenBitLevelZeroIsTheStretchApplied) {
     expectBoxAverage(*l0, *l1);
 }
 
-TEST(ImagePyramidTest, TilesAre256Squared) {
+TEST(ImagePyramidTest, TilesAre256SquaredZstd) {
     TempDir dir("pyramid-tiles");
     writeTestImage(dir / "a.tif", 700, 300, testGeoref(), false, 3);
     const PrepareReport r = prepareOk(layerOf(dir / "a.tif", dir / "cache"), dir / "cache");
@@ -147,7 +147,8 @@ TEST(ImagePyramidTest, TilesAre256Squared) {
         ASSERT_TRUE(in) << l.file;
         EXPECT_EQ(in->spec().tile_width, 256);
         EXPECT_EQ(in->spec().tile_height, 256);
-        EXPECT_EQ(in->spec().get_string_attribute("compression"), "zip");
+        // Zstandard (OpenImageIO 2.4 has no name for it): the loader decodes it five times faster than deflate.
+        EXPECT_EQ(in->spec().get_int_attribute("tiff:Compression"), 50000);
     }
 }
 

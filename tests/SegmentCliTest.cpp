@@ -296,3 +296,32 @@ TEST(SegmentCliSynthTest, TinySceneScoredAgainstItsTruth) {
     }
     EXPECT_EQ(rows, m["crowns"].get<int>());
 }
+
+// synth writes Zstandard GeoTIFFs unless told deflate: other bytes, the same pixels, so the same mask from segment;
+// the manifest records the choice, and an unknown codec is refused.
+TEST(SegmentCliSynthTest, ZstandardAndDeflateScenesSegmentAlike) {
+    TempDir dir("segment-compression");
+    const std::string preset = std::string(SEASONVIEW_SOURCE_DIR) + "/data/presets/tiny.json";
+    ASSERT_EQ(runCli({"synth", "--preset", preset, "--no-city", "--out", (dir / "z").string()}).exitCode, 0);
+    ASSERT_EQ(runCli({"synth", "--preset", preset, "--no-city", "--compression", "deflate", "--out",
+                      (dir / "d").string()})
+                  .exitCode,
+              0);
+    EXPECT_EQ(readJson(dir / "z/scene.json")["generator"]["compression"], "zstd");
+    EXPECT_EQ(readJson(dir / "d/scene.json")["generator"]["compression"], "deflate");
+    EXPECT_FALSE(readBytes(dir / "z/leafon.tif") == readBytes(dir / "d/leafon.tif"));
+    auto z = readImageU8(dir / "z/leafon.tif", 3), d = readImageU8(dir / "d/leafon.tif", 3);
+    ASSERT_TRUE(z.ok() && d.ok());
+    EXPECT_TRUE(z->pixels == d->pixels);
+    for (const char* s : {"z", "d"}) {
+        const std::filesystem::path scene = dir / s;
+        const CliResult r = runCli({"segment", "--leafon", (scene / "leafon.tif").string(), "--leafoff",
+                                    (scene / "leafoff.tif").string(), "--out", (scene / "mask.png").string()});
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+    }
+    EXPECT_TRUE(readBytes(dir / "z/mask.png") == readBytes(dir / "d/mask.png"));
+    const CliResult bad = runCli({"synth", "--preset", preset, "--compression", "lzw", "--out", (dir / "x").string()});
+    EXPECT_NE(bad.exitCode, 0);
+    EXPECT_NE(bad.err.find("--compression"), std::string::npos) << bad.err;
+    EXPECT_FALSE(std::filesystem::exists(dir / "x/leafon.tif"));
+}
