@@ -56,6 +56,7 @@ struct Mode {
     bool terrainOnly = false;     // scene=terrain: the relief alone (geometry, no imagery, no canopy)
     std::optional<CanopyDrawMode> canopyDraw; // canopy-draw=...: this mode's way of drawing the layers
     std::optional<city::CityMode> cityMode; // the city model drawn after the terrain (nullopt: none)
+    city::AtlasUpload cityUpload = city::AtlasUpload::Auto;
     std::unique_ptr<city::CityRendererGL> city;
     std::unique_ptr<ClipmapGL> clipmap;
     std::unique_ptr<CanopyClipmapGL> canopy;
@@ -109,6 +110,8 @@ nlohmann::json cityFigures(const Mode& m) {
         coarser.push_back(r.city.coarserThanWanted);
     }
     return {{"mode", city::cityModeName(*m.cityMode)},
+            {"upload", city::atlasUploadName(m.cityUpload)},
+            {"atlases_decoded", m.city->decodesAtlases()},
             {"atlas_nodes", figure(nodes)},
             {"texture_binds", figure(binds)},
             {"draw_calls", figure(calls)},
@@ -139,6 +142,9 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
             m.cityMode = city::parseCityMode(a.city);
             if (!m.cityMode) return Error{"--city '" + a.city + "': expected atlas|original|flat|off"};
         }
+        auto upload = city::parseAtlasUpload(a.cityUpload);
+        if (!upload) return Error{"--city-upload '" + a.cityUpload + "': expected auto|compressed|decoded"};
+        m.cityUpload = *upload;
         return m;
     };
     if (a.compare.empty()) {
@@ -152,11 +158,12 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     const size_t eq = a.compare.find('=');
     const std::string key = a.compare.substr(0, eq);
     if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso" && key != "canopy" &&
-                                    key != "canopy-draw" && key != "segmentation" && key != "scene" && key != "city"))
+                                    key != "canopy-draw" && key != "segmentation" && key != "scene" && key != "city" &&
+                                    key != "city-upload"))
         return Error{"--compare '" + a.compare +
                      "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
                      "canopy-draw=layers,march, segmentation=upload,perframe, scene=terrain,full or "
-                     "city=atlas,original,flat,off"};
+                     "city=atlas,original,flat,off or city-upload=compressed,decoded"};
     std::stringstream list(a.compare.substr(eq + 1));
     std::string v;
     while (std::getline(list, v, ',')) {
@@ -209,6 +216,12 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
                 m->cityMode = city::parseCityMode(v);
                 if (!m->cityMode) return Error{"--compare: city '" + v + "' (expected atlas|original|flat|off)"};
             }
+        } else if (key == "city-upload") {
+            // The atlas city (or --city's mode) with its BC atlases uploaded each way.
+            auto u = city::parseAtlasUpload(v);
+            if (!u) return Error{"--compare: city-upload '" + v + "' (expected auto|compressed|decoded)"};
+            if (!m->cityMode) m->cityMode = city::CityMode::Atlas;
+            m->cityUpload = *u;
         } else if (key == "segmentation") {
             if (v != "upload" && v != "perframe")
                 return Error{"--compare: segmentation '" + v + "' (expected upload|perframe)"};
@@ -359,6 +372,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         cs.capacityBytes = std::uint64_t(std::max(1.0, a->cityCapacityMb) * 1048576.0);
         cs.tpp = a->cityTpp;
         cs.anisotropy = m.anisotropy;
+        cs.upload = m.cityUpload;
         cs.season = *view == ImageryView::LeafOff ? 1 : 0;
         auto c = city::CityRendererGL::create(*scene, cityTree.string(), cs);
         if (!c)
@@ -533,6 +547,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
           {"canopy_draw", a->canopyDraw},
           {"ground_under_canopy", a->groundUnder},
           {"ground_elsewhere", a->groundElsewhere},
+          {"city_upload", a->cityUpload},
           {"tree_height_m", scene->sources.treeHeightM}}},
         {"wall_seconds", seconds}};
     nlohmann::json compare = nlohmann::json::array();

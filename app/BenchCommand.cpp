@@ -64,6 +64,10 @@ Runner addBenchCommand(CLI::App& app) {
     cmd->add_option("--city-tree", a->b.cityTree, "Atlas tree file (default: built from the scene's buildings into the cache)");
     cmd->add_option("--city-capacity", a->b.cityCapacityMb, "City: resident atlases and textures, MB")->capture_default_str();
     cmd->add_option("--city-tpp", a->b.cityTpp, "City: pixels per texel allowed")->capture_default_str();
+    cmd->add_option("--city-upload", a->b.cityUpload,
+                    "City: BC atlases uploaded compressed, decoded (RGB8), or auto (decoded on software rasterisers)")
+        ->check(CLI::IsMember({"auto", "compressed", "decoded"}))
+        ->capture_default_str();
     return [a]() -> int {
         auto fail = [](const std::string& m) {
             std::fprintf(stderr, "seasonview bench: %s\n", m.c_str());

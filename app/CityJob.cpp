@@ -19,6 +19,10 @@ void CityArgs::addTo(CLI::App& cmd) {
     cmd.add_option("--city-tree", tree, "Atlas tree file to draw (default: built from the scene's buildings into the cache)");
     cmd.add_option("--city-capacity", capacityMb, "Resident atlases and original textures, MB")->capture_default_str();
     cmd.add_option("--city-tpp", tpp, "City: pixels per texel allowed (larger: coarser atlases)")->capture_default_str();
+    cmd.add_option("--city-upload", upload,
+                   "City: BC atlases uploaded compressed, decoded (RGB8), or auto (decoded on software rasterisers)")
+        ->check(CLI::IsMember({"auto", "compressed", "decoded"}))
+        ->capture_default_str();
 }
 
 Result<std::optional<city::CitySettings>> CityArgs::settings() const {
@@ -29,6 +33,7 @@ Result<std::optional<city::CitySettings>> CityArgs::settings() const {
     s.mode = *city::parseCityMode(mode);
     s.capacityBytes = std::uint64_t(capacityMb * 1048576.0);
     s.tpp = tpp;
+    s.upload = city::parseAtlasUpload(upload).value_or(city::AtlasUpload::Auto);
     return std::optional<city::CitySettings>(s);
 }
 

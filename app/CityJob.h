@@ -18,6 +18,7 @@ struct CityArgs {
     std::string tree;         // an atlas tree file; empty: the scene's buildings, built into the cache
     double capacityMb = 256.0;
     double tpp = 1.0;
+    std::string upload = "auto"; // BC atlases: auto | compressed | decoded
     void addTo(CLI::App& cmd);
     /// The renderer settings, nullopt for `off`; errors name the flag.
     Result<std::optional<city::CitySettings>> settings() const;

@@ -27,8 +27,10 @@ std::uint64_t AtlasPager::blockBytes(const BlockKey& key) const {
         const AtlasTreeData& t = m_file.trees[std::size_t(m_tree)];
         const int size = m_file.info.atlasSize;
         std::uint64_t n = 0;
-        // Deflate atlases are uploaded decoded (RGB(A)8 with the stored mips), BC ones as they are.
-        for (int l = 0; l < atlasLevels(size); ++l) n += atlasLevelBytes(m_file.info.format, t.alpha, size, l);
+        // Deflate atlases are uploaded decoded (RGB(A)8 with the stored mips), BC ones as they are unless the
+        // renderer decodes them (CityRendererGL: software rasterisers, no S3TC).
+        const AtlasFormat uploaded = m_settings.decodedAtlases ? AtlasFormat::Deflate : m_file.info.format;
+        for (int l = 0; l < atlasLevels(size); ++l) n += atlasLevelBytes(uploaded, t.alpha, size, l);
         return n;
     }
     const glm::ivec2 s = m_file.textureSizes[key.index];

@@ -28,6 +28,7 @@ struct PagerSettings {
     int queueLength = 8;                            // blocks requested from the loader at a time
     std::uint64_t uploadBytesPerFrame = 8ull << 20; // handed out for upload per frame (at least one block)
     bool threaded = true;                           // false: loads run inside update() (tests, stills)
+    bool decodedAtlases = false;                    // BC atlases uploaded decoded: counted as RGB(A)8 bytes
 };
 
 /// A loaded block: an atlas's stored blob, or an original texture's RGBA8 level 0 (rows bottom-up).

@@ -32,6 +32,28 @@ const char* cityModeName(CityMode m) {
     return "?";
 }
 
+std::optional<AtlasUpload> parseAtlasUpload(const std::string& name) {
+    if (name == "auto") return AtlasUpload::Auto;
+    if (name == "compressed") return AtlasUpload::Compressed;
+    if (name == "decoded") return AtlasUpload::Decoded;
+    return std::nullopt;
+}
+
+const char* atlasUploadName(AtlasUpload u) {
+    switch (u) {
+    case AtlasUpload::Auto: return "auto";
+    case AtlasUpload::Compressed: return "compressed";
+    case AtlasUpload::Decoded: return "decoded";
+    }
+    return "?";
+}
+
+bool isSoftwareRenderer(const std::string& glRenderer) {
+    for (const char* name : {"llvmpipe", "softpipe", "SwiftShader"})
+        if (glRenderer.find(name) != std::string::npos) return true;
+    return false;
+}
+
 namespace {
 
 constexpr glm::vec3 kPlainColour{0.72f, 0.70f, 0.66f};
@@ -129,7 +151,14 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
         if (!p) return p.error();
         *prog = std::move(*p);
     }
-    r->m_s3tc = epoxy_has_gl_extension("GL_EXT_texture_compression_s3tc");
+    {
+        const bool s3tc = epoxy_has_gl_extension("GL_EXT_texture_compression_s3tc");
+        const auto* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+        const bool software = name && isSoftwareRenderer(name);
+        r->m_decodeBc = f.info.format == AtlasFormat::Bc &&
+                        (!s3tc || settings.upload == AtlasUpload::Decoded ||
+                         (settings.upload == AtlasUpload::Auto && software));
+    }
 
     // Geometry: one vertex buffer per tree (§4.8.1 order), one for the plain triangles (roofs first).
     for (const auto& t : f.trees) {
@@ -195,6 +224,7 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
     // the trees' atlas bytes. Original mode pages originals only.
     PagerSettings ps;
     ps.threaded = settings.threaded;
+    ps.decodedAtlases = r->m_decodeBc;
     ps.uploadBytesPerFrame = settings.uploadBytesPerFrame;
     if (settings.mode == CityMode::Atlas) {
         std::vector<std::uint64_t> share;
@@ -234,7 +264,7 @@ void CityRendererGL::uploadAtlas(int tree, const LoadedBlock& b) {
     const int size = m_file.info.atlasSize, levels = atlasLevels(size);
     const AtlasFormat format = m_file.info.format;
     gl::Texture tex = gl::Texture::create(GL_TEXTURE_2D);
-    const bool native = format == AtlasFormat::Bc && m_s3tc;
+    const bool native = format == AtlasFormat::Bc && !m_decodeBc;
     const GLenum internal = native ? (alpha ? GL_COMPRESSED_RGBA_S3TC_DXT5_EXT : GL_COMPRESSED_RGB_S3TC_DXT1_EXT)
                                    : (alpha ? GL_RGBA8 : GL_RGB8);
     glTextureStorage2D(tex.id(), levels, internal, size, size);

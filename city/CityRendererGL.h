@@ -25,6 +25,16 @@ enum class CityMode { Atlas, Original, Flat };
 std::optional<CityMode> parseCityMode(const std::string& name);
 const char* cityModeName(CityMode m);
 
+/// How BC atlases reach the GPU: compressed (S3TC, as stored: 1/6 of the bytes, sampled natively by GPUs), decoded to
+/// RGB(A)8 on upload (what software rasterisers sample fastest: llvmpipe decodes BC at every texel fetch, which cost
+/// the atlas mode 8 % of its frame time), or auto: decoded on a software rasteriser or without S3TC, else compressed.
+/// Deflate atlases are always uploaded decoded. The pager counts the bytes as uploaded.
+enum class AtlasUpload { Auto, Compressed, Decoded };
+std::optional<AtlasUpload> parseAtlasUpload(const std::string& name); // "auto", "compressed", "decoded"
+const char* atlasUploadName(AtlasUpload u);
+/// Whether a GL_RENDERER string names a software rasteriser (llvmpipe, softpipe, SwiftShader).
+bool isSoftwareRenderer(const std::string& glRenderer);
+
 struct CitySettings {
     CityMode mode = CityMode::Atlas;
     double tpp = 1.0;                              // pixels per texel (§4.5.2), adjustable per frame
@@ -34,6 +44,7 @@ struct CitySettings {
     int season = 0;                                // roofs: 0 leaf-on, 1 leaf-off imagery
     bool placeOnTerrain = true;                    // a model in its own CRS: each building set on the scene's DEM
     float anisotropy = 8.0f;                       // the samplers' maximum anisotropy (render/bench --aniso)
+    AtlasUpload upload = AtlasUpload::Auto;        // BC atlases: compressed or decoded on upload
 };
 
 /// Per-frame counters (the issue's: nodes drawn, texture binds, draw calls, blocks resident, bytes, loader queue).
@@ -68,6 +79,8 @@ public:
     CityFrameStats draw(const Camera& camera, const ClipmapTerrainRendererGL* terrain, const gl::RenderTarget& target);
 
     CitySettings& settings() { return m_settings; }
+    /// Whether BC atlases are uploaded decoded (settings().upload resolved against this GL).
+    bool decodesAtlases() const { return m_decodeBc; }
     const AtlasTreeFile& file() const { return m_file; }
     std::size_t triangles() const;
 
@@ -94,7 +107,7 @@ private:
     gl::Texture m_dummy;
     gl::Sampler m_atlasSampler, m_repeatSampler, m_clampSampler;
     gl::ShaderProgram m_atlasProgram, m_originalProgram, m_flatProgram, m_roofProgram, m_plainProgram;
-    bool m_s3tc = false;
+    bool m_decodeBc = false; // BC atlases decoded to RGB(A)8 on upload
     std::uint64_t m_frame = 0, m_frameUploaded = 0;
     std::unique_ptr<AtlasPager> m_originalPager; // original mode: pages the originals the view shows
 };

@@ -4,6 +4,7 @@
 #include "TestUtil.h"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <fstream>
@@ -66,6 +67,47 @@ TEST(CityCliTest, SyntheticCityGoldensAndModes) {
     EXPECT_GT(ao.pixels, a.pixels.size() / 3 / 50) << "buildings should cover a few percent of the frame";
     EXPECT_GT(ao.psnr, 30.0) << "atlas vs original textures";
     EXPECT_LT(diffWhere(f, o, none).psnr, ao.psnr - 5.0) << "the dummy texture should look different";
+}
+
+// BC atlases uploaded as they are or decoded to RGB8 (what llvmpipe samples fastest): the same picture, and the pager
+// counts what was uploaded (decoded atlases take six times the bytes, still under the capacity).
+TEST(CityCliTest, AtlasUploadCompressedOrDecoded) {
+    const CliScene& s = scene();
+    ASSERT_EQ(s.render("up_none.png", {}).exitCode, 0);
+    for (const char* u : {"compressed", "decoded", "auto"}) {
+        const CliResult r = s.render(std::string("up_") + u + ".png", {"--city", "atlas", "--city-upload", u});
+        ASSERT_EQ(r.exitCode, 0) << u << ": " << r.err;
+    }
+    const auto none = s.image("up_none.png"), c = s.image("up_compressed.png"), d = s.image("up_decoded.png"),
+               a = s.image("up_auto.png");
+    const RegionDiff cd = diffWhere(c, d, none);
+    EXPECT_GT(cd.pixels, c.pixels.size() / 3 / 50);
+    EXPECT_GT(cd.psnr, 40.0) << "our BC1 decoder vs the GL's";
+    EXPECT_TRUE(a.pixels == c.pixels || a.pixels == d.pixels) << "auto is one of the two";
+
+    // Two frames at the still's camera, each upload in turn.
+    std::ofstream(s.dir / "still.json")
+        << R"([{"time":0,"x":195,"y":140,"z":"+18","yaw":35,"pitch":-18,"fov":60},)"
+        << R"({"time":1,"x":196,"y":141,"z":"+18","yaw":36,"pitch":-18,"fov":60}])";
+    const CliResult b = runCli({"bench", (s.dir / "s/scene.json").string(), "--path", (s.dir / "still.json").string(),
+                                "--frames", "3", "--warmup", "1", "--size", "200x125", "--coverage-every", "0",
+                                "--compare", "city-upload=compressed,decoded", "--out", (s.dir / "upbench").string()});
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    std::ifstream sj(s.dir / "upbench/summary.json");
+    const auto summary = nlohmann::json::parse(sj);
+    const auto& cm = summary["modes"]["city-upload=compressed"]["city"];
+    const auto& dm = summary["modes"]["city-upload=decoded"]["city"];
+    ASSERT_TRUE(cm.is_object() && dm.is_object()) << summary.dump();
+    EXPECT_EQ(cm["atlases_decoded"], false);
+    EXPECT_EQ(dm["atlases_decoded"], true);
+    const double cb = cm["resident_bytes"]["max"].get<double>(), db = dm["resident_bytes"]["max"].get<double>();
+    EXPECT_GT(cb, 0.0);
+    EXPECT_GT(db, 4.0 * cb) << "RGB8 with mips is six times BC1";
+    EXPECT_LE(db, dm["capacity_bytes"].get<double>());
+
+    const CliResult bad = s.render("x.png", {"--city", "atlas", "--city-upload", "sideways"});
+    EXPECT_NE(bad.exitCode, 0);
+    EXPECT_NE(bad.err.find("--city-upload"), std::string::npos) << bad.err;
 }
 
 TEST(CityCliTest, RoofsComeFromTheImageryOfTheSeason) {
