@@ -104,6 +104,11 @@ TEST(CityCliTest, AtlasUploadCompressedOrDecoded) {
     EXPECT_GT(cb, 0.0);
     EXPECT_GT(db, 4.0 * cb) << "RGB8 with mips is six times BC1";
     EXPECT_LE(db, dm["capacity_bytes"].get<double>());
+    EXPECT_GT(cm["cpu_ms"]["median"].get<double>(), 0.0) << "the city's own submission time is measured";
+    std::ifstream csv(s.dir / "upbench/frames.csv");
+    std::string header;
+    std::getline(csv, header);
+    EXPECT_NE(header.find(",city_cpu_ms"), std::string::npos) << header;
 
     const CliResult bad = s.render("x.png", {"--city", "atlas", "--city-upload", "sideways"});
     EXPECT_NE(bad.exitCode, 0);
