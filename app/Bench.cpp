@@ -166,7 +166,7 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
         return Error{"--compare '" + a.compare +
                      "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
                      "canopy-draw=layers,march, segmentation=upload,perframe, scene=terrain,full or "
-                     "city=atlas,original,flat,off or city-upload=compressed,decoded"};
+                     "city=atlas,original,flat,off or city-upload=compressed,decoded,auto"};
     std::stringstream list(a.compare.substr(eq + 1));
     std::string v;
     while (std::getline(list, v, ',')) {

@@ -269,9 +269,10 @@ Status BandReader::read(int y0, int y1, int channels, SampleType type, void* out
     assert((type == SampleType::U8 || type == SampleType::U16) && "BandReader::read(): 8- or 16-bit only");
     assert(y0 % m_bandRows == 0 && y0 < y1 && y1 - y0 <= m_bandRows && y1 <= m_height && channels >= 1 &&
            channels <= m_channels && "BandReader::read(): whole bands of existing rows and channels");
-    if (m_in->raw && type == m_type &&
-        m_in->raw->read(m_width, m_height, y0, y1, channels, static_cast<std::uint8_t*>(out)))
-        return Ok{};
+    if (m_in->raw && type == m_type) {
+        if (m_in->raw->read(m_width, m_height, y0, y1, channels, static_cast<std::uint8_t*>(out))) return Ok{};
+        ++m_handedOver;
+    }
     const OIIO::TypeDesc t = type == SampleType::U16 ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::UINT8;
     OIIO::ImageInput& in = *m_in->in;
     const bool ok = m_tileHeight > 0 ? in.read_tiles(0, 0, 0, m_width, y0, y1, 0, 1, 0, channels, t, out)

@@ -29,6 +29,9 @@ public:
     SampleType type() const { return m_type; }     // as stored (U8, U16, I16, F32)
     /// Whether reads of the stored sample type are decoded here by libdeflate or libzstd (else by OpenImageIO).
     bool decodesTilesItself() const;
+    /// Reads that the own decoder started and handed to OpenImageIO (a block it could not read or decode): 0 for
+    /// intact files, which is what the tests check, since OpenImageIO would otherwise hide a broken decoder.
+    int readsHandedOver() const { return m_handedOver; }
 
     /// Reads rows [y0, y1) (y0 a multiple of bandRows(), y1 - y0 <= bandRows()) of channels [0, channels) as
     /// 8-bit (`type` U8) or 16-bit (U16) interleaved samples into `out`. Errors name the file. Not thread-safe:
@@ -42,6 +45,7 @@ private:
     std::unique_ptr<Input> m_in;
     int m_width = 0, m_height = 0, m_channels = 0, m_bandRows = 0, m_tileHeight = 0;
     SampleType m_type = SampleType::U8;
+    mutable int m_handedOver = 0;
 };
 
 } // namespace seasonview

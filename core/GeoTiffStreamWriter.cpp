@@ -118,9 +118,18 @@ Result<GeoTiffStreamWriter> GeoTiffStreamWriter::open(const std::filesystem::pat
     }
     // The tiles are compressed here and written raw: a ZSTD tile is one Zstandard frame, as libtiff's codec
     // (tif_zstd.c) writes and reads it; a deflate tile one zlib stream.
-    TIFFSetField(t, TIFFTAG_COMPRESSION,
-                 options.compression == TiffCompression::Zstd ? COMPRESSION_ZSTD : COMPRESSION_ADOBE_DEFLATE);
-    TIFFSetField(t, TIFFTAG_PREDICTOR, type == SampleType::F32 ? PREDICTOR_FLOATINGPOINT : PREDICTOR_HORIZONTAL);
+    // The codec must be configured in libtiff even though the tiles are compressed here: only a configured codec
+    // registers the predictor tag, and a file without it would hold differenced bytes as if they were pixels.
+    const std::uint16_t codec =
+        options.compression == TiffCompression::Zstd ? COMPRESSION_ZSTD : COMPRESSION_ADOBE_DEFLATE;
+    if (!TIFFIsCODECConfigured(codec))
+        return w.fail(std::string("this libtiff has no ") + tiffCompressionName(options.compression) +
+                      " codec (write deflate instead)")
+            .error();
+    if (!TIFFSetField(t, TIFFTAG_COMPRESSION, codec) ||
+        !TIFFSetField(t, TIFFTAG_PREDICTOR,
+                      type == SampleType::F32 ? PREDICTOR_FLOATINGPOINT : PREDICTOR_HORIZONTAL))
+        return w.fail("cannot set the compression tags").error();
     if (georef && !tiff::writeGeoTags(t, *georef, options.nodata)) return w.fail("cannot write GeoTIFF keys").error();
     if (w.m_tiled) {
         TIFFSetField(t, TIFFTAG_TILEWIDTH, std::uint32_t(options.tileSize));
@@ -259,7 +268,7 @@ Status GeoTiffStreamWriter::encodeBlockRow(const std::uint8_t* rows, int y0, int
                 out.resize(ZSTD_compressBound(blockBytes));
                 const size_t n = ZSTD_compressCCtx(enc.zstd[size_t(worker)].get(), out.data(), out.size(), block,
                                                    blockBytes, enc.zstdLevel);
-                out.resize(ZSTD_isError(n) ? 0 : n); // empty: reported as a write failure below
+                out.resize(ZSTD_isError(n) ? 0 : n); // empty: reported as a failure below
             } else {
                 libdeflate_compressor* c = enc.compressors[size_t(worker)].get();
                 out.resize(libdeflate_zlib_compress_bound(c, blockBytes));
@@ -268,6 +277,7 @@ Status GeoTiffStreamWriter::encodeBlockRow(const std::uint8_t* rows, int y0, int
         });
         for (int i = 0; i < count; ++i) {
             std::vector<std::uint8_t>& out = enc.compressed[size_t(i)];
+            if (out.empty()) return fail("cannot compress a " + std::string(m_tiled ? "tile" : "strip"));
             const std::uint32_t x = std::uint32_t((first + i) * m_blockWidth);
             const tmsize_t written =
                 out.empty() ? -1

@@ -72,7 +72,7 @@ struct GeoTiffWriteOptions {
     int tileSize = 256;        // tiled TIFF, tileSize² tiles, a multiple of 16 (0 = strips of 16 rows)
     TiffCompression compression = TiffCompression::Deflate;
     int deflateLevel = 1;      // libdeflate level 1..12; 1 is ~3x faster than 6 for ~10% larger files
-    int zstdLevel = 1;         // Zstandard level 1..19; 1 is smaller than deflate level 1 on imagery
+    int zstdLevel = 1;         // Zstandard level 1..22; 1 is smaller than deflate level 1 on imagery
     std::optional<double> nodata;
     int threads = 0;           // compression threads (0 = hardware concurrency); the bytes do not depend on it
     std::uint64_t bigTiffAbove = std::uint64_t(2) << 30; // BigTIFF when the raw samples exceed this many bytes

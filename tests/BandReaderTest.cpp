@@ -48,6 +48,7 @@ std::vector<T> readBands(const fs::path& path, int preferredRows, int channels, 
                           out.data() + size_t(y) * size_t(r->width()) * size_t(channels));
         EXPECT_TRUE(st.ok()) << st.message();
     }
+    EXPECT_EQ(r->readsHandedOver(), 0) << path << ": the own decoder failed and OpenImageIO stood in";
     return out;
 }
 
@@ -153,5 +154,6 @@ TEST(BandReaderTest, DamagedTilesAreOneLineNamingTheFile) {
             EXPECT_EQ(st.message().find('\n'), std::string::npos) << st.message();
         }
         EXPECT_TRUE(failed) << "garbled tiles must not read as pixels";
+        EXPECT_GT(r->readsHandedOver(), 0) << "the own decoder must have refused the garbled tiles first";
     }
 }
