@@ -129,9 +129,7 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
         toPixel = glm::dmat2(s.scene->localToImagePixel(c + glm::dvec2(1.0, 0.0)) - p0,
                              s.scene->localToImagePixel(c + glm::dvec2(0.0, 1.0)) - p0);
     }
-    const glm::mat2 toPixelF(toPixel);
-    glProgramUniformMatrix2fv(program.id(), glGetUniformLocation(program.id(), "uLocalToPixel"), 1, GL_FALSE,
-                              &toPixelF[0][0]);
+    program.set("uLocalToPixel", glm::mat2(toPixel));
     program.use();
     // Layer 0 lies on the ground: equal depth wins (reversed Z, GL_GEQUAL), so the lowest layer covers the ground.
     glDepthFunc(GL_GEQUAL);

@@ -49,7 +49,7 @@ int canopyPieceLayers(const glm::dvec3& eye, double pixelsPerRadian, const glm::
 /// Whether the marched layers draw a patch (box in local metres, z its terrain heights) seen from `eye`: only where
 /// every ray into its stack comes down through it faster than the terrain under it can rise (the tangent of the
 /// lowest elevation angle over the box above the box's height range over its smaller side widened by `heightMargin`
-/// /// on each side, the metres past the box its heights were taken over, plus 0.05). Rays looking up a slope, along it
+/// on each side, the metres past the box its heights were taken over, plus 0.05). Rays looking up a slope, along it
 /// or level with the crowns would leave the stack through its side, where no top layer is drawn to march from: such
 /// patches are rasterised layer by layer instead.
 bool canopyPatchMarches(const glm::dvec3& eye, const glm::dvec3& lo, const glm::dvec3& hi, double treeHeight,

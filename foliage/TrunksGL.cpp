@@ -99,7 +99,6 @@ int TrunksGL::find() {
     }
     std::uint32_t n = 0;
     glGetNamedBufferSubData(m_buffer.id(), 4, 4, &n);
-
     m_count = int(std::min<std::uint32_t>(n, std::uint32_t(m_options.capacity)));
     return m_count;
 }

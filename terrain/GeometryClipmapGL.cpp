@@ -208,8 +208,7 @@ void GeometryClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit) co
     program.set("uLookupMin", glm::vec2(m_lookupMin));
     program.set("uLookupSize", glm::vec2(m_lookupSize));
     program.set("uLookupTexels", float(kLookupSize));
-    glProgramUniformMatrix2fv(program.id(), glGetUniformLocation(program.id(), "uLookupSlope"), 1, GL_FALSE,
-                              &m_lookupSlope[0][0]);
+    program.set("uLookupSlope", m_lookupSlope);
     program.set("uGridOrigin", glm::vec2(m_grid.origin));
     program.set("uGridSpacing", float(m_grid.spacing));
 }

@@ -78,8 +78,9 @@ public:
     GeometryFrameStats draw(const gl::ShaderProgram& program, const glm::dmat4& viewProj) const;
 
     /// Instances over one patch: level, its box in the local frame (metres, x east, y north, z the terrain's heights
-    /// within two of the level's cells around it, before any lift); appends one (a, b) per instance to draw over it, none to skip it. The vertex shader gets
-    /// ivec4(patch x0, patch y0, a, b) as the per-instance attribute 1 (`aInstance`, level cells).
+    /// within two of the level's cells around it, before any lift); appends one (a, b) per instance to draw over it,
+    /// none to skip it. The vertex shader gets ivec4(patch x0, patch y0, a, b) as the per-instance attribute 1
+    /// (`aInstance`, level cells).
     using PatchInstances = std::function<void(int level, glm::dvec3 lo, glm::dvec3 hi, std::vector<glm::ivec2>& out)>;
     /// The rings of options.layerN vertices cut into patches of at most options.layerPatchCells² cells, each patch
     /// culled against the frustum with its box raised by up to `lift` metres and drawn as `instances` says (stacked

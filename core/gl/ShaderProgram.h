@@ -4,6 +4,7 @@
 #include "../Result.h"
 #include "GlObjects.h"
 
+#include <glm/mat2x2.hpp>
 #include <glm/mat4x4.hpp>
 
 #include <string>
@@ -37,6 +38,9 @@ public:
     void set(const char* name, const glm::vec3& v) const { glProgramUniform3f(id(), location(name), v.x, v.y, v.z); }
     void set(const char* name, const glm::vec4& v) const {
         glProgramUniform4f(id(), location(name), v.x, v.y, v.z, v.w);
+    }
+    void set(const char* name, const glm::mat2& m) const {
+        glProgramUniformMatrix2fv(id(), location(name), 1, GL_FALSE, &m[0][0]);
     }
     void set(const char* name, const glm::mat4& m) const {
         glProgramUniformMatrix4fv(id(), location(name), 1, GL_FALSE, &m[0][0]);
