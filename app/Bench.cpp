@@ -58,6 +58,7 @@ struct Mode {
     std::optional<CanopyDrawMode> canopyDraw; // canopy-draw=...: this mode's way of drawing the layers
     std::optional<city::CityMode> cityMode; // the city model drawn after the terrain (nullopt: none)
     city::AtlasUpload cityUpload = city::AtlasUpload::Auto;
+    bool cityOcclusion = true;
     std::unique_ptr<city::CityRendererGL> city;
     std::unique_ptr<ClipmapGL> clipmap;
     std::unique_ptr<CanopyClipmapGL> canopy;
@@ -101,9 +102,12 @@ nlohmann::json figure(const std::vector<double>& v) {
 
 /// A city mode's figures: per-frame medians/maxima of its counters and the capacity they must stay under.
 nlohmann::json cityFigures(const Mode& m) {
-    std::vector<double> nodes, binds, calls, resident, queue, coarser, cpu;
+    std::vector<double> nodes, binds, calls, resident, queue, coarser, cpu, occluded, queries, waits;
     for (const FrameRow& r : m.rows) {
         cpu.push_back(r.cityCpuMs);
+        occluded.push_back(r.city.occludedNodes);
+        queries.push_back(r.city.occlusionQueries);
+        waits.push_back(r.city.occlusionWaits);
         nodes.push_back(r.city.atlasNodes);
         binds.push_back(r.city.textureBinds);
         calls.push_back(r.city.drawCalls);
@@ -114,7 +118,11 @@ nlohmann::json cityFigures(const Mode& m) {
     return {{"mode", city::cityModeName(*m.cityMode)},
             {"upload", city::atlasUploadName(m.cityUpload)},
             {"atlases_decoded", m.city->decodesAtlases()},
+            {"occlusion", m.city->settings().occlusion && *m.cityMode == city::CityMode::Atlas},
             {"atlas_nodes", figure(nodes)},
+            {"occluded_nodes", figure(occluded)},
+            {"occlusion_queries", figure(queries)},
+            {"occlusion_waits", figure(waits)},
             {"texture_binds", figure(binds)},
             {"draw_calls", figure(calls)},
             {"cpu_ms", figure(cpu)},
@@ -148,6 +156,9 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
         auto upload = city::parseAtlasUpload(a.cityUpload);
         if (!upload) return Error{"--city-upload '" + a.cityUpload + "': expected auto|compressed|decoded"};
         m.cityUpload = *upload;
+        if (a.cityOcclusion != "on" && a.cityOcclusion != "off")
+            return Error{"--city-occlusion '" + a.cityOcclusion + "': expected on|off"};
+        m.cityOcclusion = a.cityOcclusion == "on";
         return m;
     };
     if (a.compare.empty()) {
@@ -162,11 +173,11 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     const std::string key = a.compare.substr(0, eq);
     if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso" && key != "canopy" &&
                                     key != "canopy-draw" && key != "segmentation" && key != "scene" && key != "city" &&
-                                    key != "city-upload"))
+                                    key != "city-upload" && key != "city-occlusion"))
         return Error{"--compare '" + a.compare +
                      "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
                      "canopy-draw=layers,march, segmentation=upload,perframe, scene=terrain,full or "
-                     "city=atlas,original,flat,off or city-upload=compressed,decoded,auto"};
+                     "city=atlas,original,flat,off, city-upload=compressed,decoded,auto or city-occlusion=off,on"};
     std::stringstream list(a.compare.substr(eq + 1));
     std::string v;
     while (std::getline(list, v, ',')) {
@@ -225,6 +236,11 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
             if (!u) return Error{"--compare: city-upload '" + v + "' (expected auto|compressed|decoded)"};
             if (!m->cityMode) m->cityMode = city::CityMode::Atlas;
             m->cityUpload = *u;
+        } else if (key == "city-occlusion") {
+            // The atlas city (or --city's mode) drawn with and without occlusion culling.
+            if (v != "on" && v != "off") return Error{"--compare: city-occlusion '" + v + "' (expected on|off)"};
+            if (!m->cityMode) m->cityMode = city::CityMode::Atlas;
+            m->cityOcclusion = v == "on";
         } else if (key == "segmentation") {
             if (v != "upload" && v != "perframe")
                 return Error{"--compare: segmentation '" + v + "' (expected upload|perframe)"};
@@ -376,6 +392,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         cs.tpp = a->cityTpp;
         cs.anisotropy = m.anisotropy;
         cs.upload = m.cityUpload;
+        cs.occlusion = m.cityOcclusion;
         cs.season = *view == ImageryView::LeafOff ? 1 : 0;
         auto c = city::CityRendererGL::create(*scene, cityTree.string(), cs);
         if (!c)
@@ -503,13 +520,13 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
            "blocks_missing,resident_texture_bytes,loader_cache_bytes,rss_bytes,coverage,city_atlas_nodes,"
            "city_texture_binds,city_draw_calls,city_triangles,city_blocks_resident,city_resident_bytes,"
            "city_loader_queue,city_coarser_than_wanted,heap_in_use_bytes,heap_mapped_bytes,canopy_blocks_derived,"
-           "trunk_searches,city_cpu_ms\n";
+           "trunk_searches,city_cpu_ms,city_occluded_nodes,city_occlusion_queries,city_occlusion_waits\n";
     for (const Mode& m : *modes)
         for (const FrameRow& r : m.rows) {
             char line[512];
             std::snprintf(line, sizeof line,
                           "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s,"
-                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f\n",
+                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f,%d,%d,%d\n",
                           m.label.c_str(), r.frame, r.camera.position.x, r.camera.position.y, r.camera.position.z,
                           r.camera.yawDeg, r.camera.pitchDeg, r.cpuMs, r.gpuMs, r.frameMs, r.drawCalls,
                           (long long)r.triangles, (long long)r.texelsUploaded, (long long)r.exposedTexels,
@@ -518,7 +535,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                           r.city.atlasNodes, r.city.textureBinds, r.city.drawCalls, (long long)r.city.triangles,
                           r.city.blocksResident, (unsigned long long)r.city.residentBytes, r.city.loaderQueue,
                           r.city.coarserThanWanted, (long long)r.heapInUseBytes, (long long)r.heapMappedBytes,
-                          r.canopyBlocksDerived, r.trunkSearches, r.cityCpuMs);
+                          r.canopyBlocksDerived, r.trunkSearches, r.cityCpuMs, r.city.occludedNodes,
+                          r.city.occlusionQueries, r.city.occlusionWaits);
             csv << line;
         }
     std::string err;
@@ -553,6 +571,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
           {"ground_under_canopy", a->groundUnder},
           {"ground_elsewhere", a->groundElsewhere},
           {"city_upload", a->cityUpload},
+          {"city_occlusion", a->cityOcclusion},
           {"tree_height_m", scene->sources.treeHeightM}}},
         {"wall_seconds", seconds}};
     nlohmann::json compare = nlohmann::json::array();

@@ -30,7 +30,7 @@ struct BenchSettings {
     int k = 5;
     std::filesystem::path cacheDir;
     // The scene's city model: off | atlas | original | flat, its tree (empty: built into the cache), capacity, τ.
-    std::string city = "off", cityTree, cityUpload = "auto";
+    std::string city = "off", cityTree, cityUpload = "auto", cityOcclusion = "on";
     double cityCapacityMb = 256.0, cityTpp = 1.0;
 };
 

@@ -68,6 +68,10 @@ Runner addBenchCommand(CLI::App& app) {
                     "City: BC atlases uploaded compressed, decoded (RGB8), or auto (decoded on software rasterisers)")
         ->check(CLI::IsMember({"auto", "compressed", "decoded"}))
         ->capture_default_str();
+    cmd->add_option("--city-occlusion", a->b.cityOcclusion,
+                    "City, atlas mode: skip nodes hidden behind what is drawn (occlusion queries on node boxes)")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
     return [a]() -> int {
         auto fail = [](const std::string& m) {
             std::fprintf(stderr, "seasonview bench: %s\n", m.c_str());

@@ -23,6 +23,10 @@ void CityArgs::addTo(CLI::App& cmd) {
                    "City: BC atlases uploaded compressed, decoded (RGB8), or auto (decoded on software rasterisers)")
         ->check(CLI::IsMember({"auto", "compressed", "decoded"}))
         ->capture_default_str();
+    cmd.add_option("--city-occlusion", occlusion,
+                   "City, atlas mode: skip nodes hidden behind what is drawn (occlusion queries on node boxes)")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
 }
 
 Result<std::optional<city::CitySettings>> CityArgs::settings() const {
@@ -34,6 +38,7 @@ Result<std::optional<city::CitySettings>> CityArgs::settings() const {
     s.capacityBytes = std::uint64_t(capacityMb * 1048576.0);
     s.tpp = tpp;
     s.upload = city::parseAtlasUpload(upload).value_or(city::AtlasUpload::Auto);
+    s.occlusion = occlusion != "off";
     return std::optional<city::CitySettings>(s);
 }
 

@@ -19,6 +19,7 @@ struct CityArgs {
     double capacityMb = 256.0;
     double tpp = 1.0;
     std::string upload = "auto"; // BC atlases: auto | compressed | decoded
+    std::string occlusion = "on"; // atlas mode: occlusion culling on | off
     void addTo(CLI::App& cmd);
     /// The renderer settings, nullopt for `off`; errors name the flag.
     Result<std::optional<city::CitySettings>> settings() const;

@@ -335,12 +335,14 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
         GeometryFrameStats drawn = stacked ? canopyRenderer->renderView(s.camera, **renderer, imagery, *canopy, cd,
                                                                         trunks.get(), target)
                                            : (*renderer)->render(s.camera, imagery, target);
+        std::optional<city::CityFrameStats> cityStats;
         if (cityRenderer) {
             std::vector<std::uint8_t> ground;
             if (!s.cityAccuracyOut.empty()) ground = target.readRgba();
             cityRenderer->settings().season = s.imagery.view == ImageryView::LeafOff ? 1 : 0;
             cityRenderer->complete(s.camera, width, height);
             const city::CityFrameStats cst = cityRenderer->draw(s.camera, renderer->get(), target);
+            cityStats = cst;
             drawn.triangles += cst.triangles;
             drawn.drawCalls += cst.drawCalls;
             if (!s.cityAccuracyOut.empty()) {
@@ -452,6 +454,19 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
                                 {"triangles", drawn.triangles},
                                 {"elevation_resident_bytes", (*renderer)->geometry().residentBytes()},
                                 {"device", (*ctx)->info().renderer}};
+            if (cityStats)
+                j["city"] = {{"mode", city::cityModeName(cityRenderer->settings().mode)},
+                             {"occlusion", cityRenderer->settings().occlusion},
+                             {"atlas_nodes", cityStats->atlasNodes},
+                             {"original_leaves", cityStats->originalLeaves},
+                             {"coarser_than_wanted", cityStats->coarserThanWanted},
+                             {"occluded_nodes", cityStats->occludedNodes},
+                             {"occlusion_queries", cityStats->occlusionQueries},
+                             {"occlusion_waits", cityStats->occlusionWaits},
+                             {"draw_calls", cityStats->drawCalls},
+                             {"texture_binds", cityStats->textureBinds},
+                             {"triangles", cityStats->triangles},
+                             {"resident_bytes", cityStats->residentBytes}};
             std::string err;
             if (!writeTextAtomic(s.statsOut, j.dump(2) + "\n", err)) return fileError(s.statsOut.string(), err);
             if (auto st = checkGl(s.statsOut); !st) return st.error();

@@ -793,8 +793,9 @@ Runner addViewCommand(CLI::App& app) {
                     ImGui::Text("%lld triangles, %d draw calls", (long long)drawn.triangles, drawn.drawCalls);
                     ImGui::Text("coverage %.3f", coverage);
                     if (live.city && s.city)
-                        ImGui::Text("city: %d atlases, %d binds, %d calls, %zu blocks %.1f MB, queue %zu",
-                                    live.cityStats.atlasNodes, live.cityStats.textureBinds, live.cityStats.drawCalls,
+                        ImGui::Text("city: %d atlases (%d hidden), %d binds, %d calls, %zu blocks %.1f MB, queue %zu",
+                                    live.cityStats.atlasNodes, live.cityStats.occludedNodes,
+                                    live.cityStats.textureBinds, live.cityStats.drawCalls,
                                     live.cityStats.blocksResident, double(live.cityStats.residentBytes) / 1048576.0,
                                     live.cityStats.loaderQueue);
                     ImGui::Text("texels uploaded %lld (total %.1f M)", (long long)live.lastLoad.texelsUploaded,

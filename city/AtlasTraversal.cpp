@@ -100,46 +100,83 @@ void AtlasTraversal::originalRanges(std::uint32_t leaf, std::vector<AtlasDraw>& 
     }
 }
 
-AtlasTraversalResult AtlasTraversal::draws(const AtlasView& view, const std::function<bool(std::uint32_t)>& atlasResident,
-                                           const std::function<bool(std::uint32_t)>& textureResident) const {
-    AtlasTraversalResult r;
-    if (m_tree.nodes.empty()) return r;
-    std::vector<std::uint32_t> stack{0};
+void AtlasTraversal::walk(std::uint32_t start, std::uint32_t fallback, const AtlasView& view,
+                          const std::function<bool(std::uint32_t)>& atlasResident,
+                          const std::function<bool(std::uint32_t)>& textureResident, const VisibilityFn& visibility,
+                          bool startVisible, AtlasTraversalResult& r) const {
+    auto known = [&](std::uint32_t n) { return !visibility || visibility(n) == NodeVisibility::Visible; };
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> stack{{start, fallback}}; // node, the atlas to fall back on
     while (!stack.empty()) {
-        const std::uint32_t ni = stack.back();
+        const auto [ni, fb] = stack.back();
         stack.pop_back();
         if (!visible(ni, view)) continue;
+        if (!(startVisible && ni == start) && !known(ni)) {
+            r.deferred.push_back(ni);
+            continue;
+        }
         const AtlasNode& n = m_tree.nodes[ni];
+        const bool own = atlasResident(ni);
+        const std::uint32_t atlas = own ? ni : fb;
         bool useAtlas = distance(ni, view) >= minDistance(ni, view);
         if (!useAtlas) {
-            // §4.6, Fig. 30: refine only when the finer textures are all resident.
+            // §4.6, Fig. 30: refine only when the finer textures are all resident (of the children: those in view and
+            // known visible; a deferred child found visible later falls back on this node's atlas).
             bool possible = true;
             if (n.leaf()) {
                 for (auto t : n.textures) possible = possible && textureResident(t);
             } else {
                 for (int c : n.children)
-                    if (m_tree.nodes[std::size_t(c)].count > 0 && visible(std::uint32_t(c), view))
+                    if (m_tree.nodes[std::size_t(c)].count > 0 && visible(std::uint32_t(c), view) && known(std::uint32_t(c)))
                         possible = possible && atlasResident(std::uint32_t(c));
             }
             if (!possible) {
                 useAtlas = true;
                 ++r.coarserThanWanted;
             }
+        } else if (!own) {
+            ++r.coarserThanWanted;
         }
         if (useAtlas) {
-            atlasRanges(ni, ni, view, r.draws, n.level);
+            atlasRanges(ni, atlas, view, r.draws, m_tree.nodes[atlas].level);
             ++r.atlasNodes;
+            r.drawn.push_back(ni);
         } else if (n.leaf()) {
             originalRanges(ni, r.draws);
             ++r.originalLeaves;
+            r.drawn.push_back(ni);
         } else {
-            for (int q = 3; q >= 0; --q) stack.push_back(std::uint32_t(n.children[std::size_t(q)]));
+            for (int q = 3; q >= 0; --q) stack.push_back({std::uint32_t(n.children[std::size_t(q)]), atlas});
         }
     }
+}
+
+AtlasTraversalResult AtlasTraversal::draws(const AtlasView& view, const std::function<bool(std::uint32_t)>& atlasResident,
+                                           const std::function<bool(std::uint32_t)>& textureResident,
+                                           const VisibilityFn& visibility) const {
+    AtlasTraversalResult r;
+    if (!m_tree.nodes.empty()) walk(0, 0, view, atlasResident, textureResident, visibility, false, r);
     return r;
 }
 
-std::vector<BlockRequest> AtlasTraversal::requests(const AtlasView& view) const {
+AtlasTraversalResult AtlasTraversal::drawsBelow(std::uint32_t node, const AtlasView& view,
+                                                const std::function<bool(std::uint32_t)>& atlasResident,
+                                                const std::function<bool(std::uint32_t)>& textureResident,
+                                                const VisibilityFn& visibility) const {
+    AtlasTraversalResult r;
+    if (node >= m_tree.nodes.size()) return r;
+    // The deepest resident ancestor (the root's atlas always is).
+    std::uint32_t fallback = 0;
+    for (std::int32_t a = m_tree.nodes[node].parent; a >= 0; a = m_tree.nodes[std::size_t(a)].parent)
+        if (atlasResident(std::uint32_t(a))) {
+            fallback = std::uint32_t(a);
+            break;
+        }
+    walk(node, fallback, view, atlasResident, textureResident, visibility, true, r);
+    return r;
+}
+
+std::vector<BlockRequest> AtlasTraversal::requests(const AtlasView& view, const VisibilityFn& visibility) const {
+    auto hidden = [&](std::uint32_t n) { return visibility && visibility(n) == NodeVisibility::Hidden; };
     std::map<BlockKey, BlockRequest> blocks;
     auto mark = [&](BlockKey key, BlockCategory c, double d, int level) {
         auto [it, fresh] = blocks.try_emplace(key, BlockRequest{key, c, d, level});
@@ -162,7 +199,7 @@ std::vector<BlockRequest> AtlasTraversal::requests(const AtlasView& view) const 
         const std::uint32_t ni = stack.back();
         stack.pop_back();
         const AtlasNode& n = m_tree.nodes[ni];
-        if (!visible(ni, view)) continue;
+        if (!visible(ni, view) || (ni == 0 && hidden(ni))) continue;
         markAtlas(ni, BlockCategory::Needed); // used or refined: on the path to what is used
         const double d = distance(ni, view);
         const bool useAtlas = d >= minDistance(ni, view);
@@ -175,7 +212,7 @@ std::vector<BlockRequest> AtlasTraversal::requests(const AtlasView& view) const 
             const auto c = std::uint32_t(n.children[std::size_t(q)]);
             if (m_tree.nodes[c].count == 0) continue;
             if (useAtlas) markAtlas(c, BlockCategory::ParentNeeded); // the next refinement
-            else if (!visible(c, view)) markAtlas(c, BlockCategory::Culled); // a sibling is needed
+            else if (!visible(c, view) || hidden(c)) markAtlas(c, BlockCategory::Culled); // a sibling is needed
             else stack.push_back(c);
         }
     }

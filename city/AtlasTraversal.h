@@ -13,6 +13,13 @@
 // view with everything resident, and every ancestor of such a node), Culled (outside the frustum with a Needed
 // sibling), ParentNeeded (the parent is Needed: the next refinement; a leaf's originals when its atlas is Needed),
 // Unused — and a priority: category, then distance, then level.
+//
+// Occlusion (optional; beyond the paper, which names its absence as why street-level views drew the most nodes): the
+// caller says which nodes it knows to be visible (hardware occlusion queries, Coherent Hierarchical Culling: Bittner
+// et al. 2004, Wimmer & Bittner 2005, GPU Gems 2 ch. 6, cited by the thesis §3 for ground-level navigation). The
+// traversal descends only into nodes known visible and lists the others in the frustum (`deferred`) for the caller to
+// test against the depth of what it drew, then draw with drawsBelow() the ones that turn out visible. Paging treats
+// nodes known hidden like nodes outside the frustum (Culled).
 #include "AtlasTree.h"
 
 #include <glm/mat4x4.hpp>
@@ -32,6 +39,10 @@ struct AtlasView {
     double fovXDeg = 90.0;     // horizontal field of view
     double tpp = 1.0;          // pixels per texel allowed at runtime (§4.5.2: minDistances divided by it)
 };
+
+/// What the caller knows of a node's visibility (CityRendererGL: the last occlusion query's answer, if recent).
+enum class NodeVisibility : std::uint8_t { Visible, Hidden, Unknown };
+using VisibilityFn = std::function<NodeVisibility(std::uint32_t)>;
 
 enum class BlockCategory : std::uint8_t { Needed = 0, Culled = 1, ParentNeeded = 2, Unused = 3 };
 const char* blockCategoryName(BlockCategory c);
@@ -67,6 +78,8 @@ struct AtlasTraversalResult {
     std::size_t atlasNodes = 0;      // distinct atlases drawn
     std::size_t originalLeaves = 0;  // leaves drawn with their originals
     std::size_t coarserThanWanted = 0; // nodes drawn with an atlas because finer data was not resident
+    std::vector<std::uint32_t> drawn;    // the nodes drawn (with an atlas or their originals), in traversal order
+    std::vector<std::uint32_t> deferred; // with a VisibilityFn: nodes in the frustum not known visible, not drawn
 };
 
 class AtlasTraversal {
@@ -81,13 +94,23 @@ public:
     bool visible(std::uint32_t node, const AtlasView& view) const;
 
     /// What to draw given what is resident (`atlasResident(node)`, `textureResident(texture)`); the root's atlas
-    /// must be resident.
+    /// must be resident. With `visibility`, only nodes it calls Visible are drawn or refined (the rest: deferred);
+    /// a node's refinement then waits only for its visible children's atlases.
     AtlasTraversalResult draws(const AtlasView& view, const std::function<bool(std::uint32_t)>& atlasResident,
-                               const std::function<bool(std::uint32_t)>& textureResident) const;
+                               const std::function<bool(std::uint32_t)>& textureResident,
+                               const VisibilityFn& visibility = {}) const;
+    /// The same for the subtree of `node` alone (a deferred node found visible: `node` itself is taken as visible). A node whose atlas is not resident
+    /// is drawn with its deepest resident ancestor's (any ancestor's atlas holds its triangles at a coarser
+    /// level, §4.5.4), counted as coarser than wanted: never a missing texture.
+    AtlasTraversalResult drawsBelow(std::uint32_t node, const AtlasView& view,
+                                    const std::function<bool(std::uint32_t)>& atlasResident,
+                                    const std::function<bool(std::uint32_t)>& textureResident,
+                                    const VisibilityFn& visibility = {}) const;
 
     /// Every block's category and priority for the view (the traversal as if everything were resident), in
-    /// priority order, Unused blocks left out.
-    std::vector<BlockRequest> requests(const AtlasView& view) const;
+    /// priority order, Unused blocks left out. Nodes `visibility` calls Hidden are Culled and not descended into
+    /// (Unknown ones are treated as visible).
+    std::vector<BlockRequest> requests(const AtlasView& view, const VisibilityFn& visibility = {}) const;
 
     const AtlasTreeData& tree() const { return m_tree; }
 
@@ -96,6 +119,10 @@ private:
     void atlasRanges(std::uint32_t node, std::uint32_t atlasNode, const AtlasView& view, std::vector<AtlasDraw>& out,
                      int level) const;
     void originalRanges(std::uint32_t leaf, std::vector<AtlasDraw>& out) const;
+    void walk(std::uint32_t start, std::uint32_t fallback, const AtlasView& view,
+              const std::function<bool(std::uint32_t)>& atlasResident,
+              const std::function<bool(std::uint32_t)>& textureResident, const VisibilityFn& visibility,
+              bool startVisible, AtlasTraversalResult& r) const;
 
     const AtlasTreeData& m_tree;
     AtlasTreeInfo m_info;

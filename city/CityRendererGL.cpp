@@ -152,6 +152,11 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
         *prog = std::move(*p);
     }
     {
+        auto p = gl::ShaderProgram::build("city_box.vert", "city_box.frag");
+        if (!p) return p.error();
+        r->m_boxProgram = std::move(*p);
+    }
+    {
         const bool s3tc = epoxy_has_gl_extension("GL_EXT_texture_compression_s3tc");
         const auto* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
         const bool software = name && isSoftwareRenderer(name);
@@ -186,6 +191,21 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
         r->m_plainVao = gl::VertexArray::create();
         setVertexLayout(r->m_plainVao.id(), r->m_plainVbo.id(), false);
     }
+    // Occlusion-query boxes: the unit cube, 12 triangles.
+    {
+        std::vector<glm::vec3> corners;
+        for (int i = 0; i < 8; ++i) corners.emplace_back(float(i & 1), float((i >> 1) & 1), float((i >> 2) & 1));
+        const std::uint8_t faces[36] = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+                                        2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+        r->m_boxVbo = gl::Buffer::create();
+        glNamedBufferStorage(r->m_boxVbo.id(), GLsizeiptr(corners.size() * sizeof(glm::vec3)), corners.data(), 0);
+        r->m_boxIbo = gl::Buffer::create();
+        glNamedBufferStorage(r->m_boxIbo.id(), sizeof faces, faces, 0);
+        r->m_boxVao = gl::VertexArray::create();
+        setVertexLayout(r->m_boxVao.id(), r->m_boxVbo.id(), false);
+        glVertexArrayElementBuffer(r->m_boxVao.id(), r->m_boxIbo.id());
+    }
+    for (const auto& t : f.trees) r->m_nodeStates.emplace_back(t.nodes.size());
 
     // Samplers: atlases trilinear within their mip chain (clamped: fract() keeps coordinates inside), originals
     // repeated or clamped as their model says.
@@ -311,12 +331,64 @@ void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
     }
 }
 
+NodeVisibility CityRendererGL::visibilityOf(std::size_t tree, std::uint32_t node, std::uint64_t frame) const {
+    const NodeState& s = m_nodeStates[tree][node];
+    // An answer is a hint for a few frames (a node hidden is tested again before it is skipped, one visible drawn
+    // and tested again): a node out of view, or inside a node drawn coarse while finer atlases loaded, for longer is
+    // unknown.
+    if (s.frame == 0 || s.frame + 8 < frame) return NodeVisibility::Unknown;
+    return s.visible ? NodeVisibility::Visible : NodeVisibility::Hidden;
+}
+
+void CityRendererGL::collectQueries() {
+    for (const PendingQuery& q : m_frameEndQueries) {
+        GLuint any = 0;
+        glGetQueryObjectuiv(m_queries[q.query].id(), GL_QUERY_RESULT, &any);
+        m_nodeStates[q.tree][q.node] = {q.frame, q.frame, any != 0};
+    }
+    m_frameEndQueries.clear();
+    m_queriesUsed = 0;
+}
+
+void CityRendererGL::queryBoxes(std::size_t tree, const std::vector<std::uint32_t>& nodes, const glm::mat4& viewProj,
+                                std::vector<PendingQuery>& out) {
+    if (nodes.empty()) return;
+    glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+    glDepthMask(GL_FALSE);
+    glDepthFunc(GL_GEQUAL); // a face on its box still counts (reversed Z)
+    glBindVertexArray(m_boxVao.id());
+    m_boxProgram.set("uViewProj", viewProj);
+    m_boxProgram.use();
+    for (std::uint32_t n : nodes) {
+        const AtlasNode& node = m_file.trees[tree].nodes[n];
+        // Grown a little: the box must enclose its triangles after rasterisation too.
+        const glm::vec3 grow = 0.01f * (node.boundsMax - node.boundsMin) + glm::vec3(0.05f);
+        m_boxProgram.set("uBoxMin", node.boundsMin - grow);
+        m_boxProgram.set("uBoxMax", node.boundsMax + grow);
+        if (m_queriesUsed == m_queries.size()) m_queries.push_back(gl::Query::create(GL_ANY_SAMPLES_PASSED_CONSERVATIVE));
+        const std::size_t q = m_queriesUsed++;
+        glBeginQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, m_queries[q].id());
+        glDrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr);
+        glEndQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE);
+        out.push_back(PendingQuery{tree, n, q, m_drawFrame});
+    }
+    glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    glDepthMask(GL_TRUE);
+    glDepthFunc(GL_GREATER);
+}
+
 void CityRendererGL::update(const Camera& camera, int width, int height) {
     ++m_frame;
     m_frameUploaded = 0;
     const AtlasView v = view(camera, width, height);
     if (m_settings.mode == CityMode::Atlas) {
-        for (std::size_t t = 0; t < m_pagers.size(); ++t) apply(int(t), m_pagers[t]->update(m_traversals[t]->requests(v)));
+        collectQueries();
+        // Nodes the last frame found hidden are paged as if outside the frustum (the frame to come: m_drawFrame + 1).
+        for (std::size_t t = 0; t < m_pagers.size(); ++t) {
+            VisibilityFn vis;
+            if (m_settings.occlusion) vis = [this, t](std::uint32_t n) { return visibilityOf(t, n, m_drawFrame + 1); };
+            apply(int(t), m_pagers[t]->update(m_traversals[t]->requests(v, vis)));
+        }
     } else if (m_originalPager) {
         // The originals of every visible leaf, nearest first.
         std::vector<BlockRequest> req;
@@ -353,6 +425,11 @@ void CityRendererGL::complete(const Camera& camera, int width, int height) {
 CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRendererGL* terrain,
                                     const gl::RenderTarget& target) {
     CityFrameStats st;
+    collectQueries();
+    ++m_drawFrame;
+    const std::uint64_t frame = m_drawFrame;
+    const bool occlusion = m_settings.occlusion && m_settings.mode == CityMode::Atlas;
+    std::vector<std::vector<std::uint32_t>> drawnNodes(m_file.trees.size()); // for step (3)
     target.bind();
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_GREATER);
@@ -418,14 +495,30 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
             }
             continue;
         }
-        // Atlas mode: the traversal's draws with what the pager made resident.
+        // Atlas mode: the traversal's draws with what the pager made resident. Nothing before the root's atlas is
+        // (the first frames of a view that did not complete(); no occlusion answers from an empty picture either).
+        if (!m_atlases[t].count(0)) continue;
         AtlasPager& pager = *m_pagers[t];
-        const auto result = m_traversals[t]->draws(
-            v, [&](std::uint32_t n) { return pager.resident({BlockKey::Kind::Atlas, n}); },
-            [&](std::uint32_t x) { return pager.resident({BlockKey::Kind::Texture, x}); });
-        st.atlasNodes += int(result.atlasNodes);
-        st.originalLeaves += int(result.originalLeaves);
-        st.coarserThanWanted += int(result.coarserThanWanted);
+        const AtlasTraversal& trav = *m_traversals[t];
+        const auto atlasResident = [&](std::uint32_t n) { return pager.resident({BlockKey::Kind::Atlas, n}); };
+        const auto textureResident = [&](std::uint32_t x) { return pager.resident({BlockKey::Kind::Texture, x}); };
+        VisibilityFn visibility;
+        // Nothing known (the first frame, a still): every node tested before it is drawn, near ones first.
+        // Otherwise nodes new in view or newly refined are drawn at once and tested at the end of the frame.
+        const bool bootstrap = visibilityOf(t, 0, frame) == NodeVisibility::Unknown;
+        if (occlusion)
+            visibility = [this, t, frame, bootstrap](std::uint32_t n) {
+                NodeVisibility s = visibilityOf(t, n, frame);
+                if (s == NodeVisibility::Unknown && !bootstrap) {
+                    s = NodeVisibility::Visible;
+                    m_nodeStates[t][n].tested = 0; // due at the end of the frame
+                }
+                if (s == NodeVisibility::Visible) { // traversed: stays known (an inner node is never tested itself)
+                    m_nodeStates[t][n].frame = frame;
+                    m_nodeStates[t][n].visible = true;
+                }
+                return s;
+            };
         for (const gl::ShaderProgram* p : {&m_atlasProgram, &m_originalProgram}) {
             p->set("uViewProj", viewProj);
             p->set("uSunDir", sun);
@@ -434,26 +527,79 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
             p->set("uMaxAniso", std::clamp(m_settings.anisotropy, 1.0f, 16.0f));
         }
         const gl::ShaderProgram* current = nullptr;
-        for (const AtlasDraw& d : result.draws) {
-            const gl::ShaderProgram& prog = d.original ? m_originalProgram : m_atlasProgram;
-            if (&prog != current) {
-                prog.use();
-                current = &prog;
+        std::vector<std::uint32_t> atlasesDrawn; // distinct: deferred nodes may share an ancestor's stand-in
+        auto issue = [&](const AtlasTraversalResult& result) {
+            for (const AtlasDraw& d : result.draws)
+                if (!d.original) atlasesDrawn.push_back(d.node);
+            st.originalLeaves += int(result.originalLeaves);
+            st.coarserThanWanted += int(result.coarserThanWanted);
+            drawnNodes[t].insert(drawnNodes[t].end(), result.drawn.begin(), result.drawn.end());
+            for (const AtlasDraw& d : result.draws) {
+                const gl::ShaderProgram& prog = d.original ? m_originalProgram : m_atlasProgram;
+                if (&prog != current) {
+                    prog.use();
+                    current = &prog;
+                }
+                if (d.original) {
+                    auto it = m_textures.find(d.texture);
+                    if (it == m_textures.end()) continue; // cannot happen: the traversal checked residency
+                    bindTexture(it->second.id(), m_file.textures[d.texture].repeat ? m_repeatSampler.id() : m_clampSampler.id());
+                } else {
+                    auto it = m_atlases[t].find(d.node);
+                    if (it == m_atlases[t].end()) continue;
+                    bindTexture(it->second.id(), m_atlasSampler.id());
+                    prog.set("uLevelScale", float(std::ldexp(1.0, d.level)));
+                }
+                glDrawArrays(GL_TRIANGLES, GLint(d.first * 3), GLsizei(d.count * 3));
+                ++st.drawCalls;
+                st.triangles += d.count;
             }
-            if (d.original) {
-                auto it = m_textures.find(d.texture);
-                if (it == m_textures.end()) continue; // cannot happen: the traversal checked residency
-                bindTexture(it->second.id(), m_file.textures[d.texture].repeat ? m_repeatSampler.id() : m_clampSampler.id());
-            } else {
-                auto it = m_atlases[t].find(d.node);
-                if (it == m_atlases[t].end()) continue;
-                bindTexture(it->second.id(), m_atlasSampler.id());
-                prog.set("uLevelScale", float(std::ldexp(1.0, d.level)));
+        };
+        // (1) What is known visible.
+        const AtlasTraversalResult known = trav.draws(v, atlasResident, textureResident, visibility);
+        issue(known);
+        // (2) The deferred nodes, nearest first, in rounds: test the boxes, wait, draw the visible ones.
+        std::vector<std::uint32_t> pending = known.deferred;
+        for (int grown = 0; !pending.empty();) {
+            std::vector<std::pair<double, std::uint32_t>> byDistance;
+            for (std::uint32_t n : pending) byDistance.emplace_back(trav.distance(n, v), n);
+            std::sort(byDistance.begin(), byDistance.end());
+            const std::size_t take = bootstrap ? std::min(byDistance.size(), std::size_t(8) << std::min(grown, 20))
+                                                  : byDistance.size();
+            std::vector<std::uint32_t> visibleNow, test;
+            for (std::size_t i = 0; i < take; ++i)
+                // The eye in or next to a box: visible without a test (the near plane would cut the box open).
+                (byDistance[i].first < 1.0 ? visibleNow : test).push_back(byDistance[i].second);
+            pending.clear();
+            for (std::size_t i = take; i < byDistance.size(); ++i) pending.push_back(byDistance[i].second);
+            std::vector<PendingQuery> queries;
+            queryBoxes(t, test, viewProj, queries);
+            st.occlusionQueries += int(queries.size());
+
+            if (!queries.empty()) ++st.occlusionWaits;
+            for (const PendingQuery& q : queries) {
+                GLuint any = 0;
+                glGetQueryObjectuiv(m_queries[q.query].id(), GL_QUERY_RESULT, &any);
+                if (any) visibleNow.push_back(q.node);
+                else {
+                    m_nodeStates[t][q.node] = {frame, frame, false};
+                    ++st.occludedNodes;
+                }
             }
-            glDrawArrays(GL_TRIANGLES, GLint(d.first * 3), GLsizei(d.count * 3));
-            ++st.drawCalls;
-            st.triangles += d.count;
+            glBindVertexArray(m_vao[t].id());
+            current = nullptr;
+            bool drew = false;
+            for (std::uint32_t n : visibleNow) {
+                m_nodeStates[t][n] = {frame, 0, true}; // against the depth so far: tested again at the end
+                const AtlasTraversalResult below = trav.drawsBelow(n, v, atlasResident, textureResident, visibility);
+                issue(below);
+                drew = drew || !below.drawn.empty();
+                pending.insert(pending.end(), below.deferred.begin(), below.deferred.end());
+            }
+            if (drew) ++grown; // rounds that only open inner nodes keep the batch small
         }
+        std::sort(atlasesDrawn.begin(), atlasesDrawn.end());
+        st.atlasNodes += int(std::unique(atlasesDrawn.begin(), atlasesDrawn.end()) - atlasesDrawn.begin());
         st.blocksResident += pager.stats().residentBlocks;
         st.residentBytes += pager.stats().residentBytes;
         st.loaderQueue += pager.stats().queued;
@@ -492,6 +638,23 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
         glDrawArrays(GL_TRIANGLES, GLint(m_plainRoofs * 3), GLsizei(m_plainOthers * 3));
         ++st.drawCalls;
         st.triangles += std::int64_t(m_plainOthers);
+    }
+    // (3) The drawn nodes' boxes against the frame's depth, for the next frame.
+    if (occlusion) {
+        glBindSampler(0, 0);
+        for (std::size_t t = 0; t < drawnNodes.size(); ++t) {
+            std::vector<std::uint32_t> test;
+            for (std::uint32_t n : drawnNodes[t]) {
+                // A node found visible stays assumed visible for 4 frames before it is tested again (CHC++'s
+                // visibility persistence, Mattausch et al. 2008): a quarter of the queries; a node that hides is
+                // drawn up to 3 frames too long. Nodes drawn untested (new in view) are tested now.
+                if (m_traversals[t]->distance(n, v) < 1.0) m_nodeStates[t][n] = {frame, frame, true};
+                else if (m_nodeStates[t][n].tested == 0 || m_nodeStates[t][n].tested + 4 <= frame) test.push_back(n);
+            }
+            const std::size_t before = m_frameEndQueries.size();
+            queryBoxes(t, test, viewProj, m_frameEndQueries);
+            st.occlusionQueries += int(m_frameEndQueries.size() - before);
+        }
     }
     glBindVertexArray(0);
     glBindSampler(0, 0);

@@ -45,6 +45,7 @@ struct CitySettings {
     bool placeOnTerrain = true;                    // a model in its own CRS: each building set on the scene's DEM
     float anisotropy = 8.0f;                       // the samplers' maximum anisotropy (render/bench --aniso)
     AtlasUpload upload = AtlasUpload::Auto;        // BC atlases: compressed or decoded on upload
+    bool occlusion = true;                         // atlas mode: occlusion queries on node boxes (draw())
 };
 
 /// Per-frame counters (the issue's: nodes drawn, texture binds, draw calls, blocks resident, bytes, loader queue).
@@ -56,6 +57,9 @@ struct CityFrameStats {
     int originalLeaves = 0;        // leaves drawn with their originals
     int coarserThanWanted = 0;     // nodes drawn with a coarser atlas while finer data loads
     int missingOriginals = 0;      // original mode: triangle runs drawn flat because their texture is not resident
+    int occludedNodes = 0;         // atlas mode with occlusion: nodes in view found hidden, not drawn
+    int occlusionQueries = 0;      // box queries issued (the deferred nodes' and the end-of-frame ones)
+    int occlusionWaits = 0;        // rounds in which the frame waited for query answers
     std::size_t blocksResident = 0;
     std::uint64_t residentBytes = 0;
     std::size_t loaderQueue = 0;
@@ -76,6 +80,16 @@ public:
     void complete(const Camera& camera, int width, int height);
     /// Draws into `target` (depth-tested against what is there: draw after the terrain). `terrain` textures the
     /// roofs (null: roofs in one colour).
+    ///
+    /// Atlas mode with settings().occlusion, Coherent Hierarchical Culling (Bittner et al. 2004; Wimmer & Bittner
+    /// 2005, GPU Gems 2 ch. 6) on the atlas tree: (1) the traversal draws the nodes the last frame's queries found
+    /// visible; (2) the nodes in view not known visible (found hidden, or not tested lately: new in view, or
+    /// children of a refined node) are tested nearest first with occlusion queries on their boxes against the depth
+    /// drawn so far, one wait per round, and the visible ones drawn (their subtrees may defer more; while nothing
+    /// is known, rounds of 8, 16, 32, ... nearest so that near nodes hide far ones); (3) at the end the drawn nodes'
+    /// boxes are queried against the frame's depth, read at the next update() or draw(). The picture is the same
+    /// as without (a node is skipped only when its box is hidden now); the nodes drawn, their atlases paged
+    /// (hidden nodes count as Culled) and the triangles fall to what the view can see.
     CityFrameStats draw(const Camera& camera, const ClipmapTerrainRendererGL* terrain, const gl::RenderTarget& target);
 
     CitySettings& settings() { return m_settings; }
@@ -90,6 +104,18 @@ private:
     void apply(int tree, AtlasPager::Frame&& frame);
     void uploadAtlas(int tree, const LoadedBlock& b);
     void uploadTexture(const LoadedBlock& b);
+    struct NodeState {
+        std::uint64_t frame = 0;  // when `visible` was last known (answered, or traversed as visible)
+        std::uint64_t tested = 0; // when a query last answered
+        bool visible = false;
+    };
+    struct PendingQuery { std::size_t tree; std::uint32_t node; std::size_t query; std::uint64_t frame; };
+    NodeVisibility visibilityOf(std::size_t tree, std::uint32_t node, std::uint64_t frame) const;
+    /// The end-of-frame queries of the last draw() into m_nodeStates.
+    void collectQueries();
+    /// One occlusion query per node box, depth-tested against what is drawn, writing nothing.
+    void queryBoxes(std::size_t tree, const std::vector<std::uint32_t>& nodes, const glm::mat4& viewProj,
+                    std::vector<PendingQuery>& out);
 
     AtlasTreeFile m_file;
     CitySettings m_settings;
@@ -110,6 +136,15 @@ private:
     bool m_decodeBc = false; // BC atlases decoded to RGB(A)8 on upload
     std::uint64_t m_frame = 0, m_frameUploaded = 0;
     std::unique_ptr<AtlasPager> m_originalPager; // original mode: pages the originals the view shows
+    // Occlusion culling (atlas mode).
+    std::vector<std::vector<NodeState>> m_nodeStates; // per tree, per node
+    std::vector<gl::Query> m_queries;                // GL_ANY_SAMPLES_PASSED_CONSERVATIVE, reused every frame
+    std::size_t m_queriesUsed = 0;
+    std::vector<PendingQuery> m_frameEndQueries;     // step (3), answered at the next update() or draw()
+    std::uint64_t m_drawFrame = 0;
+    gl::Buffer m_boxVbo, m_boxIbo;
+    gl::VertexArray m_boxVao;
+    gl::ShaderProgram m_boxProgram;
 };
 
 } // namespace seasonview::city

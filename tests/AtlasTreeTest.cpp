@@ -561,6 +561,85 @@ TEST(AtlasPagingTest, CategoriesOnAHandMadeTree) {
     EXPECT_EQ(c.at({atlas, 1}), BlockCategory::Needed);
 }
 
+// Occlusion (CityRendererGL's queries, here a hand-made answer): the traversal descends only into nodes known
+// visible, lists the rest of what is in view as deferred, draws a deferred node's subtree on demand with the nearest
+// resident atlas, and pages hidden nodes as Culled.
+TEST(AtlasPagingTest, VisibilityDefersHiddenAndUnknownNodes) {
+    const AtlasTreeData t = handTree();
+    AtlasTreeInfo info;
+    info.dmin = 10.0;
+    const AtlasTraversal trav(t, info);
+    const auto all = [](std::uint32_t) { return true; };
+    auto has = [](const std::vector<std::uint32_t>& v, std::uint32_t n) { return std::find(v.begin(), v.end(), n) != v.end(); };
+
+    // 15 m in front of the root's middle, looking along it with a wide view: the root refines into its four children,
+    // each drawn with its atlas.
+    Camera cam;
+    cam.position = {200.0, -15.0, 5.0};
+    cam.pitchDeg = 0.0;
+    cam.fovYDeg = 90.0;
+    const AtlasView v = viewOf(cam);
+    const auto plain = trav.draws(v, all, all);
+    ASSERT_EQ(plain.drawn.size(), 4u);
+    EXPECT_TRUE(plain.deferred.empty());
+
+    // Node 2 hidden, node 3 not known: neither drawn, both deferred; the others as before.
+    const VisibilityFn vis = [](std::uint32_t n) {
+        return n == 2 ? NodeVisibility::Hidden : n == 3 ? NodeVisibility::Unknown : NodeVisibility::Visible;
+    };
+    const auto occl = trav.draws(v, all, all, vis);
+    EXPECT_EQ(occl.drawn.size(), 2u);
+    EXPECT_TRUE(has(occl.drawn, 1) && has(occl.drawn, 4));
+    EXPECT_EQ(occl.deferred.size(), 2u);
+    EXPECT_TRUE(has(occl.deferred, 2) && has(occl.deferred, 3));
+    for (const AtlasDraw& d : occl.draws) {
+        // Leaves 2 and 3 are triangles 4 and 5 (depth-first order).
+        EXPECT_FALSE(d.first <= 4 && 4 < d.first + d.count) << "node 2's triangle drawn";
+        EXPECT_FALSE(d.first <= 5 && 5 < d.first + d.count) << "node 3's triangle drawn";
+    }
+
+    // Paging: the hidden node is Culled (and its originals not asked for), the unknown one treated as visible.
+    const auto c = categories(trav.requests(v, vis));
+    const int atlas = int(BlockKey::Kind::Atlas);
+    EXPECT_EQ(c.at({atlas, 2}), BlockCategory::Culled);
+    EXPECT_EQ(c.at({atlas, 3}), BlockCategory::Needed);
+    EXPECT_EQ(c.at({atlas, 1}), BlockCategory::Needed);
+    EXPECT_EQ(categories(trav.requests(v)).at({atlas, 2}), BlockCategory::Needed);
+
+    // Node 3 found visible: drawn alone, with its own atlas, or the root's while its own is not resident.
+    const auto below = trav.drawsBelow(3, v, all, all, vis);
+    ASSERT_EQ(below.drawn.size(), 1u);
+    EXPECT_EQ(below.drawn[0], 3u);
+    ASSERT_EQ(below.draws.size(), 1u);
+    EXPECT_EQ(below.draws[0].first, 5u);
+    EXPECT_EQ(below.draws[0].node, 3u);
+    EXPECT_EQ(below.coarserThanWanted, 0u);
+    const auto standIn = trav.drawsBelow(3, v, [](std::uint32_t n) { return n == 0; }, all, vis);
+    ASSERT_EQ(standIn.draws.size(), 1u);
+    EXPECT_EQ(standIn.draws[0].node, 0u) << "the root's atlas stands in";
+    EXPECT_EQ(standIn.draws[0].level, 0);
+    EXPECT_EQ(standIn.draws[0].first, 5u);
+    EXPECT_EQ(standIn.coarserThanWanted, 1u);
+
+    // Refinement waits only for the children known visible: node 1 refines although hidden node 6's atlas is not
+    // resident (without the answer it would be drawn coarse, waiting for it).
+    Camera near;
+    near.position = {50.0, -10.0, 5.0};
+    near.pitchDeg = 0.0;
+    near.fovYDeg = 90.0;
+    const AtlasView nv = viewOf(near);
+    const auto not6 = [](std::uint32_t n) { return n != 6; };
+    const VisibilityFn hide6 = [](std::uint32_t n) { return n == 6 ? NodeVisibility::Hidden : NodeVisibility::Visible; };
+    const auto waits = trav.draws(nv, not6, all);
+    EXPECT_TRUE(has(waits.drawn, 1)) << "drawn with its own atlas while a child loads";
+    EXPECT_GE(waits.coarserThanWanted, 1u);
+    const auto refined = trav.draws(nv, not6, all, hide6);
+    EXPECT_FALSE(has(refined.drawn, 1));
+    EXPECT_TRUE(has(refined.drawn, 5) && has(refined.drawn, 7));
+    EXPECT_TRUE(has(refined.deferred, 6));
+    EXPECT_EQ(refined.coarserThanWanted, 0u);
+}
+
 TEST(AtlasPagingTest, CapacityIsNeverExceededUnderARandomCamera) {
     test::TempDir dir("atlas_paging");
     auto f = wallTree(dir.path(), 40);

@@ -117,6 +117,63 @@ TEST(CityCliTest, AtlasUploadCompressedOrDecoded) {
     EXPECT_NE(bad.err.find("--city-upload"), std::string::npos) << bad.err;
 }
 
+// Occlusion culling (atlas mode): at street level in a block city the nodes behind the first buildings are skipped
+// and the picture stays the same pixel for pixel; from above or at an angle nothing visible is lost either. In a walk
+// down the street (bench) the hidden nodes stay skipped frame after frame.
+TEST(CityCliTest, OcclusionCullingSkipsOnlyHiddenNodes) {
+    static CliScene s("city-occl", {"--size-m", "512", "--gsd", "1", "--block-city", "160", "--facade-size", "64"},
+                      "400x250", "-60,-110,+2,10,2");
+    auto render = [&](const std::string& name, const std::string& camera, const char* occlusion) {
+        const CliResult r = runCli({"render", (s.dir / "s/scene.json").string(), "--size", s.size, "--camera", camera,
+                                    "--clip-size", "512", "--cache", (s.dir / "cache").string(), "--city", "atlas",
+                                    "--city-occlusion", occlusion, "--stats", (s.dir / (name + ".json")).string(),
+                                    "--out", (s.dir / (name + ".png")).string()});
+        EXPECT_EQ(r.exitCode, 0) << r.err;
+        std::ifstream f(s.dir / (name + ".json"));
+        return f ? nlohmann::json::parse(f)["city"] : nlohmann::json::object();
+    };
+    for (const std::string camera : {"-60,-110,+2,10,2", "20,-200,+45,0,-15", "0,0,+400,0,-89", "-30,-5,+3,70,0"}) {
+        const auto off = render("off", camera, "off"), on = render("on", camera, "on");
+        ASSERT_TRUE(on.contains("atlas_nodes") && off.contains("atlas_nodes")) << camera;
+        EXPECT_EQ(off["occlusion"], false);
+        EXPECT_EQ(off["occlusion_queries"], 0);
+        EXPECT_EQ(on["occlusion"], true);
+        EXPECT_GT(on["occlusion_queries"].get<int>(), 0) << camera;
+        EXPECT_LE(on["atlas_nodes"].get<int>(), off["atlas_nodes"].get<int>()) << camera;
+        const auto a = s.image("off.png"), b = s.image("on.png");
+        EXPECT_TRUE(a.pixels == b.pixels) << camera << ": occlusion culling changed the picture";
+        if (camera == "-60,-110,+2,10,2") {
+            // Street level: most of the city is behind the first row.
+            EXPECT_GT(on["occluded_nodes"].get<int>(), 0);
+            EXPECT_LT(on["atlas_nodes"].get<int>(), off["atlas_nodes"].get<int>());
+            EXPECT_LT(on["triangles"].get<int>(), off["triangles"].get<int>());
+        }
+    }
+
+    std::ofstream(s.dir / "walk.json") << R"([{"time":0,"x":-60,"y":-110,"z":"+2","yaw":10,"pitch":2},)"
+                                       << R"({"time":1,"x":-58,"y":-95,"z":"+2","yaw":0,"pitch":2}])";
+    const CliResult b = runCli({"bench", (s.dir / "s/scene.json").string(), "--path", (s.dir / "walk.json").string(),
+                                "--frames", "6", "--warmup", "1", "--size", "400x250", "--coverage-every", "0",
+                                "--cache", (s.dir / "cache").string(), "--compare", "city-occlusion=off,on", "--out",
+                                (s.dir / "walk").string()});
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    std::ifstream sj(s.dir / "walk/summary.json");
+    const auto summary = nlohmann::json::parse(sj);
+    const auto& on = summary["modes"]["city-occlusion=on"]["city"];
+    const auto& off = summary["modes"]["city-occlusion=off"]["city"];
+    ASSERT_TRUE(on.is_object() && off.is_object()) << summary.dump();
+    EXPECT_EQ(on["occlusion"], true);
+    EXPECT_EQ(off["occlusion"], false);
+    EXPECT_EQ(off["occluded_nodes"]["max"].get<double>(), 0.0);
+    EXPECT_GT(on["occluded_nodes"]["median"].get<double>(), 0.0) << "hidden nodes stay skipped while walking";
+    EXPECT_LT(on["atlas_nodes"]["median"].get<double>(), off["atlas_nodes"]["median"].get<double>());
+    std::ifstream csv(s.dir / "walk/frames.csv");
+    std::string header;
+    std::getline(csv, header);
+    for (const char* col : {",city_occluded_nodes", ",city_occlusion_queries", ",city_occlusion_waits"})
+        EXPECT_NE(header.find(col), std::string::npos) << header;
+}
+
 TEST(CityCliTest, RoofsComeFromTheImageryOfTheSeason) {
     const CliScene& s = scene();
     ASSERT_EQ(s.render("on.png", {"--city", "flat", "--view", "leafon"}).exitCode, 0);
