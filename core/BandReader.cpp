@@ -9,8 +9,12 @@
 
 #include <algorithm>
 #include <atomic>
+#include <csetjmp>
+#include <cstdio> // jpeglib.h needs FILE
 #include <cstring>
 #include <thread>
+
+#include <jpeglib.h>
 
 namespace seasonview {
 
@@ -52,25 +56,105 @@ void undoPredictorRgb8(const std::uint8_t* src, std::uint8_t* dst, size_t pixels
     }
 }
 
+// libjpeg reports errors through error_exit, which must not return: back into decodeJpeg with longjmp (nothing
+// between the setjmp and the libjpeg calls has a destructor).
+struct JpegError {
+    jpeg_error_mgr mgr;
+    std::jmp_buf jump;
+};
+
+[[noreturn]] void jpegErrorExit(j_common_ptr c) { std::longjmp(reinterpret_cast<JpegError*>(c->err)->jump, 1); }
+void jpegQuiet(j_common_ptr) {}
+
+/// A libjpeg decompressor, one per decoding thread.
+struct JpegDecoder {
+    jpeg_decompress_struct cinfo{};
+    JpegError error{};
+    bool created = false;
+    JpegDecoder() {
+        cinfo.err = jpeg_std_error(&error.mgr);
+        error.mgr.error_exit = jpegErrorExit;
+        error.mgr.output_message = jpegQuiet; // a damaged tile goes to OpenImageIO, which reports it
+        if (setjmp(error.jump)) return;
+        jpeg_create_decompress(&cinfo);
+        created = true;
+    }
+    ~JpegDecoder() {
+        if (created) jpeg_destroy_decompress(&cinfo);
+    }
+    JpegDecoder(const JpegDecoder&) = delete;
+    JpegDecoder& operator=(const JpegDecoder&) = delete;
+};
+
+/// One JPEG tile or strip of a TIFF (an abbreviated stream whose tables are the JPEGTABLES tag) into exactly
+/// width × height × components bytes, as libtiff's JPEG codec decodes it with JPEGCOLORMODE_RGB (GDAL's way): YCbCr
+/// converted to RGB with libjpeg's default upsampling and IDCT (tif_jpeg.c leaves them; the test compares with
+/// libtiff byte for byte), other photometrics' components as they are. False on any error or warning (a corrupt
+/// stream), and when the stream's size or components are not the tile's.
+bool decodeJpeg(JpegDecoder& d, const std::vector<std::uint8_t>& tables, const std::vector<std::uint8_t>& data,
+                std::uint8_t* out, int width, int height, int components, bool ycbcr) {
+    jpeg_decompress_struct& c = d.cinfo;
+    if (!d.created) return false;
+    if (setjmp(d.error.jump)) {
+        jpeg_abort_decompress(&c);
+        return false;
+    }
+    d.error.mgr.num_warnings = 0;
+    if (!tables.empty()) {
+        jpeg_mem_src(&c, tables.data(), static_cast<unsigned long>(tables.size()));
+        if (jpeg_read_header(&c, FALSE) != JPEG_HEADER_TABLES_ONLY) {
+            jpeg_abort_decompress(&c);
+            return false;
+        }
+    }
+    jpeg_mem_src(&c, data.data(), static_cast<unsigned long>(data.size()));
+    if (jpeg_read_header(&c, TRUE) != JPEG_HEADER_OK || int(c.image_width) != width || int(c.image_height) != height ||
+        c.num_components != components) {
+        jpeg_abort_decompress(&c);
+        return false;
+    }
+    c.jpeg_color_space = ycbcr ? JCS_YCbCr : JCS_UNKNOWN;
+    c.out_color_space = ycbcr ? JCS_RGB : JCS_UNKNOWN;
+    jpeg_start_decompress(&c);
+    if (c.output_components != components || int(c.output_width) != width) {
+        jpeg_abort_decompress(&c);
+        return false;
+    }
+    const size_t rowBytes = size_t(width) * size_t(components);
+    while (c.output_scanline < c.output_height) {
+        JSAMPROW row = out + size_t(c.output_scanline) * rowBytes;
+        if (jpeg_read_scanlines(&c, &row, 1) != 1) {
+            jpeg_abort_decompress(&c);
+            return false;
+        }
+    }
+    jpeg_finish_decompress(&c);
+    return d.error.mgr.num_warnings == 0;
+}
+
 } // namespace
 
-// Deflate and Zstandard TIFFs, the kinds GeoTiffStreamWriter writes and most GeoTIFFs are, decoded here rather than by
-// OpenImageIO: the compressed tiles (or strips) of a band are read raw through libtiff and decoded on all cores,
-// deflate by libdeflate (about twice as fast as zlib), Zstandard by libzstd (about five times faster again). Only
-// layouts where the result is certain to equal OpenImageIO's: unsigned 8/16-bit, contiguous RGB or grey, no
-// unassociated alpha (OpenImageIO would premultiply it), native byte order, predictor none or horizontal. Anything
-// else, and any tile that does not decode, goes to OpenImageIO.
+// Deflate, Zstandard and JPEG TIFFs, the kinds GeoTiffStreamWriter writes and most GeoTIFFs and orthophotos are,
+// decoded here rather than by OpenImageIO: the compressed tiles (or strips) of a band are read raw through libtiff and
+// decoded on all cores, deflate by libdeflate (about twice as fast as zlib), Zstandard by libzstd (about five times
+// faster again), JPEG (YCbCr) by libjpeg as libtiff's codec decodes it for GDAL (RGB out). Only layouts where the
+// result is certain to equal OpenImageIO's or libtiff's: unsigned 8/16-bit, contiguous RGB or grey (JPEG: 8-bit
+// YCbCr), no unassociated alpha (OpenImageIO would premultiply it), native byte order, predictor none or horizontal.
+// Anything else, and any tile that does not decode, goes to OpenImageIO.
 struct RawTiff {
     TIFF* tif = nullptr;
     std::string error;                // libtiff's last message about this file
     bool tiled = false;
     int blockWidth = 0, blockHeight = 0; // a tile, or a strip (full width, rows per strip)
     int samples = 0, sampleBytes = 1, predictor = 1, threads = 1;
-    bool zstd = false;                   // else deflate
+    bool zstd = false, jpeg = false;     // else deflate
+    bool ycbcr = false;                  // JPEG: YCbCr converted to RGB
+    std::vector<std::uint8_t> jpegTables; // JPEG: the JPEGTABLES tag (quantisation and Huffman tables)
     std::vector<std::vector<std::uint8_t>> compressed;                                   // blocks of a block row
     std::vector<std::vector<std::uint8_t>> scratch;                                      // per thread
     std::vector<std::unique_ptr<libdeflate_decompressor, DecompressorDeleter>> inflaters; // per thread (deflate)
     std::vector<std::unique_ptr<ZSTD_DCtx, DecompressorDeleter>> zstdContexts;            // per thread (zstd)
+    std::vector<std::unique_ptr<JpegDecoder>> jpegDecoders;                              // per thread (JPEG)
     ~RawTiff() {
         if (tif) TIFFClose(tif);
     }
@@ -101,11 +185,24 @@ struct RawTiff {
         TIFFGetFieldDefaulted(t, TIFFTAG_EXTRASAMPLES, &extraCount, &extra);
         const bool deflate = compression == COMPRESSION_ADOBE_DEFLATE || compression == COMPRESSION_DEFLATE;
         r->zstd = compression == COMPRESSION_ZSTD;
+        r->jpeg = compression == COMPRESSION_JPEG;
+        r->ycbcr = r->jpeg && photometric == PHOTOMETRIC_YCBCR && spp == 3;
         const bool colours = (photometric == PHOTOMETRIC_RGB && spp >= 3) ||
-                             (photometric == PHOTOMETRIC_MINISBLACK && spp >= 1);
+                             (photometric == PHOTOMETRIC_MINISBLACK && spp >= 1) || r->ycbcr;
+        if (r->jpeg) {
+            // YCbCr (what orthophotos use; OpenImageIO 2.4 reads it through libtiff's RGBA interface, which fails on
+            // tiles and holds a whole image of strips); the tables shared by every tile. The JPEG codec has no
+            // predictor tag.
+            if (!r->ycbcr || bits != 8 || extraCount > 0) return nullptr;
+            predictor = PREDICTOR_NONE;
+            std::uint32_t count = 0;
+            void* tables = nullptr;
+            if (TIFFGetField(t, TIFFTAG_JPEGTABLES, &count, &tables) && tables && count > 0)
+                r->jpegTables.assign(static_cast<std::uint8_t*>(tables), static_cast<std::uint8_t*>(tables) + count);
+        }
         bool unassociated = false;
         for (std::uint16_t i = 0; i < extraCount && extra; ++i) unassociated |= extra[i] == EXTRASAMPLE_UNASSALPHA;
-        if (int(w) != width || int(h) != height || !(deflate || r->zstd) || planar != PLANARCONFIG_CONTIG || !colours ||
+        if (int(w) != width || int(h) != height || !(deflate || r->zstd || r->jpeg) || planar != PLANARCONFIG_CONTIG || !colours ||
             unassociated || (bits != 8 && bits != 16) || format != SAMPLEFORMAT_UINT ||
             (bits == 16 && TIFFIsByteSwapped(t)) || (predictor != PREDICTOR_NONE && predictor != PREDICTOR_HORIZONTAL))
             return nullptr;
@@ -129,7 +226,10 @@ struct RawTiff {
         r->predictor = predictor;
         r->threads = std::max(1, int(std::thread::hardware_concurrency()));
         for (int i = 0; i < r->threads; ++i) {
-            if (r->zstd) {
+            if (r->jpeg) {
+                r->jpegDecoders.push_back(std::make_unique<JpegDecoder>());
+                if (!r->jpegDecoders.back()->created) return nullptr;
+            } else if (r->zstd) {
                 r->zstdContexts.emplace_back(ZSTD_createDCtx());
                 if (!r->zstdContexts.back()) return nullptr;
             } else {
@@ -143,6 +243,11 @@ struct RawTiff {
 
     /// One block's compressed bytes into exactly `bytes` bytes (a short or overlong block is corrupt).
     bool decode(const std::vector<std::uint8_t>& c, std::uint8_t* out, size_t bytes, int worker) {
+        if (jpeg) {
+            const size_t rowBytes = size_t(blockWidth) * size_t(samples);
+            return bytes % rowBytes == 0 && decodeJpeg(*jpegDecoders[size_t(worker)], jpegTables, c, out, blockWidth,
+                                                       int(bytes / rowBytes), samples, ycbcr);
+        }
         if (zstd) {
             const size_t n = ZSTD_decompressDCtx(zstdContexts[size_t(worker)].get(), out, bytes, c.data(), c.size());
             return !ZSTD_isError(n) && n == bytes;

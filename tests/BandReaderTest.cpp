@@ -1,14 +1,17 @@
-// BandReader: the deflate and Zstandard TIFFs it decodes itself (libdeflate, libzstd) give exactly the samples
-// OpenImageIO (libtiff's own codecs) gives, tiled or in strips, 8- or 16-bit, RGB or grey, whole or some channels, any band height; the layouts it leaves to
-// OpenImageIO still read; damaged tiles are one error naming the file.
+// BandReader: the deflate, Zstandard and JPEG TIFFs it decodes itself (libdeflate, libzstd, libjpeg) give exactly the
+// samples OpenImageIO (libtiff's own codecs) gives, tiled or in strips, 8- or 16-bit, RGB (JPEG: YCbCr) or grey, whole
+// or some channels, any band height; the layouts it leaves to OpenImageIO still read; damaged tiles are one error
+// naming the file.
 #include "BandReader.h"
 #include "Raster.h"
 #include "TestUtil.h"
 
 #include <gtest/gtest.h>
+#include <tiffio.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 
 using namespace seasonview;
@@ -87,7 +90,120 @@ void expectSameAsOiio(const fs::path& dir, int w, int h, int channels, int tile,
     }
 }
 
+/// A JPEG-in-TIFF as orthophotos come (GDAL's COMPRESS=JPEG PHOTOMETRIC=YCBCR: libtiff converts RGB to YCbCr, 2×2
+/// subsampled), tiled or in strips of 16 rows. (OpenImageIO 2.4's own JPEG tiles do not decode, not even by libtiff.)
+void writeJpegTiff(const fs::path& path, const std::vector<std::uint8_t>& rgb, int w, int h, int tile) {
+    TIFF* t = TIFFOpen(path.c_str(), "w");
+    ASSERT_TRUE(t) << path;
+    TIFFSetField(t, TIFFTAG_IMAGEWIDTH, std::uint32_t(w));
+    TIFFSetField(t, TIFFTAG_IMAGELENGTH, std::uint32_t(h));
+    TIFFSetField(t, TIFFTAG_BITSPERSAMPLE, 8);
+    TIFFSetField(t, TIFFTAG_SAMPLESPERPIXEL, 3);
+    TIFFSetField(t, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+    TIFFSetField(t, TIFFTAG_COMPRESSION, COMPRESSION_JPEG);
+    TIFFSetField(t, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_YCBCR);
+    TIFFSetField(t, TIFFTAG_JPEGCOLORMODE, JPEGCOLORMODE_RGB);
+    TIFFSetField(t, TIFFTAG_JPEGQUALITY, 85);
+    const int bw = tile > 0 ? tile : w, bh = tile > 0 ? tile : 16;
+    if (tile > 0) {
+        TIFFSetField(t, TIFFTAG_TILEWIDTH, std::uint32_t(tile));
+        TIFFSetField(t, TIFFTAG_TILELENGTH, std::uint32_t(tile));
+    } else {
+        TIFFSetField(t, TIFFTAG_ROWSPERSTRIP, std::uint32_t(bh));
+    }
+    std::vector<std::uint8_t> block(size_t(bw) * size_t(bh) * 3);
+    for (int y = 0; y < h; y += bh)
+        for (int x = 0; x < w; x += bw) {
+            std::fill(block.begin(), block.end(), std::uint8_t(0));
+            const int rows = std::min(bh, h - y), cols = std::min(bw, w - x);
+            for (int r = 0; r < rows; ++r)
+                std::memcpy(&block[size_t(r) * size_t(bw) * 3], &rgb[(size_t(y + r) * size_t(w) + size_t(x)) * 3],
+                            size_t(cols) * 3);
+            const tmsize_t n = tile > 0 ? TIFFWriteEncodedTile(t, TIFFComputeTile(t, std::uint32_t(x), std::uint32_t(y), 0, 0),
+                                                               block.data(), tmsize_t(block.size()))
+                                        : TIFFWriteEncodedStrip(t, TIFFComputeStrip(t, std::uint32_t(y), 0), block.data(),
+                                                                tmsize_t(size_t(rows) * size_t(bw) * 3));
+            ASSERT_GT(n, 0) << path;
+        }
+    TIFFClose(t);
+}
+
+/// The whole RGB image as libtiff's JPEG codec decodes it (JPEGCOLORMODE_RGB), tile by tile or strip by strip.
+std::vector<std::uint8_t> libtiffRgb(const fs::path& path) {
+    TIFF* t = TIFFOpen(path.c_str(), "r");
+    EXPECT_TRUE(t) << path;
+    if (!t) return {};
+    TIFFSetField(t, TIFFTAG_JPEGCOLORMODE, JPEGCOLORMODE_RGB);
+    std::uint32_t w = 0, h = 0;
+    TIFFGetField(t, TIFFTAG_IMAGEWIDTH, &w);
+    TIFFGetField(t, TIFFTAG_IMAGELENGTH, &h);
+    std::vector<std::uint8_t> out(size_t(w) * size_t(h) * 3);
+    std::uint32_t bw = w, bh = 0;
+    if (TIFFIsTiled(t)) {
+        TIFFGetField(t, TIFFTAG_TILEWIDTH, &bw);
+        TIFFGetField(t, TIFFTAG_TILELENGTH, &bh);
+    } else {
+        TIFFGetFieldDefaulted(t, TIFFTAG_ROWSPERSTRIP, &bh);
+    }
+    std::vector<std::uint8_t> block(size_t(bw) * size_t(bh) * 3);
+    for (std::uint32_t y = 0; y < h; y += bh)
+        for (std::uint32_t x = 0; x < w; x += bw) {
+            const tmsize_t got = TIFFIsTiled(t) ? TIFFReadEncodedTile(t, TIFFComputeTile(t, x, y, 0, 0), block.data(), tmsize_t(block.size()))
+                                                : TIFFReadEncodedStrip(t, TIFFComputeStrip(t, y, 0), block.data(), tmsize_t(block.size()));
+            EXPECT_GT(got, 0) << path << " at " << x << "," << y;
+            for (std::uint32_t r = 0; r < bh && y + r < h; ++r)
+                std::memcpy(&out[(size_t(y + r) * w + x) * 3], &block[size_t(r) * bw * 3], size_t(std::min(bw, w - x)) * 3);
+        }
+    TIFFClose(t);
+    return out;
+}
+
 } // namespace
+
+TEST(BandReaderTest, OwnJpegDecoderEqualsLibtiff) {
+    // OpenImageIO 2.4 reads YCbCr through libtiff's RGBA interface, which fails on tiles (and holds a whole image of
+    // strips), so the reference is libtiff's JPEG codec with JPEGCOLORMODE_RGB, as GDAL reads them.
+    TempDir dir("bandreader-jpeg");
+    for (int tile : {0, 64, 256}) {
+        const int w = 301, h = 197; // partial tiles, odd sizes against the 2×2 chroma subsampling
+        const fs::path path = dir / ("j_" + std::to_string(tile) + ".tif");
+        writeJpegTiff(path, pattern<std::uint8_t>(w, h, 3, unsigned(tile + 3)), w, h, tile);
+        const std::vector<std::uint8_t> rgb = libtiffRgb(path);
+        ASSERT_EQ(rgb.size(), size_t(w) * size_t(h) * 3);
+        for (int wanted = 1; wanted <= 3; ++wanted) {
+            std::vector<std::uint8_t> ref(size_t(w) * size_t(h) * size_t(wanted));
+            for (size_t p = 0; p < size_t(w) * size_t(h); ++p)
+                std::memcpy(&ref[p * size_t(wanted)], &rgb[p * 3], size_t(wanted));
+            for (int rows : {1, 16, 50, 256, 1000}) {
+                SCOPED_TRACE("jpeg, channels " + std::to_string(wanted) + ", tile " + std::to_string(tile) +
+                             ", bands of " + std::to_string(rows));
+                EXPECT_TRUE(readBands<std::uint8_t>(path, rows, wanted, true) == ref);
+            }
+        }
+    }
+    // Damaged JPEG data: the own decoder refuses it (libjpeg's warnings count), OpenImageIO cannot read it either:
+    // one line naming the file, no crash.
+    const fs::path path = dir / "damaged.tif";
+    writeJpegTiff(path, pattern<std::uint8_t>(512, 512, 3, 9), 512, 512, 256);
+    const std::string bytes = readBytes(path);
+    std::string garbled = bytes;
+    for (size_t i = bytes.size() / 4; i < bytes.size() / 2; ++i) garbled[i] = char(i * 13);
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << garbled;
+    auto r = BandReader::open(path, 256);
+    ASSERT_TRUE(r.ok()) << r.message();
+    EXPECT_TRUE(r->decodesTilesItself());
+    std::vector<std::uint8_t> out(size_t(512) * 256 * 3);
+    bool failed = false;
+    for (int y = 0; y < 512; y += 256) {
+        const Status st = r->read(y, y + 256, 3, SampleType::U8, out.data());
+        if (st) continue;
+        failed = true;
+        EXPECT_EQ(st.message().rfind(path.string() + ": ", 0), 0u) << st.message();
+        EXPECT_EQ(st.message().find('\n'), std::string::npos) << st.message();
+    }
+    EXPECT_TRUE(failed) << "garbled tiles must not read as pixels";
+    EXPECT_GT(r->readsHandedOver(), 0) << "the own decoder must refuse the garbled tiles";
+}
 
 TEST(BandReaderTest, OwnDeflateDecoderEqualsOpenImageIo) {
     TempDir dir("bandreader-same");
