@@ -502,8 +502,10 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         if (m.clipmap) {
             m.clipmap->completeSynchronously();
             m.clipRenderer->completeGeometry();
-            if (m.city)
+            if (m.city) {
                 m.city->complete(path->at(0.0, terrain), w, h);
+                m.city->resetOcclusion(); // the warm-up's answers came from a view with less resident
+            }
         }
     for (int f = 0; f < a->frames; ++f) {
         const Camera cam = path->at(double(f) / double(a->frames - 1), terrain);

@@ -341,6 +341,7 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
             if (!s.cityAccuracyOut.empty()) ground = target.readRgba();
             cityRenderer->settings().season = s.imagery.view == ImageryView::LeafOff ? 1 : 0;
             cityRenderer->complete(s.camera, width, height);
+            cityRenderer->resetOcclusion(); // a still: every node tested before it is drawn
             const city::CityFrameStats cst = cityRenderer->draw(s.camera, renderer->get(), target);
             cityStats = cst;
             drawn.triangles += cst.triangles;
@@ -456,7 +457,8 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
                                 {"device", (*ctx)->info().renderer}};
             if (cityStats)
                 j["city"] = {{"mode", city::cityModeName(cityRenderer->settings().mode)},
-                             {"occlusion", cityRenderer->settings().occlusion},
+                             {"occlusion", cityRenderer->settings().occlusion &&
+                                               cityRenderer->settings().mode == city::CityMode::Atlas},
                              {"atlas_nodes", cityStats->atlasNodes},
                              {"original_leaves", cityStats->originalLeaves},
                              {"coarser_than_wanted", cityStats->coarserThanWanted},

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cassert>
 #include <cmath>
 #include <map>
 
@@ -125,9 +126,11 @@ void AtlasTraversal::walk(std::uint32_t start, std::uint32_t fallback, const Atl
             if (n.leaf()) {
                 for (auto t : n.textures) possible = possible && textureResident(t);
             } else {
-                for (int c : n.children)
-                    if (m_tree.nodes[std::size_t(c)].count > 0 && visible(std::uint32_t(c), view) && known(std::uint32_t(c)))
-                        possible = possible && atlasResident(std::uint32_t(c));
+                for (int c : n.children) {
+                    const auto ci = std::uint32_t(c);
+                    if (m_tree.nodes[ci].count > 0 && visible(ci, view) && known(ci))
+                        possible = possible && atlasResident(ci);
+                }
             }
             if (!possible) {
                 useAtlas = true;
@@ -145,6 +148,7 @@ void AtlasTraversal::walk(std::uint32_t start, std::uint32_t fallback, const Atl
             ++r.originalLeaves;
             r.drawn.push_back(ni);
         } else {
+            r.opened.push_back(ni);
             for (int q = 3; q >= 0; --q) stack.push_back({std::uint32_t(n.children[std::size_t(q)]), atlas});
         }
     }
@@ -162,6 +166,7 @@ AtlasTraversalResult AtlasTraversal::drawsBelow(std::uint32_t node, const AtlasV
                                                 const std::function<bool(std::uint32_t)>& atlasResident,
                                                 const std::function<bool(std::uint32_t)>& textureResident,
                                                 const VisibilityFn& visibility) const {
+    assert(node < m_tree.nodes.size() && "AtlasTraversal::drawsBelow(): no such node");
     AtlasTraversalResult r;
     if (node >= m_tree.nodes.size()) return r;
     // The deepest resident ancestor (the root's atlas always is).

@@ -40,7 +40,9 @@ struct AtlasView {
     double tpp = 1.0;          // pixels per texel allowed at runtime (§4.5.2: minDistances divided by it)
 };
 
-/// What the caller knows of a node's visibility (CityRendererGL: the last occlusion query's answer, if recent).
+/// What the caller knows of a node's visibility (CityRendererGL: the last occlusion query's answer, if recent). The
+/// traversal may ask more than once per node, also of children it does not traverse (refinement checks): a pure
+/// function of the node.
 enum class NodeVisibility : std::uint8_t { Visible, Hidden, Unknown };
 using VisibilityFn = std::function<NodeVisibility(std::uint32_t)>;
 
@@ -75,10 +77,11 @@ struct AtlasDraw {
 
 struct AtlasTraversalResult {
     std::vector<AtlasDraw> draws;
-    std::size_t atlasNodes = 0;      // distinct atlases drawn
+    std::size_t atlasNodes = 0;      // nodes drawn with an atlas (their own, or a resident ancestor's)
     std::size_t originalLeaves = 0;  // leaves drawn with their originals
     std::size_t coarserThanWanted = 0; // nodes drawn with an atlas because finer data was not resident
     std::vector<std::uint32_t> drawn;    // the nodes drawn (with an atlas or their originals), in traversal order
+    std::vector<std::uint32_t> opened;   // inner nodes refined into their children
     std::vector<std::uint32_t> deferred; // with a VisibilityFn: nodes in the frustum not known visible, not drawn
 };
 
@@ -109,7 +112,7 @@ public:
 
     /// Every block's category and priority for the view (the traversal as if everything were resident), in
     /// priority order, Unused blocks left out. Nodes `visibility` calls Hidden are Culled and not descended into
-    /// (Unknown ones are treated as visible).
+    /// (Unknown ones are treated as visible; a hidden root leaves only the root's atlas Needed).
     std::vector<BlockRequest> requests(const AtlasView& view, const VisibilityFn& visibility = {}) const;
 
     const AtlasTreeData& tree() const { return m_tree; }
@@ -119,6 +122,8 @@ private:
     void atlasRanges(std::uint32_t node, std::uint32_t atlasNode, const AtlasView& view, std::vector<AtlasDraw>& out,
                      int level) const;
     void originalRanges(std::uint32_t leaf, std::vector<AtlasDraw>& out) const;
+    /// The traversal from `start`, drawing with `fallback`'s atlas (a resident ancestor) where a node's own is not
+    /// resident; `startVisible`: `start` is drawn or opened whatever `visibility` says (drawsBelow).
     void walk(std::uint32_t start, std::uint32_t fallback, const AtlasView& view,
               const std::function<bool(std::uint32_t)>& atlasResident,
               const std::function<bool(std::uint32_t)>& textureResident, const VisibilityFn& visibility,

@@ -336,8 +336,29 @@ NodeVisibility CityRendererGL::visibilityOf(std::size_t tree, std::uint32_t node
     // An answer is a hint for a few frames (a node hidden is tested again before it is skipped, one visible drawn
     // and tested again): a node out of view, or inside a node drawn coarse while finer atlases loaded, for longer is
     // unknown.
-    if (s.frame == 0 || s.frame + 8 < frame) return NodeVisibility::Unknown;
+    if (s.frame == 0 || s.frame + kAnswerFrames < frame) return NodeVisibility::Unknown;
     return s.visible ? NodeVisibility::Visible : NodeVisibility::Hidden;
+}
+
+std::pair<glm::vec3, glm::vec3> CityRendererGL::queryBox(std::size_t tree, std::uint32_t node) const {
+    // Grown a little: the box must enclose its triangles after rasterisation too.
+    const AtlasNode& n = m_file.trees[tree].nodes[node];
+    const glm::vec3 grow = kQueryGrowFraction * (n.boundsMax - n.boundsMin) + glm::vec3(kQueryGrowMetres);
+    return {n.boundsMin - grow, n.boundsMax + grow};
+}
+
+bool CityRendererGL::eyeNearBox(std::size_t tree, std::uint32_t node, const glm::dvec3& eye) const {
+    // Within kNearMetres of the query box, the near plane (kNearPlane, 5 cm) could cut the box's front faces away and
+    // leave only far faces that nearer geometry hides: such a node counts as visible without a test.
+    const auto [lo, hi] = queryBox(tree, node);
+    const glm::dvec3 q = glm::clamp(eye, glm::dvec3(lo), glm::dvec3(hi));
+    return glm::length(eye - q) < kNearMetres;
+}
+
+void CityRendererGL::resetOcclusion() {
+    for (auto& states : m_nodeStates) std::fill(states.begin(), states.end(), NodeState{});
+    m_frameEndQueries.clear(); // their query objects are begun anew, which discards the answers
+    m_queriesUsed = 0;
 }
 
 void CityRendererGL::collectQueries() {
@@ -353,6 +374,11 @@ void CityRendererGL::collectQueries() {
 void CityRendererGL::queryBoxes(std::size_t tree, const std::vector<std::uint32_t>& nodes, const glm::mat4& viewProj,
                                 std::vector<PendingQuery>& out) {
     if (nodes.empty()) return;
+    GLboolean colourMask[4] = {GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE}, depthMask = GL_TRUE;
+    GLint depthFunc = GL_GREATER;
+    glGetBooleanv(GL_COLOR_WRITEMASK, colourMask);
+    glGetBooleanv(GL_DEPTH_WRITEMASK, &depthMask);
+    glGetIntegerv(GL_DEPTH_FUNC, &depthFunc);
     glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
     glDepthMask(GL_FALSE);
     glDepthFunc(GL_GEQUAL); // a face on its box still counts (reversed Z)
@@ -360,11 +386,9 @@ void CityRendererGL::queryBoxes(std::size_t tree, const std::vector<std::uint32_
     m_boxProgram.set("uViewProj", viewProj);
     m_boxProgram.use();
     for (std::uint32_t n : nodes) {
-        const AtlasNode& node = m_file.trees[tree].nodes[n];
-        // Grown a little: the box must enclose its triangles after rasterisation too.
-        const glm::vec3 grow = 0.01f * (node.boundsMax - node.boundsMin) + glm::vec3(0.05f);
-        m_boxProgram.set("uBoxMin", node.boundsMin - grow);
-        m_boxProgram.set("uBoxMax", node.boundsMax + grow);
+        const auto [lo, hi] = queryBox(tree, n);
+        m_boxProgram.set("uBoxMin", lo);
+        m_boxProgram.set("uBoxMax", hi);
         if (m_queriesUsed == m_queries.size()) m_queries.push_back(gl::Query::create(GL_ANY_SAMPLES_PASSED_CONSERVATIVE));
         const std::size_t q = m_queriesUsed++;
         glBeginQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, m_queries[q].id());
@@ -372,9 +396,9 @@ void CityRendererGL::queryBoxes(std::size_t tree, const std::vector<std::uint32_
         glEndQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE);
         out.push_back(PendingQuery{tree, n, q, m_drawFrame});
     }
-    glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-    glDepthMask(GL_TRUE);
-    glDepthFunc(GL_GREATER);
+    glColorMask(colourMask[0], colourMask[1], colourMask[2], colourMask[3]);
+    glDepthMask(depthMask);
+    glDepthFunc(GLenum(depthFunc));
 }
 
 void CityRendererGL::update(const Camera& camera, int width, int height) {
@@ -508,17 +532,21 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
         const bool bootstrap = visibilityOf(t, 0, frame) == NodeVisibility::Unknown;
         if (occlusion)
             visibility = [this, t, frame, bootstrap](std::uint32_t n) {
-                NodeVisibility s = visibilityOf(t, n, frame);
-                if (s == NodeVisibility::Unknown && !bootstrap) {
-                    s = NodeVisibility::Visible;
-                    m_nodeStates[t][n].tested = 0; // due at the end of the frame
-                }
-                if (s == NodeVisibility::Visible) { // traversed: stays known (an inner node is never tested itself)
-                    m_nodeStates[t][n].frame = frame;
-                    m_nodeStates[t][n].visible = true;
-                }
-                return s;
+                const NodeVisibility s = visibilityOf(t, n, frame);
+                return s == NodeVisibility::Unknown && !bootstrap ? NodeVisibility::Visible : s;
             };
+        // After a traversal: the nodes it opened or drew are visible now; those it drew without knowing are due for
+        // a test at the end of the frame (an inner node is never tested itself; it stays known while traversed).
+        auto markTraversed = [&](const AtlasTraversalResult& r) {
+            if (!occlusion) return;
+            for (const auto* list : {&r.opened, &r.drawn})
+                for (std::uint32_t n : *list) {
+                    NodeState& s = m_nodeStates[t][n];
+                    if (visibilityOf(t, n, frame) == NodeVisibility::Unknown) s.tested = 0;
+                    s.frame = frame;
+                    s.visible = true;
+                }
+        };
         for (const gl::ShaderProgram* p : {&m_atlasProgram, &m_originalProgram}) {
             p->set("uViewProj", viewProj);
             p->set("uSunDir", sun);
@@ -557,6 +585,7 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
         };
         // (1) What is known visible.
         const AtlasTraversalResult known = trav.draws(v, atlasResident, textureResident, visibility);
+        markTraversed(known);
         issue(known);
         // (2) The deferred nodes, nearest first, in rounds: test the boxes, wait, draw the visible ones.
         std::vector<std::uint32_t> pending = known.deferred;
@@ -564,18 +593,16 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
             std::vector<std::pair<double, std::uint32_t>> byDistance;
             for (std::uint32_t n : pending) byDistance.emplace_back(trav.distance(n, v), n);
             std::sort(byDistance.begin(), byDistance.end());
-            const std::size_t take = bootstrap ? std::min(byDistance.size(), std::size_t(8) << std::min(grown, 20))
-                                                  : byDistance.size();
+            const std::size_t take =
+                bootstrap ? std::min(byDistance.size(), kBootstrapBatch << std::min(grown, 20)) : byDistance.size();
             std::vector<std::uint32_t> visibleNow, test;
             for (std::size_t i = 0; i < take; ++i)
-                // The eye in or next to a box: visible without a test (the near plane would cut the box open).
-                (byDistance[i].first < 1.0 ? visibleNow : test).push_back(byDistance[i].second);
+                (eyeNearBox(t, byDistance[i].second, v.eye) ? visibleNow : test).push_back(byDistance[i].second);
             pending.clear();
             for (std::size_t i = take; i < byDistance.size(); ++i) pending.push_back(byDistance[i].second);
             std::vector<PendingQuery> queries;
             queryBoxes(t, test, viewProj, queries);
             st.occlusionQueries += int(queries.size());
-
             if (!queries.empty()) ++st.occlusionWaits;
             for (const PendingQuery& q : queries) {
                 GLuint any = 0;
@@ -592,6 +619,7 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
             for (std::uint32_t n : visibleNow) {
                 m_nodeStates[t][n] = {frame, 0, true}; // against the depth so far: tested again at the end
                 const AtlasTraversalResult below = trav.drawsBelow(n, v, atlasResident, textureResident, visibility);
+                markTraversed(below);
                 issue(below);
                 drew = drew || !below.drawn.empty();
                 pending.insert(pending.end(), below.deferred.begin(), below.deferred.end());
@@ -641,15 +669,15 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
     }
     // (3) The drawn nodes' boxes against the frame's depth, for the next frame.
     if (occlusion) {
-        glBindSampler(0, 0);
         for (std::size_t t = 0; t < drawnNodes.size(); ++t) {
             std::vector<std::uint32_t> test;
             for (std::uint32_t n : drawnNodes[t]) {
-                // A node found visible stays assumed visible for 4 frames before it is tested again (CHC++'s
-                // visibility persistence, Mattausch et al. 2008): a quarter of the queries; a node that hides is
-                // drawn up to 3 frames too long. Nodes drawn untested (new in view) are tested now.
-                if (m_traversals[t]->distance(n, v) < 1.0) m_nodeStates[t][n] = {frame, frame, true};
-                else if (m_nodeStates[t][n].tested == 0 || m_nodeStates[t][n].tested + 4 <= frame) test.push_back(n);
+                // A node found visible stays assumed visible for kPersistFrames frames before it is tested again
+                // (CHC++'s visibility persistence, Mattausch et al. 2008 §4.1): a fraction of the queries; a node
+                // that hides is drawn up to kPersistFrames - 1 frames too long. Nodes drawn untested are tested now.
+                const NodeState& s = m_nodeStates[t][n];
+                if (eyeNearBox(t, n, v.eye)) m_nodeStates[t][n] = {frame, frame, true};
+                else if (s.tested == 0 || s.tested + kPersistFrames <= frame) test.push_back(n);
             }
             const std::size_t before = m_frameEndQueries.size();
             queryBoxes(t, test, viewProj, m_frameEndQueries);

@@ -78,18 +78,23 @@ public:
     void update(const Camera& camera, int width, int height);
     /// Loads everything the view wants before returning (stills).
     void complete(const Camera& camera, int width, int height);
+    /// Forgets what occlusion queries answered (a still from a new camera: its first draw() then tests every node
+    /// before drawing it, nearest first; otherwise nodes new in view would be drawn untested).
+    void resetOcclusion();
     /// Draws into `target` (depth-tested against what is there: draw after the terrain). `terrain` textures the
     /// roofs (null: roofs in one colour).
     ///
     /// Atlas mode with settings().occlusion, Coherent Hierarchical Culling (Bittner et al. 2004; Wimmer & Bittner
-    /// 2005, GPU Gems 2 ch. 6) on the atlas tree: (1) the traversal draws the nodes the last frame's queries found
-    /// visible; (2) the nodes in view not known visible (found hidden, or not tested lately: new in view, or
-    /// children of a refined node) are tested nearest first with occlusion queries on their boxes against the depth
-    /// drawn so far, one wait per round, and the visible ones drawn (their subtrees may defer more; while nothing
-    /// is known, rounds of 8, 16, 32, ... nearest so that near nodes hide far ones); (3) at the end the drawn nodes'
-    /// boxes are queried against the frame's depth, read at the next update() or draw(). The picture is the same
-    /// as without (a node is skipped only when its box is hidden now); the nodes drawn, their atlases paged
-    /// (hidden nodes count as Culled) and the triangles fall to what the view can see.
+    /// 2005, GPU Gems 2 ch. 6) on the atlas tree: (1) the traversal draws the nodes known visible, and the nodes new
+    /// in view or newly refined untested; (2) the nodes in view found hidden lately are tested nearest first with
+    /// occlusion queries on their boxes against the depth drawn so far, one wait per round, and the visible ones
+    /// drawn (their subtrees may defer more); while nothing is known (resetOcclusion(), the first frame) every node
+    /// is tested before it is drawn, in rounds of the 8, 16, 32, ... nearest so that near nodes hide far ones;
+    /// (3) at the end the drawn nodes' boxes are queried against the frame's depth (each node again every 4th
+    /// frame), read at the next update() or draw(), which wait for them. A node is skipped only when its box is
+    /// hidden now, so once what the view wants is resident the picture is the one without occlusion culling
+    /// (tested frame by frame); while atlases load, a refinement waits only for the visible children's, and nodes
+    /// found hidden are paged as Culled. The nodes drawn and the triangles fall to what the view can see.
     CityFrameStats draw(const Camera& camera, const ClipmapTerrainRendererGL* terrain, const gl::RenderTarget& target);
 
     CitySettings& settings() { return m_settings; }
@@ -111,6 +116,8 @@ private:
     };
     struct PendingQuery { std::size_t tree; std::uint32_t node; std::size_t query; std::uint64_t frame; };
     NodeVisibility visibilityOf(std::size_t tree, std::uint32_t node, std::uint64_t frame) const;
+    std::pair<glm::vec3, glm::vec3> queryBox(std::size_t tree, std::uint32_t node) const; // a node's box, grown
+    bool eyeNearBox(std::size_t tree, std::uint32_t node, const glm::dvec3& eye) const;
     /// The end-of-frame queries of the last draw() into m_nodeStates.
     void collectQueries();
     /// One occlusion query per node box, depth-tested against what is drawn, writing nothing.
@@ -137,6 +144,11 @@ private:
     std::uint64_t m_frame = 0, m_frameUploaded = 0;
     std::unique_ptr<AtlasPager> m_originalPager; // original mode: pages the originals the view shows
     // Occlusion culling (atlas mode).
+    static constexpr float kQueryGrowFraction = 0.01f, kQueryGrowMetres = 0.05f; // query boxes grown by this
+    static constexpr double kNearMetres = 1.0;      // the eye this near a query box: visible without a test
+    static constexpr std::uint64_t kPersistFrames = 4; // a visible answer trusted this many frames
+    static constexpr std::uint64_t kAnswerFrames = 8;  // any answer older than this: unknown
+    static constexpr std::size_t kBootstrapBatch = 8;  // the first round's nodes while nothing is known
     std::vector<std::vector<NodeState>> m_nodeStates; // per tree, per node
     std::vector<gl::Query> m_queries;                // GL_ANY_SAMPLES_PASSED_CONSERVATIVE, reused every frame
     std::size_t m_queriesUsed = 0;

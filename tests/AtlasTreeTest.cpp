@@ -638,6 +638,32 @@ TEST(AtlasPagingTest, VisibilityDefersHiddenAndUnknownNodes) {
     EXPECT_TRUE(has(refined.drawn, 5) && has(refined.drawn, 7));
     EXPECT_TRUE(has(refined.deferred, 6));
     EXPECT_EQ(refined.coarserThanWanted, 0u);
+    EXPECT_TRUE(has(refined.opened, 0) && has(refined.opened, 1));
+
+    // An inner node found visible whose own atlas is not resident: its children, refined into, fall back on the
+    // root's atlas too (at the root's level).
+    const auto rootOnly = [](std::uint32_t n) { return n == 0; };
+    const auto fallback = trav.drawsBelow(1, nv, rootOnly, all, hide6);
+    EXPECT_TRUE(has(fallback.drawn, 1)) << "node 1 cannot refine: its visible children's atlases are missing";
+    for (const AtlasDraw& d : fallback.draws) {
+        EXPECT_EQ(d.node, 0u);
+        EXPECT_EQ(d.level, 0);
+    }
+    const auto childrenResident = [](std::uint32_t n) { return n != 1; };
+    const auto through = trav.drawsBelow(1, nv, childrenResident, all, hide6);
+    EXPECT_TRUE(has(through.opened, 1) && has(through.drawn, 5) && has(through.drawn, 7));
+    EXPECT_EQ(through.coarserThanWanted, 0u);
+
+    // A hidden root: nothing below it is asked for, only the root's own atlas (the fallback for everything).
+    const VisibilityFn hideAll = [](std::uint32_t) { return NodeVisibility::Hidden; };
+    const auto onlyRootAsked = trav.requests(v, hideAll);
+    ASSERT_EQ(onlyRootAsked.size(), 1u);
+    EXPECT_EQ(onlyRootAsked[0].key.index, 0u);
+    EXPECT_EQ(onlyRootAsked[0].category, BlockCategory::Needed);
+    const auto nothing = trav.draws(v, all, all, hideAll);
+    EXPECT_TRUE(nothing.draws.empty());
+    ASSERT_EQ(nothing.deferred.size(), 1u);
+    EXPECT_EQ(nothing.deferred[0], 0u);
 }
 
 TEST(AtlasPagingTest, CapacityIsNeverExceededUnderARandomCamera) {
