@@ -85,10 +85,10 @@ Runner addSynthCommand(CLI::App& app) {
                     "LON,LAT (degrees) of the scene's centre, on its UTM zone's grid (e.g. under a real city model); "
                     "default near Münster, or the --dem's centre");
     cmd->add_option("--compression", args->compression,
-                    "Imagery GeoTIFF compression: zstd (decodes five times faster) or deflate (for readers without "
-                    "Zstandard)")
+                    "Imagery GeoTIFF compression: zstd (decodes five times faster), deflate (for readers without "
+                    "Zstandard) or jpeg (lossy YCbCr, as orthophotos usually come; masks stay lossless)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"zstd", "deflate"}));
+        ->check(CLI::IsMember({"zstd", "deflate", "jpeg"}));
     return [args, cmd]() -> int {
         if (!args->preset.empty()) {
             auto preset = loadSynthPreset(args->preset);
@@ -114,7 +114,9 @@ Runner addSynthCommand(CLI::App& app) {
             args->o.centreLonLat = glm::dvec2(lon, lat);
         }
         args->o.city = !args->noCity;
-        args->o.compression = args->compression == "deflate" ? TiffCompression::Deflate : TiffCompression::Zstd;
+        args->o.compression = args->compression == "deflate" ? TiffCompression::Deflate
+                              : args->compression == "jpeg"  ? TiffCompression::Jpeg
+                                                             : TiffCompression::Zstd;
         const double pixels = args->o.sizeM / args->o.gsd;
         if (pixels > double(kMaxSynthPixels)) {
             std::fprintf(stderr, "seasonview synth: --size-m/--gsd gives %.0f pixels per side (max %d)\n", pixels,

@@ -10,9 +10,14 @@
 #include <algorithm>
 #include <bit>
 #include <cassert>
+#include <csetjmp>
+#include <cstdio> // jpeglib.h needs FILE
+#include <cstdlib>
 #include <cstring>
 #include <thread>
 #include <utility>
+
+#include <jpeglib.h>
 
 namespace seasonview {
 
@@ -61,12 +66,74 @@ struct CompressorDeleter {
     void operator()(ZSTD_CCtx* c) const { ZSTD_freeCCtx(c); }
 };
 
+// libjpeg's error_exit must not return: back into compressJpeg with longjmp.
+struct JpegError {
+    jpeg_error_mgr mgr;
+    std::jmp_buf jump;
+};
+[[noreturn]] void jpegErrorExit(j_common_ptr c) { std::longjmp(reinterpret_cast<JpegError*>(c->err)->jump, 1); }
+void jpegQuiet(j_common_ptr) {}
+
+/// A libjpeg compressor, one per encoding thread.
+struct JpegEncoder {
+    jpeg_compress_struct cinfo{};
+    JpegError error{};
+    bool created = false;
+    JpegEncoder() {
+        cinfo.err = jpeg_std_error(&error.mgr);
+        error.mgr.error_exit = jpegErrorExit;
+        error.mgr.output_message = jpegQuiet;
+        if (setjmp(error.jump)) return;
+        jpeg_create_compress(&cinfo);
+        created = true;
+    }
+    ~JpegEncoder() {
+        if (created) jpeg_destroy_compress(&cinfo);
+    }
+    JpegEncoder(const JpegEncoder&) = delete;
+    JpegEncoder& operator=(const JpegEncoder&) = delete;
+};
+
+/// One tile or strip of 8-bit RGB as a complete JPEG stream (its own tables: TIFF's JPEGTables tag is optional,
+/// TIFF Technical Note 2), YCbCr with 2×2 subsampled chroma (libjpeg's default, the file's YCbCrSubsampling).
+/// Empty on failure.
+std::vector<std::uint8_t> compressJpeg(JpegEncoder& e, const std::uint8_t* rgb, int width, int height, int quality) {
+    jpeg_compress_struct& c = e.cinfo;
+    unsigned char* buffer = nullptr;
+    unsigned long size = 0;
+    std::vector<std::uint8_t> out;
+    if (!e.created) return out;
+    if (setjmp(e.error.jump)) {
+        jpeg_abort_compress(&c);
+        std::free(buffer);
+        return {};
+    }
+    jpeg_mem_dest(&c, &buffer, &size);
+    c.image_width = JDIMENSION(width);
+    c.image_height = JDIMENSION(height);
+    c.input_components = 3;
+    c.in_color_space = JCS_RGB;
+    jpeg_set_defaults(&c); // JCS_YCbCr, Y sampled 2×2, Cb and Cr 1×1
+    jpeg_set_quality(&c, std::clamp(quality, 1, 100), TRUE);
+    jpeg_start_compress(&c, TRUE);
+    const size_t rowBytes = size_t(width) * 3;
+    while (c.next_scanline < c.image_height) {
+        JSAMPROW row = const_cast<JSAMPROW>(rgb + size_t(c.next_scanline) * rowBytes);
+        jpeg_write_scanlines(&c, &row, 1);
+    }
+    jpeg_finish_compress(&c);
+    out.assign(buffer, buffer + size);
+    std::free(buffer);
+    return out;
+}
+
 } // namespace
 
 struct GeoTiffStreamWriter::Encoder {
     TiffCompression compression = TiffCompression::Deflate;
-    int zstdLevel = 1;
+    int zstdLevel = 1, jpegQuality = 90;
     std::vector<std::unique_ptr<libdeflate_compressor, CompressorDeleter>> compressors; // per thread (deflate)
+    std::vector<std::unique_ptr<JpegEncoder>> jpegs;                                     // per thread (JPEG)
     std::vector<std::unique_ptr<ZSTD_CCtx, CompressorDeleter>> zstd;                     // per thread (zstd)
     std::vector<std::vector<std::uint8_t>> block, planes;                                 // per thread
     std::vector<std::vector<std::uint8_t>> compressed; // per block of a chunk, in order, reused across block rows
@@ -111,7 +178,10 @@ Result<GeoTiffStreamWriter> GeoTiffStreamWriter::open(const std::filesystem::pat
                  type == SampleType::F32 ? SAMPLEFORMAT_IEEEFP : type == SampleType::I16 ? SAMPLEFORMAT_INT
                                                                                           : SAMPLEFORMAT_UINT);
     TIFFSetField(t, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
-    TIFFSetField(t, TIFFTAG_PHOTOMETRIC, channels >= 3 ? PHOTOMETRIC_RGB : PHOTOMETRIC_MINISBLACK);
+    const bool jpeg = options.compression == TiffCompression::Jpeg;
+    if (jpeg && (type != SampleType::U8 || channels != 3))
+        return w.fail("JPEG compression takes 8-bit RGB only").error();
+    TIFFSetField(t, TIFFTAG_PHOTOMETRIC, jpeg ? PHOTOMETRIC_YCBCR : channels >= 3 ? PHOTOMETRIC_RGB : PHOTOMETRIC_MINISBLACK);
     if (channels == 4 || channels == 2) {
         std::uint16_t extra = EXTRASAMPLE_UNASSALPHA;
         TIFFSetField(t, TIFFTAG_EXTRASAMPLES, std::uint16_t(1), &extra);
@@ -120,15 +190,18 @@ Result<GeoTiffStreamWriter> GeoTiffStreamWriter::open(const std::filesystem::pat
     // (tif_zstd.c) writes and reads it; a deflate tile one zlib stream.
     // The codec must be configured in libtiff even though the tiles are compressed here: only a configured codec
     // registers the predictor tag, and a file without it would hold differenced bytes as if they were pixels.
-    const std::uint16_t codec =
-        options.compression == TiffCompression::Zstd ? COMPRESSION_ZSTD : COMPRESSION_ADOBE_DEFLATE;
+    // A JPEG tile is one complete JPEG stream (tables included), YCbCr 4:2:0, no predictor.
+    const std::uint16_t codec = jpeg                                             ? COMPRESSION_JPEG
+                                : options.compression == TiffCompression::Zstd ? COMPRESSION_ZSTD
+                                                                                : COMPRESSION_ADOBE_DEFLATE;
     if (!TIFFIsCODECConfigured(codec))
         return w.fail(std::string("this libtiff has no ") + tiffCompressionName(options.compression) +
                       " codec (write deflate instead)")
             .error();
     if (!TIFFSetField(t, TIFFTAG_COMPRESSION, codec) ||
-        !TIFFSetField(t, TIFFTAG_PREDICTOR,
-                      type == SampleType::F32 ? PREDICTOR_FLOATINGPOINT : PREDICTOR_HORIZONTAL))
+        (jpeg ? !TIFFSetField(t, TIFFTAG_YCBCRSUBSAMPLING, std::uint16_t(2), std::uint16_t(2))
+              : !TIFFSetField(t, TIFFTAG_PREDICTOR,
+                              type == SampleType::F32 ? PREDICTOR_FLOATINGPOINT : PREDICTOR_HORIZONTAL)))
         return w.fail("cannot set the compression tags").error();
     if (georef && !tiff::writeGeoTags(t, *georef, options.nodata)) return w.fail("cannot write GeoTIFF keys").error();
     if (w.m_tiled) {
@@ -143,8 +216,12 @@ Result<GeoTiffStreamWriter> GeoTiffStreamWriter::open(const std::filesystem::pat
         size_t(w.m_blockWidth) * size_t(w.m_blockHeight) * size_t(channels) * size_t(w.m_sampleBytes);
     w.m_encoder->compression = options.compression;
     w.m_encoder->zstdLevel = std::clamp(options.zstdLevel, 1, ZSTD_maxCLevel());
+    w.m_encoder->jpegQuality = std::clamp(options.jpegQuality, 1, 100);
     for (int i = 0; i < w.m_threads; ++i) {
-        if (options.compression == TiffCompression::Zstd) {
+        if (jpeg) {
+            w.m_encoder->jpegs.push_back(std::make_unique<JpegEncoder>());
+            if (!w.m_encoder->jpegs.back()->created) return w.fail("cannot create the JPEG compressor").error();
+        } else if (options.compression == TiffCompression::Zstd) {
             w.m_encoder->zstd.emplace_back(ZSTD_createCCtx());
             if (!w.m_encoder->zstd.back()) return w.fail("out of memory for the compressor").error();
         } else {
@@ -253,6 +330,17 @@ Status GeoTiffStreamWriter::encodeBlockRow(const std::uint8_t* rows, int y0, int
                 std::uint8_t* dst = block + size_t(y) * blockRowBytes;
                 const size_t copied = y < rowCount ? used : 0;
                 if (copied) std::memcpy(dst, rows + size_t(y) * srcRowBytes + size_t(x0) * pixelBytes, copied);
+                if (enc.compression == TiffCompression::Jpeg) {
+                    // No predictor; edge tiles padded with their last column and row (zeros would ring into the
+                    // image's edge pixels through the 8×8 blocks and the subsampled chroma).
+                    if (copied == 0) {
+                        std::memcpy(dst, dst - blockRowBytes, blockRowBytes); // y >= rowCount >= 1
+                        continue;
+                    }
+                    for (size_t k = copied; k < blockRowBytes; k += pixelBytes)
+                        std::memcpy(dst + k, dst + copied - pixelBytes, pixelBytes);
+                    continue;
+                }
                 std::memset(dst + copied, 0, blockRowBytes - copied); // edge tiles: zero padding
                 switch (m_type) {
                 case SampleType::U8: horizontalDiff8(dst, blockRowBytes, size_t(m_channels)); break;
@@ -264,7 +352,9 @@ Status GeoTiffStreamWriter::encodeBlockRow(const std::uint8_t* rows, int y0, int
                 }
             }
             std::vector<std::uint8_t>& out = enc.compressed[size_t(i)];
-            if (enc.compression == TiffCompression::Zstd) {
+            if (enc.compression == TiffCompression::Jpeg) {
+                out = compressJpeg(*enc.jpegs[size_t(worker)], block, m_blockWidth, blockRows, enc.jpegQuality);
+            } else if (enc.compression == TiffCompression::Zstd) {
                 out.resize(ZSTD_compressBound(blockBytes));
                 const size_t n = ZSTD_compressCCtx(enc.zstd[size_t(worker)].get(), out.data(), out.size(), block,
                                                    blockBytes, enc.zstdLevel);

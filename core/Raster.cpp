@@ -198,7 +198,14 @@ Result<Image<float>> readImageF32(const std::filesystem::path& path, int maxChan
     return readPixels<float>(path, maxChannels, OIIO::TypeDesc::FLOAT);
 }
 
-const char* tiffCompressionName(TiffCompression c) { return c == TiffCompression::Zstd ? "zstd" : "deflate"; }
+const char* tiffCompressionName(TiffCompression c) {
+    switch (c) {
+    case TiffCompression::Deflate: return "deflate";
+    case TiffCompression::Zstd: return "zstd";
+    case TiffCompression::Jpeg: return "jpeg";
+    }
+    return "?";
+}
 
 Status writeGeoTiff(const std::filesystem::path& path, const void* data, SampleType type, int width, int height,
                     int channels, const Georef& georef, const GeoTiffWriteOptions& options) {

@@ -62,10 +62,11 @@ Result<Image<float>> readImageF32(const std::filesystem::path& path, int maxChan
 /// Options for writing a GeoTIFF (writeGeoTiff, GeoTiffStreamWriter).
 /// How GeoTiffStreamWriter compresses tiles. Deflate is what every TIFF reader knows; Zstandard (libtiff ≥ 4.0.10,
 /// GDAL ≥ 2.3, QGIS) is as small on imagery and decodes about five times faster (0.12 vs 0.63 s for an 8192² RGB
-/// season on one core of this machine), so it is what the synthetic scenes and the pyramid cache use.
-enum class TiffCompression { Deflate, Zstd };
+/// season on one core of this machine), so it is what the synthetic scenes and the pyramid cache use. Jpeg is what
+/// orthophotos usually come as (lossy; YCbCr 4:2:0 as GDAL's COMPRESS=JPEG PHOTOMETRIC=YCBCR writes; 8-bit RGB only).
+enum class TiffCompression { Deflate, Zstd, Jpeg };
 
-/// "deflate" / "zstd" (the synth flag's values).
+/// "deflate" / "zstd" / "jpeg" (the synth flag's values).
 const char* tiffCompressionName(TiffCompression c);
 
 struct GeoTiffWriteOptions {
@@ -73,6 +74,7 @@ struct GeoTiffWriteOptions {
     TiffCompression compression = TiffCompression::Deflate;
     int deflateLevel = 1;      // libdeflate level 1..12; 1 is ~3x faster than 6 for ~10% larger files
     int zstdLevel = 1;         // Zstandard level 1..22; 1 is smaller than deflate level 1 on imagery
+    int jpegQuality = 90;      // JPEG quality 1..100 (libjpeg's scale)
     std::optional<double> nodata;
     int threads = 0;           // compression threads (0 = hardware concurrency); the bytes do not depend on it
     std::uint64_t bigTiffAbove = std::uint64_t(2) << 30; // BigTIFF when the raw samples exceed this many bytes

@@ -265,7 +265,10 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
         imagery[s] = std::move(*w);
     }
     TruthWriters truth;
-    if (auto st = truth.open(outDir, size, options.pngMasksUpTo, georef, threads, options.compression); !st)
+    // The masks stay lossless whatever the imagery's compression.
+    const TiffCompression maskCompression =
+        options.compression == TiffCompression::Jpeg ? TiffCompression::Zstd : options.compression;
+    if (auto st = truth.open(outDir, size, options.pngMasksUpTo, georef, threads, maskCompression); !st)
         return st.error();
 
     std::vector<std::uint32_t> ground;

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 
@@ -180,6 +181,24 @@ TEST(BandReaderTest, OwnJpegDecoderEqualsLibtiff) {
                 EXPECT_TRUE(readBands<std::uint8_t>(path, rows, wanted, true) == ref);
             }
         }
+    }
+    // GeoTiffStreamWriter's own JPEG tiles (complete streams, no JPEGTABLES tag; edge tiles padded with their edge):
+    // the same through libtiff, close to what was written.
+    for (int tile : {0, 256}) {
+        const int w = 301, h = 197;
+        const std::vector<std::uint8_t> src = pattern<std::uint8_t>(w, h, 3, 11);
+        GeoTiffWriteOptions o;
+        o.tileSize = tile;
+        o.compression = TiffCompression::Jpeg;
+        const fs::path path = dir / ("own_" + std::to_string(tile) + ".tif");
+        ASSERT_TRUE(writeGeoTiff(path, src.data(), SampleType::U8, w, h, 3, testGeoref(), o).ok());
+        const std::vector<std::uint8_t> mine = readBands<std::uint8_t>(path, 64, 3, true);
+        EXPECT_TRUE(mine == libtiffRgb(path)) << "tile " << tile;
+        double sq = 0.0;
+        for (size_t i = 0; i < src.size(); ++i) sq += (double(src[i]) - double(mine[i])) * (double(src[i]) - double(mine[i]));
+        const double psnr = 10.0 * std::log10(255.0 * 255.0 / (sq / double(src.size())));
+        EXPECT_GT(psnr, 30.0) << "tile " << tile << ": quality 90 on smooth colours with noise";
+        std::printf("own JPEG, tile %d: PSNR %.1f dB\n", tile, psnr);
     }
     // Damaged JPEG data: the own decoder refuses it (libjpeg's warnings count), OpenImageIO cannot read it either:
     // one line naming the file, no crash.

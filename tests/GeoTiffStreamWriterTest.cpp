@@ -85,7 +85,7 @@ TEST(GeoTiffStreamWriterTest, RoundTripTiledRgbWithGeoref) {
 }
 
 TEST(GeoTiffStreamWriterTest, BytesDoNotDependOnRowBatchesOrThreads) {
-    for (TiffCompression compression : {TiffCompression::Deflate, TiffCompression::Zstd}) {
+    for (TiffCompression compression : {TiffCompression::Deflate, TiffCompression::Zstd, TiffCompression::Jpeg}) {
         SCOPED_TRACE(tiffCompressionName(compression));
         TempDir dir("gtsw-bytes");
         const int w = 200, h = 150;
@@ -107,8 +107,19 @@ TEST(GeoTiffStreamWriterTest, BytesDoNotDependOnRowBatchesOrThreads) {
         auto in = OIIO::ImageInput::open((dir / "whole.tif").string());
         ASSERT_TRUE(in);
         EXPECT_EQ(in->spec().get_int_attribute("tiff:Compression"),
-                  compression == TiffCompression::Zstd ? 50000 /* COMPRESSION_ZSTD */ : 8 /* ADOBE_DEFLATE */);
+                  compression == TiffCompression::Zstd   ? 50000 /* COMPRESSION_ZSTD */
+                  : compression == TiffCompression::Jpeg ? 7 /* JPEG */
+                                                         : 8 /* ADOBE_DEFLATE */);
     }
+    // JPEG takes 8-bit RGB only: anything else is one clear error, and no file.
+    TempDir dir("gtsw-jpeg");
+    GeoTiffWriteOptions o;
+    o.compression = TiffCompression::Jpeg;
+    const std::vector<std::uint16_t> wide(64 * 64 * 3, 1000);
+    const Status st = writeGeoTiff(dir / "wide.tif", wide.data(), SampleType::U16, 64, 64, 3, testGeoref(), o);
+    ASSERT_FALSE(st.ok());
+    EXPECT_NE(st.message().find("JPEG"), std::string::npos) << st.message();
+    EXPECT_FALSE(std::filesystem::exists(dir / "wide.tif"));
 }
 
 TEST(GeoTiffStreamWriterTest, SampleTypesAndStripsRoundTrip) {
