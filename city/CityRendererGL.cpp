@@ -205,7 +205,7 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
         setVertexLayout(r->m_boxVao.id(), r->m_boxVbo.id(), false);
         glVertexArrayElementBuffer(r->m_boxVao.id(), r->m_boxIbo.id());
     }
-    for (const auto& t : f.trees) r->m_nodeStates.emplace_back(t.nodes.size());
+    for (const auto& t : f.trees) r->m_occlusion.push_back(std::make_unique<NodeOcclusion>(t));
 
     // Samplers: atlases trilinear within their mip chain (clamped: fract() keeps coordinates inside), originals
     // repeated or clamped as their model says.
@@ -331,32 +331,8 @@ void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
     }
 }
 
-NodeVisibility CityRendererGL::visibilityOf(std::size_t tree, std::uint32_t node, std::uint64_t frame) const {
-    const NodeState& s = m_nodeStates[tree][node];
-    // An answer is a hint for a few frames (a node hidden is tested again before it is skipped, one visible drawn
-    // and tested again): a node out of view, or inside a node drawn coarse while finer atlases loaded, for longer is
-    // unknown.
-    if (s.frame == 0 || s.frame + kAnswerFrames < frame) return NodeVisibility::Unknown;
-    return s.visible ? NodeVisibility::Visible : NodeVisibility::Hidden;
-}
-
-std::pair<glm::vec3, glm::vec3> CityRendererGL::queryBox(std::size_t tree, std::uint32_t node) const {
-    // Grown a little: the box must enclose its triangles after rasterisation too.
-    const AtlasNode& n = m_file.trees[tree].nodes[node];
-    const glm::vec3 grow = kQueryGrowFraction * (n.boundsMax - n.boundsMin) + glm::vec3(kQueryGrowMetres);
-    return {n.boundsMin - grow, n.boundsMax + grow};
-}
-
-bool CityRendererGL::eyeNearBox(std::size_t tree, std::uint32_t node, const glm::dvec3& eye) const {
-    // Within kNearMetres of the query box, the near plane (kNearPlane, 5 cm) could cut the box's front faces away and
-    // leave only far faces that nearer geometry hides: such a node counts as visible without a test.
-    const auto [lo, hi] = queryBox(tree, node);
-    const glm::dvec3 q = glm::clamp(eye, glm::dvec3(lo), glm::dvec3(hi));
-    return glm::length(eye - q) < kNearMetres;
-}
-
 void CityRendererGL::resetOcclusion() {
-    for (auto& states : m_nodeStates) std::fill(states.begin(), states.end(), NodeState{});
+    for (auto& o : m_occlusion) o->reset();
     m_frameEndQueries.clear(); // their query objects are begun anew, which discards the answers
     m_queriesUsed = 0;
 }
@@ -365,7 +341,7 @@ void CityRendererGL::collectQueries() {
     for (const PendingQuery& q : m_frameEndQueries) {
         GLuint any = 0;
         glGetQueryObjectuiv(m_queries[q.query].id(), GL_QUERY_RESULT, &any);
-        m_nodeStates[q.tree][q.node] = {q.frame, q.frame, any != 0};
+        m_occlusion[q.tree]->answered(q.node, any != 0, q.frame);
     }
     m_frameEndQueries.clear();
     m_queriesUsed = 0;
@@ -386,7 +362,7 @@ void CityRendererGL::queryBoxes(std::size_t tree, const std::vector<std::uint32_
     m_boxProgram.set("uViewProj", viewProj);
     m_boxProgram.use();
     for (std::uint32_t n : nodes) {
-        const auto [lo, hi] = queryBox(tree, n);
+        const auto [lo, hi] = m_occlusion[tree]->queryBox(n);
         m_boxProgram.set("uBoxMin", lo);
         m_boxProgram.set("uBoxMax", hi);
         if (m_queriesUsed == m_queries.size()) m_queries.push_back(gl::Query::create(GL_ANY_SAMPLES_PASSED_CONSERVATIVE));
@@ -394,7 +370,7 @@ void CityRendererGL::queryBoxes(std::size_t tree, const std::vector<std::uint32_
         glBeginQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, m_queries[q].id());
         glDrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr);
         glEndQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE);
-        out.push_back(PendingQuery{tree, n, q, m_drawFrame});
+        out.push_back(PendingQuery{tree, n, q, m_occlusion[tree]->frame()});
     }
     glColorMask(colourMask[0], colourMask[1], colourMask[2], colourMask[3]);
     glDepthMask(depthMask);
@@ -407,10 +383,10 @@ void CityRendererGL::update(const Camera& camera, int width, int height) {
     const AtlasView v = view(camera, width, height);
     if (m_settings.mode == CityMode::Atlas) {
         collectQueries();
-        // Nodes the last frame found hidden are paged as if outside the frustum (the frame to come: m_drawFrame + 1).
+        // Nodes the last frame found hidden are paged as if outside the frustum.
         for (std::size_t t = 0; t < m_pagers.size(); ++t) {
             VisibilityFn vis;
-            if (m_settings.occlusion) vis = [this, t](std::uint32_t n) { return visibilityOf(t, n, m_drawFrame + 1); };
+            if (m_settings.occlusion) vis = [o = m_occlusion[t].get()](std::uint32_t n) { return o->forPaging(n); };
             apply(int(t), m_pagers[t]->update(m_traversals[t]->requests(v, vis)));
         }
     } else if (m_originalPager) {
@@ -450,8 +426,6 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
                                     const gl::RenderTarget& target) {
     CityFrameStats st;
     collectQueries();
-    ++m_drawFrame;
-    const std::uint64_t frame = m_drawFrame;
     const bool occlusion = m_settings.occlusion && m_settings.mode == CityMode::Atlas;
     std::vector<std::vector<std::uint32_t>> drawnNodes(m_file.trees.size()); // for step (3)
     target.bind();
@@ -526,26 +500,14 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
         const AtlasTraversal& trav = *m_traversals[t];
         const auto atlasResident = [&](std::uint32_t n) { return pager.resident({BlockKey::Kind::Atlas, n}); };
         const auto textureResident = [&](std::uint32_t x) { return pager.resident({BlockKey::Kind::Texture, x}); };
+        NodeOcclusion& occ = *m_occlusion[t];
         VisibilityFn visibility;
-        // Nothing known (the first frame, a still): every node tested before it is drawn, near ones first.
-        // Otherwise nodes new in view or newly refined are drawn at once and tested at the end of the frame.
-        const bool bootstrap = visibilityOf(t, 0, frame) == NodeVisibility::Unknown;
-        if (occlusion)
-            visibility = [this, t, frame, bootstrap](std::uint32_t n) {
-                const NodeVisibility s = visibilityOf(t, n, frame);
-                return s == NodeVisibility::Unknown && !bootstrap ? NodeVisibility::Visible : s;
-            };
-        // After a traversal: the nodes it opened or drew are visible now; those it drew without knowing are due for
-        // a test at the end of the frame (an inner node is never tested itself; it stays known while traversed).
+        if (occlusion) {
+            occ.beginFrame();
+            visibility = [&occ](std::uint32_t n) { return occ.forTraversal(n); };
+        }
         auto markTraversed = [&](const AtlasTraversalResult& r) {
-            if (!occlusion) return;
-            for (const auto* list : {&r.opened, &r.drawn})
-                for (std::uint32_t n : *list) {
-                    NodeState& s = m_nodeStates[t][n];
-                    if (visibilityOf(t, n, frame) == NodeVisibility::Unknown) s.tested = 0;
-                    s.frame = frame;
-                    s.visible = true;
-                }
+            if (occlusion) occ.traversed(r);
         };
         for (const gl::ShaderProgram* p : {&m_atlasProgram, &m_originalProgram}) {
             p->set("uViewProj", viewProj);
@@ -593,11 +555,10 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
             std::vector<std::pair<double, std::uint32_t>> byDistance;
             for (std::uint32_t n : pending) byDistance.emplace_back(trav.distance(n, v), n);
             std::sort(byDistance.begin(), byDistance.end());
-            const std::size_t take =
-                bootstrap ? std::min(byDistance.size(), kBootstrapBatch << std::min(grown, 20)) : byDistance.size();
+            const std::size_t take = occ.roundSize(byDistance.size(), grown);
             std::vector<std::uint32_t> visibleNow, test;
             for (std::size_t i = 0; i < take; ++i)
-                (eyeNearBox(t, byDistance[i].second, v.eye) ? visibleNow : test).push_back(byDistance[i].second);
+                (occ.eyeNear(byDistance[i].second, v.eye) ? visibleNow : test).push_back(byDistance[i].second);
             pending.clear();
             for (std::size_t i = take; i < byDistance.size(); ++i) pending.push_back(byDistance[i].second);
             std::vector<PendingQuery> queries;
@@ -609,7 +570,7 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
                 glGetQueryObjectuiv(m_queries[q.query].id(), GL_QUERY_RESULT, &any);
                 if (any) visibleNow.push_back(q.node);
                 else {
-                    m_nodeStates[t][q.node] = {frame, frame, false};
+                    occ.answered(q.node, false, occ.frame());
                     ++st.occludedNodes;
                 }
             }
@@ -617,7 +578,7 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
             current = nullptr;
             bool drew = false;
             for (std::uint32_t n : visibleNow) {
-                m_nodeStates[t][n] = {frame, 0, true}; // against the depth so far: tested again at the end
+                occ.foundVisible(n); // against the depth so far: tested again at the end
                 const AtlasTraversalResult below = trav.drawsBelow(n, v, atlasResident, textureResident, visibility);
                 markTraversed(below);
                 issue(below);
@@ -672,12 +633,9 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
         for (std::size_t t = 0; t < drawnNodes.size(); ++t) {
             std::vector<std::uint32_t> test;
             for (std::uint32_t n : drawnNodes[t]) {
-                // A node found visible stays assumed visible for kPersistFrames frames before it is tested again
-                // (CHC++'s visibility persistence, Mattausch et al. 2008 §4.1): a fraction of the queries; a node
-                // that hides is drawn up to kPersistFrames - 1 frames too long. Nodes drawn untested are tested now.
-                const NodeState& s = m_nodeStates[t][n];
-                if (eyeNearBox(t, n, v.eye)) m_nodeStates[t][n] = {frame, frame, true};
-                else if (s.tested == 0 || s.tested + kPersistFrames <= frame) test.push_back(n);
+                NodeOcclusion& o = *m_occlusion[t];
+                if (o.eyeNear(n, v.eye)) o.answered(n, true, o.frame());
+                else if (o.dueForTest(n)) test.push_back(n);
             }
             const std::size_t before = m_frameEndQueries.size();
             queryBoxes(t, test, viewProj, m_frameEndQueries);

@@ -9,6 +9,7 @@
 #include "AtlasTree.h"
 #include "Camera.h"
 #include "ClipmapTerrainRendererGL.h"
+#include "NodeOcclusion.h"
 #include "Scene.h"
 #include "gl/GlObjects.h"
 #include "gl/RenderTarget.h"
@@ -109,16 +110,8 @@ private:
     void apply(int tree, AtlasPager::Frame&& frame);
     void uploadAtlas(int tree, const LoadedBlock& b);
     void uploadTexture(const LoadedBlock& b);
-    struct NodeState {
-        std::uint64_t frame = 0;  // when `visible` was last known (answered, or traversed as visible)
-        std::uint64_t tested = 0; // when a query last answered
-        bool visible = false;
-    };
     struct PendingQuery { std::size_t tree; std::uint32_t node; std::size_t query; std::uint64_t frame; };
-    NodeVisibility visibilityOf(std::size_t tree, std::uint32_t node, std::uint64_t frame) const;
-    std::pair<glm::vec3, glm::vec3> queryBox(std::size_t tree, std::uint32_t node) const; // a node's box, grown
-    bool eyeNearBox(std::size_t tree, std::uint32_t node, const glm::dvec3& eye) const;
-    /// The end-of-frame queries of the last draw() into m_nodeStates.
+    /// The end-of-frame queries of the last draw() into m_occlusion.
     void collectQueries();
     /// One occlusion query per node box, depth-tested against what is drawn, writing nothing.
     void queryBoxes(std::size_t tree, const std::vector<std::uint32_t>& nodes, const glm::mat4& viewProj,
@@ -143,17 +136,11 @@ private:
     bool m_decodeBc = false; // BC atlases decoded to RGB(A)8 on upload
     std::uint64_t m_frame = 0, m_frameUploaded = 0;
     std::unique_ptr<AtlasPager> m_originalPager; // original mode: pages the originals the view shows
-    // Occlusion culling (atlas mode).
-    static constexpr float kQueryGrowFraction = 0.01f, kQueryGrowMetres = 0.05f; // query boxes grown by this
-    static constexpr double kNearMetres = 1.0;      // the eye this near a query box: visible without a test
-    static constexpr std::uint64_t kPersistFrames = 4; // a visible answer trusted this many frames
-    static constexpr std::uint64_t kAnswerFrames = 8;  // any answer older than this: unknown
-    static constexpr std::size_t kBootstrapBatch = 8;  // the first round's nodes while nothing is known
-    std::vector<std::vector<NodeState>> m_nodeStates; // per tree, per node
+    // Occlusion culling (atlas mode): the answers and the policy per tree, the queries.
+    std::vector<std::unique_ptr<NodeOcclusion>> m_occlusion;
     std::vector<gl::Query> m_queries;                // GL_ANY_SAMPLES_PASSED_CONSERVATIVE, reused every frame
     std::size_t m_queriesUsed = 0;
     std::vector<PendingQuery> m_frameEndQueries;     // step (3), answered at the next update() or draw()
-    std::uint64_t m_drawFrame = 0;
     gl::Buffer m_boxVbo, m_boxIbo;
     gl::VertexArray m_boxVao;
     gl::ShaderProgram m_boxProgram;

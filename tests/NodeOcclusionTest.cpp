@@ -1,0 +1,112 @@
+// NodeOcclusion (city/NodeOcclusion.h): the occlusion-culling policy without GL — what the traversal and the pager
+// are told from the answers and for how long, when a node is tested, the bootstrap rounds, the query boxes.
+#include "NodeOcclusion.h"
+
+#include <gtest/gtest.h>
+
+using namespace seasonview::city;
+
+namespace {
+
+// A root (0..100 m) and four children of 25 m.
+AtlasTreeData fiveNodes() {
+    AtlasTreeData t;
+    AtlasNode root;
+    root.boundsMin = {0, 0, 0};
+    root.boundsMax = {100, 100, 20};
+    t.nodes.push_back(root);
+    for (int c = 0; c < 4; ++c) {
+        AtlasNode n;
+        n.boundsMin = {25.0f * float(c), 0, 0};
+        n.boundsMax = {25.0f * float(c + 1), 100, 20};
+        n.parent = 0;
+        n.level = 1;
+        t.nodes[0].children[std::size_t(c)] = int(t.nodes.size());
+        t.nodes.push_back(n);
+    }
+    return t;
+}
+
+} // namespace
+
+TEST(NodeOcclusionTest, BootstrapTestsEverythingNearestFirstInGrowingRounds) {
+    const AtlasTreeData t = fiveNodes();
+    NodeOcclusion o(t);
+    o.beginFrame();
+    EXPECT_TRUE(o.bootstrap());
+    for (std::uint32_t n = 0; n < 5; ++n) EXPECT_EQ(o.forTraversal(n), NodeVisibility::Unknown) << n;
+    EXPECT_EQ(o.roundSize(100, 0), NodeOcclusion::kBootstrapBatch);
+    EXPECT_EQ(o.roundSize(100, 2), 4 * NodeOcclusion::kBootstrapBatch);
+    EXPECT_EQ(o.roundSize(3, 0), 3u);
+    // The root found visible in this frame's first round: the frame stays a bootstrap (its children are tested too).
+    o.foundVisible(0);
+    EXPECT_TRUE(o.bootstrap());
+    EXPECT_EQ(o.forTraversal(1), NodeVisibility::Unknown);
+    EXPECT_EQ(o.forTraversal(0), NodeVisibility::Visible);
+    // The next frame knows the root: nodes without an answer are drawn at once, every deferred node in one round.
+    o.beginFrame();
+    EXPECT_FALSE(o.bootstrap());
+    EXPECT_EQ(o.forTraversal(1), NodeVisibility::Visible);
+    EXPECT_EQ(o.roundSize(100, 0), 100u);
+    // reset(): nothing known again.
+    o.reset();
+    o.beginFrame();
+    EXPECT_TRUE(o.bootstrap());
+}
+
+TEST(NodeOcclusionTest, AnswersHoldForAFewFramesAndVisibleOnesAreTestedAgainInTurn) {
+    const AtlasTreeData t = fiveNodes();
+    NodeOcclusion o(t);
+    o.beginFrame(); // frame 1
+    o.answered(0, true, 1);
+    o.answered(1, false, 1);
+    o.answered(2, true, 1);
+    // Frame 2: the hidden child is deferred (and paged as Culled), the visible one trusted.
+    EXPECT_EQ(o.forPaging(1), NodeVisibility::Hidden);
+    o.beginFrame();
+    EXPECT_EQ(o.forTraversal(1), NodeVisibility::Hidden);
+    EXPECT_EQ(o.forTraversal(2), NodeVisibility::Visible);
+    // A visible answer against a whole frame is trusted kPersistFrames frames before node 2 is tested again.
+    for (std::uint64_t f = 2; f < 1 + NodeOcclusion::kPersistFrames; ++f) {
+        EXPECT_EQ(o.frame(), f);
+        EXPECT_FALSE(o.dueForTest(2)) << "frame " << f;
+        o.beginFrame();
+    }
+    EXPECT_TRUE(o.dueForTest(2));
+    // Node 3 drawn without an answer (new in view): tested at the end of this very frame.
+    AtlasTraversalResult r;
+    r.opened = {0};
+    r.drawn = {2, 3};
+    o.traversed(r);
+    EXPECT_TRUE(o.dueForTest(3));
+    EXPECT_EQ(o.forTraversal(3), NodeVisibility::Visible);
+    // Found visible against the depth so far: tested again at the end of the frame.
+    o.foundVisible(4);
+    EXPECT_TRUE(o.dueForTest(4));
+    // Any answer older than kAnswerFrames frames is unknown: node 1 was last answered in frame 1.
+    EXPECT_EQ(o.visibility(1, 1 + NodeOcclusion::kAnswerFrames), NodeVisibility::Hidden);
+    EXPECT_EQ(o.visibility(1, 2 + NodeOcclusion::kAnswerFrames), NodeVisibility::Unknown);
+    // Traversed nodes stay known while traversed: the root is still Visible long after its answer.
+    for (int i = 0; i < 20; ++i) {
+        o.beginFrame();
+        AtlasTraversalResult opened;
+        opened.opened = {0};
+        o.traversed(opened);
+    }
+    EXPECT_EQ(o.forTraversal(0), NodeVisibility::Visible);
+    EXPECT_FALSE(o.bootstrap());
+}
+
+TEST(NodeOcclusionTest, QueryBoxesAreGrownAndTheEyeNextToOneNeedsNoTest) {
+    const AtlasTreeData t = fiveNodes();
+    const NodeOcclusion o(t);
+    const auto [lo, hi] = o.queryBox(0);
+    const float grow = NodeOcclusion::kGrowFraction * 100.0f + NodeOcclusion::kGrowMetres; // 1.05 m in x and y
+    EXPECT_FLOAT_EQ(lo.x, -grow);
+    EXPECT_FLOAT_EQ(hi.y, 100.0f + grow);
+    EXPECT_FLOAT_EQ(hi.z, 20.0f + NodeOcclusion::kGrowFraction * 20.0f + NodeOcclusion::kGrowMetres);
+    // Measured to the grown box: 1.5 m outside the bounds is 0.45 m from it.
+    EXPECT_TRUE(o.eyeNear(0, {-1.5, 50.0, 2.0}));
+    EXPECT_FALSE(o.eyeNear(0, {-2.5, 50.0, 2.0}));
+    EXPECT_TRUE(o.eyeNear(0, {50.0, 50.0, 2.0})); // inside
+}
