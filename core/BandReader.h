@@ -1,10 +1,11 @@
 #pragma once
 // Reads an image in bands of whole rows, tiled or scanline files alike, so memory stays bounded (a band) whatever
-// the image size. Deflate and Zstandard TIFFs (what GeoTiffStreamWriter and most GeoTIFF tools write: unsigned
-// 8/16-bit, RGB or grey, tiled or in strips) are decoded here, the compressed tiles of a band read raw through libtiff
-// and decoded on all cores (libdeflate, about twice zlib's speed; libzstd, five times faster again); every other file, and any tile that does not decode, goes
-// through OpenImageIO: read_tiles for tiled files (its read_scanlines crashes on them in 2.4). Both give the same
-// samples.
+// the image size. Deflate, Zstandard and JPEG TIFFs (what GeoTiffStreamWriter and most GeoTIFF tools write: unsigned
+// 8/16-bit, RGB or grey, tiled or in strips; JPEG 8-bit YCbCr as orthophotos come) are decoded here, the compressed
+// tiles of a band read raw through libtiff and decoded on all cores (libdeflate, about twice zlib's speed; libzstd,
+// five times faster again; libjpeg as libtiff's codec decodes with JPEGCOLORMODE_RGB, which OpenImageIO 2.4 cannot
+// do on tiles); every other file, and any tile that does not decode, goes through OpenImageIO: read_tiles for tiled
+// files (its read_scanlines crashes on them in 2.4). Both give the same samples.
 #include "Raster.h"
 #include "Result.h"
 
@@ -27,7 +28,8 @@ public:
     int channels() const { return m_channels; }    // in the file
     int bandRows() const { return m_bandRows; }    // rows per read (the last band may be shorter)
     SampleType type() const { return m_type; }     // as stored (U8, U16, I16, F32)
-    /// Whether reads of the stored sample type are decoded here by libdeflate or libzstd (else by OpenImageIO).
+    /// Whether reads of the stored sample type are decoded here by libdeflate, libzstd or libjpeg (else by
+    /// OpenImageIO).
     bool decodesTilesItself() const;
     /// Reads that the own decoder started and handed to OpenImageIO (a block it could not read or decode): 0 for
     /// intact files, which is what the tests check, since OpenImageIO would otherwise hide a broken decoder.

@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <functional>
@@ -145,15 +146,27 @@ Result<Image<std::uint8_t>> readDisplayRgba(const RasterInfo& info, const Stretc
             }
         }
     };
-    if (info.type == SampleType::U8) {
-        auto img = readImageU8(info.path, 4);
-        if (!img) return img.error();
-        fill(*img);
-    } else {
-        auto img = readImageU16(info.path, 4);
-        if (!img) return img.error();
-        fill(*img);
-    }
+    // Through BandReader, which reads what OpenImageIO cannot (JPEG orthophotos' YCbCr tiles) and decodes on all cores.
+    auto reader = BandReader::open(info.path, 1024);
+    if (!reader) return reader.error();
+    auto whole = [&](auto sample) -> Status {
+        using T = decltype(sample);
+        Image<T> img;
+        img.width = reader->width();
+        img.height = reader->height();
+        img.channels = std::min(reader->channels(), 4);
+        img.pixels.resize(size_t(img.width) * size_t(img.height) * size_t(img.channels));
+        const SampleType type = sizeof(T) == 1 ? SampleType::U8 : SampleType::U16;
+        for (int y = 0; y < img.height; y += reader->bandRows()) {
+            const int y1 = std::min(img.height, y + reader->bandRows());
+            T* rows = img.pixels.data() + size_t(y) * size_t(img.width) * size_t(img.channels);
+            if (auto st = reader->read(y, y1, img.channels, type, rows); !st) return st;
+        }
+        fill(img);
+        return Ok{};
+    };
+    const Status st = info.type == SampleType::U8 ? whole(std::uint8_t{}) : whole(std::uint16_t{});
+    if (!st) return st.error();
     return out;
 }
 
