@@ -1,5 +1,6 @@
 #include "BandReader.h"
 
+#include "JpegSupport.h"
 #include "ParallelIndices.h"
 #include "TiffSupport.h"
 
@@ -10,11 +11,11 @@
 #include <algorithm>
 #include <atomic>
 #include <csetjmp>
-#include <cstdio> // jpeglib.h needs FILE
+#include <cstdio>
 #include <cstring>
+#include <mutex>
+#include <string>
 #include <thread>
-
-#include <jpeglib.h>
 
 namespace seasonview {
 
@@ -56,41 +57,28 @@ void undoPredictorRgb8(const std::uint8_t* src, std::uint8_t* dst, size_t pixels
     }
 }
 
-// libjpeg reports errors through error_exit, which must not return: back into decodeJpeg with longjmp (nothing
-// between the setjmp and the libjpeg calls has a destructor).
-struct JpegError {
-    jpeg_error_mgr mgr;
-    std::jmp_buf jump;
-};
-
-[[noreturn]] void jpegErrorExit(j_common_ptr c) { std::longjmp(reinterpret_cast<JpegError*>(c->err)->jump, 1); }
-void jpegQuiet(j_common_ptr) {}
-
 /// A libjpeg decompressor, one per decoding thread.
 struct JpegDecoder {
     jpeg_decompress_struct cinfo{};
-    JpegError error{};
+    jpeg::ErrorManager error;
     bool created = false;
     JpegDecoder() {
-        cinfo.err = jpeg_std_error(&error.mgr);
-        error.mgr.error_exit = jpegErrorExit;
-        error.mgr.output_message = jpegQuiet; // a damaged tile goes to OpenImageIO, which reports it
+        error.install(cinfo);
         if (setjmp(error.jump)) return;
         jpeg_create_decompress(&cinfo);
         created = true;
     }
-    ~JpegDecoder() {
-        if (created) jpeg_destroy_decompress(&cinfo);
-    }
+    ~JpegDecoder() { jpeg_destroy_decompress(&cinfo); } // safe on a partly created object
     JpegDecoder(const JpegDecoder&) = delete;
     JpegDecoder& operator=(const JpegDecoder&) = delete;
 };
 
-/// One JPEG tile or strip of a TIFF (an abbreviated stream whose tables are the JPEGTABLES tag) into exactly
-/// width × height × components bytes, as libtiff's JPEG codec decodes it with JPEGCOLORMODE_RGB (GDAL's way): YCbCr
-/// converted to RGB with libjpeg's default upsampling and IDCT (tif_jpeg.c leaves them; the test compares with
-/// libtiff byte for byte), other photometrics' components as they are. False on any error or warning (a corrupt
-/// stream), and when the stream's size or components are not the tile's.
+/// One JPEG tile or strip of a TIFF (an abbreviated stream whose tables are the JPEGTABLES tag, or a complete one)
+/// into exactly width × height × components bytes, as libtiff's JPEG codec (tif_jpeg.c) decodes it with
+/// JPEGCOLORMODE_RGB, GDAL's way: YCbCr converted to RGB with libjpeg's default upsampling and IDCT, other
+/// photometrics' components as they are. Like libtiff it tolerates libjpeg's warnings (extraneous bytes, a missing
+/// end marker) and crops a strip coded taller than the rows it holds. False on a libjpeg error, or when the stream's
+/// width, components or height (less than the block's) do not fit; `error.message` says what libjpeg said.
 bool decodeJpeg(JpegDecoder& d, const std::vector<std::uint8_t>& tables, const std::vector<std::uint8_t>& data,
                 std::uint8_t* out, int width, int height, int components, bool ycbcr) {
     jpeg_decompress_struct& c = d.cinfo;
@@ -99,7 +87,6 @@ bool decodeJpeg(JpegDecoder& d, const std::vector<std::uint8_t>& tables, const s
         jpeg_abort_decompress(&c);
         return false;
     }
-    d.error.mgr.num_warnings = 0;
     if (!tables.empty()) {
         jpeg_mem_src(&c, tables.data(), static_cast<unsigned long>(tables.size()));
         if (jpeg_read_header(&c, FALSE) != JPEG_HEADER_TABLES_ONLY) {
@@ -108,8 +95,10 @@ bool decodeJpeg(JpegDecoder& d, const std::vector<std::uint8_t>& tables, const s
         }
     }
     jpeg_mem_src(&c, data.data(), static_cast<unsigned long>(data.size()));
-    if (jpeg_read_header(&c, TRUE) != JPEG_HEADER_OK || int(c.image_width) != width || int(c.image_height) != height ||
+    if (jpeg_read_header(&c, TRUE) != JPEG_HEADER_OK || int(c.image_width) != width || int(c.image_height) < height ||
         c.num_components != components) {
+        std::snprintf(d.error.message, sizeof d.error.message, "JPEG stream of %ux%u, %d components in a %dx%d block",
+                      c.image_width, c.image_height, c.num_components, width, height);
         jpeg_abort_decompress(&c);
         return false;
     }
@@ -121,15 +110,16 @@ bool decodeJpeg(JpegDecoder& d, const std::vector<std::uint8_t>& tables, const s
         return false;
     }
     const size_t rowBytes = size_t(width) * size_t(components);
-    while (c.output_scanline < c.output_height) {
+    while (int(c.output_scanline) < height) {
         JSAMPROW row = out + size_t(c.output_scanline) * rowBytes;
         if (jpeg_read_scanlines(&c, &row, 1) != 1) {
             jpeg_abort_decompress(&c);
             return false;
         }
     }
-    jpeg_finish_decompress(&c);
-    return d.error.mgr.num_warnings == 0;
+    if (c.output_scanline < c.output_height) jpeg_abort_decompress(&c); // a taller strip: the rest is not ours
+    else jpeg_finish_decompress(&c);
+    return true;
 }
 
 } // namespace
@@ -155,6 +145,8 @@ struct RawTiff {
     std::vector<std::unique_ptr<libdeflate_decompressor, DecompressorDeleter>> inflaters; // per thread (deflate)
     std::vector<std::unique_ptr<ZSTD_DCtx, DecompressorDeleter>> zstdContexts;            // per thread (zstd)
     std::vector<std::unique_ptr<JpegDecoder>> jpegDecoders;                              // per thread (JPEG)
+    std::mutex failMutex;
+    std::string failure; // what libjpeg said of the last block that did not decode
     ~RawTiff() {
         if (tif) TIFFClose(tif);
     }
@@ -190,10 +182,12 @@ struct RawTiff {
         const bool colours = (photometric == PHOTOMETRIC_RGB && spp >= 3) ||
                              (photometric == PHOTOMETRIC_MINISBLACK && spp >= 1) || r->ycbcr;
         if (r->jpeg) {
-            // YCbCr (what orthophotos use; OpenImageIO 2.4 reads it through libtiff's RGBA interface, which fails on
-            // tiles and holds a whole image of strips); the tables shared by every tile. The JPEG codec has no
-            // predictor tag.
-            if (!r->ycbcr || bits != 8 || extraCount > 0) return nullptr;
+            // 8-bit YCbCr (what orthophotos use; OpenImageIO 2.4 reads it through libtiff's RGBA interface, which
+            // fails on tiles and holds a whole image of strips), RGB or grey; the tables shared by every tile. The
+            // JPEG codec has no predictor tag.
+            const bool layout = r->ycbcr || (photometric == PHOTOMETRIC_RGB && spp == 3) ||
+                                (photometric == PHOTOMETRIC_MINISBLACK && spp == 1);
+            if (!layout || bits != 8 || extraCount > 0) return nullptr;
             predictor = PREDICTOR_NONE;
             std::uint32_t count = 0;
             void* tables = nullptr;
@@ -202,7 +196,8 @@ struct RawTiff {
         }
         bool unassociated = false;
         for (std::uint16_t i = 0; i < extraCount && extra; ++i) unassociated |= extra[i] == EXTRASAMPLE_UNASSALPHA;
-        if (int(w) != width || int(h) != height || !(deflate || r->zstd || r->jpeg) || planar != PLANARCONFIG_CONTIG || !colours ||
+        if (int(w) != width || int(h) != height || !(deflate || r->zstd || r->jpeg) || planar != PLANARCONFIG_CONTIG ||
+            !colours ||
             unassociated || (bits != 8 && bits != 16) || format != SAMPLEFORMAT_UINT ||
             (bits == 16 && TIFFIsByteSwapped(t)) || (predictor != PREDICTOR_NONE && predictor != PREDICTOR_HORIZONTAL))
             return nullptr;
@@ -259,6 +254,7 @@ struct RawTiff {
     /// Rows [y0, y1) (whole block rows, except at the bottom) of channels [0, channels) into `out`, samples of the
     /// file's own size. False when a block cannot be read or decoded (OpenImageIO then tries and reports).
     bool read(int width, int height, int y0, int y1, int channels, std::uint8_t* out) {
+        failure.clear();
         const size_t pixelBytes = size_t(samples) * size_t(sampleBytes);
         const size_t outPixel = size_t(channels) * size_t(sampleBytes);
         const size_t blockRowBytes = size_t(blockWidth) * pixelBytes;
@@ -289,7 +285,13 @@ struct RawTiff {
                 const std::vector<std::uint8_t>& c = compressed[size_t(i)];
                 if (c.empty()) std::memset(block.data(), 0, bytes);
                 else if (!decode(c, block.data(), bytes, worker)) {
-                    ok = false;
+                    const bool first = ok.exchange(false);
+                    if (first && jpeg) { // its words, for the error if OpenImageIO cannot read it either
+                        const std::lock_guard<std::mutex> lock(failMutex);
+                        failure = std::string("JPEG ") + (tiled ? "tile " : "strip ") +
+                                  std::to_string(tiled ? by * across + i : by) + ": " +
+                                  jpegDecoders[size_t(worker)]->error.message;
+                    }
                     return;
                 }
                 const int x0 = i * blockWidth, cols = std::min(blockWidth, width - x0);
@@ -383,7 +385,8 @@ Status BandReader::read(int y0, int y1, int channels, SampleType type, void* out
     const bool ok = m_tileHeight > 0 ? in.read_tiles(0, 0, 0, m_width, y0, y1, 0, 1, 0, channels, t, out)
                                      : in.read_scanlines(0, 0, y0, y1, 0, 0, channels, t, out);
     if (ok) return Ok{};
-    const std::string e = firstLine(in.geterror());
+    // The own decoder's words first when it tried (OpenImageIO's on JPEG YCbCr tiles say nothing useful).
+    const std::string e = m_in->raw && !m_in->raw->failure.empty() ? m_in->raw->failure : firstLine(in.geterror());
     return fileError(m_path.string(), "truncated or corrupt image data" + (e.empty() ? std::string() : " (" + e + ")"));
 }
 

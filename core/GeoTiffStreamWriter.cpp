@@ -1,6 +1,7 @@
 #include "GeoTiffStreamWriter.h"
 
 #include "AtomicFile.h"
+#include "JpegSupport.h"
 #include "ParallelIndices.h"
 #include "TiffSupport.h"
 
@@ -11,13 +12,9 @@
 #include <bit>
 #include <cassert>
 #include <csetjmp>
-#include <cstdio> // jpeglib.h needs FILE
-#include <cstdlib>
 #include <cstring>
 #include <thread>
 #include <utility>
-
-#include <jpeglib.h>
 
 namespace seasonview {
 
@@ -66,54 +63,64 @@ struct CompressorDeleter {
     void operator()(ZSTD_CCtx* c) const { ZSTD_freeCCtx(c); }
 };
 
-// libjpeg's error_exit must not return: back into compressJpeg with longjmp.
-struct JpegError {
-    jpeg_error_mgr mgr;
-    std::jmp_buf jump;
-};
-[[noreturn]] void jpegErrorExit(j_common_ptr c) { std::longjmp(reinterpret_cast<JpegError*>(c->err)->jump, 1); }
-void jpegQuiet(j_common_ptr) {}
-
-/// A libjpeg compressor, one per encoding thread.
+/// A libjpeg compressor, one per encoding thread, writing into `out` (no libjpeg-owned buffer to free after an error).
 struct JpegEncoder {
     jpeg_compress_struct cinfo{};
-    JpegError error{};
+    jpeg::ErrorManager error;
+    jpeg_destination_mgr dest{};
+    std::vector<std::uint8_t>* out = nullptr;
     bool created = false;
     JpegEncoder() {
-        cinfo.err = jpeg_std_error(&error.mgr);
-        error.mgr.error_exit = jpegErrorExit;
-        error.mgr.output_message = jpegQuiet;
+        error.install(cinfo);
         if (setjmp(error.jump)) return;
         jpeg_create_compress(&cinfo);
+        cinfo.client_data = this;
+        dest.init_destination = [](j_compress_ptr c) {
+            auto* self = static_cast<JpegEncoder*>(c->client_data);
+            self->out->resize(std::max<size_t>(self->out->capacity(), 1 << 16));
+            self->dest.next_output_byte = self->out->data();
+            self->dest.free_in_buffer = self->out->size();
+        };
+        dest.empty_output_buffer = [](j_compress_ptr c) -> boolean {
+            auto* self = static_cast<JpegEncoder*>(c->client_data);
+            const size_t used = self->out->size();
+            self->out->resize(used * 2);
+            self->dest.next_output_byte = self->out->data() + used;
+            self->dest.free_in_buffer = self->out->size() - used;
+            return TRUE;
+        };
+        dest.term_destination = [](j_compress_ptr c) {
+            auto* self = static_cast<JpegEncoder*>(c->client_data);
+            self->out->resize(self->out->size() - self->dest.free_in_buffer);
+        };
+        cinfo.dest = &dest;
         created = true;
     }
-    ~JpegEncoder() {
-        if (created) jpeg_destroy_compress(&cinfo);
-    }
+    ~JpegEncoder() { jpeg_destroy_compress(&cinfo); } // safe on a partly created object
     JpegEncoder(const JpegEncoder&) = delete;
     JpegEncoder& operator=(const JpegEncoder&) = delete;
 };
 
-/// One tile or strip of 8-bit RGB as a complete JPEG stream (its own tables: TIFF's JPEGTables tag is optional,
-/// TIFF Technical Note 2), YCbCr with 2×2 subsampled chroma (libjpeg's default, the file's YCbCrSubsampling).
-/// Empty on failure.
-std::vector<std::uint8_t> compressJpeg(JpegEncoder& e, const std::uint8_t* rgb, int width, int height, int quality) {
+/// One tile or strip of 8-bit RGB into `out` as a complete JPEG stream (its own tables: TIFF's JPEGTables tag is
+/// optional, TIFF Technical Note 2; no JFIF marker, as libtiff writes), YCbCr with 2×2 subsampled chroma (libjpeg's
+/// default, the file's YCbCrSubsampling). `out` empty on failure.
+void compressJpeg(JpegEncoder& e, const std::uint8_t* rgb, int width, int height, int quality,
+                  std::vector<std::uint8_t>& out) {
     jpeg_compress_struct& c = e.cinfo;
-    unsigned char* buffer = nullptr;
-    unsigned long size = 0;
-    std::vector<std::uint8_t> out;
-    if (!e.created) return out;
+    out.clear();
+    if (!e.created) return;
+    e.out = &out;
     if (setjmp(e.error.jump)) {
         jpeg_abort_compress(&c);
-        std::free(buffer);
-        return {};
+        out.clear();
+        return;
     }
-    jpeg_mem_dest(&c, &buffer, &size);
     c.image_width = JDIMENSION(width);
     c.image_height = JDIMENSION(height);
     c.input_components = 3;
     c.in_color_space = JCS_RGB;
     jpeg_set_defaults(&c); // JCS_YCbCr, Y sampled 2×2, Cb and Cr 1×1
+    c.write_JFIF_header = FALSE;
     jpeg_set_quality(&c, std::clamp(quality, 1, 100), TRUE);
     jpeg_start_compress(&c, TRUE);
     const size_t rowBytes = size_t(width) * 3;
@@ -122,9 +129,6 @@ std::vector<std::uint8_t> compressJpeg(JpegEncoder& e, const std::uint8_t* rgb, 
         jpeg_write_scanlines(&c, &row, 1);
     }
     jpeg_finish_compress(&c);
-    out.assign(buffer, buffer + size);
-    std::free(buffer);
-    return out;
 }
 
 } // namespace
@@ -181,7 +185,8 @@ Result<GeoTiffStreamWriter> GeoTiffStreamWriter::open(const std::filesystem::pat
     const bool jpeg = options.compression == TiffCompression::Jpeg;
     if (jpeg && (type != SampleType::U8 || channels != 3))
         return w.fail("JPEG compression takes 8-bit RGB only").error();
-    TIFFSetField(t, TIFFTAG_PHOTOMETRIC, jpeg ? PHOTOMETRIC_YCBCR : channels >= 3 ? PHOTOMETRIC_RGB : PHOTOMETRIC_MINISBLACK);
+    TIFFSetField(t, TIFFTAG_PHOTOMETRIC,
+                 jpeg ? PHOTOMETRIC_YCBCR : channels >= 3 ? PHOTOMETRIC_RGB : PHOTOMETRIC_MINISBLACK);
     if (channels == 4 || channels == 2) {
         std::uint16_t extra = EXTRASAMPLE_UNASSALPHA;
         TIFFSetField(t, TIFFTAG_EXTRASAMPLES, std::uint16_t(1), &extra);
@@ -203,6 +208,12 @@ Result<GeoTiffStreamWriter> GeoTiffStreamWriter::open(const std::filesystem::pat
               : !TIFFSetField(t, TIFFTAG_PREDICTOR,
                               type == SampleType::F32 ? PREDICTOR_FLOATINGPOINT : PREDICTOR_HORIZONTAL)))
         return w.fail("cannot set the compression tags").error();
+    if (jpeg) {
+        // What libtiff's own JPEG encoder (and GDAL) write for YCbCr: full-range codes, as JPEG's YCbCr is.
+        float referenceBlackWhite[6] = {0.0f, 255.0f, 128.0f, 255.0f, 128.0f, 255.0f};
+        if (!TIFFSetField(t, TIFFTAG_REFERENCEBLACKWHITE, referenceBlackWhite))
+            return w.fail("cannot set the YCbCr reference tag").error();
+    }
     if (georef && !tiff::writeGeoTags(t, *georef, options.nodata)) return w.fail("cannot write GeoTIFF keys").error();
     if (w.m_tiled) {
         TIFFSetField(t, TIFFTAG_TILEWIDTH, std::uint32_t(options.tileSize));
@@ -353,7 +364,7 @@ Status GeoTiffStreamWriter::encodeBlockRow(const std::uint8_t* rows, int y0, int
             }
             std::vector<std::uint8_t>& out = enc.compressed[size_t(i)];
             if (enc.compression == TiffCompression::Jpeg) {
-                out = compressJpeg(*enc.jpegs[size_t(worker)], block, m_blockWidth, blockRows, enc.jpegQuality);
+                compressJpeg(*enc.jpegs[size_t(worker)], block, m_blockWidth, blockRows, enc.jpegQuality, out);
             } else if (enc.compression == TiffCompression::Zstd) {
                 out.resize(ZSTD_compressBound(blockBytes));
                 const size_t n = ZSTD_compressCCtx(enc.zstd[size_t(worker)].get(), out.data(), out.size(), block,

@@ -1,8 +1,8 @@
 #pragma once
-// Streams a raster into a deflate- or Zstandard-compressed TIFF (tiled, or in strips of 16 rows), optionally
+// Streams a raster into a deflate-, Zstandard- or JPEG-compressed TIFF (tiled, or in strips of 16 rows), optionally
 // georeferenced, in bounded memory: the caller hands over rows top to bottom in any amounts, the writer compresses
-// each complete row of tiles on several threads (libdeflate or libzstd, TIFF predictor) and libtiff writes the tiles
-// in order as raw tiles.
+// each complete row of tiles on several threads (libdeflate or libzstd with the TIFF predictor; libjpeg, YCbCr 4:2:0,
+// each tile a complete JPEG stream) and libtiff writes the tiles in order as raw tiles.
 // Written to a temporary name next to the target and renamed by finish(), so a failed or abandoned file never
 // appears under its final name. The bytes depend only on the pixels and the options, not on how rows are split
 // between writeRows() calls or on the thread count. Used by writeGeoTiff, the synthetic scene generator and the
@@ -24,9 +24,10 @@ namespace seasonview {
 class GeoTiffStreamWriter {
 public:
     /// Creates the temporary file for a width×height raster of `channels` interleaved samples of `type`
-    /// (PHOTOMETRIC_RGB from 3 channels, a 4th or 2nd channel is unassociated alpha), with GeoTIFF tags when
-    /// `georef` is given. BigTIFF when width×height×channels×sample bytes exceeds options.bigTiffAbove.
-    /// options.tileSize must be 0 (strips) or a positive multiple of 16. Errors name the file.
+    /// (PHOTOMETRIC_RGB from 3 channels, a 4th or 2nd channel is unassociated alpha; JPEG: 8-bit RGB only, stored as
+    /// PHOTOMETRIC_YCBCR), with GeoTIFF tags when `georef` is given. BigTIFF when width×height×channels×sample bytes
+    /// exceeds options.bigTiffAbove. options.tileSize must be 0 (strips) or a positive multiple of 16. Errors name the
+    /// file (also JPEG of anything but 8-bit RGB).
     static Result<GeoTiffStreamWriter> open(const std::filesystem::path& path, int width, int height, int channels,
                                             SampleType type, const std::optional<Georef>& georef,
                                             const GeoTiffWriteOptions& options = {});

@@ -63,7 +63,8 @@ Result<Image<float>> readImageF32(const std::filesystem::path& path, int maxChan
 /// How GeoTiffStreamWriter compresses tiles. Deflate is what every TIFF reader knows; Zstandard (libtiff ≥ 4.0.10,
 /// GDAL ≥ 2.3, QGIS) is as small on imagery and decodes about five times faster (0.12 vs 0.63 s for an 8192² RGB
 /// season on one core of this machine), so it is what the synthetic scenes and the pyramid cache use. Jpeg is what
-/// orthophotos usually come as (lossy; YCbCr 4:2:0 as GDAL's COMPRESS=JPEG PHOTOMETRIC=YCBCR writes; 8-bit RGB only).
+/// orthophotos usually come as (lossy; 8-bit RGB only, stored YCbCr 4:2:0 as GDAL's COMPRESS=JPEG PHOTOMETRIC=YCBCR
+/// does, but each tile with its own tables rather than a shared JPEGTables tag).
 enum class TiffCompression { Deflate, Zstd, Jpeg };
 
 /// "deflate" / "zstd" / "jpeg" (the synth flag's values).

@@ -44,7 +44,8 @@ struct SynthOptions {
     int facadeSize = 256;              // facade texture side, texels
     int blockCity = 0;                 // > 0: a block city of this many buildings at the centre (placeBlockCity)
     TiffCompression compression = TiffCompression::Zstd; // of the imagery and truth GeoTIFFs (Deflate: for readers
-                                                         // without Zstandard; decodes five times slower)
+                                                         // without Zstandard; decodes five times slower; Jpeg: the
+                                                         // imagery only, the truth masks stay Zstandard)
 };
 
 /// What was generated, for the CLI summary.

@@ -111,15 +111,26 @@ TEST(GeoTiffStreamWriterTest, BytesDoNotDependOnRowBatchesOrThreads) {
                   : compression == TiffCompression::Jpeg ? 7 /* JPEG */
                                                          : 8 /* ADOBE_DEFLATE */);
     }
-    // JPEG takes 8-bit RGB only: anything else is one clear error, and no file.
+    // JPEG: stored as YCbCr; it takes 8-bit RGB only: anything else is one clear error, and no file.
     TempDir dir("gtsw-jpeg");
     GeoTiffWriteOptions o;
     o.compression = TiffCompression::Jpeg;
+    const auto rgb = testRgb(64, 64);
+    ASSERT_TRUE(writeGeoTiff(dir / "rgb.tif", rgb.data(), SampleType::U8, 64, 64, 3, testGeoref(), o).ok());
+    {
+        auto in = OIIO::ImageInput::open((dir / "rgb.tif").string());
+        ASSERT_TRUE(in);
+        EXPECT_EQ(in->spec().get_int_attribute("tiff:PhotometricInterpretation"), 6); // YCbCr
+    }
     const std::vector<std::uint16_t> wide(64 * 64 * 3, 1000);
-    const Status st = writeGeoTiff(dir / "wide.tif", wide.data(), SampleType::U16, 64, 64, 3, testGeoref(), o);
-    ASSERT_FALSE(st.ok());
-    EXPECT_NE(st.message().find("JPEG"), std::string::npos) << st.message();
-    EXPECT_FALSE(std::filesystem::exists(dir / "wide.tif"));
+    const std::vector<std::uint8_t> rgba(64 * 64 * 4, 100);
+    const Status wideSt = writeGeoTiff(dir / "wide.tif", wide.data(), SampleType::U16, 64, 64, 3, testGeoref(), o);
+    const Status rgbaSt = writeGeoTiff(dir / "rgba.tif", rgba.data(), SampleType::U8, 64, 64, 4, testGeoref(), o);
+    for (const auto& [name, st] : {std::pair{"wide.tif", wideSt}, std::pair{"rgba.tif", rgbaSt}}) {
+        ASSERT_FALSE(st.ok()) << name;
+        EXPECT_NE(st.message().find("JPEG"), std::string::npos) << st.message();
+        EXPECT_FALSE(std::filesystem::exists(dir / name));
+    }
 }
 
 TEST(GeoTiffStreamWriterTest, SampleTypesAndStripsRoundTrip) {

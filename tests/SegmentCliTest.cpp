@@ -322,6 +322,7 @@ TEST(SegmentCliSynthTest, JpegScenesReadLikeOrthophotos) {
     auto bands = [](const std::filesystem::path& p) {
         auto r = BandReader::open(p, 1 << 20);
         EXPECT_TRUE(r.ok()) << r.message();
+        if (!r) return std::vector<std::uint8_t>{};
         std::vector<std::uint8_t> px(size_t(r->width()) * size_t(r->height()) * 3);
         EXPECT_TRUE(r->read(0, r->height(), 3, SampleType::U8, px.data()).ok());
         EXPECT_EQ(r->readsHandedOver(), 0);
@@ -329,6 +330,7 @@ TEST(SegmentCliSynthTest, JpegScenesReadLikeOrthophotos) {
     };
     const auto zp = bands(dir / "z/leafon.tif"), jp = bands(dir / "j/leafon.tif");
     ASSERT_EQ(zp.size(), jp.size());
+    ASSERT_FALSE(zp.empty());
     double sq = 0.0;
     for (size_t i = 0; i < zp.size(); ++i) sq += (double(zp[i]) - double(jp[i])) * (double(zp[i]) - double(jp[i]));
     EXPECT_GT(10.0 * std::log10(255.0 * 255.0 / (sq / double(zp.size()))), 30.0);
