@@ -337,7 +337,14 @@ void CityRendererGL::resetOcclusion() {
     m_queriesUsed = 0;
 }
 
-void CityRendererGL::collectQueries() {
+void CityRendererGL::collectQueries(bool wait) {
+    if (m_frameEndQueries.empty()) return;
+    if (!wait)
+        for (const PendingQuery& q : m_frameEndQueries) { // only when all are in: the pager never waits for the GPU
+            GLuint available = 0;
+            glGetQueryObjectuiv(m_queries[q.query].id(), GL_QUERY_RESULT_AVAILABLE, &available);
+            if (!available) return;
+        }
     for (const PendingQuery& q : m_frameEndQueries) {
         GLuint any = 0;
         glGetQueryObjectuiv(m_queries[q.query].id(), GL_QUERY_RESULT, &any);
@@ -382,7 +389,7 @@ void CityRendererGL::update(const Camera& camera, int width, int height) {
     m_frameUploaded = 0;
     const AtlasView v = view(camera, width, height);
     if (m_settings.mode == CityMode::Atlas) {
-        collectQueries();
+        collectQueries(false); // the pager uses the answers if they are in, else the frame before's
         // Nodes the last frame found hidden are paged as if outside the frustum.
         for (std::size_t t = 0; t < m_pagers.size(); ++t) {
             VisibilityFn vis;
@@ -425,7 +432,7 @@ void CityRendererGL::complete(const Camera& camera, int width, int height) {
 CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRendererGL* terrain,
                                     const gl::RenderTarget& target) {
     CityFrameStats st;
-    collectQueries();
+    collectQueries(true);
     const bool occlusion = m_settings.occlusion && m_settings.mode == CityMode::Atlas;
     std::vector<std::vector<std::uint32_t>> drawnNodes(m_file.trees.size()); // for step (3)
     target.bind();

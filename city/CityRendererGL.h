@@ -92,10 +92,10 @@ public:
     /// drawn (their subtrees may defer more); while nothing is known (resetOcclusion(), the first frame) every node
     /// is tested before it is drawn, in rounds of the 8, 16, 32, ... nearest so that near nodes hide far ones;
     /// (3) at the end the drawn nodes' boxes are queried against the frame's depth (each node again every 4th
-    /// frame), read at the next update() or draw(), which wait for them. A node is skipped only when its box is
-    /// hidden now, so once what the view wants is resident the picture is the one without occlusion culling
-    /// (tested frame by frame); while atlases load, a refinement waits only for the visible children's, and nodes
-    /// found hidden are paged as Culled. The nodes drawn and the triangles fall to what the view can see.
+    /// frame), read at the next update() if they are in, else at the next draw(), which waits. A node is skipped
+    /// only when its box is hidden now, so once what the view wants is resident the picture is the one without
+    /// occlusion culling (tested frame by frame); while atlases load, a refinement waits only for the visible
+    /// children's, and nodes found hidden are paged as Culled. The nodes drawn and the triangles fall to what the view can see.
     CityFrameStats draw(const Camera& camera, const ClipmapTerrainRendererGL* terrain, const gl::RenderTarget& target);
 
     CitySettings& settings() { return m_settings; }
@@ -111,8 +111,9 @@ private:
     void uploadAtlas(int tree, const LoadedBlock& b);
     void uploadTexture(const LoadedBlock& b);
     struct PendingQuery { std::size_t tree; std::uint32_t node; std::size_t query; std::uint64_t frame; };
-    /// The end-of-frame queries of the last draw() into m_occlusion.
-    void collectQueries();
+    /// The end-of-frame queries of the last draw() into m_occlusion: waiting for them (draw()), or only if they are
+    /// all answered already (update()).
+    void collectQueries(bool wait);
     /// One occlusion query per node box, depth-tested against what is drawn, writing nothing.
     void queryBoxes(std::size_t tree, const std::vector<std::uint32_t>& nodes, const glm::mat4& viewProj,
                     std::vector<PendingQuery>& out);
