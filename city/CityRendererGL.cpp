@@ -558,18 +558,12 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
         issue(known);
         // (2) The deferred nodes, nearest first, in rounds: test the boxes, wait, draw the visible ones.
         std::vector<std::uint32_t> pending = known.deferred;
+        const auto distance = [&](std::uint32_t n) { return trav.distance(n, v); };
         for (int grown = 0; !pending.empty();) {
-            std::vector<std::pair<double, std::uint32_t>> byDistance;
-            for (std::uint32_t n : pending) byDistance.emplace_back(trav.distance(n, v), n);
-            std::sort(byDistance.begin(), byDistance.end());
-            const std::size_t take = occ.roundSize(byDistance.size(), grown);
-            std::vector<std::uint32_t> visibleNow, test;
-            for (std::size_t i = 0; i < take; ++i)
-                (occ.eyeNear(byDistance[i].second, v.eye) ? visibleNow : test).push_back(byDistance[i].second);
-            pending.clear();
-            for (std::size_t i = take; i < byDistance.size(); ++i) pending.push_back(byDistance[i].second);
+            NodeOcclusion::Round round = occ.nextRound(pending, distance, v.eye, grown);
+            std::vector<std::uint32_t>& visibleNow = round.visible;
             std::vector<PendingQuery> queries;
-            queryBoxes(t, test, viewProj, queries);
+            queryBoxes(t, round.test, viewProj, queries);
             st.occlusionQueries += int(queries.size());
             if (!queries.empty()) ++st.occlusionWaits;
             for (const PendingQuery& q : queries) {
@@ -638,14 +632,8 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
     // (3) The drawn nodes' boxes against the frame's depth, for the next frame.
     if (occlusion) {
         for (std::size_t t = 0; t < drawnNodes.size(); ++t) {
-            std::vector<std::uint32_t> test;
-            for (std::uint32_t n : drawnNodes[t]) {
-                NodeOcclusion& o = *m_occlusion[t];
-                if (o.eyeNear(n, v.eye)) o.answered(n, true, o.frame());
-                else if (o.dueForTest(n)) test.push_back(n);
-            }
             const std::size_t before = m_frameEndQueries.size();
-            queryBoxes(t, test, viewProj, m_frameEndQueries);
+            queryBoxes(t, m_occlusion[t]->endOfFrameTests(drawnNodes[t], v.eye), viewProj, m_frameEndQueries);
             st.occlusionQueries += int(m_frameEndQueries.size() - before);
         }
     }

@@ -50,6 +50,32 @@ std::size_t NodeOcclusion::roundSize(std::size_t pending, int roundsThatDrew) co
     return std::min(pending, kBootstrapBatch << std::clamp(roundsThatDrew, 0, 20));
 }
 
+NodeOcclusion::Round NodeOcclusion::nextRound(std::vector<std::uint32_t>& pending,
+                                             const std::function<double(std::uint32_t)>& distance,
+                                             const glm::dvec3& eye, int roundsThatDrew) const {
+    std::vector<std::pair<double, std::uint32_t>> byDistance;
+    byDistance.reserve(pending.size());
+    for (std::uint32_t n : pending) byDistance.emplace_back(distance(n), n);
+    std::sort(byDistance.begin(), byDistance.end());
+    const std::size_t take = roundSize(byDistance.size(), roundsThatDrew);
+    Round round;
+    for (std::size_t i = 0; i < take; ++i)
+        (eyeNear(byDistance[i].second, eye) ? round.visible : round.test).push_back(byDistance[i].second);
+    pending.clear();
+    for (std::size_t i = take; i < byDistance.size(); ++i) pending.push_back(byDistance[i].second);
+    return round;
+}
+
+std::vector<std::uint32_t> NodeOcclusion::endOfFrameTests(const std::vector<std::uint32_t>& drawn,
+                                                           const glm::dvec3& eye) {
+    std::vector<std::uint32_t> test;
+    for (std::uint32_t n : drawn) {
+        if (eyeNear(n, eye)) answered(n, true, m_frame);
+        else if (dueForTest(n)) test.push_back(n);
+    }
+    return test;
+}
+
 bool NodeOcclusion::dueForTest(std::uint32_t node) const {
     const State& s = m_states[node];
     return s.tested == 0 || s.tested + kPersistFrames <= m_frame;

@@ -16,6 +16,7 @@
 #include <glm/vec3.hpp>
 
 #include <cstdint>
+#include <functional>
 #include <utility>
 #include <vector>
 
@@ -59,6 +60,17 @@ public:
     /// How many of `pending` deferred nodes (nearest first) the next round tests: all once anything is known, else
     /// kBootstrapBatch << `roundsThatDrew` (rounds that only opened inner nodes keep the batch small).
     std::size_t roundSize(std::size_t pending, int roundsThatDrew) const;
+    /// A round of deferred nodes: those the eye is next to (visible without a test) and those whose boxes to query.
+    struct Round {
+        std::vector<std::uint32_t> visible, test;
+    };
+    /// The next round: the roundSize() nearest of `pending` (metres from the eye by `distance`); `pending` keeps the
+    /// rest.
+    Round nextRound(std::vector<std::uint32_t>& pending, const std::function<double(std::uint32_t)>& distance,
+                    const glm::dvec3& eye, int roundsThatDrew) const;
+    /// Of the nodes drawn this frame, those whose boxes to query at its end (dueForTest()); the ones the eye is next
+    /// to are answered visible at once.
+    std::vector<std::uint32_t> endOfFrameTests(const std::vector<std::uint32_t>& drawn, const glm::dvec3& eye);
     /// Whether a node drawn this frame has its box queried at the end of it: never answered, drawn untested, or its
     /// visible answer older than kPersistFrames.
     bool dueForTest(std::uint32_t node) const;

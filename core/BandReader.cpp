@@ -13,7 +13,6 @@
 #include <csetjmp>
 #include <cstdio>
 #include <cstring>
-#include <mutex>
 #include <string>
 #include <thread>
 
@@ -127,9 +126,9 @@ bool decodeJpeg(JpegDecoder& d, const std::vector<std::uint8_t>& tables, const s
 // Deflate, Zstandard and JPEG TIFFs, the kinds GeoTiffStreamWriter writes and most GeoTIFFs and orthophotos are,
 // decoded here rather than by OpenImageIO: the compressed tiles (or strips) of a band are read raw through libtiff and
 // decoded on all cores, deflate by libdeflate (about twice as fast as zlib), Zstandard by libzstd (about five times
-// faster again), JPEG (YCbCr) by libjpeg as libtiff's codec decodes it for GDAL (RGB out). Only layouts where the
+// faster again), JPEG by libjpeg as libtiff's codec decodes it for GDAL (YCbCr to RGB). Only layouts where the
 // result is certain to equal OpenImageIO's or libtiff's: unsigned 8/16-bit, contiguous RGB or grey (JPEG: 8-bit
-// YCbCr), no unassociated alpha (OpenImageIO would premultiply it), native byte order, predictor none or horizontal.
+// YCbCr, RGB or grey), no unassociated alpha (OpenImageIO would premultiply it), native byte order, predictor none or horizontal.
 // Anything else, and any tile that does not decode, goes to OpenImageIO.
 struct RawTiff {
     TIFF* tif = nullptr;
@@ -145,7 +144,6 @@ struct RawTiff {
     std::vector<std::unique_ptr<libdeflate_decompressor, DecompressorDeleter>> inflaters; // per thread (deflate)
     std::vector<std::unique_ptr<ZSTD_DCtx, DecompressorDeleter>> zstdContexts;            // per thread (zstd)
     std::vector<std::unique_ptr<JpegDecoder>> jpegDecoders;                              // per thread (JPEG)
-    std::mutex failMutex;
     std::string failure; // what libjpeg said of the last block that did not decode
     ~RawTiff() {
         if (tif) TIFFClose(tif);
@@ -286,12 +284,11 @@ struct RawTiff {
                 if (c.empty()) std::memset(block.data(), 0, bytes);
                 else if (!decode(c, block.data(), bytes, worker)) {
                     const bool first = ok.exchange(false);
-                    if (first && jpeg) { // its words, for the error if OpenImageIO cannot read it either
-                        const std::lock_guard<std::mutex> lock(failMutex);
+                    // The first failure's words (only it writes), for the error if OpenImageIO cannot read it either.
+                    if (first && jpeg)
                         failure = std::string("JPEG ") + (tiled ? "tile " : "strip ") +
                                   std::to_string(tiled ? by * across + i : by) + ": " +
                                   jpegDecoders[size_t(worker)]->error.message;
-                    }
                     return;
                 }
                 const int x0 = i * blockWidth, cols = std::min(blockWidth, width - x0);

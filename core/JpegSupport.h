@@ -3,7 +3,6 @@
 // whose error_exit longjmps back to the caller instead of exiting, and keeps the message. Internal to core.
 #include <csetjmp>
 #include <cstdio> // jpeglib.h needs FILE
-#include <cstring>
 
 #include <jpeglib.h>
 

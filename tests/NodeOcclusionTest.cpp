@@ -110,3 +110,35 @@ TEST(NodeOcclusionTest, QueryBoxesAreGrownAndTheEyeNextToOneNeedsNoTest) {
     EXPECT_FALSE(o.eyeNear(0, {-2.5, 50.0, 2.0}));
     EXPECT_TRUE(o.eyeNear(0, {50.0, 50.0, 2.0})); // inside
 }
+
+TEST(NodeOcclusionTest, RoundsTakeTheNearestAndTheEyeNextToABoxNeedsNoQuery) {
+    const AtlasTreeData t = fiveNodes();
+    NodeOcclusion o(t);
+    o.beginFrame(); // nothing known: rounds of kBootstrapBatch << rounds that drew
+    std::vector<std::uint32_t> pending;
+    std::vector<double> metres(5, 0.0);
+    for (std::uint32_t i = 0; i < 20; ++i) pending.push_back(1 + i % 4); // repeats: only order and count matter
+    for (std::uint32_t n = 1; n < 5; ++n) metres[n] = 10.0 * n;
+    const auto distance = [&](std::uint32_t n) { return metres[n]; };
+    const glm::dvec3 eye(12.0, 50.0, 2.0); // inside child 1's box (x 0..25)
+    const NodeOcclusion::Round r = o.nextRound(pending, distance, eye, 0);
+    EXPECT_EQ(r.visible.size() + r.test.size(), NodeOcclusion::kBootstrapBatch);
+    EXPECT_EQ(pending.size(), 20u - NodeOcclusion::kBootstrapBatch);
+    for (std::uint32_t n : r.visible) EXPECT_EQ(n, 1u) << "only the box the eye is in";
+    for (std::uint32_t n : r.test) EXPECT_LE(metres[n], 20.0) << "the nearest first";
+    for (std::uint32_t n : pending) EXPECT_GE(metres[n], 20.0);
+    // Once something is known, one round takes every pending node.
+    o.answered(0, true, o.frame());
+    o.beginFrame();
+    std::vector<std::uint32_t> all = {4, 3, 2};
+    EXPECT_EQ(o.nextRound(all, distance, eye, 0).test.size(), 3u);
+    EXPECT_TRUE(all.empty());
+
+    // The end of the frame: the node the eye is in is answered visible at once, the due ones queried.
+    AtlasTraversalResult drawn;
+    drawn.drawn = {1, 2, 3};
+    o.traversed(drawn); // drawn untested: all due
+    const auto tests = o.endOfFrameTests({1, 2, 3}, eye);
+    EXPECT_EQ(tests, (std::vector<std::uint32_t>{2, 3}));
+    EXPECT_FALSE(o.dueForTest(1));
+}
