@@ -20,7 +20,7 @@ namespace seasonview::app {
 namespace {
 
 struct AtlasArgs {
-    std::string input, out, dmin = "auto", format = "bc", roofs = "imagery", crs, objUp = "y", report;
+    std::string input, out, dmin = "auto", format = "bc", roofs = "imagery", crs, objUp = "y", report, packer = "maxrects";
     int atlasSize = 512, screenWidth = 1920;
     double tpp = 1.0, fovX = 90.0, cacheMb = 512.0;
     bool objLocal = false;
@@ -65,6 +65,11 @@ Runner addAtlasCommand(CLI::App& app) {
     build->add_option("--tpp", a->tpp, "Pixels per texel the textures are sized for")->capture_default_str();
     build->add_option("--format", a->format, "Atlas storage: bc (BC1/BC3, default) or deflate (lossless)")
         ->check(CLI::IsMember({"bc", "deflate"}))
+        ->capture_default_str();
+    build->add_option("--packer", a->packer,
+                      "Atlas packing: maxrects (MAXRECTS, best short side fit, quarter turns; default) or skyline "
+                      "(stb_rect_pack, no turns)")
+        ->check(CLI::IsMember({"maxrects", "skyline"}))
         ->capture_default_str();
     build->add_option("--roofs", a->roofs, "imagery: roofs left to the terrain's imagery clipmap; model: their own textures")
         ->check(CLI::IsMember({"imagery", "model"}))
@@ -219,6 +224,7 @@ Runner addAtlasCommand(CLI::App& app) {
         s.fovXDeg = a->fovX;
         s.format = a->format == "deflate" ? city::AtlasFormat::Deflate : city::AtlasFormat::Bc;
         s.roofsFromImagery = a->roofs == "imagery";
+        s.packer = *city::parseAtlasPacker(a->packer);
         s.cacheBytes = std::uint64_t(std::max(16.0, a->cacheMb) * 1048576.0);
         s.progress = terminalProgress("atlas tree");
         auto r = city::buildAtlasTree(*model, s, a->out);
@@ -254,7 +260,8 @@ Runner addAtlasCommand(CLI::App& app) {
                                 {"seconds", seconds},
                                 {"peak_rss_gb", peakRssGb()},
                                 {"format", city::atlasFormatName(s.format)},
-                                {"atlas_size", s.atlasSize}};
+                                {"atlas_size", s.atlasSize},
+                                {"packer", city::atlasPackerName(s.packer)}};
             std::string err;
             if (!writeTextAtomic(a->report, j.dump(2) + "\n", err)) return fail(a->report + ": " + err);
         }

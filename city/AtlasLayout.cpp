@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numeric>
 
 namespace seasonview::city {
@@ -107,24 +108,118 @@ AtlasArea requiredAtlasArea(const std::vector<const TexturedTriangle*>& tris, do
     return a;
 }
 
-bool packAtlas(std::vector<AtlasArea>& areas, int atlasSize, double* fill) {
+const char* atlasPackerName(AtlasPacker p) {
+    switch (p) {
+    case AtlasPacker::MaxRects: return "maxrects";
+    case AtlasPacker::Skyline: return "skyline";
+    }
+    return "?";
+}
+
+std::optional<AtlasPacker> parseAtlasPacker(const std::string& name) {
+    if (name == "maxrects") return AtlasPacker::MaxRects;
+    if (name == "skyline") return AtlasPacker::Skyline;
+    return std::nullopt;
+}
+
+namespace {
+
+struct Rect {
+    int x = 0, y = 0, w = 0, h = 0;
+    bool contains(const Rect& o) const { return o.x >= x && o.y >= y && o.x + o.w <= x + w && o.y + o.h <= y + h; }
+    bool intersects(const Rect& o) const {
+        return o.x < x + w && x < o.x + o.w && o.y < y + h && y < o.y + o.h;
+    }
+};
+
+/// MAXRECTS-BSSF-GLOBAL with rotation (Jylänki 2010, §3.3 and §3.3.1 "best short side fit").
+bool packMaxRects(std::vector<AtlasArea>& areas, int atlasSize) {
+    std::vector<Rect> free{{0, 0, atlasSize, atlasSize}};
+    std::vector<bool> placed(areas.size(), false);
+    for (auto& a : areas) a.rotated = false;
+    for (std::size_t step = 0; step < areas.size(); ++step) {
+        // The best (short side slack, long side slack) over every unplaced area, free rectangle and orientation;
+        // ties: the first found (the earlier area, unturned, the earlier free rectangle).
+        struct Best {
+            int shortSlack = INT32_MAX, longSlack = INT32_MAX;
+            std::size_t area = 0;
+            Rect at;
+            bool rotated = false;
+        } best;
+        bool found = false;
+        for (std::size_t i = 0; i < areas.size(); ++i) {
+            if (placed[i]) continue;
+            for (int turn = 0; turn < 2; ++turn) {
+                const int w = turn ? areas[i].size.y : areas[i].size.x;
+                const int h = turn ? areas[i].size.x : areas[i].size.y;
+                if (turn && w == h) continue;
+                for (const Rect& f : free) {
+                    if (w > f.w || h > f.h) continue;
+                    const int dx = f.w - w, dy = f.h - h;
+                    const int s = std::min(dx, dy), l = std::max(dx, dy);
+                    if (found && (s > best.shortSlack || (s == best.shortSlack && l >= best.longSlack))) continue;
+                    best = {s, l, i, Rect{f.x, f.y, w, h}, turn == 1};
+                    found = true;
+                }
+            }
+        }
+        if (!found) return false;
+        AtlasArea& a = areas[best.area];
+        a.position = {best.at.x, best.at.y};
+        a.rotated = best.rotated;
+        placed[best.area] = true;
+        // Split every free rectangle the placed one overlaps into the (up to four) maximal ones around it, then
+        // drop those inside another.
+        std::vector<Rect> next;
+        next.reserve(free.size() + 8);
+        const Rect& p = best.at;
+        for (const Rect& f : free) {
+            if (!f.intersects(p)) {
+                next.push_back(f);
+                continue;
+            }
+            if (p.x > f.x) next.push_back({f.x, f.y, p.x - f.x, f.h});
+            if (p.x + p.w < f.x + f.w) next.push_back({p.x + p.w, f.y, f.x + f.w - (p.x + p.w), f.h});
+            if (p.y > f.y) next.push_back({f.x, f.y, f.w, p.y - f.y});
+            if (p.y + p.h < f.y + f.h) next.push_back({f.x, p.y + p.h, f.w, f.y + f.h - (p.y + p.h)});
+        }
+        free.clear();
+        for (std::size_t i = 0; i < next.size(); ++i) {
+            bool inside = false;
+            for (std::size_t j = 0; j < next.size() && !inside; ++j)
+                if (i != j && next[j].contains(next[i]) && (!next[i].contains(next[j]) || j < i)) inside = true;
+            if (!inside) free.push_back(next[i]);
+        }
+    }
+    return true;
+}
+
+bool packSkyline(std::vector<AtlasArea>& areas, int atlasSize) {
     std::vector<stbrp_node> nodes(size_t(atlasSize) * 2);
     stbrp_context ctx;
     stbrp_init_target(&ctx, atlasSize, atlasSize, nodes.data(), int(nodes.size()));
     stbrp_setup_heuristic(&ctx, STBRP_HEURISTIC_Skyline_BL_sortHeight);
     std::vector<stbrp_rect> rects(areas.size());
-    double covered = 0.0;
     for (size_t i = 0; i < areas.size(); ++i) {
         rects[i].id = int(i);
         rects[i].w = areas[i].size.x;
         rects[i].h = areas[i].size.y;
-        covered += double(areas[i].size.x) * double(areas[i].size.y);
+        areas[i].rotated = false;
     }
     const bool all = stbrp_pack_rects(&ctx, rects.data(), int(rects.size())) == 1;
     for (const stbrp_rect& r : rects)
         if (r.was_packed) areas[size_t(r.id)].position = {r.x, r.y};
-    if (fill) *fill = covered / (double(atlasSize) * double(atlasSize));
     return all;
+}
+
+} // namespace
+
+bool packAtlas(std::vector<AtlasArea>& areas, int atlasSize, double* fill, AtlasPacker packer) {
+    double covered = 0.0;
+    for (const auto& a : areas) covered += double(a.size.x) * double(a.size.y);
+    if (fill) *fill = covered / (double(atlasSize) * double(atlasSize));
+    if (covered > double(atlasSize) * double(atlasSize)) return false;
+    return packer == AtlasPacker::Skyline ? packSkyline(areas, atlasSize) : packMaxRects(areas, atlasSize);
 }
 
 std::array<std::vector<std::uint32_t>, 4> splitPointsByArea(const std::vector<glm::dvec3>& midpoints,

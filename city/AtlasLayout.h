@@ -2,7 +2,8 @@
 // The geometry of a multiresolution texture-atlas tree (Buchholz & Döllner 2005; Buchholz's thesis §4.5), plain C++:
 // how large each texture must be in a node's atlas so nothing is magnified beyond dmin (§4.5.2 "Texture Size
 // Estimation"), the atlas area a texture needs with its repetitions and border ("Computation of the Required Atlas
-// Area"), packing those areas into a fixed-size atlas ("Texture Atlas Generation", stb_rect_pack), the area-balanced
+// Area"), packing those areas into a fixed-size atlas ("Texture Atlas Generation": MAXRECTS with quarter turns, or
+// stb_rect_pack's skyline), the area-balanced
 // four-way split of a node's triangles (§4.5.3), and the root-atlas texture coordinates with a per-level scale
 // (§4.5.4, the texture-matrix trick).
 #include <glm/vec2.hpp>
@@ -12,6 +13,7 @@
 #include <cmath>
 #include <cstdint>
 #include <optional>
+#include <string>
 #include <vector>
 
 namespace seasonview::city {
@@ -53,6 +55,14 @@ struct AtlasArea {
     /// How much finer than the stored texels the view would want at dmin: max over the axes of uncapped / capped
     /// texels per repetition (1 when the original's size did not cap it). The ancestors' minDistances grow by it.
     double capFactor = 1.0;
+    /// Placed turned by a quarter (transposed): texture u runs along the atlas's y. Set by packing.
+    bool rotated = false;
+    /// The atlas texels it covers as placed: `size`, transposed when rotated.
+    glm::ivec2 footprint() const { return rotated ? glm::ivec2(size.y, size.x) : size; }
+    /// Atlas texel of area-local texel coordinates `local` (0..size, texture orientation).
+    glm::dvec2 atlasTexel(glm::dvec2 local) const {
+        return glm::dvec2(position) + (rotated ? glm::dvec2(local.y, local.x) : local);
+    }
 };
 
 /// The area of one texture for the triangles `tris` (all of that texture): size = ceil(max(s_world f_proj) · w(A_tex))
@@ -63,9 +73,20 @@ struct AtlasArea {
 AtlasArea requiredAtlasArea(const std::vector<const TexturedTriangle*>& tris, double fproj, int border = 8,
                             glm::dvec2 maxTexels = glm::dvec2(INFINITY));
 
-/// Packs the areas into an atlasSize² atlas (stb_rect_pack, skyline, largest first); sets each area's position.
-/// False when they do not all fit. `fill`: the fraction of the atlas the areas cover.
-bool packAtlas(std::vector<AtlasArea>& areas, int atlasSize, double* fill = nullptr);
+/// How areas are packed into an atlas.
+/// - MaxRects (the default): Jylänki's MAXRECTS with best-short-side fit, global best choice and quarter turns
+///   ("A Thousand Ways to Pack the Bin", 2010, §3.3): all maximal free rectangles are kept, each step places the
+///   area whose best position leaves the least short-side slack. Facade areas taller than half the atlas pack
+///   three or four to an atlas instead of two.
+/// - Skyline: stb_rect_pack's skyline bottom-left, largest first, no turns (what the thesis's packer does).
+enum class AtlasPacker : std::uint8_t { MaxRects, Skyline };
+const char* atlasPackerName(AtlasPacker p);
+std::optional<AtlasPacker> parseAtlasPacker(const std::string& name);
+
+/// Packs the areas into an atlasSize² atlas; sets each area's position (and `rotated`). False when they do not all
+/// fit. `fill`: the fraction of the atlas the areas cover. Deterministic.
+bool packAtlas(std::vector<AtlasArea>& areas, int atlasSize, double* fill = nullptr,
+               AtlasPacker packer = AtlasPacker::MaxRects);
 
 /// Splits triangles into four groups along the two longest axes of their bounding box: first into halves of equal
 /// summed world area by midpoint along the longest axis, then each half the same way along the second (§4.5.3).

@@ -206,7 +206,7 @@ struct Builder {
         for (auto& [tex, texIds] : byTexture) textureAreas(tex, texIds, plan.areas, plan.areaTris);
         for (const auto& a : plan.areas)
             if (!fits(a, s.atlasSize)) return std::nullopt;
-        if (!packAtlas(plan.areas, s.atlasSize, fill)) return std::nullopt;
+        if (!packAtlas(plan.areas, s.atlasSize, fill, s.packer)) return std::nullopt;
         return plan;
     }
 
@@ -223,6 +223,8 @@ struct Builder {
 
     /// Texture -> its leaf run (see split), computed once for all of this tree's textures.
     std::map<int, int> runOf;
+    /// The level of the leaves the runs become: ceil(log4(runs)).
+    int runLevels = 0;
 
     /// Beyond the thesis: partitions all texture groups into leaf runs. The groups, in Hilbert order of their
     /// area-weighted midpoints (so a run, and a range of consecutive runs, is compact in space), are cut
@@ -268,15 +270,21 @@ struct Builder {
             acc += texels[g];
             runOf[texs[g]] = run;
         }
+        runLevels = 0;
+        for (long capacity = 1; capacity < long(run) + 1; capacity *= 4) ++runLevels;
     }
 
     /// §4.5.3's split, of whole texture groups while the node has several textures: the thesis assumes each
     /// texture maps uniquely, so that splitting triangles splits texture area; a facade texture repeated around
     /// a building is needed whole by every wall, and splitting the walls apart would copy it into every child.
-    /// A node's runs (planRuns) are dealt to its four children in consecutive, near-equal shares, down to one
-    /// run per leaf. Only a node of one texture that does not fit is split by triangles, area-balanced along
-    /// the two longest axes as in the thesis.
-    std::array<std::vector<std::uint32_t>, 4> split(const std::vector<std::uint32_t>& ids) {
+    /// A node's runs (planRuns) are dealt to its four children in consecutive shares, full ones first: a node k
+    /// levels above the leaves' level gets up to 4^k runs, so every leaf sits at that level and every inner node
+    /// holds as many runs as its minDistance (dmin · 2^k) allows — the bottom-up grouping of a Hilbert R-tree.
+    /// (Near-equal shares leave nodes two levels above a leaf holding about 4.5 runs instead of 16 when the run
+    /// count is just over a power of four, so about 3.5 times the nodes are drawn at those distances.) Only a node
+    /// of one texture that does not fit is split by triangles, area-balanced along the two longest axes as in the
+    /// thesis.
+    std::array<std::vector<std::uint32_t>, 4> split(const std::vector<std::uint32_t>& ids, int level) {
         std::map<int, std::vector<std::uint32_t>> byTexture;
         for (auto i : ids) byTexture[in.tris[i].texture].push_back(i);
         if (byTexture.size() < 2) return splitByArea(in.tris, ids);
@@ -291,9 +299,12 @@ struct Builder {
         // should that ever fail, the thesis's triangle split still ends the recursion.
         if (byRun.size() < 2) return splitByArea(in.tris, ids);
         const std::size_t m = byRun.size();
+        std::size_t perChild = 1; // 4^(height - 1)
+        for (int h = runLevels - level; h > 1; --h) perChild *= 4;
         std::size_t k = 0;
         for (const auto& [run, tris] : byRun) {
-            const std::size_t c = m <= 4 ? k : k * 4 / m; // near-equal consecutive shares
+            // Consecutive runs (a node's are), full shares first; near-equal shares should a node ever hold more.
+            const std::size_t c = m <= 4 * perChild ? k / perChild : k * 4 / m;
             parts[c].insert(parts[c].end(), tris.begin(), tris.end());
             ++k;
         }
@@ -328,7 +339,7 @@ struct Builder {
             }
             plans.emplace(index, std::move(*plan));
         } else {
-            const auto groups = split(ids);
+            const auto groups = split(ids, level);
             for (int c = 0; c < 4; ++c) {
                 auto childPath = path;
                 childPath.push_back(c);
@@ -522,7 +533,8 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
                         for (int x = 0; x < a.size.x; ++x) {
                             const glm::dvec2 uv = a.srcMin + span * glm::dvec2((x + 0.5) / a.size.x, (y + 0.5) / a.size.y);
                             const glm::vec4 c = st.sample(uv, texelsPer);
-                            std::uint8_t* d = &img[(std::size_t(a.position.y + y) * std::size_t(A) + std::size_t(a.position.x + x)) * 4];
+                            const glm::ivec2 at(a.atlasTexel(glm::dvec2(x, y)));
+                            std::uint8_t* d = &img[(std::size_t(at.y) * std::size_t(A) + std::size_t(at.x)) * 4];
                             for (int k = 0; k < 4; ++k) d[k] = std::uint8_t(std::clamp(c[k] + 0.5f, 0.0f, 255.0f));
                         }
                 });
@@ -530,9 +542,9 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
                 // anisotropic footprints at the areas' rims).
                 std::vector<std::uint8_t> covered(std::size_t(A) * std::size_t(A), 0);
                 for (const auto& a : plan.areas)
-                    for (int y = 0; y < a.size.y; ++y)
+                    for (int y = 0; y < a.footprint().y; ++y)
                         std::fill_n(&covered[std::size_t(a.position.y + y) * std::size_t(A) + std::size_t(a.position.x)],
-                                    std::size_t(a.size.x), std::uint8_t(1));
+                                    std::size_t(a.footprint().x), std::uint8_t(1));
                 dilateRgba(img, A, covered);
                 n.textureBytes = texBytes;
                 // Atlas coordinates of the leaf's triangles, then the root atlas's (§4.5.4).
@@ -541,9 +553,9 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
                     const TexturedTriangle& tri = b.ordered[t];
                     const AtlasArea& a = plan.areas[b.orderedArea[t]];
                     for (int k = 0; k < 3; ++k) {
-                        const glm::dvec2 local = (glm::dvec2(a.position) + (tri.t[std::size_t(k)] - a.srcMin) /
-                                                                              (a.srcMax - a.srcMin) * glm::dvec2(a.size)) /
-                                                 double(A);
+                        const glm::dvec2 local =
+                            a.atlasTexel((tri.t[std::size_t(k)] - a.srcMin) / (a.srcMax - a.srcMin) * glm::dvec2(a.size)) /
+                            double(A);
                         TreeVertex v;
                         v.position = glm::vec3(tri.v[std::size_t(k)]);
                         v.uv = glm::vec2(tri.t[std::size_t(k)]);

@@ -22,6 +22,7 @@ struct AtlasBuildSettings {
     double fovXDeg = 90.0;        // horizontal field of view likewise
     double maxCriticalFraction = 0.10;
     int border = 8;               // b
+    AtlasPacker packer = AtlasPacker::MaxRects;
     AtlasFormat format = AtlasFormat::Bc;
     std::uint64_t cacheBytes = 512ull << 20; // original textures held while building
     bool roofsFromImagery = true; // roofs go to the plain triangles (drawn with the terrain imagery, §4.8.2)

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -80,36 +81,95 @@ TEST(AtlasLayoutTest, RequiredAreaCoversRepetitionsAndBorder) {
     EXPECT_EQ(requiredAtlasArea({&many}, 50.0, 8).size, glm::ivec2(216, 116));
 }
 
-TEST(AtlasLayoutTest, PackingNeverOverlapsAndKeepsEachAreaInside) {
-    std::mt19937 rng(5);
-    std::uniform_int_distribution<int> side(20, 140);
-    std::vector<AtlasArea> areas(60);
-    for (size_t i = 0; i < areas.size(); ++i) {
-        areas[i].texture = int(i);
-        areas[i].size = {side(rng), side(rng)};
-    }
-    double fill = 0.0;
-    ASSERT_TRUE(packAtlas(areas, 1024, &fill));
-    EXPECT_GT(fill, 0.3);
-    EXPECT_LT(fill, 1.0);
+namespace {
+
+/// Every area inside the atlas, no two overlapping (as placed: turned areas by their transposed size).
+void expectDisjointInside(const std::vector<AtlasArea>& areas, int atlasSize) {
     for (size_t i = 0; i < areas.size(); ++i) {
         const AtlasArea& a = areas[i];
+        const glm::ivec2 fa = a.footprint();
         EXPECT_GE(a.position.x, 0);
         EXPECT_GE(a.position.y, 0);
-        EXPECT_LE(a.position.x + a.size.x, 1024);
-        EXPECT_LE(a.position.y + a.size.y, 1024);
+        EXPECT_LE(a.position.x + fa.x, atlasSize);
+        EXPECT_LE(a.position.y + fa.y, atlasSize);
         for (size_t j = i + 1; j < areas.size(); ++j) {
             const AtlasArea& b = areas[j];
-            const bool apart = a.position.x + a.size.x <= b.position.x || b.position.x + b.size.x <= a.position.x ||
-                               a.position.y + a.size.y <= b.position.y || b.position.y + b.size.y <= a.position.y;
+            const glm::ivec2 fb = b.footprint();
+            const bool apart = a.position.x + fa.x <= b.position.x || b.position.x + fb.x <= a.position.x ||
+                               a.position.y + fa.y <= b.position.y || b.position.y + fb.y <= a.position.y;
             ASSERT_TRUE(apart) << i << " and " << j << " overlap";
         }
     }
-    // The borders are inside each area's size, so areas that do not overlap never share a border texel either.
-    // Too much for the atlas: it says so.
-    std::vector<AtlasArea> big(5);
-    for (auto& a : big) a.size = {600, 600};
-    EXPECT_FALSE(packAtlas(big, 1024));
+}
+
+} // namespace
+
+TEST(AtlasLayoutTest, PackingNeverOverlapsAndKeepsEachAreaInside) {
+    for (const AtlasPacker packer : {AtlasPacker::MaxRects, AtlasPacker::Skyline}) {
+        SCOPED_TRACE(atlasPackerName(packer));
+        std::mt19937 rng(5);
+        std::uniform_int_distribution<int> side(20, 140);
+        for (int trial = 0; trial < 20; ++trial) {
+            std::vector<AtlasArea> areas(60);
+            for (size_t i = 0; i < areas.size(); ++i) {
+                areas[i].texture = int(i);
+                areas[i].size = {side(rng), side(rng)};
+            }
+            double fill = 0.0;
+            ASSERT_TRUE(packAtlas(areas, 1024, &fill, packer));
+            EXPECT_GT(fill, 0.3);
+            EXPECT_LT(fill, 1.0);
+            expectDisjointInside(areas, 1024);
+            if (packer == AtlasPacker::Skyline) {
+                for (const auto& a : areas) EXPECT_FALSE(a.rotated);
+            }
+        }
+        // The borders are inside each area's size, so areas that do not overlap never share a border texel either.
+        // Too much for the atlas: it says so.
+        std::vector<AtlasArea> big(5);
+        for (auto& a : big) a.size = {600, 600};
+        EXPECT_FALSE(packAtlas(big, 1024, nullptr, packer));
+        std::vector<AtlasArea> tooLong(1);
+        tooLong[0].size = {1025, 10};
+        EXPECT_FALSE(packAtlas(tooLong, 1024, nullptr, packer));
+    }
+}
+
+TEST(AtlasLayoutTest, MaxRectsTurnsAreasToFitWhatTheSkylineCannot) {
+    // Three 48×80 areas in a 128² atlas: side by side they need 144 texels, stacked 160; two upright leave a
+    // 128×48 strip below them that holds the third turned (Jylänki's MAXRECTS with rotation). Facades taller than
+    // half an atlas are this case: two to a leaf without turns, three or four with them.
+    std::vector<AtlasArea> three(3);
+    for (auto& a : three) a.size = {48, 80};
+    auto skyline = three;
+    EXPECT_FALSE(packAtlas(skyline, 128, nullptr, AtlasPacker::Skyline));
+    double fill = 0.0;
+    ASSERT_TRUE(packAtlas(three, 128, &fill, AtlasPacker::MaxRects));
+    EXPECT_NEAR(fill, 3.0 * 48 * 80 / (128.0 * 128.0), 1e-12);
+    expectDisjointInside(three, 128);
+    EXPECT_EQ(std::count_if(three.begin(), three.end(), [](const AtlasArea& a) { return a.rotated; }), 1);
+    // A turned area's texels are transposed: local (x, y) lands at position + (y, x).
+    for (const auto& a : three)
+        if (a.rotated) {
+            EXPECT_EQ(a.footprint(), glm::ivec2(80, 48));
+            EXPECT_EQ(a.atlasTexel({5.0, 70.0}), glm::dvec2(a.position) + glm::dvec2(70.0, 5.0));
+        } else {
+            EXPECT_EQ(a.atlasTexel({5.0, 70.0}), glm::dvec2(a.position) + glm::dvec2(5.0, 70.0));
+        }
+    // Exactly full: four 64² areas in 128², and a fifth never fits.
+    std::vector<AtlasArea> four(4);
+    for (auto& a : four) a.size = {64, 64};
+    ASSERT_TRUE(packAtlas(four, 128, &fill));
+    EXPECT_DOUBLE_EQ(fill, 1.0);
+    expectDisjointInside(four, 128);
+    four.push_back(four.back());
+    EXPECT_FALSE(packAtlas(four, 128));
+}
+
+TEST(AtlasLayoutTest, PackerNamesRoundTrip) {
+    for (const AtlasPacker p : {AtlasPacker::MaxRects, AtlasPacker::Skyline})
+        EXPECT_EQ(parseAtlasPacker(atlasPackerName(p)), p);
+    EXPECT_FALSE(parseAtlasPacker("guillotine"));
 }
 
 TEST(AtlasLayoutTest, SplitBalancesAreaAlongTheTwoLongestAxes) {

@@ -13,6 +13,7 @@
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -761,6 +762,129 @@ TEST(AtlasTreeTest, SplitFillsLeavesInsteadOfQuartering) {
         }
     EXPECT_EQ(full, 10) << "40 walls, four per leaf";
     EXPECT_GE(r->meanLeafFill, 0.8);
+}
+
+TEST(AtlasTreeTest, InnerNodesHoldAsManyLeavesAsTheirMinDistanceAllows) {
+    // 68 walls, four per leaf: 17 leaves. A node whose minDistance is dmin · 2^k shows its subtree at 1/2^k of the
+    // leaves' resolution, so it should hold 4^k leaves: then the fewest nodes cover a view at every distance. The
+    // runs are dealt full shares first (16 + 1 here): only the root holds fewer (17 of 64), the 17th leaf hangs
+    // under it. Near-equal shares (5 + 4 + 4 + 4, then 2 + 1 + 1 + 1) leave the first child with 5 of 16 and a
+    // grandchild with 2 of 4.
+    test::TempDir dir("atlas_full");
+    const CityModel model = wallModel(dir.path(), 68);
+    AtlasBuildSettings s;
+    s.atlasSize = 128;
+    s.dmin = 200.0;
+    s.format = AtlasFormat::Deflate;
+    auto r = buildAtlasTree(model, s, (dir / "t.svat").string());
+    ASSERT_TRUE(r) << r.error().message;
+    auto f = AtlasTreeFile::open((dir / "t.svat").string());
+    ASSERT_TRUE(f) << f.error().message;
+    const AtlasTreeData& t = f->trees[0];
+    checkStructure(t, f->info);
+    std::function<int(std::size_t)> leavesBelow = [&](std::size_t i) {
+        const AtlasNode& n = t.nodes[i];
+        if (n.leaf()) return n.count > 0 ? 1 : 0;
+        int sum = 0;
+        for (int c : n.children) sum += leavesBelow(std::size_t(c));
+        return sum;
+    };
+    EXPECT_EQ(leavesBelow(0), 17);
+    int shortNodes = 0, inner = 0;
+    for (std::size_t i = 0; i < t.nodes.size(); ++i) {
+        const AtlasNode& n = t.nodes[i];
+        if (n.leaf() || n.count == 0) continue;
+        ++inner;
+        const int k = int(std::lround(std::log2(double(n.minDistance) / f->info.dmin)));
+        ASSERT_GE(k, 1);
+        const int want = 1 << (2 * k);
+        if (leavesBelow(i) < want) {
+            ++shortNodes;
+            EXPECT_EQ(i, 0u) << "node " << i << " at level " << n.level << ": " << leavesBelow(i) << " of " << want;
+        }
+        EXPECT_LE(leavesBelow(i), want) << "node " << i;
+    }
+    EXPECT_EQ(shortNodes, 1);
+    EXPECT_EQ(inner, 6) << "the root, the parent of the first 16 leaves and its four children of four leaves each";
+}
+
+TEST(AtlasTreeTest, TurnedAreasKeepTheTextureOrientation) {
+    // Three walls 6.6 m × 13.3 m with 64² gradient textures (red = u, green = v) at dmin 200 m (4.8 px/m): 48×80
+    // atlas texels each with the border, so a 128² atlas holds them only with one turned (MAXRECTS); the skyline
+    // packer needs two leaves. Every triangle, sampled through its atlas coordinates, shows the original's texel
+    // at its texture coordinates: a turned area is transposed consistently in texels and coordinates.
+    test::TempDir dir("atlas_turn");
+    CityModel m;
+    m.source = (dir / "model").string();
+    m.crs = Crs::utm(33, true);
+    for (int i = 0; i < 3; ++i) {
+        const auto path = dir / ("g" + std::to_string(i) + ".png");
+        std::vector<std::uint8_t> px(64 * 64 * 3);
+        for (int y = 0; y < 64; ++y)
+            for (int x = 0; x < 64; ++x) {
+                px[std::size_t(y * 64 + x) * 3 + 0] = std::uint8_t(x * 4 + 2);
+                px[std::size_t(y * 64 + x) * 3 + 1] = std::uint8_t(y * 4 + 2);
+                px[std::size_t(y * 64 + x) * 3 + 2] = std::uint8_t(60 * i);
+            }
+        auto out = OIIO::ImageOutput::create(path.string());
+        ASSERT_TRUE(out);
+        ASSERT_TRUE(out->open(path.string(), OIIO::ImageSpec(64, 64, 3, OIIO::TypeDesc::UINT8)));
+        ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, px.data()));
+        out->close();
+        m.textures.push_back(CityTexture{path.string(), false, 3, 64, 64});
+        m.buildingIds.push_back("b" + std::to_string(i));
+        const double x0 = 20.0 * i, w = 6.6, h = 13.3;
+        TexturedTriangle a, b;
+        a.v = {glm::dvec3(x0, 0, 0), glm::dvec3(x0 + w, 0, 0), glm::dvec3(x0 + w, 0, h)};
+        a.t = {glm::dvec2(0, 0), glm::dvec2(1, 0), glm::dvec2(1, 1)};
+        b.v = {glm::dvec3(x0, 0, 0), glm::dvec3(x0 + w, 0, h), glm::dvec3(x0, 0, h)};
+        b.t = {glm::dvec2(0, 0), glm::dvec2(1, 1), glm::dvec2(0, 1)};
+        a.texture = b.texture = i;
+        for (const auto& t : {a, b}) {
+            m.triangles.push_back(t);
+            m.building.push_back(std::uint32_t(i));
+            m.surface.push_back(Surface::Wall);
+        }
+    }
+    AtlasBuildSettings s;
+    s.atlasSize = 128;
+    s.dmin = 200.0;
+    s.format = AtlasFormat::Deflate;
+    s.packer = AtlasPacker::Skyline;
+    auto sky = buildAtlasTree(m, s, (dir / "s.svat").string());
+    ASSERT_TRUE(sky) << sky.error().message;
+    EXPECT_EQ(sky->leaves - sky->emptyLeaves, 2u);
+    s.packer = AtlasPacker::MaxRects;
+    auto r = buildAtlasTree(m, s, (dir / "t.svat").string());
+    ASSERT_TRUE(r) << r.error().message;
+    EXPECT_EQ(r->nodes, 1u) << "all three walls in the root's atlas";
+    EXPECT_NEAR(r->meanLeafFill, 3.0 * 48 * 80 / (128.0 * 128.0), 1e-9);
+    auto f = AtlasTreeFile::open((dir / "t.svat").string());
+    ASSERT_TRUE(f) << f.error().message;
+    const AtlasTreeData& t = f->trees[0];
+    auto atlas = f->readAtlasRgba(0, 0);
+    ASSERT_TRUE(atlas);
+    int checked = 0, worst = 0;
+    for (std::uint32_t tri = 0; tri < t.nodes[0].count; ++tri)
+        for (const glm::dvec3 bary : {glm::dvec3(0.6, 0.2, 0.2), glm::dvec3(0.2, 0.6, 0.2), glm::dvec3(0.2, 0.2, 0.6),
+                                      glm::dvec3(0.45, 0.45, 0.1), glm::dvec3(0.1, 0.3, 0.6)}) {
+            glm::dvec2 uv(0.0), root(0.0);
+            for (int k = 0; k < 3; ++k) {
+                uv += bary[k] * glm::dvec2(t.vertices[tri * 3 + std::size_t(k)].uv);
+                root += bary[k] * glm::dvec2(t.vertices[tri * 3 + std::size_t(k)].root);
+            }
+            const glm::u8vec4 got = texel(*atlas, 128, levelAtlasCoord(root, 0));
+            // The atlas holds the 64² texture at 32×64 texels: red steps by 8 per atlas texel, green by 4. Image
+            // rows run down, v up (OpenGL's convention): green = (1 - v) · 256.
+            const double red = uv.x * 256.0, green = (1.0 - uv.y) * 256.0;
+            EXPECT_NEAR(int(got.r), red, 10.0) << "triangle " << tri << " uv " << uv.x << "," << uv.y;
+            EXPECT_NEAR(int(got.g), green, 6.0) << "triangle " << tri << " uv " << uv.x << "," << uv.y;
+            EXPECT_EQ(int(got.b), 60 * int(t.triangleTexture[tri]));
+            worst = std::max({worst, int(std::abs(got.r - red)), int(std::abs(got.g - green))});
+            ++checked;
+        }
+    EXPECT_EQ(checked, 30);
+    RecordProperty("worst_channel_error", worst);
 }
 
 TEST(AtlasTreeTest, EmptyAtlasSpaceContinuesTheNearestArea) {
