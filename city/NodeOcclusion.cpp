@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cassert>
+#include <cmath>
 
 namespace seasonview::city {
 
@@ -57,7 +58,14 @@ NodeOcclusion::Round NodeOcclusion::nextRound(std::vector<std::uint32_t>& pendin
     byDistance.reserve(pending.size());
     for (std::uint32_t n : pending) byDistance.emplace_back(distance(n), n);
     std::sort(byDistance.begin(), byDistance.end());
-    const std::size_t take = roundSize(byDistance.size(), roundsThatDrew);
+    std::size_t take = roundSize(byDistance.size(), roundsThatDrew);
+    if (bootstrap() && take > 1) {
+        const double reach = 2.0 * byDistance.front().first +
+                             kBootstrapReachMetres * std::ldexp(1.0, std::clamp(roundsThatDrew, 0, 40));
+        std::size_t within = 1;
+        while (within < take && byDistance[within].first <= reach) ++within;
+        take = within;
+    }
     Round round;
     for (std::size_t i = 0; i < take; ++i)
         (eyeNear(byDistance[i].second, eye) ? round.visible : round.test).push_back(byDistance[i].second);

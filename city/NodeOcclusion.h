@@ -27,6 +27,7 @@ public:
     static constexpr std::uint64_t kPersistFrames = 4; // a visible answer trusted this many frames
     static constexpr std::uint64_t kAnswerFrames = 8;  // any answer older than this: unknown
     static constexpr std::size_t kBootstrapBatch = 8;  // the first round's nodes while nothing is known
+    static constexpr double kBootstrapReachMetres = 16.0; // ... and how far beyond twice the nearest one they reach
     static constexpr float kGrowFraction = 0.01f;      // query boxes grown by this fraction of their size ...
     static constexpr float kGrowMetres = 0.05f;        // ... plus this, to enclose their triangles once rasterised
     static constexpr double kNearMetres = 1.0;         // the eye this near a query box: visible without a test
@@ -65,7 +66,9 @@ public:
         std::vector<std::uint32_t> visible, test;
     };
     /// The next round: the roundSize() nearest of `pending` (metres from the eye by `distance`); `pending` keeps the
-    /// rest.
+    /// rest. While nothing is known, also only those within 2 d0 + kBootstrapReachMetres · 2^roundsThatDrew (d0 the
+    /// nearest's distance, at least one node): the traversal reaches the leaves next to the eye only after a round per
+    /// level, and coarse far nodes tested before the near buildings are drawn would all be found visible.
     Round nextRound(std::vector<std::uint32_t>& pending, const std::function<double(std::uint32_t)>& distance,
                     const glm::dvec3& eye, int roundsThatDrew) const;
     /// Of the nodes drawn this frame, those whose boxes to query at its end (dueForTest()); the ones the eye is next

@@ -111,6 +111,32 @@ TEST(NodeOcclusionTest, QueryBoxesAreGrownAndTheEyeNextToOneNeedsNoTest) {
     EXPECT_TRUE(o.eyeNear(0, {50.0, 50.0, 2.0})); // inside
 }
 
+TEST(NodeOcclusionTest, BootstrapRoundsGoFrontToBack) {
+    // While nothing is known a round takes only nodes within 2 d0 + 16 m · 2^(rounds that drew), so far coarse
+    // nodes wait until the near ones are drawn (and can hide them).
+    const AtlasTreeData t = fiveNodes();
+    NodeOcclusion o(t);
+    o.beginFrame();
+    std::vector<double> metres = {0.0, 0.0, 5.0, 100.0, 300.0};
+    const auto distance = [&](std::uint32_t n) { return metres[n]; };
+    const glm::dvec3 eye(-500.0, -500.0, 2.0); // next to no box: every node is tested
+    std::vector<std::uint32_t> pending = {4, 3, 2, 1};
+    NodeOcclusion::Round r = o.nextRound(pending, distance, eye, 0);
+    EXPECT_EQ(r.test, (std::vector<std::uint32_t>{1, 2}));
+    EXPECT_EQ(pending, (std::vector<std::uint32_t>{3, 4}));
+    r = o.nextRound(pending, distance, eye, 2); // reach 2 · 100 + 64 m
+    EXPECT_EQ(r.test, (std::vector<std::uint32_t>{3}));
+    EXPECT_EQ(pending, (std::vector<std::uint32_t>{4}));
+    r = o.nextRound(pending, distance, eye, 0); // always at least the nearest
+    EXPECT_EQ(r.test, (std::vector<std::uint32_t>{4}));
+    EXPECT_TRUE(pending.empty());
+    // Once anything is known, distance does not limit a round.
+    o.answered(0, true, o.frame());
+    o.beginFrame();
+    pending = {4, 3, 2, 1};
+    EXPECT_EQ(o.nextRound(pending, distance, eye, 0).test.size(), 4u);
+}
+
 TEST(NodeOcclusionTest, RoundsTakeTheNearestAndTheEyeNextToABoxNeedsNoQuery) {
     const AtlasTreeData t = fiveNodes();
     NodeOcclusion o(t);

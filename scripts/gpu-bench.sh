@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# The GPU figures of issues 6 and 8, on the machine the `device` tool lends (docs/gpu.md): runs the bundle that
+# scripts/gpu-bundle.py made (.gpu/, carried), on the EGL device platform, and leaves everything it measured in
+# one archive, $OUT/gpu_results.tgz, plus a summary on stdout.
+#   1. the demo scene (synth's 8192² scene, seed 1): `bench --compare scene=terrain,full` at 1920×1080, `flyover`
+#      (issue 6: median and p95 frame time of the full scene, goal ≤ 2 ms median)
+#   2. the 10,000-building block city: its atlas tree, then `bench --compare city=atlas,original,flat` along the
+#      pedestrian-to-overview path at 1920×1080 (issue 8: atlas ÷ flat ≤ 1.1, original ÷ atlas ≥ 3 at the
+#      overview, nodes per frame) and `--compare city-occlusion=off,on`
+# Environment: OUT (default out/gpu), SIZE (1920x1080), FRAMES (300), CITY_FRAMES (240), WORK (work folder,
+# default /tmp/seasonview-gpu), SKIP_CITY=1 to stop after step 1. Locally (llvmpipe) the same script checks the
+# bundle: SIZE=320x180 FRAMES=6 CITY_FRAMES=6 scripts/gpu-bench.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$PWD
+BUNDLE=$ROOT/.gpu
+OUT=${OUT:-$ROOT/out/gpu}
+WORK=${WORK:-/tmp/seasonview-gpu}
+SIZE=${SIZE:-1920x1080}
+FRAMES=${FRAMES:-300}
+CITY_FRAMES=${CITY_FRAMES:-240}
+[[ -x $BUNDLE/seasonview ]] || { echo "gpu-bench: $BUNDLE/seasonview missing: run scripts/gpu-bundle.py and carry .gpu" >&2; exit 1; }
+# glvnd finds the NVIDIA EGL vendor library through a JSON file; the driver mount has one where the image has none.
+if ! ls /usr/share/glvnd/egl_vendor.d/*.json >/dev/null 2>&1; then
+    for f in /usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json /etc/glvnd/egl_vendor.d/10_nvidia.json; do
+        if [[ -f $f ]]; then export __EGL_VENDOR_LIBRARY_FILENAMES=$f; break; fi
+    done
+fi
+# The bundle's libraries for seasonview alone (its stubs would break the machine's own tools), then the driver's.
+LIBS=$BUNDLE/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}
+for d in /usr/local/nvidia/lib64 /usr/local/nvidia/lib; do [[ -d $d ]] && LIBS=$LIBS:$d; done
+sv() { LD_LIBRARY_PATH=$LIBS "$BUNDLE/seasonview" "$@"; }
+mkdir -p "$OUT" "$WORK"
+RES=$WORK/results
+rm -rf "$RES" && mkdir -p "$RES"
+log() { echo "== $(date -u +%H:%M:%S) $*"; }
+{ command -v nvidia-smi >/dev/null && nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv || true; } | tee "$RES/gpu.txt"
+nproc | tee -a "$RES/gpu.txt"
+
+log "demo scene (synth, prepare, stills, segmentation)"
+sv demo --out "$WORK/demo" > "$RES/demo.log" 2>&1 || { tail -5 "$RES/demo.log"; exit 1; }
+tail -3 "$RES/demo.log"
+log "issue 6: terrain vs full scene, $SIZE, flyover, $FRAMES frames"
+sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmup 20 --size "$SIZE" \
+    --view canopy --compare scene=terrain,full --out "$RES/full" 2>&1 | tee "$RES/full.log" | tail -4
+log "issue 6: full scene alone, $SIZE"
+sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmup 20 --size "$SIZE" \
+    --view canopy --out "$RES/full_only" 2>&1 | tee "$RES/full_only.log" | tail -3
+
+if [[ ${SKIP_CITY:-0} != 1 ]]; then
+    log "block city (synth, atlas tree for the screen width)"
+    sv synth --preset data/presets/blockcity.json --out "$WORK/blockcity" > "$RES/city_synth.log" 2>&1
+    sv atlas build "$WORK/blockcity/city/city.obj" --obj-local --screen-width "${SIZE%x*}" \
+        --out "$WORK/blockcity.svat" --report "$RES/city_tree.json" 2>&1 | tail -1 | tee "$RES/city_tree.log"
+    log "issue 8: city atlas/original/flat, $SIZE, $CITY_FRAMES frames"
+    sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
+        --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
+        --coverage-every 0 --compare city=atlas,original,flat --out "$RES/city" 2>&1 | tee "$RES/city.log" | tail -5
+    log "issue 8: occlusion culling off/on"
+    sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
+        --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
+        --coverage-every 0 --compare city-occlusion=off,on --out "$RES/occ" 2>&1 | tee "$RES/occ.log" | tail -4
+fi
+tar czf "$OUT/gpu_results.tgz" -C "$WORK" results
+log "wrote $OUT/gpu_results.tgz"

@@ -1,0 +1,225 @@
+#!/usr/bin/env python3
+"""Packs build/seasonview and the shared libraries it loads into one folder that runs on a bare machine.
+
+Why: the GPU machine the `device` tool lends (docs/gpu.md) is a bare CUDA image that cannot install packages, and
+its tool carries at most 64 MiB of working tree. seasonview's link closure is about 270 libraries and 350 MB,
+nearly all of it pulled in by OpenImageIO's, OpenCV's and libcitygml's dependencies (ffmpeg, OpenVDB, GDAL, ICU,
+...) that a benchmark run never calls. Every Debian library is linked with BIND_NOW, so the loader wants each of
+them, and every symbol they export, before main() runs.
+
+How: libraries a run calls are copied whole; every other one is replaced by a stub with the same soname that
+exports the same symbols with the same versions (functions that abort with the library's and the symbol's name,
+objects of the same size in .bss). The split was found by running the whole GPU pipeline (synth, prepare, atlas
+build, bench, render) against the bundle: a stub that is called says so and aborts, and its library moves to
+KEEP. glibc's own libraries stay the machine's (the GPU machine's glibc is newer than Debian 12's, which is all the
+binary needs). The bundle also carries glvnd's libEGL/libOpenGL/libGLdispatch; the NVIDIA driver on the GPU machine
+supplies the EGL vendor library.
+
+Usage: scripts/gpu-bundle.py [--binary build/seasonview] [--out .gpu]
+Then: LD_LIBRARY_PATH=.gpu/lib .gpu/seasonview ...   (scripts/gpu-bench.sh does this on the GPU machine)
+"""
+import argparse
+import hashlib
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+
+# glibc and the loader: always the machine's own.
+SYSTEM = re.compile(r"^(libc|libm|libdl|libpthread|librt|libutil|libresolv|ld-linux-x86-64|libanl|libmvec)\.so")
+
+# Libraries a run calls, found as the module docstring says (soname prefixes).
+KEEP = [
+    "libstdc++.so", "libgcc_s.so",
+    # seasonview's own direct dependencies that every run uses
+    "libOpenImageIO.so", "libOpenImageIO_Util.so", "libopencv_core.so", "libopencv_imgproc.so",
+    "libtiff.so", "libgeotiff.so", "libjpeg.so", "libpng16.so", "libz.so", "libzstd.so", "libdeflate.so",
+    "libGeographic", "libstb.so", "libepoxy.so", "libtinyobjloader",
+    # what those call: libtiff's codecs, OpenImageIO's and OpenCV's runtime
+    "liblzma.so", "libjbig.so", "libLerc.so", "libwebp.so", "libsharpyuv.so",
+    "libImath", "libOpenEXR", "libIex", "libIlmThread", "libOpenColorIO.so", "libyaml-cpp.so", "libpystring",
+    "libexpat.so", "libminizip.so", "libbz2.so", "libfmt.so", "libtbb.so", "libtbbmalloc.so", "libboost_",
+    "libgomp.so",
+]
+
+# Stubbed functions that run anyway and may simply return (a pointer to an empty string, for the version
+# queries): what they set up or report is never used. OpenImageIO's DICOM plugin registers DCMTK's decoders at
+# load, and OpenImageIO asks every format library for its version when it first lists its plugins.
+SOFT = {"_ZN10DiRegisterC1Ev", "_ZN10DiRegisterD1Ev", "_ZN10DiRegisterD2Ev", "_ZN10DiRegisterC2Ev",
+        "opj_version", "libraw_version"}
+
+# Loaded at run time by dlopen, not in the link closure: glvnd's EGL and GL entry points.
+DLOPENED = ["libEGL.so.1", "libOpenGL.so.0", "libGLdispatch.so.0", "libGLESv2.so.2"]
+
+# Mesa's EGL vendor library and llvmpipe's driver (--local-check).
+MESA = ["/lib/x86_64-linux-gnu/libEGL_mesa.so.0", "/usr/lib/x86_64-linux-gnu/dri/swrast_dri.so"]
+
+TRAP_C = r"""
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+__attribute__((visibility("hidden"), noreturn)) void seasonview_stub_trap(const char* symbol) {
+    static const char a[] = "seasonview GPU bundle: a run called ";
+    static const char b[] = " in the stub of " LIBNAME "; add it to KEEP in scripts/gpu-bundle.py\n";
+    (void)!write(2, a, sizeof a - 1);
+    (void)!write(2, symbol, strlen(symbol));
+    (void)!write(2, b, sizeof b - 1);
+    abort();
+}
+"""
+
+
+def run(cmd, **kw):
+    return subprocess.run(cmd, check=True, capture_output=True, text=True, **kw).stdout
+
+
+def closure(binary):
+    """soname -> path of every library the binary loads (ldd)."""
+    libs = {}
+    for line in run(["ldd", binary]).splitlines():
+        m = re.match(r"\s*(\S+) => (\S+) \(", line)
+        if m:
+            libs[m.group(1)] = m.group(2)
+    return libs
+
+
+def soname(path):
+    for line in run(["readelf", "-d", "-W", path]).splitlines():
+        m = re.search(r"\(SONAME\)\s+Library soname: \[(.+)\]", line)
+        if m:
+            return m.group(1)
+    return os.path.basename(path)
+
+
+def exported(path):
+    """(name, version or None, default?, type, size) of every defined dynamic symbol."""
+    out = []
+    for line in run(["readelf", "--dyn-syms", "-W", path]).splitlines():
+        f = line.split()
+        if len(f) < 8 or not f[0].endswith(":") or f[6] in ("UND", "ABS") or f[4] not in ("GLOBAL", "WEAK", "UNIQUE"):
+            continue
+        typ, size, name = f[3], f[2], f[7]
+        if typ not in ("FUNC", "IFUNC", "OBJECT", "TLS"):
+            continue
+        version, default = None, True
+        if "@@" in name:
+            name, version = name.split("@@", 1)
+        elif "@" in name:
+            name, version = name.split("@", 1)
+            default = False
+        size = int(size, 0) if not size.startswith("0x") else int(size, 16)
+        out.append((name, version, default, typ, f[4], size))
+    return out
+
+
+def undefined(path):
+    """Names of the symbols `path` needs from other libraries (versions dropped)."""
+    names = set()
+    for line in run(["readelf", "--dyn-syms", "-W", path]).splitlines():
+        f = line.split()
+        if len(f) >= 8 and f[0].endswith(":") and f[6] == "UND":
+            names.add(f[7].split("@")[0])
+    return names
+
+
+def make_stub(path, dest_dir, work, wanted):
+    """A stub of `path` exporting those of its symbols named in `wanted` (what the binary and the kept libraries
+    refer to; stubs refer to nothing but libc)."""
+    so = soname(path)
+    # One definition per name: its default version, else the first other one (a kept library referring to a
+    # second, older version of the same name would not load: none does in this closure).
+    chosen = {}
+    for name, version, default, typ, bind, size in exported(path):
+        if name not in wanted:
+            continue
+        if name not in chosen or (default and not chosen[name][1]):
+            chosen[name] = (version, default, typ, bind, size)
+    base = so  # a base version named like the soname is what unversioned references bind to
+    nodes = {}
+    asm = [".text", ".p2align 4"]
+    data, tls, strings = [], [], []
+    for i, (name, (version, default, typ, bind, size)) in enumerate(sorted(chosen.items())):
+        if version and version != base:
+            nodes.setdefault(version, []).append(name)
+        directive = ".weak" if bind == "WEAK" else ".globl"
+        if typ in ("FUNC", "IFUNC") and name in SOFT:
+            asm += [f'{directive} "{name}"', f'.type "{name}", @function', f'"{name}":',
+                    "    leaq .Lempty(%rip), %rax", "    ret"]
+        elif typ in ("FUNC", "IFUNC"):
+            asm += [f'{directive} "{name}"', f'.type "{name}", @function', f'"{name}":',
+                    f"    leaq .Lname{i}(%rip), %rdi", "    jmp seasonview_stub_trap@PLT"]
+            strings += [f".Lname{i}:", f'    .asciz "{name}"']
+        elif typ == "OBJECT":
+            data += [f'{directive} "{name}"', f'.type "{name}", @object', f'.size "{name}", {max(size, 1)}',
+                     ".p2align 4", f'"{name}":', f"    .zero {max(size, 1)}"]
+        else:  # TLS
+            tls += [f'{directive} "{name}"', f'.type "{name}", @tls_object', f'.size "{name}", {max(size, 1)}',
+                    ".p2align 4", f'"{name}":', f"    .zero {max(size, 1)}"]
+    text = "\n".join(asm + [".section .rodata", ".Lempty:", "    .asciz \"\""] + strings + [".bss"] + data +
+                     ['.section .tbss,"awT",@nobits'] + tls + ['.section .note.GNU-stack,"",@progbits']) + "\n"
+    versions = sorted(nodes)
+    key = hashlib.sha1(so.encode()).hexdigest()[:8]
+    s_file = os.path.join(work, f"stub_{key}.s")
+    c_file = os.path.join(work, f"trap_{key}.c")
+    v_file = os.path.join(work, f"stub_{key}.map")
+    with open(s_file, "w") as f:
+        f.write(text)
+    with open(c_file, "w") as f:
+        f.write(TRAP_C)
+    with open(v_file, "w") as f:
+        f.write("".join(f"{v} {{ global: " + " ".join(f'"{n}";' for n in nodes[v]) + " };\n" for v in versions))
+    out = os.path.join(dest_dir, so)
+    cmd = ["gcc", "-shared", "-O1", "-fPIC", f'-DLIBNAME="{so}"', "-o", out, s_file, c_file,
+           f"-Wl,-soname,{so}", "-Wl,--no-undefined"]
+    if versions:
+        cmd.append(f"-Wl,--version-script={v_file}")
+    subprocess.run(cmd, check=True)
+    return so
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--binary", default="build/seasonview")
+    ap.add_argument("--out", default=".gpu")
+    ap.add_argument("--local-check", action="store_true",
+                    help="also keep real what Mesa's EGL and llvmpipe load (libX11, libdrm, LLVM, ...), so the bundle "
+                         "runs here on llvmpipe; not for the GPU machine, whose NVIDIA EGL needs none of them")
+    args = ap.parse_args()
+    if not os.path.exists(args.binary):
+        sys.exit(f"{args.binary}: no such binary (build first: scripts/setup.sh)")
+    lib_dir = os.path.join(args.out, "lib")
+    shutil.rmtree(args.out, ignore_errors=True)
+    os.makedirs(lib_dir)
+    shutil.copy2(args.binary, os.path.join(args.out, "seasonview"))
+    libs = {so: p for so, p in closure(args.binary).items() if not SYSTEM.match(so)}
+    for so in DLOPENED:
+        if os.path.exists(f"/lib/x86_64-linux-gnu/{so}"):
+            libs[so] = f"/lib/x86_64-linux-gnu/{so}"
+    keep = {so for so in libs if so in DLOPENED or any(so.startswith(k) for k in KEEP)}
+    if args.local_check:
+        for mesa in MESA:
+            if os.path.exists(mesa):
+                for so, path in closure(mesa).items():
+                    if not SYSTEM.match(so):
+                        libs.setdefault(so, path)
+                        keep.add(so)
+    wanted = undefined(args.binary)
+    for so in keep:
+        wanted |= undefined(libs[so])
+    kept, stubbed = [], []
+    with tempfile.TemporaryDirectory() as work:
+        for so, path in sorted(libs.items()):
+            if so in keep:
+                shutil.copy2(os.path.realpath(path), os.path.join(lib_dir, so))
+                kept.append(so)
+            else:
+                make_stub(path, lib_dir, work, wanted)
+                stubbed.append(so)
+    size = sum(os.path.getsize(os.path.join(dp, f)) for dp, _, fs in os.walk(args.out) for f in fs)
+    print(f"{args.out}: the binary, {len(kept)} libraries, {len(stubbed)} stubs, {size / 2**20:.1f} MiB")
+
+
+if __name__ == "__main__":
+    main()
