@@ -7,8 +7,8 @@
 // Per frame: the traversal trusts nodes known visible and defers the ones known hidden (tested before they are drawn,
 // nearest first, in rounds); once anything is known, a node without a recent answer (new in view, newly refined) is
 // drawn at once and tested at the end of the frame; while nothing is known (the first frame, after reset()) every
-// node is tested before it is drawn, in rounds of the kBootstrapBatch, 2·kBootstrapBatch, ... nearest, so that near
-// buildings hide far ones. A visible answer measured against a whole frame's depth is trusted for kPersistFrames
+// node is tested before it is drawn, in rounds of the kBootstrapBatch, 2·kBootstrapBatch, ... nearest that reach
+// further each round (nextRound), so that near buildings are drawn first and hide far ones. A visible answer measured against a whole frame's depth is trusted for kPersistFrames
 // frames; any answer is a hint for kAnswerFrames frames (a hidden node is still tested before it is skipped).
 #include "AtlasTraversal.h"
 #include "AtlasTree.h"
