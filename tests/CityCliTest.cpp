@@ -273,7 +273,7 @@ TEST(CityCliTest, RealBerlinAndTokyoModelsWithTheirPhotoTextures) {
         compareWithGolden(c.name, a->pixels, a->width, a->height, 255, 3.0);
         const RegionDiff d = diffWhere(*a, *o, *n);
         EXPECT_GT(d.pixels, std::size_t(400 * 250 / 50)) << c.name;
-        EXPECT_GT(d.psnr, 32.0) << c.name << ": atlas vs original photo textures (33.6 / 33.3 dB measured)";
+        EXPECT_GT(d.psnr, 32.0) << c.name << ": atlas vs original photo textures (33.5 / 33.6 dB measured)";
         std::cout << "  " << c.name << ": atlas vs original PSNR " << d.psnr << " dB over " << d.pixels << " city pixels\n";
     }
 }
