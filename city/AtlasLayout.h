@@ -55,7 +55,8 @@ struct AtlasArea {
     /// How much finer than the stored texels the view would want at dmin: max over the axes of uncapped / capped
     /// texels per repetition (1 when the original's size did not cap it). The ancestors' minDistances grow by it.
     double capFactor = 1.0;
-    /// Placed turned by a quarter (transposed): texture u runs along the atlas's y. Set by packing.
+    /// Placed transposed (a quarter turn and a mirror): texture u runs along the atlas's y. Texels and texture
+    /// coordinates go through the same map (atlasTexel), so the mirror costs nothing. Set by packing.
     bool rotated = false;
     /// The atlas texels it covers as placed: `size`, transposed when rotated.
     glm::ivec2 footprint() const { return rotated ? glm::ivec2(size.y, size.x) : size; }

@@ -278,8 +278,9 @@ struct Builder {
     /// texture maps uniquely, so that splitting triangles splits texture area; a facade texture repeated around
     /// a building is needed whole by every wall, and splitting the walls apart would copy it into every child.
     /// A node's runs (planRuns) are dealt to its four children in consecutive shares, full ones first: a node k
-    /// levels above the leaves' level gets up to 4^k runs, so every leaf sits at that level and every inner node
-    /// holds as many runs as its minDistance (dmin · 2^k) allows — the bottom-up grouping of a Hilbert R-tree.
+    /// levels above the leaves' level gets up to 4^k runs, so every inner node but those of the Hilbert order's tail
+    /// holds as many runs as its minDistance (dmin · 2^k) allows — the bottom-up grouping of a Hilbert R-tree (the
+    /// tail's leaves may sit higher up).
     /// (Near-equal shares leave nodes two levels above a leaf holding about 4.5 runs instead of 16 when the run
     /// count is just over a power of four, so about 3.5 times the nodes are drawn at those distances.) Only a node
     /// of one texture that does not fit is split by triangles, area-balanced along the two longest axes as in the
@@ -299,8 +300,10 @@ struct Builder {
         // should that ever fail, the thesis's triangle split still ends the recursion.
         if (byRun.size() < 2) return splitByArea(in.tris, ids);
         const std::size_t m = byRun.size();
-        std::size_t perChild = 1; // 4^(height - 1)
-        for (int h = runLevels - level; h > 1; --h) perChild *= 4;
+        // 4^(height - 1), height the levels down to the leaves' level, but no more than the node's own runs need
+        // (4^(ceil(log4 m) - 1)): a tail node of few runs would otherwise pass them all to one child, a copy of itself.
+        std::size_t perChild = 1;
+        for (int h = runLevels - level; h > 1 && 4 * perChild < m; --h) perChild *= 4;
         std::size_t k = 0;
         for (const auto& [run, tris] : byRun) {
             // Consecutive runs (a node's are), full shares first; near-equal shares should a node ever hold more.

@@ -33,12 +33,22 @@ sv() { LD_LIBRARY_PATH=$LIBS "$BUNDLE/seasonview" "$@"; }
 mkdir -p "$OUT" "$WORK"
 RES=$WORK/results
 rm -rf "$RES" && mkdir -p "$RES"
+# Whatever happens, what was measured and logged comes back (a stub that was called names itself in a log).
+finish() {
+    local rc=$?
+    tar czf "$OUT/gpu_results.tgz" -C "$WORK" results
+    if [[ $rc != 0 ]]; then
+        for f in "$RES"/*.log; do [[ -f $f ]] && { echo "--- $f"; tail -5 "$f"; }; done
+        echo "gpu-bench: failed (exit $rc); logs in $OUT/gpu_results.tgz" >&2
+    fi
+}
+trap finish EXIT
 log() { echo "== $(date -u +%H:%M:%S) $*"; }
 { command -v nvidia-smi >/dev/null && nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv || true; } | tee "$RES/gpu.txt"
 nproc | tee -a "$RES/gpu.txt"
 
 log "demo scene (synth, prepare, stills, segmentation)"
-sv demo --out "$WORK/demo" > "$RES/demo.log" 2>&1 || { tail -5 "$RES/demo.log"; exit 1; }
+sv demo --out "$WORK/demo" > "$RES/demo.log" 2>&1
 tail -3 "$RES/demo.log"
 log "issue 6: terrain vs full scene, $SIZE, flyover, $FRAMES frames"
 sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmup 20 --size "$SIZE" \
@@ -51,7 +61,8 @@ if [[ ${SKIP_CITY:-0} != 1 ]]; then
     log "block city (synth, atlas tree for the screen width)"
     sv synth --preset data/presets/blockcity.json --out "$WORK/blockcity" > "$RES/city_synth.log" 2>&1
     sv atlas build "$WORK/blockcity/city/city.obj" --obj-local --screen-width "${SIZE%x*}" \
-        --out "$WORK/blockcity.svat" --report "$RES/city_tree.json" 2>&1 | tail -1 | tee "$RES/city_tree.log"
+        --out "$WORK/blockcity.svat" --report "$RES/city_tree.json" > "$RES/city_tree.log" 2>&1
+    tail -1 "$RES/city_tree.log"
     log "issue 8: city atlas/original/flat, $SIZE, $CITY_FRAMES frames"
     sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
         --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
@@ -61,5 +72,4 @@ if [[ ${SKIP_CITY:-0} != 1 ]]; then
         --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
         --coverage-every 0 --compare city-occlusion=off,on --out "$RES/occ" 2>&1 | tee "$RES/occ.log" | tail -4
 fi
-tar czf "$OUT/gpu_results.tgz" -C "$WORK" results
-log "wrote $OUT/gpu_results.tgz"
+log "writing $OUT/gpu_results.tgz"

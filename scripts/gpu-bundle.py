@@ -4,12 +4,14 @@
 Why: the GPU machine the `device` tool lends (docs/gpu.md) is a bare CUDA image that cannot install packages, and
 its tool carries at most 64 MiB of working tree. seasonview's link closure is about 270 libraries and 350 MB,
 nearly all of it pulled in by OpenImageIO's, OpenCV's and libcitygml's dependencies (ffmpeg, OpenVDB, GDAL, ICU,
-...) that a benchmark run never calls. Every Debian library is linked with BIND_NOW, so the loader wants each of
-them, and every symbol they export, before main() runs.
+...) that a benchmark run never calls. The loader wants every library of the closure before main() runs, and (the
+Debian libraries here are linked BIND_NOW) every symbol they refer to.
 
 How: libraries a run calls are copied whole; every other one is replaced by a stub with the same soname that
-exports the same symbols with the same versions (functions that abort with the library's and the symbol's name,
-objects of the same size in .bss). The split was found by running the whole GPU pipeline (synth, prepare, atlas
+exports, with their versions, the symbols the binary and the kept libraries refer to and nothing else defines (all
+of a window-system library's symbols, so that one the NVIDIA driver opens by name, libX11 or libwayland, still
+finds its symbols): functions that abort with the library's and the symbol's name, objects of the same size in
+.bss. The split was found by running the whole GPU pipeline (synth, prepare, atlas
 build, bench, render) against the bundle: a stub that is called says so and aborts, and its library moves to
 KEEP. glibc's own libraries stay the machine's (the GPU machine's glibc is newer than Debian 12's, which is all the
 binary needs). The bundle also carries glvnd's libEGL/libOpenGL/libGLdispatch; the NVIDIA driver on the GPU machine
@@ -76,9 +78,11 @@ def run(cmd, **kw):
 
 
 def closure(binary):
-    """soname -> path of every library the binary loads (ldd)."""
+    """soname -> path of every library the binary loads (ldd); a library ldd cannot find is an error."""
     libs = {}
     for line in run(["ldd", binary]).splitlines():
+        if "not found" in line:
+            sys.exit(f"gpu-bundle: {binary}: {line.strip()}")
         m = re.match(r"\s*(\S+) => (\S+) \(", line)
         if m:
             libs[m.group(1)] = m.group(2)
@@ -94,7 +98,7 @@ def soname(path):
 
 
 def exported(path):
-    """(name, version or None, default?, type, size) of every defined dynamic symbol."""
+    """(name, version or None, default?, type, binding, size) of every defined dynamic symbol."""
     out = []
     for line in run(["readelf", "--dyn-syms", "-W", path]).splitlines():
         f = line.split()
@@ -124,15 +128,31 @@ def undefined(path):
     return names
 
 
-def make_stub(path, dest_dir, work, wanted):
+def defined(path):
+    """Names `path` defines (a stub must not take them over: the loader binds to the first definition it finds)."""
+    return {s[0] for s in exported(path)}
+
+
+# Defined by the linker in every shared object.
+LINKER_SYMBOLS = {"_init", "_fini", "_edata", "_end", "__bss_start"}
+
+# Stubs of window-system and DRM libraries export all of their library's symbols (less those defined elsewhere): the
+# NVIDIA driver's EGL platform modules open some of them by name, and must find their symbols to load.
+COMPLETE = ("libX", "libxcb", "libwayland", "libdrm", "libgbm", "libxkbcommon", "libxshmfence")
+
+
+def make_stub(path, dest_dir, work, wanted, taken):
     """A stub of `path` exporting those of its symbols named in `wanted` (what the binary and the kept libraries
-    refer to; stubs refer to nothing but libc)."""
+    refer to; stubs refer to nothing but libc), or all of them for a library named in COMPLETE, but none in `taken`
+    (defined by the binary, a kept library or glibc)."""
     so = soname(path)
+    if so.startswith(COMPLETE):
+        wanted = None
     # One definition per name: its default version, else the first other one (a kept library referring to a
     # second, older version of the same name would not load: none does in this closure).
     chosen = {}
     for name, version, default, typ, bind, size in exported(path):
-        if name not in wanted:
+        if (wanted is not None and name not in wanted) or name in taken or name in LINKER_SYMBOLS:
             continue
         if name not in chosen or (default and not chosen[name][1]):
             chosen[name] = (version, default, typ, bind, size)
@@ -193,10 +213,12 @@ def main():
     shutil.rmtree(args.out, ignore_errors=True)
     os.makedirs(lib_dir)
     shutil.copy2(args.binary, os.path.join(args.out, "seasonview"))
-    libs = {so: p for so, p in closure(args.binary).items() if not SYSTEM.match(so)}
+    every = closure(args.binary)
+    libs = {so: p for so, p in every.items() if not SYSTEM.match(so)}
     for so in DLOPENED:
-        if os.path.exists(f"/lib/x86_64-linux-gnu/{so}"):
-            libs[so] = f"/lib/x86_64-linux-gnu/{so}"
+        if not os.path.exists(f"/lib/x86_64-linux-gnu/{so}"):
+            sys.exit(f"gpu-bundle: /lib/x86_64-linux-gnu/{so} missing (Debian: libegl1, libopengl0, libgles2)")
+        libs[so] = f"/lib/x86_64-linux-gnu/{so}"
     keep = {so for so in libs if so in DLOPENED or any(so.startswith(k) for k in KEEP)}
     if args.local_check:
         for mesa in MESA:
@@ -206,8 +228,13 @@ def main():
                         libs.setdefault(so, path)
                         keep.add(so)
     wanted = undefined(args.binary)
+    taken = defined(args.binary)
     for so in keep:
         wanted |= undefined(libs[so])
+        taken |= defined(libs[so])
+    for so, path in every.items():
+        if SYSTEM.match(so):
+            taken |= defined(path)
     kept, stubbed = [], []
     with tempfile.TemporaryDirectory() as work:
         for so, path in sorted(libs.items()):
@@ -215,9 +242,14 @@ def main():
                 shutil.copy2(os.path.realpath(path), os.path.join(lib_dir, so))
                 kept.append(so)
             else:
-                make_stub(path, lib_dir, work, wanted)
+                make_stub(path, lib_dir, work, wanted, taken)
                 stubbed.append(so)
     size = sum(os.path.getsize(os.path.join(dp, f)) for dp, _, fs in os.walk(args.out) for f in fs)
+    # Every library found and every symbol bound (LD_BIND_NOW), here, from the bundle.
+    env = dict(os.environ, LD_LIBRARY_PATH=lib_dir, LD_BIND_NOW="1")
+    check = subprocess.run([os.path.join(args.out, "seasonview"), "--help"], env=env, capture_output=True, text=True)
+    if check.returncode != 0:
+        sys.exit(f"gpu-bundle: {args.out}/seasonview does not start from the bundle: {check.stderr.strip()[:500]}")
     print(f"{args.out}: the binary, {len(kept)} libraries, {len(stubbed)} stubs, {size / 2**20:.1f} MiB")
 
 

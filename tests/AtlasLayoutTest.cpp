@@ -116,7 +116,13 @@ TEST(AtlasLayoutTest, PackingNeverOverlapsAndKeepsEachAreaInside) {
                 areas[i].size = {side(rng), side(rng)};
             }
             double fill = 0.0;
+            auto again = areas;
             ASSERT_TRUE(packAtlas(areas, 1024, &fill, packer));
+            ASSERT_TRUE(packAtlas(again, 1024, nullptr, packer));
+            for (size_t i = 0; i < areas.size(); ++i) { // deterministic: the same input, the same places
+                EXPECT_EQ(areas[i].position, again[i].position);
+                EXPECT_EQ(areas[i].rotated, again[i].rotated);
+            }
             EXPECT_GT(fill, 0.3);
             EXPECT_LT(fill, 1.0);
             expectDisjointInside(areas, 1024);

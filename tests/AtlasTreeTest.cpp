@@ -806,6 +806,30 @@ TEST(AtlasTreeTest, InnerNodesHoldAsManyLeavesAsTheirMinDistanceAllows) {
     }
     EXPECT_EQ(shortNodes, 1);
     EXPECT_EQ(inner, 6) << "the root, the parent of the first 16 leaves and its four children of four leaves each";
+
+    // 72 walls, 18 leaves: the tail of two runs becomes two leaves under the root's second child, not a chain of
+    // single-child copies of that node down to the leaves' level.
+    test::TempDir dir2("atlas_full18");
+    auto r2 = buildAtlasTree(wallModel(dir2.path(), 72), s, (dir2 / "t.svat").string());
+    ASSERT_TRUE(r2) << r2.error().message;
+    auto f2 = AtlasTreeFile::open((dir2 / "t.svat").string());
+    ASSERT_TRUE(f2) << f2.error().message;
+    const AtlasTreeData& t2 = f2->trees[0];
+    checkStructure(t2, f2->info);
+    int leaves2 = 0;
+    for (std::size_t i = 0; i < t2.nodes.size(); ++i) {
+        const AtlasNode& n = t2.nodes[i];
+        if (n.leaf()) {
+            leaves2 += n.count > 0 ? 1 : 0;
+            continue;
+        }
+        int nonEmpty = 0;
+        for (int c : n.children) nonEmpty += t2.nodes[std::size_t(c)].count > 0 ? 1 : 0;
+        EXPECT_GE(nonEmpty, 2) << "node " << i << " at level " << n.level << " has one non-empty child";
+    }
+    EXPECT_EQ(leaves2, 18);
+    EXPECT_EQ(t2.nodes.size(), 1u + 4u + 8u + 16u)
+        << "the root; its four children (16 runs, 2 runs, two empty); their 4 + 4 children; 16 leaves below the first";
 }
 
 TEST(AtlasTreeTest, TurnedAreasKeepTheTextureOrientation) {

@@ -117,15 +117,15 @@ TEST(NodeOcclusionTest, BootstrapRoundsGoFrontToBack) {
     const AtlasTreeData t = fiveNodes();
     NodeOcclusion o(t);
     o.beginFrame();
-    std::vector<double> metres = {0.0, 0.0, 5.0, 100.0, 300.0};
+    std::vector<double> metres = {10.0, 30.0, 100.0, 240.0, 300.0};
     const auto distance = [&](std::uint32_t n) { return metres[n]; };
     const glm::dvec3 eye(-500.0, -500.0, 2.0); // next to no box: every node is tested
-    std::vector<std::uint32_t> pending = {4, 3, 2, 1};
-    NodeOcclusion::Round r = o.nextRound(pending, distance, eye, 0);
-    EXPECT_EQ(r.test, (std::vector<std::uint32_t>{1, 2}));
-    EXPECT_EQ(pending, (std::vector<std::uint32_t>{3, 4}));
-    r = o.nextRound(pending, distance, eye, 2); // reach 2 · 100 + 64 m
-    EXPECT_EQ(r.test, (std::vector<std::uint32_t>{3}));
+    std::vector<std::uint32_t> pending = {4, 3, 2, 1, 0};
+    NodeOcclusion::Round r = o.nextRound(pending, distance, eye, 0); // reach 2 · 10 + 16 m (d0 + 16 would miss 30)
+    EXPECT_EQ(r.test, (std::vector<std::uint32_t>{0, 1}));
+    EXPECT_EQ(pending, (std::vector<std::uint32_t>{2, 3, 4}));
+    r = o.nextRound(pending, distance, eye, 2); // reach 2 · 100 + 64 m (2 · 100 + 16 or 100 + 64 would miss 240)
+    EXPECT_EQ(r.test, (std::vector<std::uint32_t>{2, 3}));
     EXPECT_EQ(pending, (std::vector<std::uint32_t>{4}));
     r = o.nextRound(pending, distance, eye, 0); // always at least the nearest
     EXPECT_EQ(r.test, (std::vector<std::uint32_t>{4}));
@@ -133,8 +133,8 @@ TEST(NodeOcclusionTest, BootstrapRoundsGoFrontToBack) {
     // Once anything is known, distance does not limit a round.
     o.answered(0, true, o.frame());
     o.beginFrame();
-    pending = {4, 3, 2, 1};
-    EXPECT_EQ(o.nextRound(pending, distance, eye, 0).test.size(), 4u);
+    pending = {4, 3, 2, 1, 0};
+    EXPECT_EQ(o.nextRound(pending, distance, eye, 0).test.size(), 5u);
 }
 
 TEST(NodeOcclusionTest, RoundsTakeTheNearestAndTheEyeNextToABoxNeedsNoQuery) {
