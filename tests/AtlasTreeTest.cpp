@@ -17,6 +17,7 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <optional>
 #include <set>
 
 using namespace seasonview;
@@ -29,16 +30,21 @@ glm::u8vec4 colourOf(int i) {
             std::uint8_t(i % 2 ? 255 : 128)};
 }
 
-/// A w×h texture of one colour (RGB or RGBA).
-void writeSolid(const std::filesystem::path& p, int w, int h, glm::u8vec4 c, int channels) {
-    std::vector<std::uint8_t> px(std::size_t(w * h * channels));
-    for (std::size_t i = 0; i < px.size(); i += std::size_t(channels))
-        for (int k = 0; k < channels; ++k) px[i + std::size_t(k)] = c[k];
+/// A w×h 8-bit texture of `channels` interleaved channels, rows top down.
+void writeTexture(const std::filesystem::path& p, int w, int h, int channels, const std::vector<std::uint8_t>& px) {
     auto out = OIIO::ImageOutput::create(p.string());
     ASSERT_TRUE(out);
     ASSERT_TRUE(out->open(p.string(), OIIO::ImageSpec(w, h, channels, OIIO::TypeDesc::UINT8)));
     ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, px.data()));
     out->close();
+}
+
+/// A w×h texture of one colour (RGB or RGBA).
+void writeSolid(const std::filesystem::path& p, int w, int h, glm::u8vec4 c, int channels) {
+    std::vector<std::uint8_t> px(std::size_t(w * h * channels));
+    for (std::size_t i = 0; i < px.size(); i += std::size_t(channels))
+        for (int k = 0; k < channels; ++k) px[i + std::size_t(k)] = c[k];
+    writeTexture(p, w, h, channels, px);
 }
 
 /// A row of `n` walls, 10 m wide and 8 m high, 15 m apart along x, each with its own solid texture (256×128,
@@ -81,6 +87,32 @@ CityModel wallModel(const std::filesystem::path& dir, int n, int alphaEvery = 0)
     m.building.push_back(0);
     m.surface.push_back(Surface::Wall);
     return m;
+}
+
+/// A tree of `model` built with 128² lossless atlases at dmin 200 m (a wallModel wall: 64×54 atlas texels with its
+/// border, four to a leaf) into `file`, and the file opened; nothing (and a test failure) if either fails.
+struct BuiltTree {
+    AtlasBuildReport report;
+    AtlasTreeFile file;
+};
+std::optional<BuiltTree> buildSmall(const CityModel& model, const std::filesystem::path& file,
+                                    AtlasPacker packer = AtlasPacker::MaxRects) {
+    AtlasBuildSettings s;
+    s.atlasSize = 128;
+    s.dmin = 200.0;
+    s.format = AtlasFormat::Deflate; // lossless, so colours compare exactly
+    s.packer = packer;
+    auto r = buildAtlasTree(model, s, file.string());
+    if (!r) {
+        ADD_FAILURE() << r.error().message;
+        return std::nullopt;
+    }
+    auto f = AtlasTreeFile::open(file.string());
+    if (!f) {
+        ADD_FAILURE() << f.error().message;
+        return std::nullopt;
+    }
+    return BuiltTree{*r, std::move(*f)};
 }
 
 /// Checks §4.3/§4.8.1 invariants of one tree; returns the number of leaves.
@@ -743,17 +775,10 @@ TEST(AtlasTreeTest, SplitFillsLeavesInsteadOfQuartering) {
     // walls as long as they still pack instead, so the leaves are as few as the atlas allows and each still
     // holds whole texture groups.
     test::TempDir dir("atlas_fill");
-    const CityModel model = wallModel(dir.path(), 40);
-    AtlasBuildSettings s;
-    s.atlasSize = 128;
-    s.dmin = 200.0;
-    s.format = AtlasFormat::Deflate;
-    auto r = buildAtlasTree(model, s, (dir / "t.svat").string());
-    ASSERT_TRUE(r) << r.error().message;
-    auto f = AtlasTreeFile::open((dir / "t.svat").string());
-    ASSERT_TRUE(f) << f.error().message;
-    const AtlasTreeData& t = f->trees[0];
-    checkStructure(t, f->info);
+    auto built = buildSmall(wallModel(dir.path(), 40), dir / "t.svat");
+    ASSERT_TRUE(built);
+    const AtlasTreeData& t = built->file.trees[0];
+    checkStructure(t, built->file.info);
     int full = 0;
     for (const auto& n : t.nodes)
         if (n.leaf() && n.count > 0) {
@@ -761,7 +786,7 @@ TEST(AtlasTreeTest, SplitFillsLeavesInsteadOfQuartering) {
             EXPECT_LE(n.count, 4u * 2u) << "at most four walls fit a leaf";
         }
     EXPECT_EQ(full, 10) << "40 walls, four per leaf";
-    EXPECT_GE(r->meanLeafFill, 0.8);
+    EXPECT_GE(built->report.meanLeafFill, 0.8);
 }
 
 TEST(AtlasTreeTest, InnerNodesHoldAsManyLeavesAsTheirMinDistanceAllows) {
@@ -771,17 +796,10 @@ TEST(AtlasTreeTest, InnerNodesHoldAsManyLeavesAsTheirMinDistanceAllows) {
     // under it. Near-equal shares (5 + 4 + 4 + 4, then 2 + 1 + 1 + 1) leave the first child with 5 of 16 and a
     // grandchild with 2 of 4.
     test::TempDir dir("atlas_full");
-    const CityModel model = wallModel(dir.path(), 68);
-    AtlasBuildSettings s;
-    s.atlasSize = 128;
-    s.dmin = 200.0;
-    s.format = AtlasFormat::Deflate;
-    auto r = buildAtlasTree(model, s, (dir / "t.svat").string());
-    ASSERT_TRUE(r) << r.error().message;
-    auto f = AtlasTreeFile::open((dir / "t.svat").string());
-    ASSERT_TRUE(f) << f.error().message;
-    const AtlasTreeData& t = f->trees[0];
-    checkStructure(t, f->info);
+    auto built = buildSmall(wallModel(dir.path(), 68), dir / "t.svat");
+    ASSERT_TRUE(built);
+    const AtlasTreeData& t = built->file.trees[0];
+    checkStructure(t, built->file.info);
     std::function<int(std::size_t)> leavesBelow = [&](std::size_t i) {
         const AtlasNode& n = t.nodes[i];
         if (n.leaf()) return n.count > 0 ? 1 : 0;
@@ -795,7 +813,7 @@ TEST(AtlasTreeTest, InnerNodesHoldAsManyLeavesAsTheirMinDistanceAllows) {
         const AtlasNode& n = t.nodes[i];
         if (n.leaf() || n.count == 0) continue;
         ++inner;
-        const int k = int(std::lround(std::log2(double(n.minDistance) / f->info.dmin)));
+        const int k = int(std::lround(std::log2(double(n.minDistance) / built->file.info.dmin)));
         ASSERT_GE(k, 1);
         const int want = 1 << (2 * k);
         if (leavesBelow(i) < want) {
@@ -810,12 +828,10 @@ TEST(AtlasTreeTest, InnerNodesHoldAsManyLeavesAsTheirMinDistanceAllows) {
     // 72 walls, 18 leaves: the tail of two runs becomes two leaves under the root's second child, not a chain of
     // single-child copies of that node down to the leaves' level.
     test::TempDir dir2("atlas_full18");
-    auto r2 = buildAtlasTree(wallModel(dir2.path(), 72), s, (dir2 / "t.svat").string());
-    ASSERT_TRUE(r2) << r2.error().message;
-    auto f2 = AtlasTreeFile::open((dir2 / "t.svat").string());
-    ASSERT_TRUE(f2) << f2.error().message;
-    const AtlasTreeData& t2 = f2->trees[0];
-    checkStructure(t2, f2->info);
+    auto built2 = buildSmall(wallModel(dir2.path(), 72), dir2 / "t.svat");
+    ASSERT_TRUE(built2);
+    const AtlasTreeData& t2 = built2->file.trees[0];
+    checkStructure(t2, built2->file.info);
     int leaves2 = 0;
     for (std::size_t i = 0; i < t2.nodes.size(); ++i) {
         const AtlasNode& n = t2.nodes[i];
@@ -850,11 +866,7 @@ TEST(AtlasTreeTest, TurnedAreasKeepTheTextureOrientation) {
                 px[std::size_t(y * 64 + x) * 3 + 1] = std::uint8_t(y * 4 + 2);
                 px[std::size_t(y * 64 + x) * 3 + 2] = std::uint8_t(60 * i);
             }
-        auto out = OIIO::ImageOutput::create(path.string());
-        ASSERT_TRUE(out);
-        ASSERT_TRUE(out->open(path.string(), OIIO::ImageSpec(64, 64, 3, OIIO::TypeDesc::UINT8)));
-        ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, px.data()));
-        out->close();
+        writeTexture(path, 64, 64, 3, px);
         m.textures.push_back(CityTexture{path.string(), false, 3, 64, 64});
         m.buildingIds.push_back("b" + std::to_string(i));
         const double x0 = 20.0 * i, w = 6.6, h = 13.3;
@@ -870,23 +882,15 @@ TEST(AtlasTreeTest, TurnedAreasKeepTheTextureOrientation) {
             m.surface.push_back(Surface::Wall);
         }
     }
-    AtlasBuildSettings s;
-    s.atlasSize = 128;
-    s.dmin = 200.0;
-    s.format = AtlasFormat::Deflate;
-    s.packer = AtlasPacker::Skyline;
-    auto sky = buildAtlasTree(m, s, (dir / "s.svat").string());
-    ASSERT_TRUE(sky) << sky.error().message;
-    EXPECT_EQ(sky->leaves - sky->emptyLeaves, 2u);
-    s.packer = AtlasPacker::MaxRects;
-    auto r = buildAtlasTree(m, s, (dir / "t.svat").string());
-    ASSERT_TRUE(r) << r.error().message;
-    EXPECT_EQ(r->nodes, 1u) << "all three walls in the root's atlas";
-    EXPECT_NEAR(r->meanLeafFill, 3.0 * 48 * 80 / (128.0 * 128.0), 1e-9);
-    auto f = AtlasTreeFile::open((dir / "t.svat").string());
-    ASSERT_TRUE(f) << f.error().message;
-    const AtlasTreeData& t = f->trees[0];
-    auto atlas = f->readAtlasRgba(0, 0);
+    auto sky = buildSmall(m, dir / "s.svat", AtlasPacker::Skyline);
+    ASSERT_TRUE(sky);
+    EXPECT_EQ(sky->report.leaves - sky->report.emptyLeaves, 2u);
+    auto built = buildSmall(m, dir / "t.svat");
+    ASSERT_TRUE(built);
+    EXPECT_EQ(built->report.nodes, 1u) << "all three walls in the root's atlas";
+    EXPECT_NEAR(built->report.meanLeafFill, 3.0 * 48 * 80 / (128.0 * 128.0), 1e-9);
+    const AtlasTreeData& t = built->file.trees[0];
+    auto atlas = built->file.readAtlasRgba(0, 0);
     ASSERT_TRUE(atlas);
     int checked = 0, worst = 0;
     for (std::uint32_t tri = 0; tri < t.nodes[0].count; ++tri)
