@@ -59,6 +59,7 @@ struct Mode {
     std::optional<city::CityMode> cityMode; // the city model drawn after the terrain (nullopt: none)
     city::AtlasUpload cityUpload = city::AtlasUpload::Auto;
     bool cityOcclusion = true;
+    bool drawTerrain = true;      // terrain=off: the city drawn alone (the imagery clipmap still streams for roofs)
     std::unique_ptr<city::CityRendererGL> city;
     std::unique_ptr<ClipmapGL> clipmap;
     std::unique_ptr<CanopyClipmapGL> canopy;
@@ -159,7 +160,24 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
         if (a.cityOcclusion != "on" && a.cityOcclusion != "off")
             return Error{"--city-occlusion '" + a.cityOcclusion + "': expected on|off"};
         m.cityOcclusion = a.cityOcclusion == "on";
+        if (a.terrain != "on" && a.terrain != "off")
+            return Error{"--terrain '" + a.terrain + "': expected on|off"};
+        m.drawTerrain = a.terrain == "on";
         return m;
+    };
+    // The city alone: nothing else may need the terrain pass.
+    auto checkTerrainOff = [&](const std::vector<Mode>& ms) -> Status {
+        for (const Mode& m : ms) {
+            if (m.drawTerrain) continue;
+            if (!m.cityMode)
+                return Error{"terrain off draws only the city: give --city atlas|original|flat (mode " + m.label + ")"};
+            if (m.renderer == RendererKind::Reference)
+                return Error{"terrain off needs the clipmap renderer (mode " + m.label + ")"};
+            const bool canopyView = m.canopyLayers >= 0 ? m.canopyLayers > 0 : a.view == "canopy";
+            if (canopyView)
+                return Error{"terrain off: the canopy is drawn with the terrain, not without (mode " + m.label + ")"};
+        }
+        return Ok{};
     };
     if (a.compare.empty()) {
         auto m = base();
@@ -167,17 +185,20 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
             return m.error();
         m->label = m->renderer == RendererKind::Reference ? "reference" : placementName(m->centers);
         modes.push_back(std::move(*m));
+        if (auto st = checkTerrainOff(modes); !st)
+            return st.error();
         return modes;
     }
     const size_t eq = a.compare.find('=');
     const std::string key = a.compare.substr(0, eq);
     if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso" && key != "canopy" &&
                                     key != "canopy-draw" && key != "segmentation" && key != "scene" && key != "city" &&
-                                    key != "city-upload" && key != "city-occlusion"))
+                                    key != "city-upload" && key != "city-occlusion" && key != "terrain"))
         return Error{"--compare '" + a.compare +
                      "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
                      "canopy-draw=layers,march, segmentation=upload,perframe, scene=terrain,full or "
-                     "city=atlas,original,flat,off, city-upload=compressed,decoded,auto or city-occlusion=off,on"};
+                     "city=atlas,original,flat,off, city-upload=compressed,decoded,auto, city-occlusion=off,on or "
+                     "terrain=on,off"};
     std::stringstream list(a.compare.substr(eq + 1));
     std::string v;
     while (std::getline(list, v, ',')) {
@@ -241,6 +262,11 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
             if (v != "on" && v != "off") return Error{"--compare: city-occlusion '" + v + "' (expected on|off)"};
             if (!m->cityMode) m->cityMode = city::CityMode::Atlas;
             m->cityOcclusion = v == "on";
+        } else if (key == "terrain") {
+            // The city (--city, default atlas) over the terrain and alone.
+            if (v != "on" && v != "off") return Error{"--compare: terrain '" + v + "' (expected on|off)"};
+            if (!m->cityMode) m->cityMode = city::CityMode::Atlas;
+            m->drawTerrain = v == "on";
         } else if (key == "segmentation") {
             if (v != "upload" && v != "perframe")
                 return Error{"--compare: segmentation '" + v + "' (expected upload|perframe)"};
@@ -255,6 +281,8 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     }
     if (modes.size() < 2)
         return Error{"--compare '" + a.compare + "': give at least two values"};
+    if (auto st = checkTerrainOff(modes); !st)
+        return st.error();
     return modes;
 }
 
@@ -440,6 +468,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
             im.view = ImageryView::Canopy;
         if (m.terrainOnly)
             im.view = ImageryView::Relief;
+        im.terrain = m.drawTerrain;
         CanopyRenderSettings modeCanopy = canopy;
         modeCanopy.trunks = m.trunks != nullptr;
         if (m.canopyDraw)
@@ -574,6 +603,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
           {"ground_elsewhere", a->groundElsewhere},
           {"city_upload", a->cityUpload},
           {"city_occlusion", a->cityOcclusion},
+          {"terrain", a->terrain},
           {"tree_height_m", scene->sources.treeHeightM}}},
         {"wall_seconds", seconds}};
     nlohmann::json compare = nlohmann::json::array();

@@ -31,6 +31,7 @@ struct BenchSettings {
     std::filesystem::path cacheDir;
     // The scene's city model: off | atlas | original | flat, its tree (empty: built into the cache), capacity, τ.
     std::string city = "off", cityTree, cityUpload = "auto", cityOcclusion = "on";
+    std::string terrain = "on"; // off: the terrain is not drawn, only the city (its roofs still read the imagery)
     double cityCapacityMb = 256.0, cityTpp = 1.0;
 };
 

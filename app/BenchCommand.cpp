@@ -72,6 +72,10 @@ Runner addBenchCommand(CLI::App& app) {
                     "City, atlas mode: skip nodes hidden behind what is drawn (occlusion queries on node boxes)")
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
+    cmd->add_option("--terrain", a->b.terrain,
+                    "on: the terrain drawn; off: only the city (its facades and roofs), as the atlas-tree paper timed it")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
     return [a]() -> int {
         auto fail = [](const std::string& m) {
             std::fprintf(stderr, "seasonview bench: %s\n", m.c_str());

@@ -20,6 +20,7 @@ struct RenderArgs {
     std::string trunks = "on", canopyDraw = "march";
     CityArgs city;
     std::string cityAccuracy;
+    std::string terrain = "on";
     int k = kSegDefaultK;
 };
 } // namespace
@@ -89,6 +90,9 @@ Runner addRenderCommand(CLI::App& app) {
     args->city.addTo(*cmd);
     cmd->add_option("--city-accuracy", args->cityAccuracy,
                     "With --city: write the city's PSNR against its original textures (same view) to this JSON");
+    cmd->add_option("--terrain", args->terrain, "on: the terrain drawn; off: only the city (needs --city)")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
     return [args]() -> int {
         const auto t0 = std::chrono::steady_clock::now();
         auto fail = [](const std::string& m) {
@@ -136,6 +140,12 @@ Runner addRenderCommand(CLI::App& app) {
         settings.city = *citySettings;
         if (settings.city) settings.city->anisotropy = args->aniso;
         if (settings.city && settings.renderer == RendererKind::Reference) return fail("--city needs --renderer clipmap");
+        imagery.terrain = args->terrain != "off";
+        if (!imagery.terrain) {
+            if (!settings.city) return fail("--terrain off draws only the city: give --city atlas|original|flat");
+            if (*view == ImageryView::Canopy) return fail("--terrain off: the canopy is drawn with the terrain, not without");
+            if (!args->accuracy.empty()) return fail("--terrain off: --accuracy compares the terrain, which is not drawn");
+        }
         auto size = parseSize(args->size);
         if (!size) return fail(size.message());
         if (auto st = checkImageOutput(args->out); !st) return fail(st.message());

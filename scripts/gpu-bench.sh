@@ -6,7 +6,8 @@
 #      (issue 6: median and p95 frame time of the full scene, goal ≤ 2 ms median)
 #   2. the 10,000-building block city: its atlas tree, then `bench --compare city=atlas,original,flat` along the
 #      pedestrian-to-overview path at 1920×1080 (issue 8: atlas ÷ flat ≤ 1.1, original ÷ atlas ≥ 3 at the
-#      overview, nodes per frame) and `--compare city-occlusion=off,on`
+#      overview, nodes per frame), the same with `--terrain off` (the city alone, as the paper timed it) and
+#      `--compare city-occlusion=off,on`
 # Environment: OUT (default out/gpu), SIZE (1920x1080), FRAMES (300), CITY_FRAMES (240), WORK (work folder,
 # default /tmp/seasonview-gpu), SKIP_CITY=1 to stop after step 1. Locally (llvmpipe) the same script checks the
 # bundle: SIZE=320x180 FRAMES=6 CITY_FRAMES=6 scripts/gpu-bench.sh
@@ -67,6 +68,11 @@ if [[ ${SKIP_CITY:-0} != 1 ]]; then
     sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
         --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
         --coverage-every 0 --compare city=atlas,original,flat --out "$RES/city" 2>&1 | tee "$RES/city.log" | tail -5
+    log "issue 8: the city alone (--terrain off), atlas/original/flat"
+    sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
+        --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
+        --coverage-every 0 --terrain off --compare city=atlas,original,flat --out "$RES/city_alone" 2>&1 |
+        tee "$RES/city_alone.log" | tail -5
     log "issue 8: occlusion culling off/on"
     sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
         --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \

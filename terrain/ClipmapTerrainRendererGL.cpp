@@ -89,6 +89,11 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
                                                     const gl::RenderTarget& target) const {
     target.bind();
     beginTerrainPass(kBackgroundColor.r, kBackgroundColor.g, kBackgroundColor.b, kBackgroundColor.a, s.clear);
+    if (!s.terrain) {
+        m_last = {};
+        m_last.drawCalls = 0;
+        return m_last;
+    }
     m_program.set("uView", int(s.view));
     m_program.set("uBlend", std::clamp(s.blend, 0.0f, 1.0f));
     m_program.set("uSwipeX", std::clamp(s.swipe, 0.0f, 1.0f) * float(target.width()));

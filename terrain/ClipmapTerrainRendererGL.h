@@ -41,6 +41,9 @@ struct ImagerySettings {
     float canopyBase = 0.0f;
     // false: draw over what the target holds (colour and depth), e.g. canopy drawn first to hide the ground under it.
     bool clear = true;
+    // false: the pass only clears (when `clear`) and draws nothing, so what follows (the city) is drawn alone, as
+    // Buchholz & Döllner 2005 §6 timed the facades without terrain.
+    bool terrain = true;
 };
 
 /// A per-texel canopy layer the ground pass can read (foliage/CanopyClipmapGL.h implements it): binds the samplers

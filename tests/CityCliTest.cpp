@@ -6,8 +6,10 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <sstream>
 
 using namespace seasonview;
 using namespace seasonview::test;
@@ -172,6 +174,102 @@ TEST(CityCliTest, OcclusionCullingSkipsOnlyHiddenNodes) {
     std::getline(csv, header);
     for (const char* col : {",city_occluded_nodes", ",city_occlusion_queries", ",city_occlusion_waits"})
         EXPECT_NE(header.find(col), std::string::npos) << header;
+}
+
+// `--terrain off`: the city drawn alone (as Buchholz & Döllner timed the facades): the same city pixels as over
+// the terrain, nothing else drawn, and in a bench every draw call and triangle is the city's.
+TEST(CityCliTest, TerrainOffDrawsTheCityAlone) {
+    const CliScene& s = scene();
+    const auto stats = [&](const std::string& name) {
+        std::ifstream f(s.dir / name);
+        return f ? nlohmann::json::parse(f) : nlohmann::json::object();
+    };
+    ASSERT_EQ(s.render("alone.png", {"--city", "flat", "--terrain", "off", "--stats", (s.dir / "alone.json").string()})
+                  .exitCode,
+              0);
+    ASSERT_EQ(s.render("over.png", {"--city", "flat", "--stats", (s.dir / "over.json").string()}).exitCode, 0);
+    const auto alone = stats("alone.json"), over = stats("over.json");
+    ASSERT_TRUE(alone.contains("city") && over.contains("city")) << alone.dump();
+    EXPECT_GT(alone["city"]["triangles"].get<std::int64_t>(), 0);
+    EXPECT_EQ(alone["triangles"], alone["city"]["triangles"]) << "only the city's triangles are drawn";
+    EXPECT_GT(over["triangles"].get<std::int64_t>(), over["city"]["triangles"].get<std::int64_t>());
+    const auto a = s.image("alone.png"), o = s.image("over.png");
+    ASSERT_EQ(a.pixels.size(), o.pixels.size());
+    // The background is the clear colour (the view's top-left corner is sky); the city's pixels are as drawn over
+    // the terrain, except where the ground hides them (wall feet, a house behind the rise: 11 % here).
+    const std::uint8_t* bg = a.pixels.data();
+    std::size_t city = 0, same = 0, background = 0;
+    for (std::size_t i = 0; i < a.pixels.size(); i += 3) {
+        const bool isBg = a.pixels[i] == bg[0] && a.pixels[i + 1] == bg[1] && a.pixels[i + 2] == bg[2];
+        if (isBg) {
+            ++background;
+            continue;
+        }
+        ++city;
+        int d = 0;
+        for (std::size_t c = 0; c < 3; ++c) d = std::max(d, std::abs(int(a.pixels[i + c]) - int(o.pixels[i + c])));
+        if (d <= 2) ++same;
+    }
+    EXPECT_GT(city, a.pixels.size() / 3 / 100) << "the houses are in view";
+    EXPECT_GT(background, a.pixels.size() / 3 / 2) << "no terrain";
+    EXPECT_GT(double(same), 0.8 * double(city));
+
+    // bench: every draw call and triangle is the city's; terrain=on,off compares both in one run.
+    std::ofstream(s.dir / "alone_path.json")
+        << R"([{"time":0,"x":195,"y":140,"z":"+18","yaw":35,"pitch":-18,"fov":60},)"
+        << R"({"time":1,"x":196,"y":141,"z":"+18","yaw":36,"pitch":-18,"fov":60}])";
+    const auto bench = [&](const std::string& out, std::vector<std::string> extra) {
+        std::vector<std::string> args = {"bench", (s.dir / "s/scene.json").string(), "--path",
+                                         (s.dir / "alone_path.json").string(), "--frames", "3", "--warmup", "1",
+                                         "--size", "200x125", "--coverage-every", "0", "--out", (s.dir / out).string()};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return runCli(args);
+    };
+    const CliResult b = bench("alone_bench", {"--terrain", "off", "--compare", "city=atlas,flat"});
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    std::ifstream csv(s.dir / "alone_bench/frames.csv");
+    std::string line;
+    std::getline(csv, line);
+    std::vector<std::string> header;
+    for (std::stringstream h(line); std::getline(h, line, ',');) header.push_back(line);
+    const auto col = [&](const std::string& name) {
+        return std::size_t(std::find(header.begin(), header.end(), name) - header.begin());
+    };
+    const std::size_t dc = col("draw_calls"), cdc = col("city_draw_calls"), tri = col("triangles"),
+                      ctri = col("city_triangles");
+    ASSERT_LT(std::max({dc, cdc, tri, ctri}), header.size());
+    int rows = 0;
+    while (std::getline(csv, line)) {
+        std::vector<std::string> f;
+        for (std::stringstream r(line); std::getline(r, line, ',');) f.push_back(line);
+        ASSERT_EQ(f.size(), header.size());
+        EXPECT_EQ(f[dc], f[cdc]) << f[0];
+        EXPECT_EQ(f[tri], f[ctri]) << f[0];
+        EXPECT_NE(f[ctri], "0") << f[0];
+        ++rows;
+    }
+    EXPECT_EQ(rows, 6);
+    std::ifstream sj(s.dir / "alone_bench/summary.json");
+    EXPECT_EQ(nlohmann::json::parse(sj)["settings"]["terrain"], "off");
+
+    const CliResult both = bench("terrain_bench", {"--city", "flat", "--compare", "terrain=on,off"});
+    ASSERT_EQ(both.exitCode, 0) << both.err;
+    std::ifstream sj2(s.dir / "terrain_bench/summary.json");
+    const auto modes = nlohmann::json::parse(sj2)["modes"];
+    ASSERT_TRUE(modes.contains("terrain=on") && modes.contains("terrain=off")) << modes.dump();
+    EXPECT_GT(modes["terrain=on"]["totals"]["triangles_per_frame"].get<std::int64_t>(),
+              modes["terrain=off"]["totals"]["triangles_per_frame"].get<std::int64_t>());
+
+    auto fails = [](const CliResult& r, const std::string& needle) {
+        EXPECT_EQ(r.exitCode, 1) << r.out << r.err;
+        EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    };
+    fails(s.render("x.png", {"--terrain", "off"}), "--city");
+    fails(s.render("x.png", {"--terrain", "off", "--city", "flat", "--view", "canopy"}), "canopy");
+    fails(bench("x_bench", {"--terrain", "off"}), "--city");
+    fails(bench("x_bench", {"--terrain", "off", "--compare", "city=flat,off"}), "city=off");
+    EXPECT_FALSE(std::filesystem::exists(s.dir / "x.png"));
 }
 
 TEST(CityCliTest, RoofsComeFromTheImageryOfTheSeason) {
