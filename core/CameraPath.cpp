@@ -1,5 +1,6 @@
 #include "CameraPath.h"
 
+#include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -12,17 +13,46 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-glm::dvec3 catmullRom(const glm::dvec3& p0, const glm::dvec3& p1, const glm::dvec3& p2, const glm::dvec3& p3, double t) {
-    const double t2 = t * t, t3 = t2 * t;
-    return 0.5 * ((2.0 * p1) + (-p0 + p2) * t + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * t2 +
-                  (-p0 + 3.0 * p1 - 3.0 * p2 + p3) * t3);
+// Keyframe curves are cubic Hermite splines in time: each key is hit exactly, and the velocity is continuous at the
+// keys whatever their spacing in time (C1). Positions take Catmull-Rom tangents measured in time; heights, angles
+// and the field of view take monotone (Fritsch-Carlson / PCHIP) tangents, so they never leave the range of the
+// keys around them: a camera held at +2 m between keys stays there, a heading held between two keys does not wobble.
+double hermite(double a, double b, double ma, double mb, double h, double s) {
+    const double s2 = s * s, s3 = s2 * s;
+    return (2 * s3 - 3 * s2 + 1) * a + (s3 - 2 * s2 + s) * h * ma + (-2 * s3 + 3 * s2) * b + (s3 - s2) * h * mb;
 }
 
-double lerpAngle(double a, double b, double t) {
+/// The tangent (per unit time) at key k of n keys with times t(j) and values v(j).
+template <class T, class V>
+double tangent(const T& t, const V& v, std::size_t n, std::size_t k, bool monotone) {
+    if (n < 2) return 0.0;
+    auto slope = [&](std::size_t j) { return (v(j + 1) - v(j)) / (t(j + 1) - t(j)); }; // over [j, j+1]
+    if (n == 2) return slope(0);
+    if (k == 0 || k == n - 1) {
+        // One-sided three-point derivative (exact on quadratics, so a linear ramp stays linear to the end).
+        const bool first = k == 0;
+        const std::size_t j = first ? 0 : n - 2, j2 = first ? 1 : n - 3;
+        const double h0 = t(j + 1) - t(j), h1 = t(j2 + 1) - t(j2), d0 = slope(j), d1 = slope(j2);
+        double m = ((2 * h0 + h1) * d0 - h0 * d1) / (h0 + h1);
+        if (monotone) {
+            if (m * d0 <= 0.0) m = 0.0;
+            else if (d0 * d1 < 0.0 && std::fabs(m) > 3.0 * std::fabs(d0)) m = 3.0 * d0;
+        }
+        return m;
+    }
+    const double h0 = t(k) - t(k - 1), h1 = t(k + 1) - t(k), d0 = slope(k - 1), d1 = slope(k);
+    if (!monotone) return (v(k + 1) - v(k - 1)) / (h0 + h1);
+    if (d0 * d1 <= 0.0) return 0.0; // a turning point or a held value: flat there
+    const double w1 = 2 * h1 + h0, w2 = h1 + 2 * h0;
+    return (w1 + w2) / (w1 / d0 + w2 / d1);
+}
+
+/// Shortest-arc difference b - a in (-180, 180].
+double angleStep(double a, double b) {
     double d = std::fmod(b - a, 360.0);
     if (d > 180.0) d -= 360.0;
-    if (d < -180.0) d += 360.0;
-    return a + d * t;
+    if (d <= -180.0) d += 360.0;
+    return d;
 }
 
 // A splitmix64 stream: deterministic on every platform (std:: distributions are not).
@@ -72,12 +102,27 @@ Result<CameraPath> CameraPath::named(const std::string& name, const PathScene& s
                             -90.0 + 85.0 * f));
         }
     } else if (name == "fast") {
-        // Zig-zag at high speed with sudden 90° turns, low above the terrain: streaming stress.
+        // Zig-zag at high speed, low above the terrain, looking along each leg until the last tenth of it, where
+        // the view snaps round to the next leg's heading: streaming stress (the clipmaps' fine levels must follow
+        // a sudden turn). Keys at the start of a leg, at 90 % of it and at its end: constant speed along the legs.
         const double h = 0.03 * s;
         const glm::dvec2 pts[] = {{-0.8, -0.8}, {0.8, -0.8}, {0.8, -0.3}, {-0.8, -0.3}, {-0.8, 0.2},
                                   {0.8, 0.2},   {0.8, 0.7},  {-0.8, 0.7}};
-        const double yaws[] = {90, 0, 270, 0, 90, 0, 270, 270};
-        for (int i = 0; i < 8; ++i) k.push_back(key(i, c.x + pts[i].x * s, c.y + pts[i].y * s, h, yaws[i], -30.0));
+        const int legs = 7;
+        auto heading = [&](int i) { // compass heading of leg i (0 = north, 90 = east)
+            const glm::dvec2 d = pts[i + 1] - pts[i];
+            return std::fmod(std::atan2(d.x, d.y) * 180.0 / kPi + 360.0, 360.0);
+        };
+        double t = 0.0;
+        for (int i = 0; i < legs; ++i) {
+            const double len = glm::length(pts[i + 1] - pts[i]) / 1.6; // legs of 1.6 s take 1 time unit
+            const glm::dvec2 a = c + pts[i] * s, b = c + pts[i + 1] * s, late = a + 0.9 * (b - a);
+            k.push_back(key(t, a.x, a.y, h, heading(i), -30.0));
+            k.push_back(key(t + 0.9 * len, late.x, late.y, h, heading(i), -30.0));
+            t += len;
+        }
+        const glm::dvec2 end = c + pts[legs] * s;
+        k.push_back(key(t, end.x, end.y, h, heading(legs - 1), -30.0)); // the path ends looking along its last leg
     } else if (name == "random") {
         Rng rng{seed * 0x2545F4914F6CDD1Dull + 1};
         double yaw = rng.next() * 360.0;
@@ -144,20 +189,34 @@ Result<CameraPath> CameraPath::fromJson(const std::filesystem::path& file) {
 Camera CameraPath::at(double u, const std::function<double(double, double)>& terrainHeight) const {
     const double t0 = m_keys.front().time, t1 = m_keys.back().time;
     const double t = t0 + std::clamp(u, 0.0, 1.0) * (t1 - t0);
-    size_t i = 0;
-    while (i + 2 < m_keys.size() && m_keys[i + 1].time <= t) ++i;
-    const CameraKeyframe& a = m_keys[i];
-    const CameraKeyframe& b = m_keys[i + 1];
-    const double f = std::clamp((t - a.time) / (b.time - a.time), 0.0, 1.0);
-    const CameraKeyframe& p = m_keys[i == 0 ? 0 : i - 1];
-    const CameraKeyframe& q = m_keys[std::min(i + 2, m_keys.size() - 1)];
+    const std::size_t n = m_keys.size();
+    std::size_t i = 0;
+    while (i + 2 < n && m_keys[i + 1].time <= t) ++i;
+    const double h = m_keys[i + 1].time - m_keys[i].time;
+    const double f = std::clamp((t - m_keys[i].time) / h, 0.0, 1.0);
+    const auto time = [&](std::size_t j) { return m_keys[j].time; };
+    // One channel: Hermite between keys i and i+1 with the tangents their neighbours give.
+    const auto curve = [&](const auto& v, bool monotone) {
+        return hermite(v(i), v(i + 1), tangent(time, v, n, i, monotone), tangent(time, v, n, i + 1, monotone), h, f);
+    };
     Camera c;
-    // Terrain-relative heights interpolate as heights, then sit on the terrain under the interpolated point.
-    c.position = catmullRom(p.position, a.position, b.position, q.position, f);
-    if (a.heightAboveTerrain && terrainHeight) c.position.z += terrainHeight(c.position.x, c.position.y);
-    c.yawDeg = std::fmod(lerpAngle(a.yawDeg, b.yawDeg, f) + 360.0, 360.0);
-    c.pitchDeg = std::clamp(a.pitchDeg + (b.pitchDeg - a.pitchDeg) * f, -90.0, 90.0);
-    c.fovYDeg = a.fovYDeg + (b.fovYDeg - a.fovYDeg) * f;
+    c.position.x = curve([&](std::size_t j) { return m_keys[j].position.x; }, false);
+    c.position.y = curve([&](std::size_t j) { return m_keys[j].position.y; }, false);
+    // Heights: every key's height as it would be here ("+H" keys sit on the terrain under the interpolated point),
+    // so a key is met exactly whichever kind its neighbours are, and a run of "+H" keys follows the terrain.
+    const double ground = terrainHeight ? terrainHeight(c.position.x, c.position.y) : 0.0;
+    c.position.z = curve([&](std::size_t j) { return m_keys[j].position.z + (m_keys[j].heightAboveTerrain ? ground : 0.0); },
+                         true);
+    // Headings unwrapped along the shortest arc from key to key, from key i's value.
+    const auto yaw = [&](std::size_t j) {
+        double y = m_keys[i].yawDeg;
+        for (std::size_t q = i; q < j; ++q) y += angleStep(m_keys[q].yawDeg, m_keys[q + 1].yawDeg);
+        for (std::size_t q = i; q > j; --q) y -= angleStep(m_keys[q - 1].yawDeg, m_keys[q].yawDeg);
+        return y;
+    };
+    c.yawDeg = std::fmod(std::fmod(curve(yaw, true), 360.0) + 360.0, 360.0);
+    c.pitchDeg = std::clamp(curve([&](std::size_t j) { return m_keys[j].pitchDeg; }, true), -90.0, 90.0);
+    c.fovYDeg = std::clamp(curve([&](std::size_t j) { return m_keys[j].fovYDeg; }, true), 1.0, 179.0);
     return c;
 }
 

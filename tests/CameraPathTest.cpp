@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 
+#include <array>
 #include <fstream>
 
 using namespace seasonview;
@@ -48,6 +49,79 @@ TEST(CameraPathTest, FlyoverIsStraightAt45Degrees) {
     EXPECT_LT(m.position.y, b.position.y);
 }
 
+// Between unevenly timed keys the camera's velocity and turn rates do not jump at the keys (C1 in time), heights
+// and angles stay within the keys around them (a camera held 2 m above the ground does not dip into it), and a
+// held heading does not wobble.
+TEST(CameraPathTest, KeyframePathsAreSmoothAtTheKeys) {
+    TempDir dir("camera-path-smooth");
+    std::ofstream(dir / "p.json") << R"([{"time": 0, "x": 0, "y": 0, "z": "+2", "yaw": 0, "pitch": -10},
+        {"time": 1, "x": 100, "y": 0, "z": "+2", "yaw": 90, "pitch": -40, "fov": 50},
+        {"time": 10, "x": 200, "y": 300, "z": "+50", "yaw": 90, "pitch": -20},
+        {"time": 11, "x": 180, "y": 400, "z": 400, "yaw": 200, "pitch": -80}])";
+    auto p = CameraPath::fromJson(dir / "p.json");
+    ASSERT_TRUE(p.ok()) << p.message();
+    const auto ground = [](double x, double y) { return 20.0 + 0.05 * x + 0.02 * y; };
+    const double T = 11.0, e = 1e-7;
+    auto rates = [&](double u0, double u1) {
+        const Camera a = p->at(u0, ground), b = p->at(u1, ground);
+        double dyaw = b.yawDeg - a.yawDeg;
+        if (dyaw > 180) dyaw -= 360;
+        if (dyaw < -180) dyaw += 360;
+        const double dt = (u1 - u0) * T;
+        return std::array<double, 5>{(b.position.x - a.position.x) / dt, (b.position.y - a.position.y) / dt,
+                                     (b.position.z - a.position.z) / dt, dyaw / dt, (b.pitchDeg - a.pitchDeg) / dt};
+    };
+    for (const double tk : {1.0, 10.0}) {
+        const double u = tk / T;
+        const auto left = rates(u - e, u), right = rates(u, u + e);
+        for (std::size_t c = 0; c < 5; ++c)
+            EXPECT_NEAR(left[c], right[c], 1e-3 * std::max(1.0, std::fabs(left[c]))) << "key at t=" << tk << " channel " << c;
+    }
+    // Monotone heights and angles: +2 m held over the first segment, the heading held at 90° over the long one.
+    for (int i = 0; i <= 1000; ++i) {
+        const double u = i / 1000.0;
+        const Camera c = p->at(u, ground);
+        const double above = c.position.z - ground(c.position.x, c.position.y);
+        if (u * T <= 1.0) {
+            EXPECT_NEAR(above, 2.0, 1e-9) << u;
+        }
+        if (u * T >= 1.0 && u * T <= 10.0) {
+            EXPECT_NEAR(c.yawDeg, 90.0, 1e-9) << u;
+            EXPECT_GE(above, 2.0 - 1e-9) << u;
+            EXPECT_LE(above, 50.0 + 1e-9) << u;
+        }
+        EXPECT_GE(c.pitchDeg, -80.0 - 1e-9);
+        EXPECT_LE(c.pitchDeg, -10.0 + 1e-9);
+        EXPECT_GE(c.fovYDeg, 50.0 - 1e-9);
+        EXPECT_LE(c.fovYDeg, 60.0 + 1e-9);
+    }
+}
+
+// `fast`: high speed with sudden turns: the heading is held along each leg and snaps round at its end.
+TEST(CameraPathTest, FastTurnsSuddenly) {
+    const PathScene s = scene();
+    auto p = CameraPath::named("fast", s);
+    ASSERT_TRUE(p.ok());
+    const int frames = 300;
+    double maxStep = 0.0, minSpeed = 1e9, maxSpeed = 0.0;
+    Camera prev = p->at(0.0, s.terrainHeight);
+    EXPECT_NEAR(prev.yawDeg, 90.0, 1e-9) << "first leg: east";
+    for (int i = 1; i < frames; ++i) {
+        const Camera c = p->at(i / double(frames - 1), s.terrainHeight);
+        double d = std::fabs(c.yawDeg - prev.yawDeg);
+        maxStep = std::max(maxStep, std::min(d, 360.0 - d));
+        const double v = glm::length(glm::dvec2(c.position) - glm::dvec2(prev.position));
+        minSpeed = std::min(minSpeed, v);
+        maxSpeed = std::max(maxSpeed, v);
+        prev = c;
+    }
+    EXPECT_GE(maxStep, 20.0) << "a 90° turn within a few frames";
+    // 7.9 half-widths of 1000 m in all: never slower than 60 % of the mean speed, through the turns too.
+    EXPECT_GT(minSpeed, 0.6 * 7900.0 / (frames - 1)) << maxSpeed;
+    // Mid-leg the heading is the leg's own (legs: east, north, west, north, east, north, west).
+    EXPECT_NEAR(p->at(0.1, s.terrainHeight).yawDeg, 90.0, 1e-9);
+}
+
 TEST(CameraPathTest, RandomIsSeeded) {
     const PathScene s = scene();
     const Camera a = CameraPath::named("random", s, 3)->at(0.37, s.terrainHeight);
@@ -69,6 +143,22 @@ TEST(CameraPathTest, KeyframesInterpolateThroughTheKeys) {
     EXPECT_NEAR(k1.position.x, 100.0, 1e-9);
     EXPECT_NEAR(k1.position.z, 70.0, 1e-9); // +50 above terrain at 20 m
     EXPECT_NEAR(k1.yawDeg, 10.0, 1e-9);
+    // Every key is met exactly, in every channel, whatever kind of height its neighbours have (on a slope).
+    const auto slope = [](double x, double y) { return 20.0 + 0.3 * x - 0.1 * y; };
+    const struct {
+        double u, x, y, z, yaw, pitch, fov;
+    } keys[] = {{0.0, 0, 0, 500, 350, -30, 60},
+                {1.0 / 3.0, 100, 0, 50 + slope(100, 0), 10, -60, 40},
+                {1.0, 100, 200, 500, 90, -60, 60}};
+    for (const auto& k : keys) {
+        const Camera c = p->at(k.u, slope);
+        EXPECT_NEAR(c.position.x, k.x, 1e-9) << k.u;
+        EXPECT_NEAR(c.position.y, k.y, 1e-9) << k.u;
+        EXPECT_NEAR(c.position.z, k.z, 1e-9) << k.u;
+        EXPECT_NEAR(c.yawDeg, k.yaw, 1e-9) << k.u;
+        EXPECT_NEAR(c.pitchDeg, k.pitch, 1e-9) << k.u;
+        EXPECT_NEAR(c.fovYDeg, k.fov, 1e-9) << k.u;
+    }
     const Camera half = p->at(1.0 / 6.0, flat);
     EXPECT_TRUE(half.yawDeg > 350.0 || half.yawDeg < 10.0) << "shortest arc across north: " << half.yawDeg;
     struct Bad {
