@@ -40,6 +40,9 @@ struct FrameRow {
     int drawCalls = 1;
     std::int64_t triangles = 0, texelsUploaded = 0, exposedTexels = 0, residentBytes = 0, loaderCacheBytes = 0,
                  rssBytes = 0, heapInUseBytes = 0, heapMappedBytes = 0;
+    // The terrain's elevation clipmap (terrain/GeometryClipmapGL): its own uploads and texture memory. Its loader's
+    // cache is in loaderCacheBytes with the imagery's.
+    std::int64_t elevationTexelsUploaded = 0, elevationResidentBytes = 0;
     int blocksMissing = 0;
     int canopyBlocksDerived = 0; // canopy view: blocks the segmentation rule ran on this frame
     int trunkSearches = 0;       // canopy view with trunks: 1 when the crown centres were searched this frame
@@ -68,6 +71,9 @@ struct Mode {
     std::unique_ptr<ClipmapTerrainRendererGL> clipRenderer;
     std::unique_ptr<ReferenceRendererGL> reference;
     std::vector<FrameRow> rows;
+    // The clipmaps' own running totals of texels uploaded when the first recorded frame began (summary.json's
+    // totals: what they reported over the recorded frames, against the sum of frames.csv's per-frame figures).
+    std::int64_t clipmapTotalAtStart = 0, elevationTotalAtStart = 0;
 };
 
 std::int64_t residentSetBytes() {
@@ -440,14 +446,19 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         FrameRow row;
         row.frame = frame;
         row.camera = cam;
+        if (record && m.rows.empty() && m.clipmap) {
+            m.clipmapTotalAtStart = m.clipmap->totalTexelsUploaded();
+            m.elevationTotalAtStart = m.clipRenderer->geometry().totalTexelsUploaded();
+        }
         const auto t0 = clock::now();
-        ClipmapFrameStats cs;
+        // GPU time from here: the frame's texture uploads are part of it.
+        glBeginQuery(GL_TIME_ELAPSED, timer.id());
+        ClipmapFrameStats cs, es;
         if (m.clipmap) {
             const ClipmapGeometry g = clipmapGeometry(*scene, m.clipmap->schedule().layout());
             cs = m.clipmap->update(clipmapCentres(*scene, cam, w, h, m.centers, g));
-            m.clipRenderer->updateGeometry(cam, h);
+            es = m.clipRenderer->updateGeometry(cam, h);
         }
-        glBeginQuery(GL_TIME_ELAPSED, timer.id());
         if (m.canopy) {
             // Upload-time derivation: only blocks newly resident; per-frame: everything resident, every frame.
             CanopyFrameStats derived;
@@ -515,7 +526,10 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         row.exposedTexels = cs.exposedTexels;
         row.blocksMissing = cs.blocksMissing;
         row.residentBytes = (m.clipmap ? m.clipmap->residentBytes() : 0) + (m.canopy ? m.canopy->residentBytes() : 0);
-        row.loaderCacheBytes = m.clipmap ? m.clipmap->loaderCacheBytes() : 0;
+        row.loaderCacheBytes =
+            m.clipmap ? m.clipmap->loaderCacheBytes() + m.clipRenderer->geometry().loaderCacheBytes() : 0;
+        row.elevationTexelsUploaded = es.texelsUploaded;
+        row.elevationResidentBytes = m.clipRenderer ? m.clipRenderer->geometry().residentBytes() : 0;
         row.rssBytes = residentSetBytes();
         heapBytes(row.heapInUseBytes, row.heapMappedBytes);
         if (m.clipmap && a->coverageEvery > 0 && frame % a->coverageEvery == 0)
@@ -551,13 +565,14 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
            "blocks_missing,resident_texture_bytes,loader_cache_bytes,rss_bytes,coverage,city_atlas_nodes,"
            "city_texture_binds,city_draw_calls,city_triangles,city_blocks_resident,city_resident_bytes,"
            "city_loader_queue,city_coarser_than_wanted,heap_in_use_bytes,heap_mapped_bytes,canopy_blocks_derived,"
-           "trunk_searches,city_cpu_ms,city_occluded_nodes,city_occlusion_queries,city_occlusion_waits\n";
+           "trunk_searches,city_cpu_ms,city_occluded_nodes,city_occlusion_queries,city_occlusion_waits,"
+           "elevation_texels_uploaded,elevation_resident_bytes\n";
     for (const Mode& m : *modes)
         for (const FrameRow& r : m.rows) {
             char line[512];
             std::snprintf(line, sizeof line,
                           "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s,"
-                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f,%d,%d,%d\n",
+                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f,%d,%d,%d,%lld,%lld\n",
                           m.label.c_str(), r.frame, r.camera.position.x, r.camera.position.y, r.camera.position.z,
                           r.camera.yawDeg, r.camera.pitchDeg, r.cpuMs, r.gpuMs, r.frameMs, r.drawCalls,
                           (long long)r.triangles, (long long)r.texelsUploaded, (long long)r.exposedTexels,
@@ -567,7 +582,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                           r.city.blocksResident, (unsigned long long)r.city.residentBytes, r.city.loaderQueue,
                           r.city.coarserThanWanted, (long long)r.heapInUseBytes, (long long)r.heapMappedBytes,
                           r.canopyBlocksDerived, r.trunkSearches, r.cityCpuMs, r.city.occludedNodes,
-                          r.city.occlusionQueries, r.city.occlusionWaits);
+                          r.city.occlusionQueries, r.city.occlusionWaits, (long long)r.elevationTexelsUploaded,
+                          (long long)r.elevationResidentBytes);
             csv << line;
         }
     std::string err;
@@ -604,6 +620,14 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
           {"city_upload", a->cityUpload},
           {"city_occlusion", a->cityOcclusion},
           {"terrain", a->terrain},
+          {"renderer", a->renderer},
+          {"centers", a->centers},
+          {"seed", a->seed},
+          {"compare", a->compare},
+          {"city", a->city},
+          {"city_tree", a->cityTree},
+          {"city_capacity_mb", a->cityCapacityMb},
+          {"city_tpp", a->cityTpp},
           {"tree_height_m", scene->sources.treeHeightM}}},
         {"wall_seconds", seconds}};
     nlohmann::json compare = nlohmann::json::array();
@@ -622,9 +646,16 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                   "ratio", "coverage", "upload/min");
     result.table = line;
     for (const Mode& m : *modes) {
-        std::vector<double> cpu, gpu, frame, texels, cov, rss, resident;
-        std::int64_t uploaded = 0, exposed = 0;
+        std::vector<double> cpu, gpu, frame, texels, cov, rss, resident, drawCalls, triangles, loaderCache, elevTexels,
+            elevResident;
+        std::int64_t uploaded = 0, exposed = 0, elevUploaded = 0;
         for (const FrameRow& r : m.rows) {
+            drawCalls.push_back(double(r.drawCalls));
+            triangles.push_back(double(r.triangles));
+            loaderCache.push_back(double(r.loaderCacheBytes));
+            elevTexels.push_back(double(r.elevationTexelsUploaded));
+            elevResident.push_back(double(r.elevationResidentBytes));
+            elevUploaded += r.elevationTexelsUploaded;
             cpu.push_back(r.cpuMs);
             gpu.push_back(r.gpuMs);
             frame.push_back(r.frameMs);
@@ -658,6 +689,11 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                                      {"cpu_ms", figure(cpu)},
                                      {"gpu_ms", figure(gpu)},
                                      {"texels_uploaded", figure(texels)},
+                                     {"draw_calls", figure(drawCalls)},
+                                     {"triangles", figure(triangles)},
+                                     {"loader_cache_bytes", figure(loaderCache)},
+                                     {"elevation_texels_uploaded", figure(elevTexels)},
+                                     {"elevation_resident_bytes", figure(elevResident)},
                                      {"coverage", figure(cov)},
                                      {"coverage_mean", num(covMean)},
                                      {"rss_bytes", figure(rss)},
@@ -676,6 +712,15 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                                        {"exposed_texels_per_layer", exposed},
                                        {"upload_over_geometric_minimum", num(uploadRatio)},
                                        {"triangles_per_frame", m.rows.front().triangles},
+                                       // The clipmaps' own accounting over the recorded frames (the sums of
+                                       // frames.csv's columns must equal these).
+                                       {"clipmap_reported_texels_uploaded",
+                                        m.clipmap ? m.clipmap->totalTexelsUploaded() - m.clipmapTotalAtStart : 0},
+                                       {"elevation_texels_uploaded", elevUploaded},
+                                       {"elevation_reported_texels_uploaded",
+                                        m.clipRenderer ? m.clipRenderer->geometry().totalTexelsUploaded() -
+                                                             m.elevationTotalAtStart
+                                                       : 0},
                                        {"canopy_blocks_derived", canopyBlocks},
                                        {"trunk_searches", trunkSearches}}}};
         compare.push_back({{"mode", m.label},

@@ -1,7 +1,8 @@
 #pragma once
 // Camera paths for benchmarks and fly-throughs (plain C++): JSON keyframes or built-in named paths, defined in
-// scene-relative units so they work on any scene. Positions interpolate with Catmull-Rom splines, headings along
-// the shortest arc.
+// scene-relative units so they work on any scene. Every channel is a cubic Hermite spline in time through the keys
+// (C1 however unevenly the keys are timed): x and y with Catmull-Rom tangents, heights, pitch, fov and headings
+// (along the shortest arc) with monotone tangents, so they stay within the keys around them.
 #include "Camera.h"
 #include "Result.h"
 
@@ -31,7 +32,8 @@ struct PathScene {
 class CameraPath {
 public:
     /// Named paths: flyover (straight across, 45° down), orbit (around the centre), dive (straight down from high
-    /// to near-horizontal low), fast (streaming stress: high speed, sudden 90° turns), random (seeded soak).
+    /// to near-horizontal low), fast (streaming stress: high speed, the view snapping 90° round in the last tenth of
+    /// each leg), random (seeded soak).
     static Result<CameraPath> named(const std::string& name, const PathScene& scene, std::uint64_t seed = 1);
     /// Keyframes from a JSON file: [{"time", "x", "y", "z" (number, or "+H" above the terrain), "yaw", "pitch",
     /// "fov"?}, ...] with at least two keyframes and increasing times.

@@ -98,6 +98,7 @@ public:
     const ElevationGrid& grid() const { return m_grid; }
     std::int64_t residentBytes() const { return m_elevation ? m_elevation->residentBytes() : 0; }
     std::int64_t totalTexelsUploaded() const { return m_elevation ? m_elevation->totalTexelsUploaded() : 0; }
+    std::int64_t loaderCacheBytes() const { return m_elevation ? m_elevation->loaderCacheBytes() : 0; }
 
 private:
     struct Mesh {

@@ -79,14 +79,15 @@ TEST(BenchCli, CanopyCompareAddsLayersAndTrunks) {
         };
         const int mode = column("mode"), tri = column("triangles"), draws = column("draw_calls"),
                   up = column("texels_uploaded"), derivedColumn = column("canopy_blocks_derived"),
-                  searchColumn = column("trunk_searches");
+                  searchColumn = column("trunk_searches"), elevColumn = column("elevation_texels_uploaded");
+        ASSERT_GE(elevColumn, 0);
         ASSERT_GE(derivedColumn, 0);
         ASSERT_GE(searchColumn, 0);
         std::map<std::string, std::int64_t> derived, searches;
         std::map<std::string, std::vector<std::int64_t>> derivedPerFrame;
         ASSERT_GE(mode, 0);
         std::map<std::string, std::vector<std::int64_t>> triangles, drawCalls;
-        std::map<std::string, std::int64_t> uploaded;
+        std::map<std::string, std::int64_t> uploaded, elevationUploaded;
         for (std::string line; std::getline(csv, line);) {
             std::vector<std::string> cells;
             std::stringstream l(line);
@@ -94,6 +95,7 @@ TEST(BenchCli, CanopyCompareAddsLayersAndTrunks) {
             triangles[cells[size_t(mode)]].push_back(std::stoll(cells[size_t(tri)]));
             drawCalls[cells[size_t(mode)]].push_back(std::stoll(cells[size_t(draws)]));
             uploaded[cells[size_t(mode)]] += std::stoll(cells[size_t(up)]);
+            elevationUploaded[cells[size_t(mode)]] += std::stoll(cells[size_t(elevColumn)]);
             derived[cells[size_t(mode)]] += std::stoll(cells[size_t(derivedColumn)]);
             derivedPerFrame[cells[size_t(mode)]].push_back(std::stoll(cells[size_t(derivedColumn)]));
             searches[cells[size_t(mode)]] += std::stoll(cells[size_t(searchColumn)]);
@@ -111,8 +113,19 @@ TEST(BenchCli, CanopyCompareAddsLayersAndTrunks) {
         EXPECT_EQ(summary["settings"]["trunks"], "on");
         EXPECT_EQ(summary["settings"]["canopy_layers"], "16");
         EXPECT_EQ(summary["settings"]["ground_under_canopy"], "leafoff");
+        EXPECT_EQ(summary["settings"]["compare"], compare);
+        EXPECT_EQ(summary["settings"]["centers"], "footprint");
+        EXPECT_EQ(summary["settings"]["renderer"], "clipmap");
+        EXPECT_EQ(summary["settings"]["seed"], 1);
         for (const char* m : {without, with}) {
-            EXPECT_EQ(summary["modes"][m]["totals"]["texels_uploaded"].get<std::int64_t>(), uploaded[m]) << m;
+            // Counters add up: the per-frame uploads sum to what the clipmaps themselves counted over those frames.
+            const auto& totals = summary["modes"][m]["totals"];
+            EXPECT_EQ(totals["texels_uploaded"].get<std::int64_t>(), uploaded[m]) << m;
+            EXPECT_EQ(totals["clipmap_reported_texels_uploaded"].get<std::int64_t>(), uploaded[m]) << m;
+            EXPECT_EQ(totals["elevation_reported_texels_uploaded"].get<std::int64_t>(), elevationUploaded[m]) << m;
+            EXPECT_GT(uploaded[m], 0) << m;
+            for (const char* fig : {"draw_calls", "triangles", "loader_cache_bytes", "elevation_resident_bytes"})
+                EXPECT_GT(summary["modes"][m][fig]["max"].get<double>(), 0.0) << m << " " << fig;
             EXPECT_EQ(summary["modes"][m]["totals"]["canopy_blocks_derived"].get<std::int64_t>(), derived[m]) << m;
             EXPECT_EQ(summary["modes"][m]["totals"]["trunk_searches"].get<std::int64_t>(), searches[m]) << m;
         }
