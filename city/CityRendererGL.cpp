@@ -259,6 +259,22 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
             ps.capacityBytes = f.trees.size() == 1 ? settings.capacityBytes
                                                    : std::max<std::uint64_t>(settings.capacityBytes * share[t] / total, 1);
             r->m_pagers.push_back(std::make_unique<AtlasPager>(r->m_file, int(t), ps));
+            // Every frame draws at least the root's atlas (the coarsest, never a missing texture): a capacity that
+            // cannot hold it would leave the whole tree undrawn.
+            const auto& nodes = f.trees[t].nodes;
+            if (!nodes.empty() && nodes[0].atlasBytes > 0) {
+                const std::uint64_t root = r->m_pagers.back()->blockBytes({BlockKey::Kind::Atlas, 0});
+                if (root > ps.capacityBytes) {
+                    char msg[256];
+                    std::snprintf(msg, sizeof msg,
+                                  ": the city capacity (%.1f MB for this tree) cannot hold its root atlas (%.1f MB%s): "
+                                  "raise --city-capacity to at least %.0f MB",
+                                  double(ps.capacityBytes) / 1e6, double(root) / 1e6,
+                                  ps.decodedAtlases ? ", decoded" : "",
+                                  std::ceil(double(root) * double(total) / double(share[t]) / 1e6));
+                    return Error{treePath + (f.trees[t].alpha ? " (RGBA tree)" : " (RGB tree)") + msg};
+                }
+            }
         }
     } else if (settings.mode == CityMode::Original && !f.trees.empty()) {
         ps.capacityBytes = settings.capacityBytes;

@@ -335,6 +335,16 @@ TEST(CityCliTest, BadInput) {
     }
     fails(s.render("x.png", {"--city", "atlas", "--city-tree", (s.dir / "bad.svat").string()}), "bad.svat");
     fails(s.render("x.png", {"--city", "sideways"}), "--city");
+    {
+        // A capacity below the root atlas would leave the city undrawn: refused, naming the tree and the size.
+        const auto big = (s.dir / "big.svat").string();
+        ASSERT_EQ(runCli({"atlas", "build", (s.dir / "s/city/city.obj").string(), "--obj-local", "--out", big,
+                          "--atlas-size", "1024"})
+                      .exitCode,
+                  0);
+        fails(s.render("x.png", {"--city", "atlas", "--city-tree", big, "--city-capacity", "1", "--city-upload", "decoded"}),
+              "big.svat (RGB tree): the city capacity (1.0 MB for this tree) cannot hold its root atlas (4.2 MB, decoded): raise --city-capacity to at least 5 MB");
+    }
     EXPECT_FALSE(std::filesystem::exists(s.dir / "x.png"));
     EXPECT_FALSE(std::filesystem::exists(s.dir / "x.svat"));
 }
