@@ -58,7 +58,9 @@ double AtlasTraversal::minDistance(std::uint32_t node, const AtlasView& view) co
     // minDistance ∝ f_proj ∝ w / tan(fov/2) (§4.5.2): the same texel covers more pixels on a wider screen.
     const double scale = (double(view.screenWidth) / double(m_info.screenWidth)) *
                          (std::tan(m_info.fovXDeg * M_PI / 360.0) / std::tan(view.fovXDeg * M_PI / 360.0));
-    return double(m_tree.nodes[node].minDistance) * scale / std::max(view.tpp, 1e-6);
+    // A tree built for τ_b sized its texels to cover τ_b pixels at a node's minDistance: τ pixels per texel are
+    // reached at minDistance · τ_b / τ.
+    return double(m_tree.nodes[node].minDistance) * scale * std::max(m_info.tpp, 1e-6) / std::max(view.tpp, 1e-6);
 }
 
 double AtlasTraversal::distance(std::uint32_t node, const AtlasView& view) const {

@@ -77,7 +77,7 @@ struct AtlasTreeInfo {
     int atlasSize = 512;          // A
     int border = 8;               // b, texels
     double dmin = 0.0;            // metres (after the critical-triangle adjustment)
-    double tpp = 1.0;             // τ the tree was built for (minDistances are for τ = 1 scaled by 1/tpp)
+    double tpp = 1.0;             // τ the tree was built for: at a node's minDistance a texel covers τ pixels
     int screenWidth = 1920;       // pixels the minDistances assume
     double fovXDeg = 90.0;        // horizontal field of view the minDistances assume
     AtlasFormat format = AtlasFormat::Bc;

@@ -594,6 +594,40 @@ TEST(AtlasPagingTest, CategoriesOnAHandMadeTree) {
     EXPECT_EQ(c.at({atlas, 1}), BlockCategory::Needed);
 }
 
+// Pixels per texel (§4.5.2): a node's atlas serves from its minDistance · τ_build / τ on, τ_build the tree's
+// (`atlas build --tpp`, its texels sized to cover τ_build pixels at minDistance) and τ the view's (`--city-tpp`).
+TEST(AtlasPagingTest, PixelsPerTexelOfTheBuildAndOfTheView) {
+    const AtlasTreeData t = handTree();
+    Camera far;
+    far.position = {200.0, -2000.0, 300.0};
+    far.pitchDeg = -8.0;
+    for (const double built : {1.0, 2.0, 0.5}) {
+        AtlasTreeInfo info;
+        info.dmin = 10.0;
+        info.tpp = built;
+        const AtlasTraversal trav(t, info);
+        for (const double tpp : {1.0, 2.0, 0.25}) {
+            AtlasView v = viewOf(far);
+            v.tpp = tpp;
+            for (std::uint32_t n = 0; n < t.nodes.size(); ++n)
+                EXPECT_NEAR(trav.minDistance(n, v), double(t.nodes[n].minDistance) * built / tpp, 1e-9)
+                    << "node " << n << " built for " << built << " viewed at " << tpp;
+        }
+    }
+    // The same view asks for finer atlases when fewer pixels per texel are allowed, or when the tree's texels were
+    // sized coarser.
+    AtlasTreeInfo info;
+    info.dmin = 10.0;
+    const AtlasTraversal plain(t, info);
+    info.tpp = 1000.0;
+    const AtlasTraversal coarse(t, info);
+    AtlasView v = viewOf(far);
+    EXPECT_EQ(categories(plain.requests(v)).at({int(BlockKey::Kind::Atlas), 1}), BlockCategory::ParentNeeded);
+    EXPECT_EQ(categories(coarse.requests(v)).at({int(BlockKey::Kind::Atlas), 1}), BlockCategory::Needed);
+    v.tpp = 0.001;
+    EXPECT_EQ(categories(plain.requests(v)).at({int(BlockKey::Kind::Atlas), 1}), BlockCategory::Needed);
+}
+
 // Occlusion (CityRendererGL's queries, here a hand-made answer): the traversal descends only into nodes known
 // visible, lists the rest of what is in view as deferred, draws a deferred node's subtree on demand with the nearest
 // resident atlas, and pages hidden nodes as Culled.
