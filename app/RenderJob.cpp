@@ -468,7 +468,9 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
                              {"draw_calls", cityStats->drawCalls},
                              {"texture_binds", cityStats->textureBinds},
                              {"triangles", cityStats->triangles},
-                             {"resident_bytes", cityStats->residentBytes}};
+                             {"resident_bytes", cityStats->residentBytes},
+                             {"blocks_resident", cityStats->blocksResident},
+                             {"loader_queue", cityStats->loaderQueue}};
             std::string err;
             if (!writeTextAtomic(s.statsOut, j.dump(2) + "\n", err)) return fileError(s.statsOut.string(), err);
             if (auto st = checkGl(s.statsOut); !st) return st.error();

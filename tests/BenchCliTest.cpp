@@ -7,6 +7,7 @@
 #include <fstream>
 #include <tuple>
 #include <map>
+#include <set>
 #include <sstream>
 #include <vector>
 
@@ -41,6 +42,15 @@ TEST(BenchCli, CompareWritesFramesSummaryCompareAndPlot) {
     const auto compare = nlohmann::json::parse(cj);
     ASSERT_EQ(compare.size(), 3u);
     EXPECT_DOUBLE_EQ(compare[0]["ratio_to_first"].get<double>(), 1.0);
+    // The plot is a real PNG with the curves drawn (not one flat colour).
+    auto plot = readImageU8(dir / "out/plot.png", 3);
+    ASSERT_TRUE(plot.ok()) << plot.message();
+    EXPECT_GE(plot->width, 600);
+    EXPECT_GE(plot->height, 300);
+    std::set<std::uint32_t> colours;
+    for (std::size_t i = 0; i + 2 < plot->pixels.size(); i += 3)
+        colours.insert(std::uint32_t(plot->pixels[i]) << 16 | std::uint32_t(plot->pixels[i + 1]) << 8 | plot->pixels[i + 2]);
+    EXPECT_GE(colours.size(), 4u) << "background, axes and one colour per mode";
 }
 
 // The canopy comparison (no canopy vs 16 layers with trunks) in one run: both modes draw, the canopy adds

@@ -142,6 +142,10 @@ TEST(CityCliTest, OcclusionCullingSkipsOnlyHiddenNodes) {
         EXPECT_EQ(on["occlusion"], true);
         EXPECT_GT(on["occlusion_queries"].get<int>(), 0) << camera;
         EXPECT_LE(on["atlas_nodes"].get<int>(), off["atlas_nodes"].get<int>()) << camera;
+        // Every atlas drawn is resident; a still waits for its blocks.
+        EXPECT_GE(on["blocks_resident"].get<int>(), on["atlas_nodes"].get<int>()) << camera;
+        EXPECT_GE(on["texture_binds"].get<int>(), 1) << camera;
+        EXPECT_EQ(on["loader_queue"].get<int>(), 0) << camera;
         const auto a = s.image("off.png"), b = s.image("on.png");
         EXPECT_TRUE(a.pixels == b.pixels) << camera << ": occlusion culling changed the picture";
         if (camera == "-60,-110,+2,10,2") {
