@@ -138,6 +138,21 @@ std::vector<std::uint8_t> facadeTexture(const Building& b, std::uint32_t label, 
     return toBytes(img);
 }
 
+Result<std::vector<std::filesystem::path>> facadePhotoPool(const std::filesystem::path& folder) {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(folder, ec)) return fileError(folder.string(), "not a folder of facade photos");
+    std::vector<std::filesystem::path> photos;
+    for (const auto& e : std::filesystem::directory_iterator(folder, ec)) {
+        std::string ext = e.path().extension().string();
+        std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+        if (ext == ".jpg" || ext == ".jpeg" || ext == ".png") photos.push_back(e.path());
+    }
+    if (ec) return fileError(folder.string(), "cannot list the folder: " + ec.message());
+    std::sort(photos.begin(), photos.end());
+    if (photos.empty()) return fileError(folder.string(), "no JPEG or PNG photos in the folder");
+    return photos;
+}
+
 Result<CityWriteReport> writeSynthCity(const std::filesystem::path& dir, const std::vector<Building>& buildings,
                                        const Warp& warp, float half,
                                        const std::function<float(float, float)>& groundAt,
@@ -147,18 +162,11 @@ Result<CityWriteReport> writeSynthCity(const std::filesystem::path& dir, const s
     std::filesystem::create_directories(dir / "facades", ec);
     if (ec) return fileError((dir / "facades").string(), "cannot create folder: " + ec.message());
 
-    // The photo pool, sorted by name so the choice per building is deterministic.
     std::vector<std::filesystem::path> photos;
     if (!options.facadePhotos.empty()) {
-        if (!std::filesystem::is_directory(options.facadePhotos, ec))
-            return fileError(options.facadePhotos.string(), "not a folder of facade photos");
-        for (const auto& e : std::filesystem::directory_iterator(options.facadePhotos, ec)) {
-            std::string ext = e.path().extension().string();
-            std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-            if (ext == ".jpg" || ext == ".jpeg" || ext == ".png") photos.push_back(e.path());
-        }
-        std::sort(photos.begin(), photos.end());
-        if (photos.empty()) return fileError(options.facadePhotos.string(), "no JPEG or PNG photos in the folder");
+        auto pool = facadePhotoPool(options.facadePhotos);
+        if (!pool) return pool.error();
+        photos = std::move(*pool);
     }
     report.photos = photos.size();
 

@@ -40,6 +40,10 @@ Result<CityWriteReport> writeSynthCity(const std::filesystem::path& dir, const s
                                        const std::function<float(float, float)>& groundAt,
                                        const CityWriteOptions& options);
 
+/// The JPEG/PNG photos in `folder`, sorted by name (so each building's choice is deterministic); an error when it is
+/// not a folder or holds none.
+Result<std::vector<std::filesystem::path>> facadePhotoPool(const std::filesystem::path& folder);
+
 /// A facade texture (RGB, size², rows top-down): the building's own procedural facade or photo, and its label.
 std::vector<std::uint8_t> facadeTexture(const Building& b, std::uint32_t label, int size,
                                         const std::vector<std::uint8_t>* photo = nullptr);

@@ -143,6 +143,8 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
                      std::to_string(std::lround(pixels)) + ")"};
     if (options.bandRows < 0)
         return Error{"synth: the band height must be a positive number of rows (or 0 for the default)"};
+    if (options.city && !options.facadePhotos.empty()) // checked before the scene is generated, not after
+        if (auto pool = synth::facadePhotoPool(options.facadePhotos); !pool) return pool.error();
     const int size = static_cast<int>(std::lround(pixels));
     const int threads = options.threads > 0 ? options.threads : std::max(1, int(std::thread::hardware_concurrency()));
     const double gsd = options.gsd, extent = double(size) * gsd;

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 using namespace seasonview;
@@ -298,6 +299,60 @@ TEST(CityCliTest, RoofsComeFromTheImageryOfTheSeason) {
     }
     EXPECT_GT(city, on.pixels.size() / 3 / 100);
     EXPECT_GT(differ, city / 10) << differ << " of " << city << " city pixels differ between the seasons";
+}
+
+// `synth --facades DIR`: every building's facade is cut from one of the folder's photos and made unique by its
+// label (thesis §4.7.1); a folder without photos is one clear error.
+TEST(CityCliTest, SynthFacadesFromAPhotoFolder) {
+    TempDir dir("city-photos");
+    std::filesystem::create_directories(dir / "photos");
+    const std::uint8_t colours[3][3] = {{210, 40, 40}, {40, 210, 40}, {40, 40, 210}};
+    for (int p = 0; p < 3; ++p) {
+        const int w = 80, h = 60;
+        std::vector<std::uint8_t> px(std::size_t(w * h * 3));
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x)
+                for (int c = 0; c < 3; ++c) // the photo's colour with darker window rows
+                    px[std::size_t((y * w + x) * 3 + c)] = std::uint8_t(colours[p][c] * ((y / 6) % 3 == 0 ? 0.8 : 1.0));
+        ASSERT_TRUE(writeImageAtomic(dir / "photos" / ("p" + std::to_string(p) + ".png"), px.data(), w, h, 3).ok());
+    }
+    const CliResult r = runCli({"synth", "--out", (dir / "s").string(), "--size-m", "512", "--gsd", "1",
+                                "--facade-size", "64", "--facades", (dir / "photos").string()});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::vector<std::filesystem::path> facades;
+    for (const auto& e : std::filesystem::directory_iterator(dir / "s/city/facades")) facades.push_back(e.path());
+    ASSERT_GE(facades.size(), 4u);
+    std::ifstream mtl(dir / "s/city/city.mtl");
+    std::size_t materials = 0;
+    for (std::string line; std::getline(mtl, line);)
+        if (line.rfind("map_Kd", 0) == 0) ++materials;
+    EXPECT_EQ(materials, facades.size()) << "one facade texture per textured material";
+    std::set<std::string> contents;
+    int used[3] = {0, 0, 0};
+    for (const auto& f : facades) {
+        auto img = readImageU8(f, 3);
+        ASSERT_TRUE(img.ok()) << img.message();
+        double mean[3] = {0, 0, 0};
+        for (std::size_t i = 0; i < img->pixels.size(); i += 3)
+            for (std::size_t c = 0; c < 3; ++c) mean[c] += img->pixels[i + c];
+        const std::size_t dominant = std::size_t(std::max_element(mean, mean + 3) - mean);
+        for (std::size_t c = 0; c < 3; ++c)
+            if (c != dominant) {
+                EXPECT_GT(mean[dominant], 2.0 * mean[c]) << f << ": not one of the photos";
+            }
+        ++used[dominant];
+        std::ifstream in(f, std::ios::binary);
+        contents.insert(std::string(std::istreambuf_iterator<char>(in), {}));
+    }
+    EXPECT_EQ(contents.size(), facades.size()) << "every building's facade differs (its label), even on one photo";
+    EXPECT_GE(int(used[0] > 0) + int(used[1] > 0) + int(used[2] > 0), 2) << "buildings draw from the whole pool";
+
+    std::filesystem::create_directories(dir / "empty");
+    const CliResult bad = runCli({"synth", "--out", (dir / "s2").string(), "--size-m", "256", "--gsd", "1",
+                                  "--facades", (dir / "empty").string()});
+    EXPECT_EQ(bad.exitCode, 1);
+    EXPECT_NE(bad.err.find("no JPEG or PNG photos"), std::string::npos) << bad.err;
+    EXPECT_FALSE(std::filesystem::exists(dir / "s2/scene.json"));
 }
 
 TEST(CityCliTest, AtlasBuildAndInfo) {
