@@ -11,6 +11,7 @@
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -118,6 +119,61 @@ TEST(CityModelTest, TexturedLod2BuildingInUtm) {
             EXPECT_NEAR(t.t[std::size_t(k)].y, (t.v[std::size_t(k)].z - 34.0) / 8.0, 1e-5);
         }
     }
+}
+
+// CityGML 1.0 with an LoD1 solid (no thematic surfaces): the box's six faces, walls told from roof and ground by
+// their normals, the textured one carrying its appearance.
+TEST(CityModelTest, CityGml1Lod1SolidWithAppearance) {
+    test::TempDir dir("city_gml1_lod1");
+    writePng(dir / "wall.png", 16, 16);
+    auto p = [](double x, double y, double h) {
+        return std::to_string(390000.0 + x) + " " + std::to_string(5819000.0 + y) + " " + std::to_string(34.0 + h) + " ";
+    };
+    auto ring = [&](std::initializer_list<std::array<double, 3>> pts) {
+        std::string s;
+        for (const auto& q : pts) s += p(q[0], q[1], q[2]);
+        return s + p(pts.begin()->at(0), pts.begin()->at(1), pts.begin()->at(2));
+    };
+    const std::string faces =
+        polygon("P1", ring({{0, 0, 0}, {10, 0, 0}, {10, 0, 8}, {0, 0, 8}})) +  // south wall (textured)
+        polygon("P2", ring({{10, 6, 0}, {0, 6, 0}, {0, 6, 8}, {10, 6, 8}})) +  // north wall
+        polygon("P3", ring({{0, 6, 0}, {0, 0, 0}, {0, 0, 8}, {0, 6, 8}})) +    // west wall
+        polygon("P4", ring({{10, 0, 0}, {10, 6, 0}, {10, 6, 8}, {10, 0, 8}})) + // east wall
+        polygon("P5", ring({{0, 0, 8}, {10, 0, 8}, {10, 6, 8}, {0, 6, 8}})) +  // roof
+        polygon("P6", ring({{0, 0, 0}, {0, 6, 0}, {10, 6, 0}, {10, 0, 0}}));   // ground
+    writeText(dir / "b.gml", R"(<?xml version="1.0" encoding="UTF-8"?>
+<CityModel xmlns="http://www.opengis.net/citygml/1.0" xmlns:gml="http://www.opengis.net/gml"
+ xmlns:bldg="http://www.opengis.net/citygml/building/1.0" xmlns:app="http://www.opengis.net/citygml/appearance/1.0">
+<gml:boundedBy><gml:Envelope srsName="EPSG:25833" srsDimension="3"><gml:lowerCorner>)" + p(0, 0, 0) +
+                                 "</gml:lowerCorner><gml:upperCorner>" + p(10, 6, 8) + R"(</gml:upperCorner></gml:Envelope></gml:boundedBy>
+<cityObjectMember><bldg:Building gml:id="B1"><bldg:measuredHeight>8</bldg:measuredHeight>
+<bldg:lod1Solid><gml:Solid><gml:exterior><gml:CompositeSurface>)" + faces +
+                                 R"(</gml:CompositeSurface></gml:exterior></gml:Solid></bldg:lod1Solid>
+<app:appearance><app:Appearance><app:theme>rgbTexture</app:theme><app:surfaceDataMember>
+<app:ParameterizedTexture><app:imageURI>wall.png</app:imageURI>
+<app:target uri="#P1"><app:TexCoordList><app:textureCoordinates ring="#P1_r">0 0 1 0 1 1 0 1 0 0</app:textureCoordinates>
+</app:TexCoordList></app:target></app:ParameterizedTexture></app:surfaceDataMember></app:Appearance></app:appearance>
+</bldg:Building></cityObjectMember></CityModel>
+)");
+    auto m = loadCityModel((dir / "b.gml").string());
+    ASSERT_TRUE(m) << m.error().message;
+    EXPECT_EQ(m->crs.epsg, 25833);
+    EXPECT_EQ(m->buildingIds, std::vector<std::string>{"B1"});
+    EXPECT_EQ(count(*m, Surface::Wall), 8u);
+    EXPECT_GE(count(*m, Surface::Roof), 2u);
+    ASSERT_EQ(m->textures.size(), 1u);
+    std::size_t textured = 0;
+    for (std::size_t i = 0; i < m->triangles.size(); ++i) {
+        const auto& t = m->triangles[i];
+        if (t.texture < 0) continue;
+        ++textured;
+        EXPECT_EQ(m->surface[i], Surface::Wall);
+        for (int k = 0; k < 3; ++k) {
+            EXPECT_NEAR(t.t[std::size_t(k)].x, (t.v[std::size_t(k)].x + 5.0) / 10.0, 1e-5); // u along east
+            EXPECT_NEAR(t.t[std::size_t(k)].y, (t.v[std::size_t(k)].z - 34.0) / 8.0, 1e-5);  // v up
+        }
+    }
+    EXPECT_EQ(textured, 2u) << "the south wall's two triangles";
 }
 
 TEST(CityModelTest, MissingTextureIsAWarningAndTheWallUntextured) {
