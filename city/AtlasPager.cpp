@@ -34,7 +34,40 @@ std::uint64_t AtlasPager::blockBytes(const BlockKey& key) const {
         return n;
     }
     const glm::ivec2 s = m_file.textureSizes[key.index];
-    return std::uint64_t(std::max(s.x, 1)) * std::uint64_t(std::max(s.y, 1)) * 4u * 4u / 3u; // RGBA8 + mips
+    const std::uint64_t whole = std::uint64_t(std::max(s.x, 1)) * std::uint64_t(std::max(s.y, 1)) * 4u * 4u / 3u; // RGBA8 + mips
+    const int parts = textureParts(key.index);
+    if (parts == 1) return whole;
+    const auto [r0, r1] = partRows(key.index, key.part);
+    return whole * std::uint64_t(r1 - r0) / std::uint64_t(std::max(s.y, 1)); // its share of the rows (and mips)
+}
+
+int AtlasPager::textureParts(std::uint32_t texture) const {
+    const glm::ivec2 s = m_file.textureSizes[texture];
+    const std::uint64_t whole = std::uint64_t(std::max(s.x, 1)) * std::uint64_t(std::max(s.y, 1)) * 4u * 4u / 3u;
+    // An atlas's bytes as RGB(A)8 with mips, however it is uploaded: BC1 atlases are a sixth of that, and 512²
+    // facade photos would otherwise be cut into nine blocks each for no gain.
+    const int size = m_file.info.atlasSize;
+    std::uint64_t atlas = 0;
+    for (int l = 0; l < atlasLevels(size); ++l)
+        atlas += atlasLevelBytes(AtlasFormat::Deflate, m_file.trees[std::size_t(m_tree)].alpha, size, l);
+    atlas = std::max<std::uint64_t>(atlas, 1);
+    if (whole <= 2 * atlas) return 1;
+    // Bands of about an atlas's bytes (§4.6: blocks of about equal size), at most one per row.
+    const std::uint64_t parts = (whole + atlas - 1) / atlas;
+    return int(std::min<std::uint64_t>({parts, std::uint64_t(std::max(s.y, 1)), 65535}));
+}
+
+std::pair<int, int> AtlasPager::partRows(std::uint32_t texture, int part) const {
+    const int h = std::max(m_file.textureSizes[texture].y, 1), parts = textureParts(texture);
+    const int per = (h + parts - 1) / parts;
+    return {std::min(h, part * per), std::min(h, (part + 1) * per)};
+}
+
+bool AtlasPager::textureResident(std::uint32_t texture) const {
+    const int parts = textureParts(texture);
+    for (int p = 0; p < parts; ++p)
+        if (!m_resident.count({BlockKey::Kind::Texture, texture, std::uint16_t(p)})) return false;
+    return true;
 }
 
 std::string AtlasPager::error() const {
@@ -54,10 +87,43 @@ Result<LoadedBlock> AtlasPager::load(const BlockKey& key) const {
         b.size = glm::ivec2(m_file.info.atlasSize);
         return b;
     }
-    auto tex = readSourceTexture(m_file.textures[key.index]);
-    if (!tex) return tex.error();
-    b.size = tex->sizes[0];
-    b.data = std::move(tex->mips[0]);
+    const int parts = textureParts(key.index);
+    if (parts == 1) {
+        auto tex = readSourceTexture(m_file.textures[key.index]);
+        if (!tex) return tex.error();
+        b.size = tex->sizes[0];
+        b.data = std::move(tex->mips[0]);
+        return b;
+    }
+    // One band of rows: the texture is decoded once for its parts (kept until another one is).
+    std::shared_ptr<const std::vector<std::uint8_t>> pixels;
+    glm::ivec2 size{0};
+    {
+        std::lock_guard lock(m_decodedMutex);
+        if (m_decodedIndex == key.index) {
+            pixels = m_decoded;
+            size = m_decodedSize;
+        }
+    }
+    if (!pixels) {
+        auto tex = readSourceTexture(m_file.textures[key.index]);
+        if (!tex) return tex.error();
+        size = tex->sizes[0];
+        pixels = std::make_shared<const std::vector<std::uint8_t>>(std::move(tex->mips[0]));
+        std::lock_guard lock(m_decodedMutex);
+        m_decodedIndex = key.index;
+        m_decoded = pixels;
+        m_decodedSize = size;
+    }
+    if (size != m_file.textureSizes[key.index])
+        return Error{m_file.textures[key.index].path + ": the texture's size changed since the tree was built"};
+    const auto [r0, r1] = partRows(key.index, key.part);
+    const std::size_t row = std::size_t(size.x) * 4;
+    b.size = size;
+    b.parts = parts;
+    b.firstRow = r0;
+    b.rows = r1 - r0;
+    b.data.assign(pixels->begin() + std::ptrdiff_t(row * std::size_t(r0)), pixels->begin() + std::ptrdiff_t(row * std::size_t(r1)));
     return b;
 }
 
@@ -81,9 +147,27 @@ void AtlasPager::worker() {
     }
 }
 
-AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& requests) {
+AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
     ++m_frame;
     Frame out;
+
+    // Original textures split into parts: every part, in the request's place.
+    std::vector<BlockRequest> expanded;
+    const std::vector<BlockRequest>* reqs = &asked;
+    if (std::any_of(asked.begin(), asked.end(), [&](const BlockRequest& r) {
+            return r.key.kind == BlockKey::Kind::Texture && textureParts(r.key.index) > 1;
+        })) {
+        expanded.reserve(asked.size() * 2);
+        for (const auto& r : asked) {
+            const int parts = r.key.kind == BlockKey::Kind::Texture ? textureParts(r.key.index) : 1;
+            for (int p = 0; p < parts; ++p) {
+                expanded.push_back(r);
+                expanded.back().key.part = std::uint16_t(parts > 1 ? p : r.key.part);
+            }
+        }
+        reqs = &expanded;
+    }
+    const std::vector<BlockRequest>& requests = *reqs;
 
     // The ideal block set: requests in priority order while they fit the capacity (the root first: it is always
     // Needed and nearest to the front).

@@ -5,7 +5,9 @@
 // (at most `queueLength` at once) for a background loader; a block that does not fit evicts resident blocks outside
 // the ideal set, least recently requested first. Loaded blocks are handed out for upload within a per-frame byte
 // budget. The root atlas is loaded first and never evicted, so a texture is always available. Resident, queued,
-// in-flight and waiting-for-upload bytes together never exceed the capacity.
+// in-flight and waiting-for-upload bytes together never exceed the capacity. Blocks are of about equal size (§4.6):
+// an original texture whose bytes exceed an atlas's more than twice is split into bands of rows of about an atlas's
+// bytes each, paged like any block; it is usable once all its parts are resident.
 //
 // Plain C++ (the GL side, CityRendererGL, uploads what update() hands out and deletes what it evicts).
 #include "AtlasTraversal.h"
@@ -31,12 +33,14 @@ struct PagerSettings {
     bool decodedAtlases = false;                    // BC atlases uploaded decoded: counted as RGB(A)8 bytes
 };
 
-/// A loaded block: an atlas's stored blob, or an original texture's RGBA8 level 0 (rows bottom-up).
+/// A loaded block: an atlas's stored blob, or an original texture's RGBA8 level 0 (rows bottom-up): all of it, or
+/// for a texture split into `parts` the rows [firstRow, firstRow + rows) of it.
 struct LoadedBlock {
     BlockKey key;
     std::vector<std::uint8_t> data;
-    glm::ivec2 size{0};
+    glm::ivec2 size{0}; // the whole texture's (or atlas's) size
     std::uint64_t bytes = 0; // GPU bytes once uploaded
+    int parts = 1, firstRow = 0, rows = 0; // rows 0: all of them
 };
 
 struct PagerStats {
@@ -69,6 +73,12 @@ public:
     const PagerStats& stats() const { return m_stats; }
     /// GPU bytes of a block once uploaded.
     std::uint64_t blockBytes(const BlockKey& key) const;
+    /// How many blocks original texture `texture` is paged as (1 unless it exceeds twice an atlas's bytes), and the
+    /// rows [first, end) of its level 0 that part `part` holds.
+    int textureParts(std::uint32_t texture) const;
+    std::pair<int, int> partRows(std::uint32_t texture, int part) const;
+    /// Whether every part of original texture `texture` is resident.
+    bool textureResident(std::uint32_t texture) const;
     /// The first load error (a block that could not be read is not retried); empty when none.
     std::string error() const;
 
@@ -96,6 +106,11 @@ private:
     std::vector<std::pair<BlockKey, std::string>> m_errors;
     std::string m_firstError;
     bool m_stop = false;
+    // The last original texture decoded for its parts (they are requested one after another).
+    mutable std::mutex m_decodedMutex;
+    mutable std::uint32_t m_decodedIndex = ~0u;
+    mutable std::shared_ptr<const std::vector<std::uint8_t>> m_decoded;
+    mutable glm::ivec2 m_decodedSize{0};
     std::thread m_thread;
 };
 

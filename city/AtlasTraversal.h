@@ -49,12 +49,17 @@ using VisibilityFn = std::function<NodeVisibility(std::uint32_t)>;
 enum class BlockCategory : std::uint8_t { Needed = 0, Culled = 1, ParentNeeded = 2, Unused = 3 };
 const char* blockCategoryName(BlockCategory c);
 
-/// A block: a node's atlas (kind Atlas, index = node) or an original texture (kind Texture, index = texture).
+/// A block: a node's atlas (kind Atlas, index = node) or an original texture (kind Texture, index = texture); an
+/// original texture over twice an atlas's bytes is paged as several blocks of rows (`part`, thesis §4.6; the
+/// traversal asks for part 0, the pager for all of them).
 struct BlockKey {
     enum class Kind : std::uint8_t { Atlas, Texture } kind = Kind::Atlas;
     std::uint32_t index = 0;
-    bool operator==(const BlockKey& o) const { return kind == o.kind && index == o.index; }
-    bool operator<(const BlockKey& o) const { return kind != o.kind ? kind < o.kind : index < o.index; }
+    std::uint16_t part = 0;
+    bool operator==(const BlockKey& o) const { return kind == o.kind && index == o.index && part == o.part; }
+    bool operator<(const BlockKey& o) const {
+        return kind != o.kind ? kind < o.kind : index != o.index ? index < o.index : part < o.part;
+    }
 };
 
 struct BlockRequest {

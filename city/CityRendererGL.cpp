@@ -324,21 +324,64 @@ void CityRendererGL::uploadAtlas(int tree, const LoadedBlock& b) {
 }
 
 void CityRendererGL::uploadTexture(const LoadedBlock& b) {
-    gl::Texture tex = gl::Texture::create(GL_TEXTURE_2D);
-    int levels = 1;
-    while ((std::max(b.size.x, b.size.y) >> levels) > 0) ++levels;
-    glTextureStorage2D(tex.id(), levels, GL_RGBA8, b.size.x, b.size.y);
+    auto allocate = [&] {
+        gl::Texture tex = gl::Texture::create(GL_TEXTURE_2D);
+        int levels = 1;
+        while ((std::max(b.size.x, b.size.y) >> levels) > 0) ++levels;
+        glTextureStorage2D(tex.id(), levels, GL_RGBA8, b.size.x, b.size.y);
+        return tex;
+    };
+    const bool whole = b.parts <= 1 || b.rows == 0;
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glTextureSubImage2D(tex.id(), 0, 0, 0, b.size.x, b.size.y, GL_RGBA, GL_UNSIGNED_BYTE, b.data.data());
+    if (whole) {
+        gl::Texture tex = allocate();
+        glTextureSubImage2D(tex.id(), 0, 0, 0, b.size.x, b.size.y, GL_RGBA, GL_UNSIGNED_BYTE, b.data.data());
+        glGenerateTextureMipmap(tex.id());
+        m_textures[b.key.index] = std::move(tex);
+    } else {
+        // One band of rows into the texture the earlier parts went to; mipmapped once the last part is in.
+        auto [it, fresh] = m_partialTextures.try_emplace(b.key.index);
+        PartialTexture& p = it->second;
+        if (fresh) {
+            p.texture = allocate();
+            p.total = b.parts;
+        }
+        glTextureSubImage2D(p.texture.id(), 0, 0, b.firstRow, b.size.x, b.rows, GL_RGBA, GL_UNSIGNED_BYTE, b.data.data());
+        p.parts.insert(b.key.part);
+        if (int(p.parts.size()) == p.total) {
+            glGenerateTextureMipmap(p.texture.id());
+            m_textures[b.key.index] = std::move(p.texture);
+            m_partialTextures.erase(it);
+        }
+    }
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    glGenerateTextureMipmap(tex.id());
-    m_textures[b.key.index] = std::move(tex);
 }
 
 void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
     for (const auto& k : frame.evict) {
-        if (k.kind == BlockKey::Kind::Atlas) m_atlases[std::size_t(tree)].erase(k.index);
-        else m_textures.erase(k.index);
+        if (k.kind == BlockKey::Kind::Atlas) {
+            m_atlases[std::size_t(tree)].erase(k.index);
+            continue;
+        }
+        const AtlasPager& pager = m_originalPager ? *m_originalPager : *m_pagers[std::size_t(tree)];
+        const int parts = pager.textureParts(k.index);
+        auto whole = m_textures.find(k.index);
+        if (parts <= 1) {
+            if (whole != m_textures.end()) m_textures.erase(whole);
+            continue;
+        }
+        // One part of a split texture gone: the texture is unusable until that part is back; its other rows stay.
+        if (whole != m_textures.end()) {
+            PartialTexture& p = m_partialTextures[k.index];
+            p.texture = std::move(whole->second);
+            p.total = parts;
+            for (int q = 0; q < parts; ++q) p.parts.insert(std::uint16_t(q));
+            m_textures.erase(whole);
+        }
+        if (auto it = m_partialTextures.find(k.index); it != m_partialTextures.end()) {
+            it->second.parts.erase(k.part);
+            if (it->second.parts.empty()) m_partialTextures.erase(it);
+        }
     }
     for (const auto& b : frame.upload) {
         if (b.key.kind == BlockKey::Kind::Atlas) uploadAtlas(tree, b);
@@ -522,7 +565,7 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
         AtlasPager& pager = *m_pagers[t];
         const AtlasTraversal& trav = *m_traversals[t];
         const auto atlasResident = [&](std::uint32_t n) { return pager.resident({BlockKey::Kind::Atlas, n}); };
-        const auto textureResident = [&](std::uint32_t x) { return pager.resident({BlockKey::Kind::Texture, x}); };
+        const auto textureResident = [&](std::uint32_t x) { return pager.textureResident(x); };
         NodeOcclusion& occ = *m_occlusion[t];
         VisibilityFn visibility;
         if (occlusion) {

@@ -16,6 +16,7 @@
 #include "gl/ShaderProgram.h"
 
 #include <map>
+#include <set>
 #include <memory>
 #include <optional>
 #include <string>
@@ -130,6 +131,14 @@ private:
     std::size_t m_plainRoofs = 0, m_plainOthers = 0;
     std::vector<std::map<std::uint32_t, gl::Texture>> m_atlases; // per tree: node -> texture
     std::map<std::uint32_t, gl::Texture> m_textures;             // original textures (shared by both trees)
+    // Original textures paged in parts (AtlasPager: over twice an atlas's bytes) while some part is missing: the
+    // texture with the parts' rows uploaded so far; it moves to m_textures, mipmapped, once all are in.
+    struct PartialTexture {
+        gl::Texture texture;
+        std::set<std::uint16_t> parts;
+        int total = 0;
+    };
+    std::map<std::uint32_t, PartialTexture> m_partialTextures;
     std::map<std::uint32_t, std::uint64_t> m_textureLastUse;     // original mode's LRU
     gl::Texture m_dummy;
     gl::Sampler m_atlasSampler, m_repeatSampler, m_clampSampler;

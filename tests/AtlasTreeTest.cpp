@@ -19,6 +19,7 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <tuple>
 
 using namespace seasonview;
 using namespace seasonview::city;
@@ -745,13 +746,28 @@ TEST(AtlasPagingTest, CapacityIsNeverExceededUnderARandomCamera) {
     const std::uint64_t atlasBytes = probe.blockBytes({BlockKey::Kind::Atlas, 0});
     ps.capacityBytes = 4 * atlasBytes + 256u * 128u * 4u * 4u / 3u; // four atlases and one original texture
     AtlasPager pager(*f, 0, ps);
+    // The 256×128 wall photos (RGBA8 with mips: 2.7 atlases of 128² RGB8) are paged as three bands of rows of about
+    // an atlas each (§4.6: blocks of about equal size), together the whole texture.
+    ASSERT_EQ(pager.textureParts(0), 3);
+    std::uint64_t partBytes = 0;
+    int rows = 0;
+    for (int p = 0; p < 3; ++p) {
+        const auto [r0, r1] = pager.partRows(0, p);
+        EXPECT_EQ(r0, rows);
+        rows = r1;
+        const std::uint64_t b = pager.blockBytes({BlockKey::Kind::Texture, 0, std::uint16_t(p)});
+        EXPECT_LE(b, 65536u + 65536u / 4u) << p;
+        partBytes += b;
+    }
+    EXPECT_EQ(rows, 128);
+    EXPECT_NEAR(double(partBytes), 256.0 * 128.0 * 4.0 * 4.0 / 3.0, 3.0);
     std::uint64_t seed = 7;
     auto rnd = [&] {
         seed = seed * 6364136223846793005ull + 1442695040888963407ull;
         return double(seed >> 11) / 9007199254740992.0;
     };
-    std::size_t uploads = 0, evictions = 0;
-    std::set<std::pair<int, std::uint32_t>> gpu; // what the GL side would hold
+    std::size_t uploads = 0, evictions = 0, textureParts = 0;
+    std::set<std::tuple<int, std::uint32_t, int>> gpu; // what the GL side would hold
     for (int frame = 0; frame < 300; ++frame) {
         Camera cam;
         cam.position = {rnd() * 700.0 - 50.0, -5.0 - rnd() * 300.0, 1.0 + rnd() * 100.0};
@@ -759,25 +775,39 @@ TEST(AtlasPagingTest, CapacityIsNeverExceededUnderARandomCamera) {
         cam.pitchDeg = -rnd() * 40.0;
         const AtlasView v = viewOf(cam);
         auto out = pager.update(trav.requests(v));
-        for (const auto& k : out.evict) EXPECT_EQ(gpu.erase({int(k.kind), k.index}), 1u);
-        for (const auto& b : out.upload) EXPECT_TRUE(gpu.insert({int(b.key.kind), b.key.index}).second);
+        for (const auto& k : out.evict) EXPECT_EQ(gpu.erase({int(k.kind), k.index, k.part}), 1u);
+        for (const auto& b : out.upload) {
+            EXPECT_TRUE(gpu.insert({int(b.key.kind), b.key.index, b.key.part}).second);
+            if (b.key.kind == BlockKey::Kind::Texture) {
+                ++textureParts;
+                EXPECT_EQ(b.parts, 3);
+                EXPECT_EQ(b.firstRow, pager.partRows(b.key.index, b.key.part).first);
+                EXPECT_EQ(b.data.size(), std::size_t(b.size.x) * std::size_t(b.rows) * 4u);
+            }
+        }
         uploads += out.upload.size();
         evictions += out.evict.size();
         const auto& st = pager.stats();
         EXPECT_LE(st.residentBytes + st.reservedBytes, ps.capacityBytes) << "frame " << frame;
         std::uint64_t held = 0;
-        for (const auto& [kind, index] : gpu) held += pager.blockBytes({BlockKey::Kind(kind), index});
+        for (const auto& [kind, index, part] : gpu) held += pager.blockBytes({BlockKey::Kind(kind), index, std::uint16_t(part)});
         EXPECT_EQ(held, st.residentBytes);
         // The root is always there after the first frame, and every draw uses a resident texture.
         EXPECT_TRUE(pager.resident({BlockKey::Kind::Atlas, 0}));
         auto d = trav.draws(v, [&](std::uint32_t n) { return pager.resident({BlockKey::Kind::Atlas, n}); },
-                            [&](std::uint32_t t) { return pager.resident({BlockKey::Kind::Texture, t}); });
-        for (const auto& dr : d.draws)
-            EXPECT_TRUE(pager.resident({dr.original ? BlockKey::Kind::Texture : BlockKey::Kind::Atlas,
-                                        dr.original ? dr.texture : dr.node}));
+                            [&](std::uint32_t t) { return pager.textureResident(t); });
+        for (const auto& dr : d.draws) {
+            if (!dr.original) {
+                EXPECT_TRUE(pager.resident({BlockKey::Kind::Atlas, dr.node}));
+                continue;
+            }
+            for (int p = 0; p < 3; ++p) // an original is drawn only with all its rows on the GPU
+                EXPECT_TRUE(gpu.count({int(BlockKey::Kind::Texture), dr.texture, p})) << dr.texture << " part " << p;
+        }
     }
     EXPECT_GT(uploads, 10u);
     EXPECT_GT(evictions, 0u); // the capacity forced paging
+    EXPECT_GT(textureParts, 0u); // originals were paged (in parts)
     EXPECT_TRUE(pager.error().empty());
 }
 
@@ -795,12 +825,23 @@ TEST(AtlasPagingTest, ThreadedLoaderCompletesTheIdealSet) {
     const auto req = trav.requests(viewOf(cam));
     auto done = pager.complete(req);
     EXPECT_FALSE(done.upload.empty());
-    for (const auto& r : req) EXPECT_TRUE(pager.resident(r.key));
+    for (const auto& r : req)
+        EXPECT_TRUE(r.key.kind == BlockKey::Kind::Texture ? pager.textureResident(r.key.index) : pager.resident(r.key));
     // Nothing coarser than wanted once the ideal set is resident.
     auto d = trav.draws(viewOf(cam), [&](std::uint32_t n) { return pager.resident({BlockKey::Kind::Atlas, n}); },
-                        [&](std::uint32_t t) { return pager.resident({BlockKey::Kind::Texture, t}); });
+                        [&](std::uint32_t t) { return pager.textureResident(t); });
     EXPECT_EQ(d.coarserThanWanted, 0u);
     EXPECT_GT(d.draws.size(), 0u);
+    // 4 m from the walls their originals are drawn: every part of each was loaded.
+    std::size_t originals = 0;
+    for (const auto& dr : d.draws)
+        if (dr.original) {
+            ++originals;
+            for (int p = 0; p < pager.textureParts(dr.texture); ++p)
+                EXPECT_TRUE(pager.resident({BlockKey::Kind::Texture, dr.texture, std::uint16_t(p)}));
+        }
+    EXPECT_GT(originals, 0u);
+    EXPECT_EQ(pager.textureParts(0), 3);
 }
 
 TEST(AtlasTreeTest, SplitFillsLeavesInsteadOfQuartering) {
