@@ -92,7 +92,8 @@ Result<CameraPath> CameraPath::named(const std::string& name, const PathScene& s
         for (int i = 0; i <= 16; ++i) {
             const double a = 2.0 * kPi * i / 16.0;
             const double x = c.x + 0.6 * s * std::sin(a), y = c.y - 0.6 * s * std::cos(a);
-            k.push_back(key(i, x, y, 0.15 * s, std::fmod(a * 180.0 / kPi, 360.0), -35.0));
+            // Looking at the centre: from (sin a, -cos a) the heading (0 = north, 90 = east) is -a.
+            k.push_back(key(i, x, y, 0.15 * s, std::fmod(360.0 - a * 180.0 / kPi, 360.0), -35.0));
         }
     } else if (name == "dive") {
         // Straight down from high up to a low, near-horizontal view, moving north.

@@ -122,6 +122,20 @@ TEST(CameraPathTest, FastTurnsSuddenly) {
     EXPECT_NEAR(p->at(0.1, s.terrainHeight).yawDeg, 90.0, 1e-9);
 }
 
+// `orbit` circles the centre looking at it all the way round (yaw 0 = north, 90 = east).
+TEST(CameraPathTest, OrbitLooksAtTheCentre) {
+    const PathScene s = scene();
+    auto p = CameraPath::named("orbit", s);
+    ASSERT_TRUE(p.ok());
+    for (int i = 0; i <= 100; ++i) {
+        const Camera c = p->at(i / 100.0, s.terrainHeight);
+        const glm::dvec2 toCentre = glm::normalize(-glm::dvec2(c.position));
+        const double yaw = c.yawDeg * 3.14159265358979323846 / 180.0;
+        const glm::dvec2 forward(std::sin(yaw), std::cos(yaw));
+        EXPECT_GT(glm::dot(toCentre, forward), std::cos(3.0 * 3.14159265358979323846 / 180.0)) << i << " yaw " << c.yawDeg;
+    }
+}
+
 TEST(CameraPathTest, RandomIsSeeded) {
     const PathScene s = scene();
     const Camera a = CameraPath::named("random", s, 3)->at(0.37, s.terrainHeight);
