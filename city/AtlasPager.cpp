@@ -52,9 +52,12 @@ int AtlasPager::textureParts(std::uint32_t texture) const {
         atlas += atlasLevelBytes(AtlasFormat::Deflate, m_file.trees[std::size_t(m_tree)].alpha, size, l);
     atlas = std::max<std::uint64_t>(atlas, 1);
     if (whole <= 2 * atlas) return 1;
-    // Bands of about an atlas's bytes (§4.6: blocks of about equal size), at most one per row.
-    const std::uint64_t parts = (whole + atlas - 1) / atlas;
-    return int(std::min<std::uint64_t>({parts, std::uint64_t(std::max(s.y, 1)), 65535}));
+    // Bands of about an atlas's bytes (§4.6: blocks of about equal size), at most one per row; the count is that of
+    // the bands of ceil(h / parts) rows, so none is empty (4096 rows in 65 parts would leave the 65th without one).
+    const std::uint64_t h = std::uint64_t(std::max(s.y, 1));
+    const std::uint64_t parts = std::min<std::uint64_t>({(whole + atlas - 1) / atlas, h, 65535});
+    const std::uint64_t per = (h + parts - 1) / parts;
+    return int((h + per - 1) / per);
 }
 
 std::pair<int, int> AtlasPager::partRows(std::uint32_t texture, int part) const {

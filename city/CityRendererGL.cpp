@@ -331,7 +331,7 @@ void CityRendererGL::uploadTexture(const LoadedBlock& b) {
         glTextureStorage2D(tex.id(), levels, GL_RGBA8, b.size.x, b.size.y);
         return tex;
     };
-    const bool whole = b.parts <= 1 || b.rows == 0;
+    const bool whole = b.parts <= 1;
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
     if (whole) {
         gl::Texture tex = allocate();

@@ -811,6 +811,40 @@ TEST(AtlasPagingTest, CapacityIsNeverExceededUnderARandomCamera) {
     EXPECT_TRUE(pager.error().empty());
 }
 
+// The bands of a split original tile its rows exactly, none empty, whatever its size against the atlases' (a
+// 4096² texture beside 512² atlases: 65 bands of 64 rows would leave the last one empty).
+TEST(AtlasPagingTest, TextureBandsAreNeverEmpty) {
+    for (const int atlasSize : {64, 128, 512})
+    for (const bool alpha : {false, true}) {
+        AtlasTreeFile f;
+        f.info.atlasSize = atlasSize;
+        f.trees.resize(1);
+        f.trees[0].alpha = alpha;
+        for (const int w : {64, 256, 300, 1024, 4096})
+            for (const int h : {1, 7, 128, 256, 1000, 4096}) f.textureSizes.push_back({w, h});
+        f.textures.resize(f.textureSizes.size());
+        PagerSettings ps;
+        ps.threaded = false;
+        const AtlasPager pager(f, 0, ps);
+        for (std::uint32_t t = 0; t < f.textureSizes.size(); ++t) {
+            const int parts = pager.textureParts(t), h = f.textureSizes[t].y;
+            ASSERT_GE(parts, 1);
+            int next = 0;
+            std::uint64_t bytes = 0;
+            for (int p = 0; p < parts; ++p) {
+                const auto [r0, r1] = pager.partRows(t, p);
+                EXPECT_EQ(r0, next) << atlasSize << " " << f.textureSizes[t].x << "x" << h << " part " << p;
+                EXPECT_GT(r1, r0) << atlasSize << " " << f.textureSizes[t].x << "x" << h << " part " << p << " of " << parts;
+                next = r1;
+                bytes += pager.blockBytes({BlockKey::Kind::Texture, t, std::uint16_t(p)});
+            }
+            EXPECT_EQ(next, h);
+            const double whole = double(f.textureSizes[t].x) * h * 4.0 * 4.0 / 3.0;
+            EXPECT_NEAR(double(bytes), whole, double(parts) + 1.0);
+        }
+    }
+}
+
 TEST(AtlasPagingTest, ThreadedLoaderCompletesTheIdealSet) {
     test::TempDir dir("atlas_paging_thread");
     auto f = wallTree(dir.path(), 20);
