@@ -10,6 +10,12 @@ namespace seasonview::city {
 
 AtlasPager::AtlasPager(const AtlasTreeFile& file, int tree, const PagerSettings& settings, Loader loader)
     : m_file(file), m_tree(tree), m_settings(settings), m_loader(std::move(loader)) {
+    // An atlas's bytes as RGB(A)8 with mips, however it is uploaded: the yardstick of textureParts (BC1 atlases are
+    // a sixth of it, and 512² facade photos would otherwise be cut into nine blocks each for no gain).
+    const int size = m_file.info.atlasSize;
+    for (int l = 0; l < atlasLevels(size); ++l)
+        m_atlasRgbBytes += atlasLevelBytes(AtlasFormat::Deflate, m_file.trees[std::size_t(m_tree)].alpha, size, l);
+    m_atlasRgbBytes = std::max<std::uint64_t>(m_atlasRgbBytes, 1);
     if (m_settings.threaded) m_thread = std::thread([this] { worker(); });
 }
 
@@ -44,13 +50,7 @@ std::uint64_t AtlasPager::blockBytes(const BlockKey& key) const {
 int AtlasPager::textureParts(std::uint32_t texture) const {
     const glm::ivec2 s = m_file.textureSizes[texture];
     const std::uint64_t whole = std::uint64_t(std::max(s.x, 1)) * std::uint64_t(std::max(s.y, 1)) * 4u * 4u / 3u;
-    // An atlas's bytes as RGB(A)8 with mips, however it is uploaded: BC1 atlases are a sixth of that, and 512²
-    // facade photos would otherwise be cut into nine blocks each for no gain.
-    const int size = m_file.info.atlasSize;
-    std::uint64_t atlas = 0;
-    for (int l = 0; l < atlasLevels(size); ++l)
-        atlas += atlasLevelBytes(AtlasFormat::Deflate, m_file.trees[std::size_t(m_tree)].alpha, size, l);
-    atlas = std::max<std::uint64_t>(atlas, 1);
+    const std::uint64_t atlas = m_atlasRgbBytes;
     if (whole <= 2 * atlas) return 1;
     // Bands of about an atlas's bytes (§4.6: blocks of about equal size), at most one per row; the count is that of
     // the bands of ceil(h / parts) rows, so none is empty (4096 rows in 65 parts would leave the 65th without one).

@@ -88,6 +88,7 @@ private:
 
     const AtlasTreeFile& m_file;
     int m_tree;
+    std::uint64_t m_atlasRgbBytes = 0; // one atlas as RGB(A)8 with mips (textureParts' yardstick)
     PagerSettings m_settings;
     Loader m_loader;
 

@@ -41,6 +41,13 @@ RegionDiff diffWhere(const Image<std::uint8_t>& a, const Image<std::uint8_t>& b,
 }
 
 // 512 m at 0.5 m: eight houses in the north-east corner (seed 1).
+/// A one-line error naming `needle`, exit code 1.
+void fails(const CliResult& r, const std::string& needle) {
+    EXPECT_EQ(r.exitCode, 1) << r.out << r.err;
+    EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+}
+
 CliScene& scene() {
     static CliScene s("city-cli", {"--size-m", "512", "--gsd", "0.5", "--facade-size", "128"}, "400x250",
                       "195,140,+18,35,-18,60");
@@ -265,11 +272,6 @@ TEST(CityCliTest, TerrainOffDrawsTheCityAlone) {
     EXPECT_GT(modes["terrain=on"]["totals"]["triangles_per_frame"].get<std::int64_t>(),
               modes["terrain=off"]["totals"]["triangles_per_frame"].get<std::int64_t>());
 
-    auto fails = [](const CliResult& r, const std::string& needle) {
-        EXPECT_EQ(r.exitCode, 1) << r.out << r.err;
-        EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
-        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-    };
     fails(s.render("x.png", {"--terrain", "off"}), "--city");
     fails(s.render("x.png", {"--terrain", "off", "--city", "flat", "--view", "canopy"}), "canopy");
     fails(bench("x_bench", {"--terrain", "off"}), "--city");
@@ -404,11 +406,6 @@ TEST(CityCliTest, AtlasBuildAndInfo) {
 
 TEST(CityCliTest, BadInput) {
     const CliScene& s = scene();
-    auto fails = [](const CliResult& r, const std::string& needle) {
-        EXPECT_EQ(r.exitCode, 1) << r.out << r.err;
-        EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
-        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-    };
     fails(runCli({"atlas", "build", (s.dir / "nope.gml").string(), "--out", (s.dir / "x.svat").string()}), "nope.gml");
     fails(runCli({"atlas", "build", (s.dir / "s/city/city.obj").string(), "--out", (s.dir / "x.svat").string()}), "no CRS");
     fails(runCli({"atlas", "build", (s.dir / "s/city/city.obj").string(), "--obj-local", "--out",
