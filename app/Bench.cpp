@@ -427,7 +427,6 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         cs.anisotropy = m.anisotropy;
         cs.upload = m.cityUpload;
         cs.occlusion = m.cityOcclusion;
-        cs.season = *view == ImageryView::LeafOff ? 1 : 0;
         auto c = city::CityRendererGL::create(*scene, cityTree.string(), cs);
         if (!c)
             return fail(c.message());
@@ -439,6 +438,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     imagery.view = *view;
     if (auto st = parseCanopyGround(a->groundUnder, a->groundElsewhere, imagery); !st)
         return fail(st.message());
+    for (Mode& m : *modes)
+        if (m.city) m.city->settings().roofs = city::roofImageryFor(imagery);
     using clock = std::chrono::steady_clock;
     auto ms = [](clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
 

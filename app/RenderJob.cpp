@@ -339,7 +339,7 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
         if (cityRenderer) {
             std::vector<std::uint8_t> ground;
             if (!s.cityAccuracyOut.empty()) ground = target.readRgba();
-            cityRenderer->settings().season = s.imagery.view == ImageryView::LeafOff ? 1 : 0;
+            cityRenderer->settings().roofs = city::roofImageryFor(s.imagery);
             cityRenderer->complete(s.camera, width, height);
             cityRenderer->resetOcclusion(); // a still: every node tested before it is drawn
             const city::CityFrameStats cst = cityRenderer->draw(s.camera, renderer->get(), target);
@@ -469,6 +469,7 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
                              {"texture_binds", cityStats->textureBinds},
                              {"triangles", cityStats->triangles},
                              {"resident_bytes", cityStats->residentBytes},
+                             {"allocated_bytes", cityStats->allocatedBytes},
                              {"blocks_resident", cityStats->blocksResident},
                              {"loader_queue", cityStats->loaderQueue}};
             std::string err;

@@ -183,7 +183,7 @@ struct LiveScene {
         cityStats = {};
         if (city && s.city) {
             city->settings().tpp = std::max(0.05f, s.cityTpp);
-            city->settings().season = s.view == ImageryView::LeafOff ? 1 : 0;
+            city->settings().roofs = city::roofImageryFor(im);
             if (complete) city->complete(cam, target.width(), target.height());
             else city->update(cam, target.width(), target.height());
             cityStats = city->draw(cam, terrain.get(), target);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <set>
+#include <tuple>
 
 namespace seasonview::city {
 
@@ -28,6 +29,35 @@ AtlasPager::~AtlasPager() {
     if (m_thread.joinable()) m_thread.join();
 }
 
+std::uint64_t AtlasPager::textureBytes(std::uint32_t texture) const {
+    const glm::ivec2 s = m_file.textureSizes[texture];
+    return std::uint64_t(std::max(s.x, 1)) * std::uint64_t(std::max(s.y, 1)) * 4u * 4u / 3u; // RGBA8 + mips
+}
+
+template <class Map> bool AtlasPager::anyPart(const Map& blocks, std::uint32_t texture) {
+    const auto it = blocks.lower_bound(BlockKey{BlockKey::Kind::Texture, texture, 0});
+    return it != blocks.end() && it->first.kind == BlockKey::Kind::Texture && it->first.index == texture;
+}
+
+std::pair<std::uint64_t, std::uint64_t> AtlasPager::heldBytes() const {
+    // Both maps are ordered by (kind, index, part): a texture's parts are neighbours, counted at the first.
+    std::uint64_t resident = 0, reserved = 0;
+    const BlockKey* last = nullptr;
+    auto first = [&](const BlockKey& k) {
+        const bool is = !last || last->kind != k.kind || last->index != k.index;
+        last = &k;
+        return is;
+    };
+    for (const auto& [k, f] : m_resident)
+        if (!split(k)) resident += blockBytes(k);
+        else if (first(k)) resident += textureBytes(k.index);
+    last = nullptr;
+    for (const auto& [k, b] : m_reserved)
+        if (!split(k)) reserved += b;
+        else if (first(k) && !anyPart(m_resident, k.index)) reserved += textureBytes(k.index);
+    return {resident, reserved};
+}
+
 std::uint64_t AtlasPager::blockBytes(const BlockKey& key) const {
     if (key.kind == BlockKey::Kind::Atlas) {
         const AtlasTreeData& t = m_file.trees[std::size_t(m_tree)];
@@ -40,7 +70,7 @@ std::uint64_t AtlasPager::blockBytes(const BlockKey& key) const {
         return n;
     }
     const glm::ivec2 s = m_file.textureSizes[key.index];
-    const std::uint64_t whole = std::uint64_t(std::max(s.x, 1)) * std::uint64_t(std::max(s.y, 1)) * 4u * 4u / 3u; // RGBA8 + mips
+    const std::uint64_t whole = textureBytes(key.index);
     const int parts = textureParts(key.index);
     if (parts == 1) return whole;
     const auto [r0, r1] = partRows(key.index, key.part);
@@ -49,7 +79,7 @@ std::uint64_t AtlasPager::blockBytes(const BlockKey& key) const {
 
 int AtlasPager::textureParts(std::uint32_t texture) const {
     const glm::ivec2 s = m_file.textureSizes[texture];
-    const std::uint64_t whole = std::uint64_t(std::max(s.x, 1)) * std::uint64_t(std::max(s.y, 1)) * 4u * 4u / 3u;
+    const std::uint64_t whole = textureBytes(texture);
     const std::uint64_t atlas = m_atlasRgbBytes;
     if (whole <= 2 * atlas) return 1;
     // Bands of about an atlas's bytes (§4.6: blocks of about equal size), at most one per row; the count is that of
@@ -173,16 +203,23 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
     const std::vector<BlockRequest>& requests = *reqs;
 
     // The ideal block set: requests in priority order while they fit the capacity (the root first: it is always
-    // Needed and nearest to the front).
+    // Needed and nearest to the front). A split texture is in it with all its parts or not at all: the set never
+    // stops between its bands (a partial texture cannot be drawn), and one part that failed to load fails it whole.
     std::set<BlockKey> ideal;
     std::uint64_t idealBytes = 0;
-    for (const auto& r : requests) {
+    for (const auto& r : asked) {
         if (r.category == BlockCategory::Unused) break;
-        if (std::find(m_failed.begin(), m_failed.end(), r.key) != m_failed.end()) continue;
-        const std::uint64_t b = blockBytes(r.key);
+        const int parts = r.key.kind == BlockKey::Kind::Texture ? textureParts(r.key.index) : 1;
+        const bool failed = std::any_of(m_failed.begin(), m_failed.end(), [&](const BlockKey& k) {
+            return parts > 1 ? k.kind == BlockKey::Kind::Texture && k.index == r.key.index : k == r.key;
+        });
+        if (failed) continue;
+        const std::uint64_t b = parts > 1 ? textureBytes(r.key.index) : blockBytes(r.key);
         if (idealBytes + b > m_settings.capacityBytes) break;
         idealBytes += b;
-        ideal.insert(r.key);
+        if (parts == 1) ideal.insert(r.key);
+        else
+            for (int p = 0; p < parts; ++p) ideal.insert(BlockKey{r.key.kind, r.key.index, std::uint16_t(p)});
     }
     for (const auto& r : requests)
         if (auto it = m_resident.find(r.key); it != m_resident.end()) it->second = m_frame;
@@ -208,25 +245,23 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
     }
 
     // Requests of this frame: missing ideal blocks in priority order, room made by evicting resident blocks outside
-    // the ideal set (least recently requested first), never the root.
-    auto reservedBytes = [&] {
-        std::uint64_t n = 0;
-        for (auto& [k, b] : m_reserved) n += b;
-        return n;
+    // the ideal set (least recently requested first), never the root. A split texture costs its whole bytes with its
+    // first part held (the GL side allocates it whole then) and nothing more with the others; it is evicted with all
+    // its resident parts at once (only then is its allocation freed).
+    auto usedBytes = [&] {
+        const auto [resident, reserved] = heldBytes();
+        return resident + reserved;
     };
-    auto residentBytes = [&] {
-        std::uint64_t n = 0;
-        for (auto& [k, f] : m_resident) n += blockBytes(k);
-        return n;
-    };
-    std::uint64_t used = reservedBytes() + residentBytes();
+    std::uint64_t used = usedBytes();
     std::size_t inFlight = m_reserved.size() - m_ready.size();
     std::size_t missing = 0;
     for (const auto& r : requests) {
         if (!ideal.count(r.key) || m_resident.count(r.key) || m_reserved.count(r.key)) continue;
         ++missing;
         if (int(inFlight) >= m_settings.queueLength) continue;
-        const std::uint64_t b = blockBytes(r.key);
+        const std::uint64_t b = !split(r.key) ? blockBytes(r.key)
+                                : anyPart(m_resident, r.key.index) || anyPart(m_reserved, r.key.index) ? 0
+                                                                                                       : textureBytes(r.key.index);
         while (used + b > m_settings.capacityBytes) {
             // The least recently requested resident block outside the ideal set.
             auto victim = m_resident.end();
@@ -235,14 +270,25 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
                 if (victim == m_resident.end() || it->second < victim->second) victim = it;
             }
             if (victim == m_resident.end()) break;
-            used -= blockBytes(victim->first);
-            out.evict.push_back(victim->first);
-            m_resident.erase(victim);
-            ++m_stats.evicted;
+            const BlockKey v = victim->first;
+            if (!split(v)) {
+                out.evict.push_back(v);
+                m_resident.erase(victim);
+                ++m_stats.evicted;
+            } else {
+                // Every resident part of it (none is in the ideal set: the set takes a texture whole).
+                for (auto it = m_resident.lower_bound(BlockKey{v.kind, v.index, 0});
+                     it != m_resident.end() && it->first.kind == v.kind && it->first.index == v.index;) {
+                    out.evict.push_back(it->first);
+                    it = m_resident.erase(it);
+                    ++m_stats.evicted;
+                }
+            }
+            used = usedBytes();
         }
         if (used + b > m_settings.capacityBytes) break; // in-flight leftovers still hold the room: next frame
         used += b;
-        m_reserved[r.key] = b;
+        m_reserved[r.key] = blockBytes(r.key);
         ++inFlight;
         if (m_settings.threaded) {
             std::lock_guard lock(m_mutex);
@@ -253,7 +299,7 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
             else {
                 m_reserved.erase(r.key);
                 m_failed.push_back(r.key);
-                used -= b;
+                used = usedBytes();
                 if (m_firstError.empty()) m_firstError = loaded.error().message;
             }
         }
@@ -275,8 +321,7 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
         out.upload.push_back(std::move(b));
     }
 
-    m_stats.residentBytes = residentBytes();
-    m_stats.reservedBytes = reservedBytes();
+    std::tie(m_stats.residentBytes, m_stats.reservedBytes) = heldBytes();
     m_stats.residentBlocks = m_resident.size();
     m_stats.queued = m_reserved.size();
     m_stats.idealBytes = idealBytes;

@@ -7,7 +7,9 @@
 // budget. The root atlas is loaded first and never evicted, so a texture is always available. Resident, queued,
 // in-flight and waiting-for-upload bytes together never exceed the capacity. Blocks are of about equal size (§4.6):
 // an original texture whose bytes exceed an atlas's more than twice is split into bands of rows of about an atlas's
-// bytes each, paged like any block; it is usable once all its parts are resident.
+// bytes each, paged like any block; it is usable once all its parts are resident. Such a texture enters and leaves the
+// ideal set and the resident set whole (all its parts or none: a partial one is undrawable), and counts its whole
+// GPU bytes while any part is resident or reserved (the GL side allocates it whole with its first band).
 //
 // Plain C++ (the GL side, CityRendererGL, uploads what update() hands out and deletes what it evicts).
 #include "AtlasTraversal.h"
@@ -77,6 +79,8 @@ public:
     /// rows [first, end) of its level 0 that part `part` holds.
     int textureParts(std::uint32_t texture) const;
     std::pair<int, int> partRows(std::uint32_t texture, int part) const;
+    /// GPU bytes of original texture `texture` as a whole (RGBA8 with mips), however many parts it is paged as.
+    std::uint64_t textureBytes(std::uint32_t texture) const;
     /// Whether every part of original texture `texture` is resident.
     bool textureResident(std::uint32_t texture) const;
     /// The first load error (a block that could not be read is not retried); empty when none.
@@ -85,6 +89,11 @@ public:
 private:
     void worker();
     Result<LoadedBlock> load(const BlockKey& key) const;
+    bool split(const BlockKey& key) const { return key.kind == BlockKey::Kind::Texture && textureParts(key.index) > 1; }
+    /// Whether some part of split texture `texture` is in `blocks` (m_resident or m_reserved).
+    template <class Map> static bool anyPart(const Map& blocks, std::uint32_t texture);
+    /// GPU bytes held by the resident and by the reserved blocks (a split texture counted whole, once).
+    std::pair<std::uint64_t, std::uint64_t> heldBytes() const;
 
     const AtlasTreeFile& m_file;
     int m_tree;

@@ -32,6 +32,19 @@ const char* cityModeName(CityMode m) {
     return "?";
 }
 
+RoofImagery roofImageryFor(const ImagerySettings& s) {
+    RoofImagery r;
+    switch (s.view) {
+    case ImageryView::LeafOff: r.season = 1; break;
+    case ImageryView::Blend: r.blend = std::clamp(s.blend, 0.0f, 1.0f); break;
+    case ImageryView::Swipe: r.swipe = std::clamp(s.swipe, 0.0f, 1.0f); break;
+    case ImageryView::Canopy: r.season = std::clamp(s.groundElsewhere, 0, 1); break; // a roof is no tree's ground
+    case ImageryView::Relief: r.imagery = false; break;
+    default: break;
+    }
+    return r;
+}
+
 std::optional<AtlasUpload> parseAtlasUpload(const std::string& name) {
     if (name == "auto") return AtlasUpload::Auto;
     if (name == "compressed") return AtlasUpload::Compressed;
@@ -358,6 +371,7 @@ void CityRendererGL::uploadTexture(const LoadedBlock& b) {
 }
 
 void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
+    m_frameEvicted += frame.evict.size();
     for (const auto& k : frame.evict) {
         if (k.kind == BlockKey::Kind::Atlas) {
             m_atlases[std::size_t(tree)].erase(k.index);
@@ -446,6 +460,7 @@ void CityRendererGL::queryBoxes(std::size_t tree, const std::vector<std::uint32_
 void CityRendererGL::update(const Camera& camera, int width, int height) {
     ++m_frame;
     m_frameUploaded = 0;
+    m_frameEvicted = 0;
     const AtlasView v = view(camera, width, height);
     if (m_settings.mode == CityMode::Atlas) {
         collectQueries(false); // the pager uses the answers if they are in, else the frame before's
@@ -668,9 +683,21 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
         m_roofProgram.set("uSunDir", sun);
         m_roofProgram.set("uPlainColour", kRoofColour);
         m_roofProgram.set("uAlphaCut", -1.0f);
-        m_roofProgram.set("uSeason", std::clamp(m_settings.season, 0, 1));
-        m_roofProgram.set("uHasImagery", terrain ? 1 : 0);
+        const RoofImagery& ri = m_settings.roofs;
+        m_roofProgram.set("uSeason", std::clamp(ri.season, 0, 1));
+        m_roofProgram.set("uBlend", ri.blend < 0.0f ? -1.0f : std::clamp(ri.blend, 0.0f, 1.0f));
+        m_roofProgram.set("uSwipeX", ri.swipe < 0.0f ? -1.0f : std::clamp(ri.swipe, 0.0f, 1.0f) * float(target.width()));
+        m_roofProgram.set("uHasImagery", terrain && ri.imagery ? 1 : 0);
         if (terrain) terrain->bindTerrain(m_roofProgram, v.viewProj);
+        else {
+            // Nothing to sample, but samplers of two types on one unit (the defaults: all on unit 0) fail the draw.
+            m_roofProgram.set("uClip0", 12);
+            m_roofProgram.set("uClip1", 13);
+            m_roofProgram.set("uCoarse0", 14);
+            m_roofProgram.set("uCoarse1", 15);
+            m_roofProgram.set("uClipTags", 11);
+            m_roofProgram.set("uLocalToImage", 10);
+        }
         m_roofProgram.set("uViewProj", viewProj);
         m_roofProgram.use();
         glDrawArrays(GL_TRIANGLES, 0, GLsizei(m_plainRoofs * 3));
@@ -699,6 +726,15 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
     glBindVertexArray(0);
     glBindSampler(0, 0);
     st.uploadedBytes = m_frameUploaded;
+    st.evictedBlocks = std::size_t(m_frameEvicted);
+    for (std::size_t t = 0; t < m_atlases.size() && t < m_pagers.size(); ++t)
+        for (const auto& [node, tex] : m_atlases[t]) st.allocatedBytes += m_pagers[t]->blockBytes({BlockKey::Kind::Atlas, node});
+    auto textureBytes = [&](std::uint32_t i) {
+        const glm::ivec2 s = m_file.textureSizes[i];
+        return std::uint64_t(std::max(s.x, 1)) * std::uint64_t(std::max(s.y, 1)) * 4u * 4u / 3u; // RGBA8 + mips
+    };
+    for (const auto& [i, tex] : m_textures) st.allocatedBytes += textureBytes(i);
+    for (const auto& [i, p] : m_partialTextures) st.allocatedBytes += textureBytes(i);
     return st;
 }
 

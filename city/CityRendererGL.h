@@ -37,13 +37,26 @@ const char* atlasUploadName(AtlasUpload u);
 /// Whether a GL_RENDERER string names a software rasteriser (llvmpipe, softpipe, SwiftShader).
 bool isSoftwareRenderer(const std::string& glRenderer);
 
+/// What the roofs show of the terrain's imagery (thesis §4.8.2: roofs are textured from it, so they follow its view):
+/// one season, the two blended, or split at the swipe line.
+struct RoofImagery {
+    int season = 0;       // 0 leaf-on, 1 leaf-off
+    float blend = -1.0f;  // >= 0: leaf-on mixed with leaf-off by this much (the blend view)
+    float swipe = -1.0f;  // >= 0: leaf-on left of this fraction of the width, leaf-off right (the swipe view)
+    bool imagery = true;  // false: one colour (the relief view shows no imagery)
+};
+/// The roofs' imagery for a terrain view: leaf-off for leafoff, the ground elsewhere's season for the canopy view,
+/// the blend and the swipe as the terrain draws them, no imagery for relief, leaf-on otherwise (lod, levels,
+/// wireframe show the leaf-on imagery under their colours).
+RoofImagery roofImageryFor(const ImagerySettings& s);
+
 struct CitySettings {
     CityMode mode = CityMode::Atlas;
     double tpp = 1.0;                              // pixels per texel (§4.5.2), adjustable per frame
     std::uint64_t capacityBytes = 256ull << 20;    // resident atlases and original textures (GPU bytes)
     std::uint64_t uploadBytesPerFrame = 16ull << 20;
     bool threaded = true;                          // background loader (false: loads inside update())
-    int season = 0;                                // roofs: 0 leaf-on, 1 leaf-off imagery
+    RoofImagery roofs;                             // the roofs' imagery (roofImageryFor the terrain's view)
     bool placeOnTerrain = true;                    // a model in its own CRS: each building set on the scene's DEM
     float anisotropy = 8.0f;                       // the samplers' maximum anisotropy (render/bench --aniso)
     AtlasUpload upload = AtlasUpload::Auto;        // BC atlases: compressed or decoded on upload
@@ -66,6 +79,10 @@ struct CityFrameStats {
     std::uint64_t residentBytes = 0;
     std::size_t loaderQueue = 0;
     std::uint64_t uploadedBytes = 0; // this frame
+    std::size_t evictedBlocks = 0;   // this frame
+    // GL texture storage held (atlases, original textures whole or while their parts arrive): what residentBytes
+    // accounts for, so never above the capacity.
+    std::uint64_t allocatedBytes = 0;
 };
 
 class CityRendererGL {
@@ -139,12 +156,11 @@ private:
         int total = 0;
     };
     std::map<std::uint32_t, PartialTexture> m_partialTextures;
-    std::map<std::uint32_t, std::uint64_t> m_textureLastUse;     // original mode's LRU
     gl::Texture m_dummy;
     gl::Sampler m_atlasSampler, m_repeatSampler, m_clampSampler;
     gl::ShaderProgram m_atlasProgram, m_originalProgram, m_flatProgram, m_roofProgram, m_plainProgram;
     bool m_decodeBc = false; // BC atlases decoded to RGB(A)8 on upload
-    std::uint64_t m_frame = 0, m_frameUploaded = 0;
+    std::uint64_t m_frame = 0, m_frameUploaded = 0, m_frameEvicted = 0;
     std::unique_ptr<AtlasPager> m_originalPager; // original mode: pages the originals the view shows
     // Occlusion culling (atlas mode): the answers and the policy per tree, the queries.
     std::vector<std::unique_ptr<NodeOcclusion>> m_occlusion;

@@ -9,7 +9,9 @@ uniform sampler2DArray uClip0;
 uniform sampler2DArray uClip1;
 uniform sampler2D uCoarse0;
 uniform sampler2D uCoarse1;
-uniform int uSeason; // 0 leaf-on, 1 leaf-off
+uniform int uSeason;    // 0 leaf-on, 1 leaf-off
+uniform float uBlend;   // >= 0: leaf-on mixed with leaf-off by this much (the terrain's blend view)
+uniform float uSwipeX;  // >= 0, pixels: leaf-on left of it, leaf-off right, a 2-pixel white divider (swipe view)
 uniform int uHasImagery;
 in vec2 vImageUv;
 #else
@@ -51,8 +53,15 @@ void main() {
     if (uHasImagery != 0 && all(greaterThanEqual(vImageUv, vec2(0.0))) && all(lessThanEqual(vImageUv, vec2(1.0)))) {
         vec2 p = vImageUv * uLevel0Size;
         ClipFootprint f = clipmapFootprint(p);
-        int used;
-        c = uSeason == 0 ? sampleClipmap(uClip0, uCoarse0, p, f, used) : sampleClipmap(uClip1, uCoarse1, p, f, used);
+        int used, used1;
+        if (uSwipeX >= 0.0 && abs(gl_FragCoord.x - uSwipeX) < 1.0)
+            c = vec4(1.0);
+        else if (uSwipeX < 0.0 && uBlend >= 0.0)
+            c = mix(sampleClipmap(uClip0, uCoarse0, p, f, used), sampleClipmap(uClip1, uCoarse1, p, f, used1), uBlend);
+        else if (uSwipeX >= 0.0 ? gl_FragCoord.x < uSwipeX : uSeason == 0)
+            c = sampleClipmap(uClip0, uCoarse0, p, f, used);
+        else
+            c = sampleClipmap(uClip1, uCoarse1, p, f, used);
     } else {
         c = vec4(uPlainColour, 1.0);
         light = 0.62 + 0.38 * abs(dot(n, uSunDir));

@@ -13,12 +13,15 @@
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <functional>
 #include <map>
+#include <mutex>
 #include <optional>
 #include <set>
+#include <thread>
 #include <tuple>
 
 using namespace seasonview;
@@ -776,6 +779,10 @@ TEST(AtlasPagingTest, CapacityIsNeverExceededUnderARandomCamera) {
         const AtlasView v = viewOf(cam);
         auto out = pager.update(trav.requests(v));
         for (const auto& k : out.evict) EXPECT_EQ(gpu.erase({int(k.kind), k.index, k.part}), 1u);
+        for (const auto& k : out.evict) // a split texture leaves whole: no band of it stays behind
+            if (k.kind == BlockKey::Kind::Texture) {
+                for (int p = 0; p < 3; ++p) EXPECT_EQ(gpu.count({int(k.kind), k.index, p}), 0u) << k.index << " part " << p;
+            }
         for (const auto& b : out.upload) {
             EXPECT_TRUE(gpu.insert({int(b.key.kind), b.key.index, b.key.part}).second);
             if (b.key.kind == BlockKey::Kind::Texture) {
@@ -789,9 +796,14 @@ TEST(AtlasPagingTest, CapacityIsNeverExceededUnderARandomCamera) {
         evictions += out.evict.size();
         const auto& st = pager.stats();
         EXPECT_LE(st.residentBytes + st.reservedBytes, ps.capacityBytes) << "frame " << frame;
+        // The GL side allocates a split texture whole with its first band and frees it with its last.
         std::uint64_t held = 0;
-        for (const auto& [kind, index, part] : gpu) held += pager.blockBytes({BlockKey::Kind(kind), index, std::uint16_t(part)});
+        std::set<std::uint32_t> textures;
+        for (const auto& [kind, index, part] : gpu)
+            if (BlockKey::Kind(kind) == BlockKey::Kind::Atlas) held += pager.blockBytes({BlockKey::Kind::Atlas, index});
+            else if (textures.insert(index).second) held += pager.textureBytes(index);
         EXPECT_EQ(held, st.residentBytes);
+        EXPECT_LE(held, ps.capacityBytes) << "frame " << frame;
         // The root is always there after the first frame, and every draw uses a resident texture.
         EXPECT_TRUE(pager.resident({BlockKey::Kind::Atlas, 0}));
         auto d = trav.draws(v, [&](std::uint32_t n) { return pager.resident({BlockKey::Kind::Atlas, n}); },
@@ -843,6 +855,134 @@ TEST(AtlasPagingTest, TextureBandsAreNeverEmpty) {
             EXPECT_NEAR(double(bytes), whole, double(parts) + 1.0);
         }
     }
+}
+
+// A split original enters the ideal set with all its bands or none (§4.6: a partial texture cannot be drawn), so
+// under any capacity the view's completed set holds every texture whole or not at all, and the bytes counted are the
+// whole textures' (the GL side allocates a texture whole with its first band).
+TEST(AtlasPagingTest, SplitTexturesAreHeldWholeOrNotAtAll) {
+    test::TempDir dir("atlas_paging_whole");
+    auto f = wallTree(dir.path(), 20);
+    ASSERT_TRUE(f) << f.error().message;
+    const AtlasTraversal trav(f->trees[0], f->info);
+    Camera cam;
+    cam.position = {150.0, -30.0, 4.0};
+    cam.pitchDeg = 0.0;
+    const auto req = trav.requests(viewOf(cam));
+    PagerSettings ps;
+    ps.threaded = false;
+    const AtlasPager probe(*f, 0, ps);
+    ASSERT_EQ(probe.textureParts(0), 3);
+    const std::uint64_t root = probe.blockBytes({BlockKey::Kind::Atlas, 0}),
+                        band = probe.blockBytes({BlockKey::Kind::Texture, 0, 1}), whole = probe.textureBytes(0);
+    std::size_t wholeSeen = 0, capacities = 0;
+    for (std::uint64_t capacity = root + band / 2; capacity < root + 12 * whole; capacity += band / 2, ++capacities) {
+        ps.capacityBytes = capacity;
+        AtlasPager pager(*f, 0, ps);
+        pager.complete(req);
+        EXPECT_EQ(pager.stats().idealMissing, 0u) << "capacity " << capacity << ": the ideal set is what fits";
+        std::map<std::uint32_t, int> parts; // texture -> resident parts
+        for (const auto& r : req)
+            if (r.key.kind == BlockKey::Kind::Texture)
+                for (int p = 0; p < 3; ++p) parts[r.key.index] += pager.resident({BlockKey::Kind::Texture, r.key.index, std::uint16_t(p)});
+        std::uint64_t expected = 0;
+        for (const auto& r : req)
+            if (r.key.kind == BlockKey::Kind::Atlas && pager.resident(r.key)) expected += pager.blockBytes(r.key);
+        for (const auto& [t, n] : parts) {
+            EXPECT_TRUE(n == 0 || n == 3) << "capacity " << capacity << ": texture " << t << " has " << n << " of 3 bands";
+            wholeSeen += n == 3;
+            if (n > 0) expected += whole;
+        }
+        EXPECT_EQ(pager.stats().residentBytes, expected) << "capacity " << capacity;
+        EXPECT_LE(pager.stats().residentBytes, capacity);
+    }
+    EXPECT_GT(capacities, 30u);
+    EXPECT_GT(wholeSeen, 20u) << "textures were paged in under the larger capacities";
+}
+
+// The loader gets at most queueLength blocks at a time, and loaded blocks are handed out for upload within the
+// per-frame byte budget (at least one block a frame), so the ideal set arrives over several frames.
+TEST(AtlasPagingTest, LoaderQueueAndUploadBudget) {
+    test::TempDir dir("atlas_paging_budget");
+    auto f = wallTree(dir.path(), 20);
+    ASSERT_TRUE(f) << f.error().message;
+    const AtlasTraversal trav(f->trees[0], f->info);
+    Camera cam;
+    cam.position = {150.0, -30.0, 4.0};
+    cam.pitchDeg = 0.0;
+    const auto req = trav.requests(viewOf(cam));
+
+    // Loads inside update(): no more than queueLength a frame; uploads within the budget.
+    PagerSettings ps;
+    ps.threaded = false;
+    ps.queueLength = 2;
+    ps.capacityBytes = 64ull << 20;
+    int calls = 0;
+    AtlasPager probe(*f, 0, ps);
+    ps.uploadBytesPerFrame = 2 * probe.blockBytes({BlockKey::Kind::Texture, 0, 1}) + 10;
+    AtlasPager pager(*f, 0, ps, [&](const BlockKey& k) -> Result<LoadedBlock> {
+        ++calls;
+        LoadedBlock b;
+        b.key = k;
+        b.bytes = probe.blockBytes(k);
+        return b;
+    });
+    int frames = 0, loadsBefore = 0;
+    std::uint64_t total = 0;
+    std::size_t maxBlocksAFrame = 0;
+    for (; frames < 1000; ++frames) {
+        const auto out = pager.update(req);
+        EXPECT_LE(calls - loadsBefore, ps.queueLength) << "frame " << frames;
+        loadsBefore = calls;
+        std::uint64_t bytes = 0;
+        for (const auto& b : out.upload) bytes += b.bytes;
+        if (out.upload.size() > 1) {
+            EXPECT_LE(bytes, ps.uploadBytesPerFrame) << "frame " << frames;
+        }
+        maxBlocksAFrame = std::max(maxBlocksAFrame, out.upload.size());
+        total += bytes;
+        if (pager.stats().idealMissing == 0 && pager.stats().queued == 0) break;
+    }
+    EXPECT_EQ(pager.stats().idealMissing, 0u);
+    EXPECT_NEAR(double(total), double(pager.stats().residentBytes), 100.0); // bands' bytes vs whole textures'
+    EXPECT_GE(std::uint64_t(frames + 1) * ps.uploadBytesPerFrame, total) << "the budget spread the uploads";
+    EXPECT_GT(total, 4 * ps.uploadBytesPerFrame);
+    EXPECT_GE(maxBlocksAFrame, 2u);
+
+    // A background loader that is slow: what waits for it (queued, loading, loaded) never exceeds queueLength.
+    std::mutex gate;
+    std::unique_lock<std::mutex> closed(gate);
+    int threadedCalls = 0;
+    std::mutex callsMutex;
+    ps.threaded = true;
+    ps.queueLength = 3;
+    {
+        AtlasPager slow(*f, 0, ps, [&](const BlockKey& k) -> Result<LoadedBlock> {
+            {
+                std::lock_guard lock(callsMutex);
+                ++threadedCalls;
+            }
+            std::lock_guard wait(gate); // held closed by the test until it opens it
+            LoadedBlock b;
+            b.key = k;
+            b.bytes = probe.blockBytes(k);
+            return b;
+        });
+        for (int i = 0; i < 20; ++i) {
+            const auto out = slow.update(req);
+            EXPECT_TRUE(out.upload.empty());
+            EXPECT_LE(slow.stats().queued, std::size_t(ps.queueLength)) << "update " << i;
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        }
+        EXPECT_EQ(slow.stats().queued, std::size_t(ps.queueLength));
+        EXPECT_GT(slow.stats().idealMissing, std::size_t(ps.queueLength)) << "more is missing than may wait";
+        closed.unlock();
+        slow.complete(req);
+        EXPECT_EQ(slow.stats().idealMissing, 0u);
+        EXPECT_EQ(slow.stats().queued, 0u);
+    }
+    std::lock_guard lock(callsMutex);
+    EXPECT_GT(threadedCalls, ps.queueLength);
 }
 
 TEST(AtlasPagingTest, ThreadedLoaderCompletesTheIdealSet) {

@@ -154,6 +154,8 @@ TEST(CityCliTest, OcclusionCullingSkipsOnlyHiddenNodes) {
         EXPECT_GE(on["blocks_resident"].get<int>(), on["atlas_nodes"].get<int>()) << camera;
         EXPECT_GE(on["texture_binds"].get<int>(), 1) << camera;
         EXPECT_EQ(on["loader_queue"].get<int>(), 0) << camera;
+        EXPECT_EQ(on["allocated_bytes"], on["resident_bytes"]) << camera; // the GL side holds what the pager counts
+        EXPECT_GT(on["allocated_bytes"].get<std::int64_t>(), 0) << camera;
         const auto a = s.image("off.png"), b = s.image("on.png");
         EXPECT_TRUE(a.pixels == b.pixels) << camera << ": occlusion culling changed the picture";
         if (camera == "-60,-110,+2,10,2") {
@@ -301,6 +303,45 @@ TEST(CityCliTest, RoofsComeFromTheImageryOfTheSeason) {
     }
     EXPECT_GT(city, on.pixels.size() / 3 / 100);
     EXPECT_GT(differ, city / 10) << differ << " of " << city << " city pixels differ between the seasons";
+
+    // The roofs follow the blend and swipe views as the terrain does: halfway between the seasons, and leaf-on left
+    // of the swipe line, leaf-off right of it.
+    ASSERT_EQ(s.render("blend.png", {"--city", "flat", "--view", "blend", "--blend", "0.5"}).exitCode, 0);
+    ASSERT_EQ(s.render("swipe.png", {"--city", "flat", "--view", "swipe", "--swipe", "0.4"}).exitCode, 0);
+    const auto blend = s.image("blend.png"), swipe = s.image("swipe.png");
+    ASSERT_EQ(blend.pixels.size(), on.pixels.size());
+    ASSERT_EQ(swipe.pixels.size(), on.pixels.size());
+    const int line = int(0.4 * on.width);
+    std::size_t roofs = 0, blendOff = 0, left = 0, right = 0, swipeOff = 0;
+    for (int y = 0; y < on.height; ++y)
+        for (int x = 0; x < on.width; ++x) {
+            const std::size_t i = (std::size_t(y) * std::size_t(on.width) + std::size_t(x)) * 3;
+            int seasons = 0, changed = 0;
+            for (std::size_t c = 0; c < 3; ++c) {
+                seasons += std::abs(int(on.pixels[i + c]) - int(off.pixels[i + c]));
+                changed += std::abs(int(on.pixels[i + c]) - int(plain.pixels[i + c]));
+            }
+            if (changed < 30 || seasons < 36) continue; // a roof pixel whose seasons differ
+            ++roofs;
+            for (std::size_t c = 0; c < 3; ++c)
+                if (std::abs(2 * int(blend.pixels[i + c]) - int(on.pixels[i + c]) - int(off.pixels[i + c])) > 6) {
+                    ++blendOff;
+                    break;
+                }
+            if (std::abs(x - line) <= 2) continue;
+            const auto& want = x < line ? on : off;
+            ++(x < line ? left : right);
+            for (std::size_t c = 0; c < 3; ++c)
+                if (std::abs(int(swipe.pixels[i + c]) - int(want.pixels[i + c])) > 2) {
+                    ++swipeOff;
+                    break;
+                }
+        }
+    EXPECT_GT(roofs, city / 20);
+    EXPECT_GT(left, 0u);
+    EXPECT_GT(right, 0u);
+    EXPECT_LE(blendOff, roofs / 50) << blendOff << " of " << roofs << " roof pixels are not halfway between the seasons";
+    EXPECT_LE(swipeOff, (left + right) / 50) << swipeOff << " of " << left + right << " roof pixels are not their side's season";
 }
 
 // `synth --facades DIR`: every building's facade is cut from one of the folder's photos and made unique by its
