@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <fstream>
 #include <tuple>
 #include <map>
@@ -152,6 +153,63 @@ TEST(BenchCli, CanopyCompareAddsLayersAndTrunks) {
                                   "--out", (dir / "bad").string()});
     EXPECT_EQ(bad.exitCode, 1);
     EXPECT_NE(bad.err.find("scene 'city' (expected terrain|full)"), std::string::npos) << bad.err;
+}
+
+// Counters add up where both clipmaps stream: a 4 km scene with a 4 m DEM (1024² samples) under a 63-vertex
+// geometry clipmap and 256² imagery levels, on the `fast` path. Every frame's uploads in frames.csv sum to what the
+// imagery and elevation clipmaps themselves counted, and both uploaded in several frames.
+TEST(BenchCli, CountersAddUpWhileBothClipmapsStream) {
+    TempDir dir("bench-stream");
+    const CliResult s = runCli({"synth", "--out", (dir / "scene").string(), "--size-m", "4096", "--gsd", "4",
+                                "--dem-spacing", "4"});
+    ASSERT_EQ(s.exitCode, 0) << s.err;
+    const CliResult r = runCli({"bench", (dir / "scene/scene.json").string(), "--path", "fast", "--frames", "10",
+                                "--warmup", "1", "--size", "160x90", "--coverage-every", "0", "--clip-size", "256",
+                                "--grid-size", "63", "--cache", (dir / "cache").string(), "--out",
+                                (dir / "out").string()});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::ifstream csv(dir / "out/frames.csv");
+    std::string header;
+    std::getline(csv, header);
+    std::vector<std::string> names;
+    {
+        std::stringstream h(header);
+        for (std::string c; std::getline(h, c, ',');) names.push_back(c);
+    }
+    auto column = [&](const std::string& name) {
+        return int(std::find(names.begin(), names.end(), name) - names.begin());
+    };
+    const int up = column("texels_uploaded"), elev = column("elevation_texels_uploaded"),
+              elevResident = column("elevation_resident_bytes");
+    ASSERT_LT(elev, int(names.size()));
+    ASSERT_LT(elevResident, int(names.size()));
+    std::int64_t imagery = 0, elevation = 0;
+    int imageryFrames = 0, elevationFrames = 0, rows = 0;
+    for (std::string line; std::getline(csv, line); ++rows) {
+        std::vector<std::string> cells;
+        std::stringstream l(line);
+        for (std::string c; std::getline(l, c, ',');) cells.push_back(c);
+        ASSERT_EQ(cells.size(), names.size()) << line;
+        const std::int64_t a = std::stoll(cells[size_t(up)]), b = std::stoll(cells[size_t(elev)]);
+        imagery += a;
+        elevation += b;
+        imageryFrames += a > 0;
+        elevationFrames += b > 0;
+        EXPECT_GT(std::stoll(cells[size_t(elevResident)]), 0) << "row " << rows;
+    }
+    EXPECT_EQ(rows, 10);
+    std::ifstream sj(dir / "out/summary.json");
+    const auto summary = nlohmann::json::parse(sj);
+    ASSERT_EQ(summary["modes"].size(), 1u);
+    const auto& totals = summary["modes"].begin().value()["totals"];
+    EXPECT_EQ(totals["texels_uploaded"].get<std::int64_t>(), imagery);
+    EXPECT_EQ(totals["clipmap_reported_texels_uploaded"].get<std::int64_t>(), imagery);
+    EXPECT_EQ(totals["elevation_texels_uploaded"].get<std::int64_t>(), elevation);
+    EXPECT_EQ(totals["elevation_reported_texels_uploaded"].get<std::int64_t>(), elevation);
+    EXPECT_GT(imagery, 0);
+    EXPECT_GT(elevation, 0) << "the elevation clipmap streamed";
+    EXPECT_GE(imageryFrames, 2);
+    EXPECT_GE(elevationFrames, 3);
 }
 
 TEST(BenchCli, BadPathAndCompareAreOneLineErrors) {
