@@ -46,6 +46,7 @@ struct FrameRow {
     int blocksMissing = 0;
     int canopyBlocksDerived = 0; // canopy view: blocks the segmentation rule ran on this frame
     int trunkSearches = 0;       // canopy view with trunks: 1 when the crown centres were searched this frame
+    int runOrder = 0;            // the frame's place among all modes' measured frames as they ran (interleaved)
     double coverage = NAN;
     city::CityFrameStats city; // zeros without a city
 };
@@ -443,6 +444,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     using clock = std::chrono::steady_clock;
     auto ms = [](clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
 
+    int recorded = 0;
     auto runFrame = [&](Mode& m, const Camera& cam, int frame, bool record) {
         FrameRow row;
         row.frame = frame;
@@ -535,6 +537,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         heapBytes(row.heapInUseBytes, row.heapMappedBytes);
         if (m.clipmap && a->coverageEvery > 0 && frame % a->coverageEvery == 0)
             row.coverage = m.clipRenderer->measureLevels(cam, scratch).coverage;
+        if (record) row.runOrder = recorded++;
         m.rows.push_back(row);
     };
     const auto start = clock::now();
@@ -567,13 +570,13 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
            "city_texture_binds,city_draw_calls,city_triangles,city_blocks_resident,city_resident_bytes,"
            "city_loader_queue,city_coarser_than_wanted,heap_in_use_bytes,heap_mapped_bytes,canopy_blocks_derived,"
            "trunk_searches,city_cpu_ms,city_occluded_nodes,city_occlusion_queries,city_occlusion_waits,"
-           "elevation_texels_uploaded,elevation_resident_bytes\n";
+           "elevation_texels_uploaded,elevation_resident_bytes,run_order,city_allocated_bytes,city_evicted_blocks\n";
     for (const Mode& m : *modes)
         for (const FrameRow& r : m.rows) {
             char line[512];
             std::snprintf(line, sizeof line,
                           "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s,"
-                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f,%d,%d,%d,%lld,%lld\n",
+                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f,%d,%d,%d,%lld,%lld,%d,%llu,%zu\n",
                           m.label.c_str(), r.frame, r.camera.position.x, r.camera.position.y, r.camera.position.z,
                           r.camera.yawDeg, r.camera.pitchDeg, r.cpuMs, r.gpuMs, r.frameMs, r.drawCalls,
                           (long long)r.triangles, (long long)r.texelsUploaded, (long long)r.exposedTexels,
@@ -584,7 +587,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                           r.city.coarserThanWanted, (long long)r.heapInUseBytes, (long long)r.heapMappedBytes,
                           r.canopyBlocksDerived, r.trunkSearches, r.cityCpuMs, r.city.occludedNodes,
                           r.city.occlusionQueries, r.city.occlusionWaits, (long long)r.elevationTexelsUploaded,
-                          (long long)r.elevationResidentBytes);
+                          (long long)r.elevationResidentBytes, r.runOrder,
+                          (unsigned long long)r.city.allocatedBytes, r.city.evictedBlocks);
             csv << line;
         }
     std::string err;

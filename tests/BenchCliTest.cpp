@@ -27,10 +27,33 @@ TEST(BenchCli, CompareWritesFramesSummaryCompareAndPlot) {
     EXPECT_NE(r.out.find("centers=footprint"), std::string::npos) << r.out;
     for (const char* f : {"frames.csv", "summary.json", "compare.json", "plot.png"})
         EXPECT_TRUE(std::filesystem::exists(dir / "out" / f)) << f;
+    // The modes ran interleaved, frame by frame (run_order: the place among all measured frames as they ran).
     std::ifstream csv(dir / "out/frames.csv");
+    std::string header;
+    std::getline(csv, header);
+    EXPECT_EQ(header.substr(0, 11), "mode,frame,");
+    const std::size_t orderColumn = std::size_t(std::count(header.begin(), header.begin() + std::ptrdiff_t(header.find("run_order")), ','));
+    ASSERT_NE(header.find("run_order"), std::string::npos);
+    const std::vector<std::string> order = {"centers=concentric", "centers=offset", "centers=footprint"};
     int lines = 0;
-    for (std::string line; std::getline(csv, line);) ++lines;
-    EXPECT_EQ(lines, 1 + 3 * 6);
+    std::set<int> runOrders;
+    for (std::string line; std::getline(csv, line); ++lines) {
+        std::vector<std::string> cells;
+        std::stringstream l(line);
+        for (std::string c; std::getline(l, c, ',');) cells.push_back(c);
+        ASSERT_GT(cells.size(), orderColumn);
+        const int mode = int(std::find(order.begin(), order.end(), cells[0]) - order.begin());
+        ASSERT_LT(mode, 3) << cells[0];
+        const int frame = std::stoi(cells[1]), run = std::stoi(cells[orderColumn]);
+        EXPECT_EQ(run, frame * 3 + mode) << line;
+        runOrders.insert(run);
+    }
+    EXPECT_EQ(lines, 3 * 6);
+    EXPECT_EQ(runOrders.size(), 18u);
+    // The printed table: one row per mode with its ratio to the first.
+    for (const auto& m : order) EXPECT_NE(r.out.find(m), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("ratio"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("1.000"), std::string::npos) << r.out;
     std::ifstream sj(dir / "out/summary.json");
     const auto summary = nlohmann::json::parse(sj);
     EXPECT_TRUE(summary["device"].contains("renderer"));
