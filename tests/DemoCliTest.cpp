@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include <fstream>
+#include <map>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -65,4 +66,33 @@ TEST(DemoCliTest, IndexHtmlAndEveryImageItShowsExist) {
     for (const char* file : {"segment/overlay.png", "segment/overlay_crop.png", "segment/trees.csv"})
         EXPECT_TRUE(std::filesystem::is_regular_file(dir / "out" / file)) << file;
     EXPECT_FALSE(std::filesystem::exists(dir / "out/segment/overlay_full.tif"));
+
+    // The printed summary: the page, the scene generated, every still, the bench table, the segmentation's scores.
+    EXPECT_NE(r.out.find("seasonview demo: " + (dir / "out/index.html").string()), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("scene     generated"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("prepared leafon pyramid"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("built the atlas tree"), std::string::npos) << r.out;
+    for (auto it = std::sregex_iterator(html.begin(), html.end(), img); it != std::sregex_iterator(); ++it)
+        if (std::string((*it)[1]).find('/') == std::string::npos) {
+            EXPECT_NE(r.out.find((dir / "out" / std::string((*it)[1])).string()), std::string::npos) << (*it)[1];
+        }
+    for (const char* m : {"centers=concentric", "centers=offset", "centers=footprint", "ratio"})
+        EXPECT_NE(r.out.find(m), std::string::npos) << m;
+    for (const auto& m : methods) EXPECT_NE(r.out.find("    " + m + " "), std::string::npos) << m;
+
+    // Run again: the scene, its pyramids and the city's tree come from the caches (nothing regenerated or prepared)
+    // and the stills are the same images.
+    const auto sceneTime = std::filesystem::last_write_time(dir / "out/scene/leafon.tif");
+    std::map<std::string, std::string> before;
+    for (const auto& e : std::filesystem::directory_iterator(dir / "out"))
+        if (e.path().extension() == ".png") before[e.path().filename().string()] = readBytes(e.path());
+    const CliResult again = runCli({"demo", "--out", (dir / "out").string(), "--size-m", "512", "--gsd", "0.5",
+                                    "--size", "320x180", "--bench-frames", "2", "--cache", (dir / "cache").string()});
+    ASSERT_EQ(again.exitCode, 0) << again.err;
+    EXPECT_NE(again.out.find("scene     cached"), std::string::npos) << again.out;
+    EXPECT_EQ(again.out.find("prepared "), std::string::npos) << again.out;
+    EXPECT_EQ(again.out.find("built the atlas tree"), std::string::npos) << again.out;
+    EXPECT_EQ(std::filesystem::last_write_time(dir / "out/scene/leafon.tif"), sceneTime);
+    EXPECT_GE(before.size(), 10u);
+    for (const auto& [name, bytes] : before) EXPECT_EQ(readBytes(dir / "out" / name), bytes) << name;
 }
