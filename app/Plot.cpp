@@ -93,8 +93,19 @@ Status writeLinePlot(const std::filesystem::path& out, const std::vector<PlotPan
             const auto& y = p.series[si].y;
             auto px = [&](size_t i) { return x0 + double(x1 - x0) * double(i) / double(std::max<size_t>(1, samples - 1)); };
             auto py = [&](double v) { return y1 - double(y1 - y0) * std::clamp((v - lo) / (hi - lo), 0.0, 1.0); };
-            for (size_t i = 1; i < y.size(); ++i)
-                if (std::isfinite(y[i - 1]) && std::isfinite(y[i])) cv.line(px(i - 1), py(y[i - 1]), px(i), py(y[i]), c);
+            // Measured samples joined in order across unmeasured ones (coverage every 100th frame), each marked with
+            // a dot where the series has gaps, so sparse samples show too.
+            const bool sparse = std::any_of(y.begin(), y.end(), [](double v) { return !std::isfinite(v); });
+            std::size_t last = y.size();
+            for (size_t i = 0; i < y.size(); ++i) {
+                if (!std::isfinite(y[i])) continue;
+                if (last < y.size()) cv.line(px(last), py(y[last]), px(i), py(y[i]), c);
+                if (sparse) {
+                    const int cx = int(std::lround(px(i))), cy = int(std::lround(py(y[i])));
+                    cv.rect(cx - 1, cy - 1, cx + 2, cy + 2, c);
+                }
+                last = i;
+            }
             cv.rect(x1 + 12, y0 + 10 + int(si) * 22, x1 + 32, y0 + 22 + int(si) * 22, c);
             cv.text(x1 + 38, y0 + 8 + int(si) * 22, p.series[si].label, black);
         }

@@ -13,7 +13,7 @@ namespace seasonview::app {
 
 struct PlotSeries {
     std::string label;
-    std::vector<double> y; // one value per x sample (NaN: gap)
+    std::vector<double> y; // one value per x sample (NaN: not measured there; the measured ones are joined and dotted)
 };
 
 struct PlotPanel {
