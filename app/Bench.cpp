@@ -458,8 +458,12 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         glBeginQuery(GL_TIME_ELAPSED, timer.id());
         ClipmapFrameStats cs, es;
         if (m.clipmap) {
-            const ClipmapGeometry g = clipmapGeometry(*scene, m.clipmap->schedule().layout());
-            cs = m.clipmap->update(clipmapCentres(*scene, cam, w, h, m.centers, g));
+            // scene=terrain draws the relief without imagery: its imagery clipmap does not stream (unless a city's
+            // roofs read it).
+            if (!m.terrainOnly || m.city) {
+                const ClipmapGeometry g = clipmapGeometry(*scene, m.clipmap->schedule().layout());
+                cs = m.clipmap->update(clipmapCentres(*scene, cam, w, h, m.centers, g));
+            }
             es = m.clipRenderer->updateGeometry(cam, h);
         }
         if (m.canopy) {
@@ -547,7 +551,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     // Measuring starts from a fully loaded view, so uploads compare with the texels the path's moves expose.
     for (Mode& m : *modes)
         if (m.clipmap) {
-            m.clipmap->completeSynchronously();
+            if (!m.terrainOnly || m.city) m.clipmap->completeSynchronously();
             m.clipRenderer->completeGeometry();
             if (m.city) {
                 m.city->complete(path->at(0.0, terrain), w, h);

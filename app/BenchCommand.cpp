@@ -30,8 +30,11 @@ Runner addBenchCommand(CLI::App& app) {
                     "Modes run interleaved over the same path: \"centers=" + placementNames() +
                         "\" (comma-separated), \"renderer=clipmap,reference\", \"aniso=1,8,...\", \"canopy=off,16\" "
                         "(no canopy vs the canopy view with N layers), \"canopy-draw=layers,march\" (the layers "
-                        "rasterised each vs intersected per pixel) or \"segmentation=upload,perframe\" (canopy "
-                        "layer derived when blocks arrive vs re-derived every frame)");
+                        "rasterised each vs intersected per pixel), \"segmentation=upload,perframe\" (canopy "
+                        "layer derived when blocks arrive vs re-derived every frame), \"scene=terrain,full\" (the "
+                        "relief alone vs both seasons, canopy layers and trunks), \"city=atlas,original,flat,off\", "
+                        "\"city-upload=compressed,decoded\", \"city-occlusion=off,on\" or \"terrain=on,off\" "
+                        "(with a city: the city over the terrain vs alone)");
     cmd->add_option("--canopy-layers", a->b.canopyLayers, "canopy view: stacked layers 1..32 or off")
         ->capture_default_str();
     cmd->add_option("--method", a->b.method, "canopy view: pixel|neighborhood|equalized|default")->capture_default_str();

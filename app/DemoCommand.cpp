@@ -43,7 +43,9 @@ bool cachedSceneMatches(const std::filesystem::path& dir, const SynthOptions& o)
     return g.value("version", 0) == kSynthGeneratorVersion && g.value("seed", std::uint64_t(0)) == o.seed &&
            g.value("size_m", 0.0) == o.sizeM &&
            g.value("gsd", 0.0) == o.gsd && g.value("dem", std::string()) == o.dem.string() &&
-           g.value("compression", std::string("deflate")) == tiffCompressionName(o.compression);
+           g.value("compression", std::string("deflate")) == tiffCompressionName(o.compression) &&
+           g.value("block_city", 0) == o.blockCity &&
+           (!j.contains("buildings") || g.value("facade_size", 256) == o.facadeSize);
 }
 
 // One method of the demo's offline segmentation.
@@ -191,6 +193,8 @@ Runner addDemoCommand(CLI::App& app) {
             if (cmd->count("--size-m") == 0) args->synth.sizeM = preset->sizeM;
             if (cmd->count("--gsd") == 0) args->synth.gsd = preset->gsd;
             if (cmd->count("--seed") == 0) args->synth.seed = preset->seed;
+            args->synth.blockCity = preset->blockCity;
+            args->synth.facadeSize = preset->facadeSize;
         }
         using clock = std::chrono::steady_clock;
         const auto t0 = clock::now();

@@ -120,10 +120,12 @@ int ClipmapGL::uploadReady(std::int64_t budget, ClipmapFrameStats& stats) {
         // A block of an older window (the view moved on while it loaded) would evict a wanted one: drop it.
         if (intersect(m_schedule.window(blk.key.level), blk.texels) != blk.texels) continue;
         const int dx = wrapTexel(blk.key.bx, slots) * b, dy = wrapTexel(blk.key.by, slots) * b;
-        for (size_t layer = 0; layer < m_clip.size(); ++layer)
+        for (size_t layer = 0; layer < m_clip.size(); ++layer) {
             glTextureSubImage3D(m_clip[layer].id(), 0, dx, dy, blk.key.level, blk.texels.width(), blk.texels.height(), 1,
                                 m_format == TexelFormat::R32F ? GL_RED : GL_RGBA,
                                 m_format == TexelFormat::R32F ? GL_FLOAT : GL_UNSIGNED_BYTE, blk.layers[layer].data());
+            m_totalUploaded += std::int64_t(blk.texels.width()) * blk.texels.height(); // counted at the call
+        }
         m_schedule.markStored(blk.key);
         touched[size_t(blk.key.level)] = 1;
         stats.texelsUploaded += blk.texels.area() * std::int64_t(m_clip.size());
@@ -134,7 +136,6 @@ int ClipmapGL::uploadReady(std::int64_t budget, ClipmapFrameStats& stats) {
         if (touched[l])
             glTextureSubImage3D(m_tags.id(), 0, 0, 0, GLint(l), slots, slots, 1, GL_RED_INTEGER, GL_INT,
                                 m_schedule.slotTags(int(l)).data());
-    m_totalUploaded += stats.texelsUploaded;
     return uploaded;
 }
 

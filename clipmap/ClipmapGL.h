@@ -71,6 +71,8 @@ public:
     /// GPU bytes of all clipmap textures (toroidal levels, coarse pyramids with mips, tags).
     std::int64_t residentBytes() const;
     std::int64_t loaderCacheBytes() const { return m_source->cacheBytes(); }
+    /// Texels handed to glTextureSubImage3D for the toroidal levels since creation, counted at each call (apart from
+    /// the per-frame ClipmapFrameStats, so the bench can check the two agree).
     std::int64_t totalTexelsUploaded() const { return m_totalUploaded; }
     glm::ivec2 imageSize() const { return m_schedule.layout().levelSizes[0]; }
 

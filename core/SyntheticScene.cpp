@@ -359,6 +359,7 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
                       {"size_m", options.sizeM},       {"gsd", options.gsd}, {"dem", options.dem.string()}};
     j["generator"]["compression"] = tiffCompressionName(options.compression);
     if (options.blockCity > 0) j["generator"]["block_city"] = options.blockCity;
+    if (report.buildings > 0) j["generator"]["facade_size"] = options.facadeSize;
     if (options.centreLonLat) j["generator"]["centre_lonlat"] = {options.centreLonLat->x, options.centreLonLat->y};
     std::string err;
     if (!writeTextAtomic(outDir / "scene.json", j.dump(2) + "\n", err))

@@ -35,10 +35,10 @@ TEST(CityPagingGLTest, SplitOriginalsEvictedAndUploadedAgainDrawAsBefore) {
     ASSERT_TRUE(headlessContext());
     TempDir dir("city-paging");
     // 40 buildings with 128² facades; with 64² atlases each facade (RGBA8 + mips, 5.3 atlases) is paged in 6 bands.
-    ASSERT_EQ(runCli({"synth", "--out", (dir / "s").string(), "--size-m", "256", "--gsd", "1", "--block-city", "40",
-                      "--facade-size", "128"})
-                  .exitCode,
-              0);
+    const CliResult synth = runCli({"synth", "--out", (dir / "s").string(), "--size-m", "256", "--gsd", "1",
+                                    "--block-city", "40", "--facade-size", "128"});
+    ASSERT_EQ(synth.exitCode, 0) << synth.err;
+    EXPECT_NE(synth.out.find(" 40 buildings"), std::string::npos) << synth.out;
     const std::string tree = (dir / "t.svat").string();
     ASSERT_EQ(runCli({"atlas", "build", (dir / "s/city/city.obj").string(), "--obj-local", "--out", tree,
                       "--atlas-size", "64"})
