@@ -37,6 +37,55 @@ TEST(CameraPathTest, NamedPathsStayOverTheSceneAndAboveTheTerrain) {
     EXPECT_FALSE(CameraPath::named("spiral", s).ok());
 }
 
+// The named paths are in scene-relative units: on an off-centre, non-square scene they stay over it, scale with it
+// and centre on it.
+TEST(CameraPathTest, NamedPathsScaleWithTheScene) {
+    PathScene s;
+    s.localMin = {5000, -200};
+    s.localMax = {9000, 1800}; // 4 km × 2 km, centred at (7000, 800)
+    s.terrainHeight = [](double, double y) { return 300.0 + 0.05 * y; };
+    for (const char* name : {"flyover", "orbit", "dive", "fast", "random"}) {
+        auto p = CameraPath::named(name, s, 3);
+        ASSERT_TRUE(p.ok()) << name;
+        glm::dvec2 lo(1e30), hi(-1e30), sum(0.0);
+        for (int i = 0; i <= 200; ++i) {
+            const Camera c = p->at(i / 200.0, s.terrainHeight);
+            EXPECT_GE(c.position.x, 5000.0) << name << " " << i;
+            EXPECT_LE(c.position.x, 9000.0) << name << " " << i;
+            EXPECT_GE(c.position.y, -200.0) << name << " " << i;
+            EXPECT_LE(c.position.y, 1800.0) << name << " " << i;
+            EXPECT_GT(c.position.z, s.terrainHeight(c.position.x, c.position.y)) << name << " " << i;
+            lo = glm::min(lo, glm::dvec2(c.position));
+            hi = glm::max(hi, glm::dvec2(c.position));
+            sum += glm::dvec2(c.position);
+        }
+        // Each path travels a good part of the scene's smaller half-size (1 km), not metres of it.
+        EXPECT_GT(std::max(hi.x - lo.x, hi.y - lo.y), 500.0) << name;
+        if (std::string(name) == "orbit") {
+            EXPECT_NEAR(sum.x / 201.0, 7000.0, 50.0);
+            EXPECT_NEAR(sum.y / 201.0, 800.0, 50.0);
+        }
+    }
+}
+
+// dive: from straight down, high up, to a near-horizontal view low over the ground.
+TEST(CameraPathTest, DiveGoesFromTopDownToNearHorizontal) {
+    const PathScene s = scene();
+    auto p = CameraPath::named("dive", s);
+    ASSERT_TRUE(p.ok());
+    const Camera a = p->at(0.0, s.terrainHeight), b = p->at(1.0, s.terrainHeight);
+    EXPECT_NEAR(a.pitchDeg, -90.0, 1e-9);
+    EXPECT_GT(b.pitchDeg, -10.0);
+    EXPECT_GT(a.position.z - s.terrainHeight(a.position.x, a.position.y),
+              20.0 * (b.position.z - s.terrainHeight(b.position.x, b.position.y)));
+    double last = -91.0;
+    for (int i = 0; i <= 100; ++i) { // the view only rises
+        const double pitch = p->at(i / 100.0, s.terrainHeight).pitchDeg;
+        EXPECT_GE(pitch, last - 1e-9) << i;
+        last = pitch;
+    }
+}
+
 TEST(CameraPathTest, FlyoverIsStraightAt45Degrees) {
     const PathScene s = scene();
     auto p = CameraPath::named("flyover", s);
