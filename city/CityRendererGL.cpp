@@ -729,12 +729,12 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
     st.evictedBlocks = std::size_t(m_frameEvicted);
     for (std::size_t t = 0; t < m_atlases.size() && t < m_pagers.size(); ++t)
         for (const auto& [node, tex] : m_atlases[t]) st.allocatedBytes += m_pagers[t]->blockBytes({BlockKey::Kind::Atlas, node});
-    auto textureBytes = [&](std::uint32_t i) {
-        const glm::ivec2 s = m_file.textureSizes[i];
-        return std::uint64_t(std::max(s.x, 1)) * std::uint64_t(std::max(s.y, 1)) * 4u * 4u / 3u; // RGBA8 + mips
-    };
-    for (const auto& [i, tex] : m_textures) st.allocatedBytes += textureBytes(i);
-    for (const auto& [i, p] : m_partialTextures) st.allocatedBytes += textureBytes(i);
+    // Original textures (whole, or allocated whole while their bands arrive): the pagers' size of a texture.
+    const AtlasPager* pager = m_originalPager ? m_originalPager.get() : m_pagers.empty() ? nullptr : m_pagers[0].get();
+    if (pager) {
+        for (const auto& [i, tex] : m_textures) st.allocatedBytes += pager->textureBytes(i);
+        for (const auto& [i, p] : m_partialTextures) st.allocatedBytes += pager->textureBytes(i);
+    }
     return st;
 }
 

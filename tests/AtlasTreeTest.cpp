@@ -535,6 +535,14 @@ AtlasView viewOf(const Camera& cam, int width = 800, int height = 600) {
     return v;
 }
 
+/// The block requests of a view 4 m in front of wallTree's walls, looking along the row (their originals wanted).
+std::vector<BlockRequest> wallRequests(const AtlasTreeFile& f) {
+    Camera cam;
+    cam.position = {150.0, -30.0, 4.0};
+    cam.pitchDeg = 0.0;
+    return AtlasTraversal(f.trees[0], f.info).requests(viewOf(cam));
+}
+
 std::map<std::pair<int, std::uint32_t>, BlockCategory> categories(const std::vector<BlockRequest>& r) {
     std::map<std::pair<int, std::uint32_t>, BlockCategory> m;
     for (const auto& b : r) m[{int(b.key.kind), b.key.index}] = b.category;
@@ -864,11 +872,7 @@ TEST(AtlasPagingTest, SplitTexturesAreHeldWholeOrNotAtAll) {
     test::TempDir dir("atlas_paging_whole");
     auto f = wallTree(dir.path(), 20);
     ASSERT_TRUE(f) << f.error().message;
-    const AtlasTraversal trav(f->trees[0], f->info);
-    Camera cam;
-    cam.position = {150.0, -30.0, 4.0};
-    cam.pitchDeg = 0.0;
-    const auto req = trav.requests(viewOf(cam));
+    const auto req = wallRequests(*f);
     PagerSettings ps;
     ps.threaded = false;
     const AtlasPager probe(*f, 0, ps);
@@ -906,11 +910,7 @@ TEST(AtlasPagingTest, LoaderQueueAndUploadBudget) {
     test::TempDir dir("atlas_paging_budget");
     auto f = wallTree(dir.path(), 20);
     ASSERT_TRUE(f) << f.error().message;
-    const AtlasTraversal trav(f->trees[0], f->info);
-    Camera cam;
-    cam.position = {150.0, -30.0, 4.0};
-    cam.pitchDeg = 0.0;
-    const auto req = trav.requests(viewOf(cam));
+    const auto req = wallRequests(*f);
 
     // Loads inside update(): no more than queueLength a frame; uploads within the budget.
     PagerSettings ps;
