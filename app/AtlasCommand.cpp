@@ -21,7 +21,7 @@ namespace {
 
 struct AtlasArgs {
     std::string input, out, dmin = "auto", format = "bc", roofs = "imagery", crs, objUp = "y", report, packer = "maxrects";
-    int atlasSize = 512, screenWidth = 1920;
+    int atlasSize = 512, screenWidth = 1920, border = 8;
     double tpp = 1.0, fovX = 90.0, cacheMb = 512.0;
     bool objLocal = false;
     std::string tree; // info
@@ -63,6 +63,11 @@ Runner addAtlasCommand(CLI::App& app) {
     build->add_option("--dmin", a->dmin, "Minimum distance for atlases, metres, or 'auto' (bounding-box diagonal / 72)")
         ->capture_default_str();
     build->add_option("--tpp", a->tpp, "Pixels per texel the textures are sized for")->capture_default_str();
+    build->add_option("--border", a->border,
+                      "Texel border b around each texture in the atlas (thesis 4.5.2: b = 8 keeps mips 1-3 free of "
+                      "neighbouring textures; 2b keeps one more level); areas are sized in multiples of b")
+        ->check(CLI::Range(1, 64))
+        ->capture_default_str();
     build->add_option("--format", a->format, "Atlas storage: bc (BC1/BC3, default) or deflate (lossless)")
         ->check(CLI::IsMember({"bc", "deflate"}))
         ->capture_default_str();
@@ -152,9 +157,9 @@ Runner addAtlasCommand(CLI::App& app) {
             auto f = city::AtlasTreeFile::open(a->tree);
             if (!f) return fail(f.error().message);
             const auto& i = f->info;
-            std::printf("%s: atlas %d² (%s), dmin %.2f m for %d px at %.0f° (τ %.2f), %zu textures, source %s\n",
-                        a->tree.c_str(), i.atlasSize, city::atlasFormatName(i.format), i.dmin, i.screenWidth, i.fovXDeg,
-                        i.tpp, f->textures.size(), i.source.c_str());
+            std::printf("%s: atlas %d² (%s), border %d, dmin %.2f m for %d px at %.0f° (τ %.2f), %zu textures, source %s\n",
+                        a->tree.c_str(), i.atlasSize, city::atlasFormatName(i.format), i.border, i.dmin, i.screenWidth,
+                        i.fovXDeg, i.tpp, f->textures.size(), i.source.c_str());
             for (const auto& t : f->trees) {
                 int depth = 0;
                 std::size_t leaves = 0;
@@ -220,6 +225,7 @@ Runner addAtlasCommand(CLI::App& app) {
         }
         if (!(a->tpp > 0.0)) return fail("--tpp must be positive");
         s.tpp = a->tpp;
+        s.border = a->border;
         s.screenWidth = a->screenWidth;
         s.fovXDeg = a->fovX;
         s.format = a->format == "deflate" ? city::AtlasFormat::Deflate : city::AtlasFormat::Bc;
@@ -261,6 +267,8 @@ Runner addAtlasCommand(CLI::App& app) {
                                 {"peak_rss_gb", peakRssGb()},
                                 {"format", city::atlasFormatName(s.format)},
                                 {"atlas_size", s.atlasSize},
+                                {"border", s.border},
+                                {"tpp", s.tpp},
                                 {"packer", city::atlasPackerName(s.packer)}};
             std::string err;
             if (!writeTextAtomic(a->report, j.dump(2) + "\n", err)) return fail(a->report + ": " + err);

@@ -1,6 +1,7 @@
 #include "AtlasCodec.h"
 
 #include "ParallelIndices.h"
+#include "TextureSource.h"
 
 #include <cstring>
 
@@ -34,16 +35,7 @@ std::uint64_t atlasLevelBytes(AtlasFormat format, bool alpha, int size, int leve
 }
 
 std::vector<std::uint8_t> halveRgba(const std::vector<std::uint8_t>& rgba, int size) {
-    const int h = size / 2;
-    std::vector<std::uint8_t> out(std::size_t(h) * std::size_t(h) * 4);
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < h; ++x)
-            for (int c = 0; c < 4; ++c) {
-                auto at = [&](int xx, int yy) { return int(rgba[(std::size_t(yy) * std::size_t(size) + std::size_t(xx)) * 4 + std::size_t(c)]); };
-                const int sum = at(2 * x, 2 * y) + at(2 * x + 1, 2 * y) + at(2 * x, 2 * y + 1) + at(2 * x + 1, 2 * y + 1);
-                out[(std::size_t(y) * std::size_t(h) + std::size_t(x)) * 4 + std::size_t(c)] = std::uint8_t((sum + 2) / 4);
-            }
-    return out;
+    return halveRgbaBox(rgba, {size, size}); // the original textures' mips use the same filter
 }
 
 void dilateRgba(std::vector<std::uint8_t>& rgba, int size, const std::vector<std::uint8_t>& covered) {

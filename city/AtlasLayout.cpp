@@ -93,9 +93,29 @@ AtlasArea requiredAtlasArea(const std::vector<const TexturedTriangle*>& tris, do
     tex = glm::min(tex, maxTexels);
     a.capFactor = std::max({1.0, tex.x > 0.0 ? wanted.x / tex.x : 1.0, tex.y > 0.0 ? wanted.y / tex.y : 1.0});
     // The area's texels for the bounding rectangle's repetitions (at least one texel each way), then the border.
+    // Every size a multiple of the border b, so packed areas (and the textures inside their borders) start on
+    // multiples of b: the atlas's mips 1..log2(b) average whole b×b blocks of each area. Where the original caps
+    // the size (stored at its own resolution), the rectangle also snaps outwards to the original's b-texel grid:
+    // each atlas texel is then one original texel (a copy, not a resampling: no half-texel blur), and the atlas's
+    // mips average the same blocks as the original's own, so the atlas looks like the original at every level the
+    // border protects (§4.5.2's border b = 8 covers mips 1–3).
+    const int align = std::max(1, border);
+    glm::ivec2 n(0);
+    for (int d = 0; d < 2; ++d) {
+        const double W = maxTexels[d];
+        if (std::isfinite(W) && tex[d] >= W) {
+            const double a0 = std::floor(lo[d] * W / align + 1e-9) * align;
+            const double a1 = std::max(a0 + align, std::ceil(hi[d] * W / align - 1e-9) * align);
+            lo[d] = a0 / W;
+            hi[d] = a1 / W;
+            n[d] = int(a1 - a0);
+        } else {
+            const int t = std::max(1, int(std::ceil(tex[d] * (hi[d] - lo[d]) - 1e-9)));
+            n[d] = (t + align - 1) / align * align;
+        }
+    }
     const glm::dvec2 extent = hi - lo;
-    const int w = std::max(1, int(std::ceil(tex.x * extent.x - 1e-9)));
-    const int h = std::max(1, int(std::ceil(tex.y * extent.y - 1e-9)));
+    const int w = n.x, h = n.y;
     tex = glm::max(tex, glm::dvec2(1.0));
     a.size = {w + 2 * border, h + 2 * border};
     // Grow A_tex about its centre so the border texels show the texture's own neighbourhood. A rectangle of zero

@@ -68,7 +68,8 @@ struct AtlasArea {
 
 /// The area of one texture for the triangles `tris` (all of that texture): size = ceil(max(s_world f_proj) · w(A_tex))
 /// + 2b by ceil(max(t_world f_proj) · h(A_tex)) + 2b (rounded once, not per repetition); A_tex scaled about its centre by (w + 2b) / w and (h + 2b) / h so the
-/// border holds the texture's own neighbouring content (§4.5.2, b = 8).
+/// border holds the texture's own neighbouring content (§4.5.2, b = 8). Sizes are multiples of b; a size the
+/// original caps snaps to the original's texels (b-texel grid): its atlas texels are the original's, one to one.
 /// `maxTexels`: the original texture's size; no texture is stored larger than its original (a finer atlas copy
 /// would only magnify it: the cap matters for close dmin and for slivers whose s_world is huge).
 AtlasArea requiredAtlasArea(const std::vector<const TexturedTriangle*>& tris, double fproj, int border = 8,

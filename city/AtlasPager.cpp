@@ -126,38 +126,53 @@ Result<LoadedBlock> AtlasPager::load(const BlockKey& key) const {
         if (!tex) return tex.error();
         b.size = tex->sizes[0];
         b.data = std::move(tex->mips[0]);
+        for (std::size_t l = 1; l < tex->mips.size(); ++l) {
+            b.mips.push_back(std::move(tex->mips[l]));
+            b.mipFirstRows.push_back(0);
+        }
         return b;
     }
     // One band of rows: the texture is decoded once for its parts (kept until another one is).
-    std::shared_ptr<const std::vector<std::uint8_t>> pixels;
-    glm::ivec2 size{0};
+    std::shared_ptr<const SourceTexture> tex;
     {
         std::lock_guard lock(m_decodedMutex);
-        if (m_decodedIndex == key.index) {
-            pixels = m_decoded;
-            size = m_decodedSize;
-        }
+        if (m_decodedIndex == key.index) tex = m_decoded;
     }
-    if (!pixels) {
-        auto tex = readSourceTexture(m_file.textures[key.index]);
-        if (!tex) return tex.error();
-        size = tex->sizes[0];
-        pixels = std::make_shared<const std::vector<std::uint8_t>>(std::move(tex->mips[0]));
+    if (!tex) {
+        auto read = readSourceTexture(m_file.textures[key.index]);
+        if (!read) return read.error();
+        tex = std::make_shared<const SourceTexture>(std::move(*read));
         std::lock_guard lock(m_decodedMutex);
         m_decodedIndex = key.index;
-        m_decoded = pixels;
-        m_decodedSize = size;
+        m_decoded = tex;
     }
+    const glm::ivec2 size = tex->sizes[0];
     if (size != m_file.textureSizes[key.index])
         return Error{m_file.textures[key.index].path + ": the texture's size changed since the tree was built"};
     const auto [r0, r1] = partRows(key.index, key.part);
-    const std::size_t row = std::size_t(size.x) * 4;
+    auto rows = [&](std::size_t l, int first, int end) {
+        const std::size_t row = std::size_t(tex->sizes[l].x) * 4;
+        const auto& px = tex->mips[l];
+        return std::vector<std::uint8_t>(px.begin() + std::ptrdiff_t(row * std::size_t(first)),
+                                         px.begin() + std::ptrdiff_t(row * std::size_t(end)));
+    };
     b.size = size;
     b.parts = parts;
     b.firstRow = r0;
     b.rows = r1 - r0;
-    b.data.assign(pixels->begin() + std::ptrdiff_t(row * std::size_t(r0)), pixels->begin() + std::ptrdiff_t(row * std::size_t(r1)));
+    b.data = rows(0, r0, r1);
+    for (std::size_t l = 1; l < tex->mips.size(); ++l) {
+        const auto [m0, m1] = bandMipRows(r0, r1, size.y, int(l));
+        b.mips.push_back(rows(l, m0, m1));
+        b.mipFirstRows.push_back(m0);
+    }
     return b;
+}
+
+std::pair<int, int> bandMipRows(int r0, int r1, int height, int level) {
+    const int levelHeight = std::max(height >> level, 1);
+    const int first = std::min(r0 >> level, levelHeight);
+    return {first, r1 >= height ? levelHeight : std::min(r1 >> level, levelHeight)};
 }
 
 void AtlasPager::worker() {

@@ -14,6 +14,7 @@
 // Plain C++ (the GL side, CityRendererGL, uploads what update() hands out and deletes what it evicts).
 #include "AtlasTraversal.h"
 #include "AtlasTree.h"
+#include "TextureSource.h"
 #include "Result.h"
 
 #include <condition_variable>
@@ -43,7 +44,17 @@ struct LoadedBlock {
     glm::ivec2 size{0}; // the whole texture's (or atlas's) size
     std::uint64_t bytes = 0; // GPU bytes once uploaded
     int parts = 1, firstRow = 0, rows = 0; // rows 0: all of them
+    /// Original textures: mip levels 1.. as 2×2 box averages from the origin (halveRgbaBox, made on the loader
+    /// thread), the same filter as the atlases' mips, not the driver's (Mesa's for non-power-of-two sizes is a
+    /// bilinear blit that drifts by up to a texel). A band holds its share of each level's rows, from
+    /// mipFirstRows[l - 1]; the bands' shares partition every level. Empty (a custom loader): the renderer makes them.
+    std::vector<std::vector<std::uint8_t>> mips;
+    std::vector<int> mipFirstRows;
 };
+
+/// Rows [first, end) of mip level `level` that the band of level-0 rows [r0, r1) of a texture `height` rows high
+/// carries: floor(r0 / 2^level) up to floor(r1 / 2^level), or to the level's last row for the last band.
+std::pair<int, int> bandMipRows(int r0, int r1, int height, int level);
 
 struct PagerStats {
     std::uint64_t residentBytes = 0, reservedBytes = 0, idealBytes = 0;
@@ -119,8 +130,7 @@ private:
     // The last original texture decoded for its parts (they are requested one after another).
     mutable std::mutex m_decodedMutex;
     mutable std::uint32_t m_decodedIndex = ~0u;
-    mutable std::shared_ptr<const std::vector<std::uint8_t>> m_decoded;
-    mutable glm::ivec2 m_decodedSize{0};
+    mutable std::shared_ptr<const SourceTexture> m_decoded;
     std::thread m_thread;
 };
 

@@ -1,6 +1,7 @@
 #include "CityRendererGL.h"
 
 #include "AtlasCodec.h"
+#include "TextureSource.h"
 #include "GeoFrame.h"
 #include "TerrainMeshGL.h"
 
@@ -336,6 +337,27 @@ void CityRendererGL::uploadAtlas(int tree, const LoadedBlock& b) {
     m_atlases[std::size_t(tree)][b.key.index] = std::move(tex);
 }
 
+void CityRendererGL::uploadMips(const gl::Texture& tex, const LoadedBlock& b) {
+    glm::ivec2 s = b.size;
+    if (b.mips.empty() && b.parts <= 1) {
+        // A custom loader's whole texture: the same box mips, made here.
+        std::vector<std::uint8_t> level = b.data;
+        for (int l = 1; s.x > 1 || s.y > 1; ++l) {
+            level = halveRgbaBox(level, s);
+            s = glm::max(s / 2, glm::ivec2(1));
+            glTextureSubImage2D(tex.id(), l, 0, 0, s.x, s.y, GL_RGBA, GL_UNSIGNED_BYTE, level.data());
+        }
+        return;
+    }
+    for (std::size_t i = 0; i < b.mips.size(); ++i) {
+        s = glm::max(s / 2, glm::ivec2(1));
+        const int rows = int(b.mips[i].size() / (std::size_t(s.x) * 4));
+        if (rows > 0)
+            glTextureSubImage2D(tex.id(), int(i) + 1, 0, b.mipFirstRows[i], s.x, rows, GL_RGBA, GL_UNSIGNED_BYTE,
+                                b.mips[i].data());
+    }
+}
+
 void CityRendererGL::uploadTexture(const LoadedBlock& b) {
     auto allocate = [&] {
         gl::Texture tex = gl::Texture::create(GL_TEXTURE_2D);
@@ -349,10 +371,11 @@ void CityRendererGL::uploadTexture(const LoadedBlock& b) {
     if (whole) {
         gl::Texture tex = allocate();
         glTextureSubImage2D(tex.id(), 0, 0, 0, b.size.x, b.size.y, GL_RGBA, GL_UNSIGNED_BYTE, b.data.data());
-        glGenerateTextureMipmap(tex.id());
+        uploadMips(tex, b);
         m_textures[b.key.index] = std::move(tex);
     } else {
-        // One band of rows into the texture the earlier parts went to; mipmapped once the last part is in.
+        // One band of rows (and its rows of every mip level) into the texture the earlier parts went to; drawn once
+        // the last part is in.
         auto [it, fresh] = m_partialTextures.try_emplace(b.key.index);
         PartialTexture& p = it->second;
         if (fresh) {
@@ -360,9 +383,10 @@ void CityRendererGL::uploadTexture(const LoadedBlock& b) {
             p.total = b.parts;
         }
         glTextureSubImage2D(p.texture.id(), 0, 0, b.firstRow, b.size.x, b.rows, GL_RGBA, GL_UNSIGNED_BYTE, b.data.data());
+        uploadMips(p.texture, b);
         p.parts.insert(b.key.part);
         if (int(p.parts.size()) == p.total) {
-            glGenerateTextureMipmap(p.texture.id());
+            if (b.mips.empty()) glGenerateTextureMipmap(p.texture.id()); // a custom loader's bands
             m_textures[b.key.index] = std::move(p.texture);
             m_partialTextures.erase(it);
         }

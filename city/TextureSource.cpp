@@ -80,28 +80,31 @@ Result<SourceTexture> readSourceTexture(const CityTexture& texture) {
         }
     t.mips.push_back(std::move(rgba));
     t.sizes.push_back({w, h});
-    // Box-filtered mips (odd sizes: the last row/column folds into its neighbour) down to 1×1.
+    // Box-filtered mips down to 1×1.
     while (t.sizes.back().x > 1 || t.sizes.back().y > 1) {
         const glm::ivec2 s = t.sizes.back();
-        const glm::ivec2 d = glm::max(s / 2, glm::ivec2(1));
-        const auto& src = t.mips.back();
-        std::vector<std::uint8_t> dst(std::size_t(d.x) * std::size_t(d.y) * 4);
-        for (int y = 0; y < d.y; ++y)
-            for (int x = 0; x < d.x; ++x)
-                for (int c = 0; c < 4; ++c) {
-                    int sum = 0, cnt = 0;
-                    for (int yy = 2 * y; yy < std::min(2 * y + 2 + (y == d.y - 1 ? s.y % 2 : 0), s.y); ++yy)
-                        for (int xx = 2 * x; xx < std::min(2 * x + 2 + (x == d.x - 1 ? s.x % 2 : 0), s.x); ++xx) {
-                            sum += src[(std::size_t(yy) * std::size_t(s.x) + std::size_t(xx)) * 4 + std::size_t(c)];
-                            ++cnt;
-                        }
-                    dst[(std::size_t(y) * std::size_t(d.x) + std::size_t(x)) * 4 + std::size_t(c)] =
-                        std::uint8_t((sum + cnt / 2) / std::max(cnt, 1));
-                }
-        t.mips.push_back(std::move(dst));
-        t.sizes.push_back(d);
+        t.mips.push_back(halveRgbaBox(t.mips.back(), s));
+        t.sizes.push_back(glm::max(s / 2, glm::ivec2(1)));
     }
     return t;
+}
+
+std::vector<std::uint8_t> halveRgbaBox(const std::vector<std::uint8_t>& src, glm::ivec2 s) {
+    const glm::ivec2 d = glm::max(s / 2, glm::ivec2(1));
+    std::vector<std::uint8_t> dst(std::size_t(d.x) * std::size_t(d.y) * 4);
+    for (int y = 0; y < d.y; ++y)
+        for (int x = 0; x < d.x; ++x)
+            for (int c = 0; c < 4; ++c) {
+                int sum = 0, cnt = 0;
+                for (int yy = 2 * y; yy < std::min(2 * y + 2 + (y == d.y - 1 ? s.y % 2 : 0), s.y); ++yy)
+                    for (int xx = 2 * x; xx < std::min(2 * x + 2 + (x == d.x - 1 ? s.x % 2 : 0), s.x); ++xx) {
+                        sum += src[(std::size_t(yy) * std::size_t(s.x) + std::size_t(xx)) * 4 + std::size_t(c)];
+                        ++cnt;
+                    }
+                dst[(std::size_t(y) * std::size_t(d.x) + std::size_t(x)) * 4 + std::size_t(c)] =
+                    std::uint8_t((sum + cnt / 2) / std::max(cnt, 1));
+            }
+    return dst;
 }
 
 TextureCache::TextureCache(const std::vector<CityTexture>& textures, std::uint64_t capacityBytes)

@@ -28,6 +28,11 @@ struct SourceTexture {
     glm::vec4 sample(glm::dvec2 uv, double texelsPerSample) const;
 };
 
+/// The next mip level of an RGBA8 image of `size` texels: 2×2 box averages from the origin, odd sizes' last
+/// row/column folded into its neighbour (the atlases' mips average the same blocks: their areas start on
+/// multiples of the border). The result is max(size / 2, 1).
+std::vector<std::uint8_t> halveRgbaBox(const std::vector<std::uint8_t>& src, glm::ivec2 size);
+
 /// Reads a texture file (any format OpenImageIO reads; 8/16-bit, grey, RGB or RGBA) into a SourceTexture.
 Result<SourceTexture> readSourceTexture(const CityTexture& texture);
 

@@ -60,25 +60,60 @@ TEST(AtlasLayoutTest, TextureSizeOfHandComputedTriangles) {
 TEST(AtlasLayoutTest, RequiredAreaCoversRepetitionsAndBorder) {
     const TexturedTriangle a = tri({0, 0, 0}, {4, 0, 0}, {4, 0, 2}, {0, 0}, {1, 0}, {1, 1}, 7);
     const TexturedTriangle b = tri({0, 0, 0}, {4, 0, 2}, {0, 0, 2}, {0, 0}, {1, 1}, {0, 1}, 7);
-    // Both halves of the wall at 50 px/m: 200 × 100 texels for the unit square, plus an 8-texel border.
+    // Both halves of the wall at 50 px/m: 200 × 100 texels for the unit square (100 rounded up to 104, a multiple
+    // of the border), plus an 8-texel border.
     const AtlasArea area = requiredAtlasArea({&a, &b}, 50.0, 8);
     EXPECT_EQ(area.texture, 7);
-    EXPECT_EQ(area.size, glm::ivec2(216, 116));
-    // The source rectangle grows about its centre by the border's share: 8 / 200 and 8 / 100 of a repetition.
+    EXPECT_EQ(area.size, glm::ivec2(216, 120));
+    // The source rectangle grows about its centre by the border's share: 8 / 200 and 8 / 104 of a repetition.
     EXPECT_NEAR(area.srcMin.x, -0.04, 1e-12);
     EXPECT_NEAR(area.srcMax.x, 1.04, 1e-12);
-    EXPECT_NEAR(area.srcMin.y, -0.08, 1e-12);
-    EXPECT_NEAR(area.srcMax.y, 1.08, 1e-12);
+    EXPECT_NEAR(area.srcMin.y, -8.0 / 104.0, 1e-12);
+    EXPECT_NEAR(area.srcMax.y, 1.0 + 8.0 / 104.0, 1e-12);
     // Only part of the texture used: half the width in the atlas.
     const TexturedTriangle half = tri({0, 0, 0}, {2, 0, 0}, {2, 0, 2}, {0, 0}, {0.5, 0}, {0.5, 1}, 1);
-    EXPECT_EQ(requiredAtlasArea({&half}, 50.0, 8).size, glm::ivec2(100 + 16, 100 + 16));
+    EXPECT_EQ(requiredAtlasArea({&half}, 50.0, 8).size, glm::ivec2(104 + 16, 104 + 16));
     // Repetitions: (0,0), (3,0), (3,2) over the same wall need 3 × 2 repetitions at 1/3, 1/2 of the size each: the
     // same texels as one repetition over the wall.
     const TexturedTriangle tiled = tri({0, 0, 0}, {4, 0, 0}, {4, 0, 2}, {0, 0}, {3, 0}, {3, 2}, 2);
-    EXPECT_EQ(requiredAtlasArea({&tiled}, 50.0, 8).size, glm::ivec2(216, 116));
+    EXPECT_EQ(requiredAtlasArea({&tiled}, 50.0, 8).size, glm::ivec2(216, 120));
     // 1000 × 500 repetitions cost no more either (the thesis' remark).
     const TexturedTriangle many = tri({0, 0, 0}, {4, 0, 0}, {4, 0, 2}, {0, 0}, {1000, 0}, {1000, 500}, 3);
-    EXPECT_EQ(requiredAtlasArea({&many}, 50.0, 8).size, glm::ivec2(216, 116));
+    EXPECT_EQ(requiredAtlasArea({&many}, 50.0, 8).size, glm::ivec2(216, 120));
+    // Every size is a multiple of the border, so packed areas start on multiples of it.
+    for (int border : {4, 8, 16})
+        for (const TexturedTriangle* t : {&a, &half, &tiled, &many}) {
+            const glm::ivec2 s = requiredAtlasArea({t}, 37.0, border).size;
+            EXPECT_EQ(s.x % border, 0) << border;
+            EXPECT_EQ(s.y % border, 0) << border;
+        }
+}
+
+TEST(AtlasLayoutTest, CappedAreasSnapToTheOriginalsTexels) {
+    // A 61×37 original used over u 0.13..0.91, v 0.07..0.83 on a 10 m × 8 m wall, wanted at 960 px/m: capped at the
+    // original's size. The rectangle snaps outwards to the original's 8-texel grid (u texels 7.93..55.51 -> 0..56,
+    // v texels 2.59..30.71 -> 0..32), then grows by the 8-texel border: atlas texel k is original texel k - 8 (+ the
+    // snapped start), one to one.
+    const TexturedTriangle w1 = tri({0, 0, 0}, {10, 0, 0}, {10, 0, 8}, {0.13, 0.07}, {0.91, 0.07}, {0.91, 0.83});
+    const TexturedTriangle w2 = tri({0, 0, 0}, {10, 0, 8}, {0, 0, 8}, {0.13, 0.07}, {0.91, 0.83}, {0.13, 0.83});
+    const glm::dvec2 orig(61, 37);
+    const AtlasArea a = requiredAtlasArea({&w1, &w2}, 960.0, 8, orig);
+    EXPECT_EQ(a.size, glm::ivec2(56 + 16, 32 + 16));
+    EXPECT_NEAR(a.srcMin.x * orig.x, -8.0, 1e-9);
+    EXPECT_NEAR(a.srcMax.x * orig.x, 64.0, 1e-9);
+    EXPECT_NEAR(a.srcMin.y * orig.y, -8.0, 1e-9);
+    EXPECT_NEAR(a.srcMax.y * orig.y, 40.0, 1e-9);
+    EXPECT_GT(a.capFactor, 1.0);
+    // Texture coordinates elsewhere in the repetition grid: the snap follows the grid (u texels 130.5..150.1 of a
+    // 61-texel texture -> 128..152).
+    const TexturedTriangle far = tri({0, 0, 0}, {10, 0, 0}, {10, 0, 8}, {130.5 / 61, 0.5}, {150.1 / 61, 0.5}, {150.1 / 61, 0.6});
+    const AtlasArea b = requiredAtlasArea({&far}, 960.0, 8, orig);
+    EXPECT_EQ(b.size.x, 24 + 16);
+    EXPECT_NEAR(b.srcMin.x * orig.x, 120.0, 1e-9);
+    // Not capped (wanted below the original's size): resampled, the size rounded up to a multiple of the border.
+    const AtlasArea c = requiredAtlasArea({&w1, &w2}, 3.0, 8, orig);
+    // 12.8 m per repetition × 3 px/m × 0.78 of it = 30 texels -> 32; 10.5 m × 3 × 0.76 = 24 texels.
+    EXPECT_EQ(c.size, glm::ivec2(32 + 16, 24 + 16));
 }
 
 namespace {

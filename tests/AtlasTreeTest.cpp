@@ -20,6 +20,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <random>
 #include <set>
 #include <thread>
 #include <tuple>
@@ -90,6 +91,38 @@ CityModel wallModel(const std::filesystem::path& dir, int n, int alphaEvery = 0)
     m.triangles.push_back(plain);
     m.building.push_back(0);
     m.surface.push_back(Surface::Wall);
+    return m;
+}
+
+/// A model of walls 10 m × 8 m, 12 m apart, each with its own noise texture of the given size, used over the given
+/// texture rectangle (two triangles per wall).
+CityModel noiseWalls(const std::filesystem::path& dir, const std::vector<glm::ivec2>& sizes,
+                     const std::vector<std::pair<glm::dvec2, glm::dvec2>>& uvs) {
+    CityModel m;
+    m.source = (dir / "model").string();
+    m.crs = Crs::utm(33, true);
+    std::mt19937 rng(7);
+    for (std::size_t i = 0; i < sizes.size(); ++i) {
+        const auto path = dir / ("n" + std::to_string(i) + ".png");
+        std::vector<std::uint8_t> px(std::size_t(sizes[i].x * sizes[i].y * 3));
+        for (auto& v : px) v = std::uint8_t(rng() % 256);
+        writeTexture(path, sizes[i].x, sizes[i].y, 3, px);
+        m.textures.push_back(CityTexture{path.string(), false, 3, sizes[i].x, sizes[i].y});
+        m.buildingIds.push_back("b" + std::to_string(i));
+        const double x0 = 12.0 * double(i);
+        const auto [lo, hi] = uvs[i];
+        TexturedTriangle a, b;
+        a.v = {glm::dvec3(x0, 0, 0), glm::dvec3(x0 + 10, 0, 0), glm::dvec3(x0 + 10, 0, 8)};
+        a.t = {lo, glm::dvec2(hi.x, lo.y), hi};
+        b.v = {glm::dvec3(x0, 0, 0), glm::dvec3(x0 + 10, 0, 8), glm::dvec3(x0, 0, 8)};
+        b.t = {lo, hi, glm::dvec2(lo.x, hi.y)};
+        a.texture = b.texture = int(i);
+        for (const auto& t : {a, b}) {
+            m.triangles.push_back(t);
+            m.building.push_back(std::uint32_t(i));
+            m.surface.push_back(Surface::Wall);
+        }
+    }
     return m;
 }
 
@@ -859,6 +892,18 @@ TEST(AtlasPagingTest, TextureBandsAreNeverEmpty) {
                 bytes += pager.blockBytes({BlockKey::Kind::Texture, t, std::uint16_t(p)});
             }
             EXPECT_EQ(next, h);
+            // Each band's share of every mip level's rows: together they are all of them, once.
+            for (int l = 1; (std::max(f.textureSizes[t].x, h) >> l) > 0; ++l) {
+                int at = 0;
+                for (int p = 0; p < parts; ++p) {
+                    const auto [r0, r1] = pager.partRows(t, p);
+                    const auto [m0, m1] = bandMipRows(r0, r1, h, l);
+                    EXPECT_EQ(m0, at) << h << " rows, level " << l << ", part " << p;
+                    EXPECT_GE(m1, m0);
+                    at = m1;
+                }
+                EXPECT_EQ(at, std::max(h >> l, 1)) << h << " rows, level " << l;
+            }
             const double whole = double(f.textureSizes[t].x) * h * 4.0 * 4.0 / 3.0;
             EXPECT_NEAR(double(bytes), whole, double(parts) + 1.0);
         }
@@ -902,6 +947,62 @@ TEST(AtlasPagingTest, SplitTexturesAreHeldWholeOrNotAtAll) {
     }
     EXPECT_GT(capacities, 30u);
     EXPECT_GT(wholeSeen, 20u) << "textures were paged in under the larger capacities";
+}
+
+// Original textures arrive with their box mips (the atlases' filter), made on the loader thread: a whole texture
+// with all its levels, a split one with each band's share of every level's rows; put together they are the
+// original's mips exactly.
+TEST(AtlasPagingTest, OriginalsArriveWithTheirBoxMips) {
+    test::TempDir dir("atlas_paging_mips");
+    const CityModel m = noiseWalls(dir.path(), {{300, 200}, {21, 13}}, {{{0, 0}, {1, 1}}, {{0, 0}, {1, 1}}});
+    AtlasBuildSettings s;
+    s.atlasSize = 64;
+    s.dmin = 200.0;
+    ASSERT_TRUE(buildAtlasTree(m, s, (dir / "t.svat").string()));
+    auto f = AtlasTreeFile::open((dir / "t.svat").string());
+    ASSERT_TRUE(f) << f.error().message;
+    Camera cam;
+    cam.position = {11.0, -12.0, 4.0};
+    cam.pitchDeg = 0.0;
+    PagerSettings ps;
+    ps.threaded = false;
+    AtlasPager pager(*f, 0, ps);
+    ASSERT_GT(pager.textureParts(0), 2);
+    ASSERT_EQ(pager.textureParts(1), 1);
+    const auto frame = pager.complete(AtlasTraversal(f->trees[0], f->info).requests(viewOf(cam)));
+    for (std::uint32_t tex = 0; tex < 2; ++tex) {
+        auto st = readSourceTexture(m.textures[tex]);
+        ASSERT_TRUE(st);
+        std::vector<std::vector<std::uint8_t>> got(st->mips.size());
+        std::vector<std::vector<int>> filled(st->mips.size());
+        for (std::size_t l = 0; l < st->mips.size(); ++l) {
+            got[l].assign(st->mips[l].size(), 0);
+            filled[l].assign(std::size_t(st->sizes[l].y), 0);
+        }
+        int blocks = 0;
+        for (const LoadedBlock& b : frame.upload) {
+            if (b.key.kind != BlockKey::Kind::Texture || b.key.index != tex) continue;
+            ++blocks;
+            ASSERT_EQ(b.mips.size(), st->mips.size() - 1);
+            ASSERT_EQ(b.mipFirstRows.size(), b.mips.size());
+            auto put = [&](std::size_t l, int first, const std::vector<std::uint8_t>& rows) {
+                const std::size_t row = std::size_t(st->sizes[l].x) * 4;
+                ASSERT_EQ(rows.size() % row, 0u);
+                const int n = int(rows.size() / row);
+                ASSERT_LE(first + n, st->sizes[l].y);
+                std::copy(rows.begin(), rows.end(), got[l].begin() + std::ptrdiff_t(row * std::size_t(first)));
+                for (int y = first; y < first + n; ++y) ++filled[l][std::size_t(y)];
+            };
+            put(0, b.firstRow, b.data);
+            for (std::size_t l = 1; l < st->mips.size(); ++l) put(l, b.mipFirstRows[l - 1], b.mips[l - 1]);
+        }
+        EXPECT_EQ(blocks, pager.textureParts(tex)) << "texture " << tex << " paged in whole";
+        for (std::size_t l = 0; l < st->mips.size(); ++l) {
+            for (int y = 0; y < st->sizes[l].y; ++y)
+                EXPECT_EQ(filled[l][std::size_t(y)], 1) << "texture " << tex << " level " << l << " row " << y;
+            EXPECT_TRUE(got[l] == st->mips[l]) << "texture " << tex << " level " << l;
+        }
+    }
 }
 
 // The loader gets at most queueLength blocks at a time, and loaded blocks are handed out for upload within the
@@ -1162,6 +1263,87 @@ TEST(AtlasTreeTest, TurnedAreasKeepTheTextureOrientation) {
         }
     EXPECT_EQ(checked, 30);
     RecordProperty("worst_channel_error", worst);
+}
+
+// Where the original caps a texture's size (a view at dmin would want more texels than it has), its leaf area is
+// the original's texels one to one (snapped to its 8-texel grid, placed on multiples of 8), so the atlas's mips 0–3
+// are the original's box mips texel for texel: no half-texel resampling blur, no other blocks averaged.
+TEST(AtlasTreeTest, CappedOriginalsAreCopiedTexelForTexelAndMipForMip) {
+    test::TempDir dir("atlas_copy");
+    const CityModel m = noiseWalls(dir.path(), {{61, 37}, {45, 29}, {23, 50}, {70, 19}},
+                                   {{{0.13, 0.07}, {0.91, 0.83}}, {{0.0, 0.0}, {1.0, 1.0}}, {{0.31, 0.2}, {0.77, 0.95}},
+                                    {{0.05, 0.11}, {0.66, 0.9}}});
+    AtlasBuildSettings s;
+    s.atlasSize = 128;
+    s.dmin = 1.0; // 960 px/m: every wall is capped at its original's size
+    s.format = AtlasFormat::Deflate;
+    auto r = buildAtlasTree(m, s, (dir / "t.svat").string());
+    ASSERT_TRUE(r) << r.error().message;
+    auto f = AtlasTreeFile::open((dir / "t.svat").string());
+    ASSERT_TRUE(f) << f.error().message;
+    const AtlasTreeData& t = f->trees[0];
+    std::vector<SourceTexture> src;
+    for (const auto& ct : m.textures) {
+        auto st = readSourceTexture(ct);
+        ASSERT_TRUE(st) << st.error().message;
+        src.push_back(std::move(*st));
+    }
+    const int A = 128;
+    std::size_t checked = 0, turned = 0;
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    for (std::size_t ni = 0; ni < t.nodes.size(); ++ni) {
+        const AtlasNode& n = t.nodes[ni];
+        if (!n.leaf() || n.count == 0) continue;
+        auto blob = f->readAtlasBlob(0, int(ni));
+        ASSERT_TRUE(blob);
+        std::vector<std::vector<std::uint8_t>> levels; // RGB8, bottom-up
+        for (int l = 0; l <= 3; ++l) levels.push_back(atlasLevelData(AtlasFormat::Deflate, false, *blob, A, l));
+        for (std::uint32_t tri = n.first; tri < n.first + n.count; ++tri) {
+            const SourceTexture& st = src[t.triangleTexture[tri]];
+            const glm::ivec2 W = st.sizes[0];
+            for (int k = 0; k < 40; ++k) {
+                double b0 = unit(rng), b1 = unit(rng);
+                if (b0 + b1 > 1.0) b0 = 1.0 - b0, b1 = 1.0 - b1;
+                const glm::dvec3 bary(b0, b1, 1.0 - b0 - b1);
+                glm::dvec2 uv(0.0), root(0.0);
+                for (int v = 0; v < 3; ++v) {
+                    uv += bary[v] * glm::dvec2(t.vertices[tri * 3 + std::size_t(v)].uv);
+                    root += bary[v] * glm::dvec2(t.vertices[tri * 3 + std::size_t(v)].root);
+                }
+                const glm::dvec2 p = levelAtlasCoord(root, n.level) * double(A); // atlas texels
+                glm::dvec2 q = uv * glm::dvec2(W);                                 // original texels
+                auto integral = [](glm::dvec2 d) {
+                    return std::abs(d.x - std::round(d.x)) < 1e-3 && std::abs(d.y - std::round(d.y)) < 1e-3;
+                };
+                const bool straight = integral(p - q), turn = integral(p - glm::dvec2(q.y, q.x));
+                ASSERT_TRUE(straight || turn) << "triangle " << tri << ": atlas texel " << p.x << "," << p.y
+                                              << " is not on the original's texel grid at " << q.x << "," << q.y;
+                // Texel centres away from the grid lines only (where floor() is unambiguous).
+                const glm::dvec2 fq = q - glm::floor(q);
+                if (fq.x < 0.01 || fq.x > 0.99 || fq.y < 0.01 || fq.y > 0.99) continue;
+                glm::dvec2 qa = straight ? q : glm::dvec2(q.y, q.x); // q along the atlas's axes
+                const glm::dvec2 off = glm::round(p - qa);
+                EXPECT_EQ(std::fmod(std::abs(off.x), 8.0), 0.0) << "triangle " << tri;
+                EXPECT_EQ(std::fmod(std::abs(off.y), 8.0), 0.0) << "triangle " << tri;
+                turned += !straight;
+                for (int l = 0; l <= 3; ++l) {
+                    const glm::ivec2 sl = st.sizes[std::size_t(l)];
+                    const glm::ivec2 ql(int(q.x) >> l, int(q.y) >> l);
+                    if (ql.x >= sl.x - 1 || ql.y >= sl.y - 1) continue; // a folded last row or column
+                    const glm::ivec2 pl(int(p.x) >> l, int(p.y) >> l);
+                    const int al = A >> l;
+                    const std::uint8_t* a = &levels[std::size_t(l)][(std::size_t(pl.y) * std::size_t(al) + std::size_t(pl.x)) * 3];
+                    const std::uint8_t* o = &st.mips[std::size_t(l)][(std::size_t(ql.y) * std::size_t(sl.x) + std::size_t(ql.x)) * 4];
+                    for (int c = 0; c < 3; ++c)
+                        EXPECT_EQ(int(a[c]), int(o[c])) << "triangle " << tri << " level " << l << " texel " << ql.x << "," << ql.y;
+                    ++checked;
+                }
+            }
+        }
+    }
+    EXPECT_GT(checked, 500u);
+    RecordProperty("turned_samples", int(turned));
 }
 
 TEST(AtlasTreeTest, EmptyAtlasSpaceContinuesTheNearestArea) {

@@ -443,6 +443,25 @@ TEST(CityCliTest, AtlasBuildAndInfo) {
     EXPECT_EQ(root->width, 256);
     // And it renders as given.
     ASSERT_EQ(s.render("given.png", {"--city", "atlas", "--city-tree", tree}).exitCode, 0);
+    // Sized for 2 pixels per texel with a 16-texel border: the same automatic dmin; the file and report say so.
+    const auto coarse = (s.dir / "t2.svat").string();
+    const CliResult b2 = runCli({"atlas", "build", (s.dir / "s/city/city.obj").string(), "--obj-local", "--out", coarse,
+                                 "--atlas-size", "256", "--dmin", "auto", "--tpp", "2", "--border", "16", "--report",
+                                 (s.dir / "t2.json").string()});
+    ASSERT_EQ(b2.exitCode, 0) << b2.err;
+    const auto r1 = nlohmann::json::parse(json), r2 = nlohmann::json::parse(std::ifstream(s.dir / "t2.json"));
+    EXPECT_DOUBLE_EQ(r2["dmin_initial_m"].get<double>(), r1["dmin_initial_m"].get<double>());
+    EXPECT_EQ(r2["tpp"].get<double>(), 2.0);
+    EXPECT_EQ(r2["border"].get<int>(), 16);
+    EXPECT_EQ(r1["border"].get<int>(), 8);
+    const CliResult info2 = runCli({"atlas", "info", coarse});
+    ASSERT_EQ(info2.exitCode, 0) << info2.err;
+    EXPECT_NE(info2.out.find("border 16"), std::string::npos) << info2.out;
+    EXPECT_NE(info2.out.find("(τ 2.00)"), std::string::npos) << info2.out;
+    EXPECT_NE(info.out.find("border 8"), std::string::npos) << info.out;
+    fails(runCli({"atlas", "build", (s.dir / "s/city/city.obj").string(), "--obj-local", "--out",
+                  (s.dir / "x.svat").string(), "--border", "0"}),
+          "--border");
 }
 
 TEST(CityCliTest, BadInput) {
@@ -513,7 +532,9 @@ TEST(CityCliTest, RealBerlinAndTokyoModelsWithTheirPhotoTextures) {
         compareWithGolden(c.name, a->pixels, a->width, a->height, 255, 3.0);
         const RegionDiff d = diffWhere(*a, *o, *n);
         EXPECT_GT(d.pixels, std::size_t(400 * 250 / 50)) << c.name;
-        EXPECT_GT(d.psnr, 32.0) << c.name << ": atlas vs original photo textures (33.5 / 33.6 dB measured)";
+        // Both drawn through 2×2 box mips (the driver's non-power-of-two mips gave 33.3 dB for Berlin), the capped
+        // originals copied texel for texel into 8-aligned areas (36.8 dB for Tokyo; 33.6 dB before).
+        EXPECT_GT(d.psnr, 34.5) << c.name << ": atlas vs original photo textures (Berlin 35.1, Tokyo 36.8 dB measured)";
         std::cout << "  " << c.name << ": atlas vs original PSNR " << d.psnr << " dB over " << d.pixels << " city pixels\n";
     }
 }
