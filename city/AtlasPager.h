@@ -47,7 +47,7 @@ struct LoadedBlock {
     /// Original textures: mip levels 1.. as 2×2 box averages from the origin (halveRgbaBox, made on the loader
     /// thread), the same filter as the atlases' mips, not the driver's (Mesa's for non-power-of-two sizes is a
     /// bilinear blit that drifts by up to a texel). A band holds its share of each level's rows, from
-    /// mipFirstRows[l - 1]; the bands' shares partition every level. Empty (a custom loader): the renderer makes them.
+    /// mipFirstRows[l - 1]; the bands' shares partition every level. Empty (a custom loader): the driver's mips.
     std::vector<std::vector<std::uint8_t>> mips;
     std::vector<int> mipFirstRows;
 };

@@ -1,7 +1,6 @@
 #include "CityRendererGL.h"
 
 #include "AtlasCodec.h"
-#include "TextureSource.h"
 #include "GeoFrame.h"
 #include "TerrainMeshGL.h"
 
@@ -339,16 +338,6 @@ void CityRendererGL::uploadAtlas(int tree, const LoadedBlock& b) {
 
 void CityRendererGL::uploadMips(const gl::Texture& tex, const LoadedBlock& b) {
     glm::ivec2 s = b.size;
-    if (b.mips.empty() && b.parts <= 1) {
-        // A custom loader's whole texture: the same box mips, made here.
-        std::vector<std::uint8_t> level = b.data;
-        for (int l = 1; s.x > 1 || s.y > 1; ++l) {
-            level = halveRgbaBox(level, s);
-            s = glm::max(s / 2, glm::ivec2(1));
-            glTextureSubImage2D(tex.id(), l, 0, 0, s.x, s.y, GL_RGBA, GL_UNSIGNED_BYTE, level.data());
-        }
-        return;
-    }
     for (std::size_t i = 0; i < b.mips.size(); ++i) {
         s = glm::max(s / 2, glm::ivec2(1));
         const int rows = int(b.mips[i].size() / (std::size_t(s.x) * 4));
@@ -372,6 +361,7 @@ void CityRendererGL::uploadTexture(const LoadedBlock& b) {
         gl::Texture tex = allocate();
         glTextureSubImage2D(tex.id(), 0, 0, 0, b.size.x, b.size.y, GL_RGBA, GL_UNSIGNED_BYTE, b.data.data());
         uploadMips(tex, b);
+        if (b.mips.empty()) glGenerateTextureMipmap(tex.id()); // a custom loader's texture
         m_textures[b.key.index] = std::move(tex);
     } else {
         // One band of rows (and its rows of every mip level) into the texture the earlier parts went to; drawn once

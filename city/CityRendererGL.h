@@ -128,8 +128,7 @@ private:
     void apply(int tree, AtlasPager::Frame&& frame);
     void uploadAtlas(int tree, const LoadedBlock& b);
     void uploadTexture(const LoadedBlock& b);
-    /// Mip levels 1.. of an original texture (or of one band's rows): the loader's box mips (made here for a
-    /// custom loader's whole texture).
+    /// Mip levels 1.. of an original texture (or of one band's rows): the loader's box mips.
     void uploadMips(const gl::Texture& tex, const LoadedBlock& b);
     struct PendingQuery { std::size_t tree; std::uint32_t node; std::size_t query; std::uint64_t frame; };
     /// The end-of-frame queries of the last draw() into m_occlusion: waiting for them (draw()), or only if they are
