@@ -41,10 +41,8 @@ Result<city::CityModel> loadCityForCli(const std::string& path, const std::strin
                                        const std::string& objUp) {
     city::CityLoadOptions options;
     if (!crsText.empty()) {
-        const auto code = city::epsgFromSrsName(crsText);
-        if (!code) return Error{"--city-crs: expected EPSG:CODE, got '" + crsText + "'"};
-        auto crs = Crs::fromEpsg(*code);
-        if (!crs) return Error{"--city-crs: " + crs.error().message};
+        auto crs = city::crsFromSrsName(crsText);
+        if (!crs) return Error{"--city-crs: " + crs.message()};
         options.crs = *crs;
     }
     options.localFrame = objLocal;

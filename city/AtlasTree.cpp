@@ -85,7 +85,7 @@ std::vector<std::uint8_t> serializeIndex(const AtlasTreeFile& f) {
     w.pod(std::int32_t(i.screenWidth));
     w.pod(i.fovXDeg);
     w.pod(std::uint32_t(i.format));
-    w.pod(std::int32_t(i.crs.epsg));
+    w.str(i.crs.identifier());
     w.pod(i.origin);
     w.pod(std::uint8_t(i.sceneFrame));
     w.str(i.source);
@@ -172,11 +172,15 @@ Result<AtlasTreeFile> AtlasTreeFile::open(const std::string& path) {
     i.screenWidth = r.pod<std::int32_t>();
     i.fovXDeg = r.pod<double>();
     i.format = AtlasFormat(r.pod<std::uint32_t>());
-    const int epsg = r.pod<std::int32_t>();
+    const std::string crsText = r.str();
     i.origin = r.pod<glm::dvec2>();
     i.sceneFrame = r.pod<std::uint8_t>() != 0;
     i.source = r.str();
-    if (auto crs = Crs::fromEpsg(epsg)) i.crs = *crs;
+    if (!i.sceneFrame) {
+        auto crs = Crs::fromUserInput(crsText);
+        if (!crs) return fileError(path, "atlas tree's CRS: " + crs.message());
+        i.crs = *crs;
+    }
     const auto nt = r.pod<std::uint64_t>();
     for (std::uint64_t t = 0; r.ok && t < nt; ++t) {
         CityTexture ct;

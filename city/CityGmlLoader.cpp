@@ -169,15 +169,13 @@ Result<CityModel> loadCityGml(const std::string& path, const CityLoadOptions& op
         if (!options.crs) return fileError(path, "names no CRS (no srsName); give one (--city-crs EPSG:CODE)");
         model.crs = *options.crs;
     } else {
-        const auto code = epsgFromSrsName(srsName);
-        if (!code) return fileError(path, "unsupported CRS '" + srsName + "' (EPSG geographic or UTM codes only)");
-        auto crs = Crs::fromEpsg(*code);
-        if (!crs) return fileError(path, "CRS '" + srsName + "': " + crs.error().message);
+        auto crs = crsFromSrsName(srsName);
+        if (!crs) return fileError(path, crs.message());
         model.crs = *crs;
     }
 
     // The frame's origin: the centre of the buildings' vertices, in the CRS's own axis order.
-    const bool latFirst = model.crs.isGeographic();
+    const bool latFirst = model.crs.northFirst();
     glm::dvec2 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
     std::function<void(const Geometry&)> bound = [&](const Geometry& g) {
         for (unsigned i = 0; i < g.getPolygonsCount(); ++i)

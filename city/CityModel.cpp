@@ -44,10 +44,17 @@ std::optional<int> epsgFromSrsName(const std::string& srsName) {
     return std::nullopt;
 }
 
+Result<Crs> crsFromSrsName(const std::string& srsName) {
+    if (auto crs = Crs::fromUserInput(srsName)) return *crs;
+    if (const auto code = epsgFromSrsName(srsName))
+        if (auto crs = Crs::fromEpsg(*code)) return *crs;
+    return Error{"unsupported CRS '" + srsName + "' (not a CRS PROJ knows; give an EPSG code, URN or WKT)"};
+}
+
 void reframe(CityModel& model, const Crs& crs, glm::dvec2 origin) {
-    if (model.sceneFrame || (model.crs.sameSpace(crs) && model.origin == origin)) return;
+    if (model.sceneFrame || (model.crs == crs && model.origin == origin)) return;
     const GeoFrame from(model.crs, model.origin), to(crs, origin);
-    const bool translateOnly = !crs.isGeographic() && model.crs.sameSpace(crs);
+    const bool translateOnly = model.crs == crs && to.isTranslation();
     const glm::dvec2 shift = model.origin - origin;
     for (auto& t : model.triangles)
         for (auto& v : t.v) {

@@ -73,6 +73,11 @@ Result<CityModel> loadCityModel(const std::string& path, const CityLoadOptions& 
 /// "urn:adv:crs:ETRS89_UTM33*DE_DHHN2016_NH" -> 25833); nullopt when there is none.
 std::optional<int> epsgFromSrsName(const std::string& srsName);
 
+/// The horizontal CRS a GML srsName (or a --city-crs value) names, through PROJ: any EPSG code, URN, OGC URL, WKT or
+/// PROJ string, compound CRSs reduced to their horizontal part, and the German AdV names. The error says the name
+/// is not a CRS PROJ knows.
+Result<Crs> crsFromSrsName(const std::string& srsName);
+
 /// Moves the model into another local frame (GeoFrame(crs, origin)): positions converted point by point, heights
 /// kept. A no-op when the frames are the same or the model is in the scene's frame already (sceneFrame).
 void reframe(CityModel& model, const Crs& crs, glm::dvec2 origin);

@@ -109,7 +109,7 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
     // Into the scene's frame: point by point when the tree has its own CRS, then each building onto the DEM.
     if (!f.info.sceneFrame) {
         const GeoFrame from(f.info.crs, f.info.origin);
-        const bool translate = !f.info.crs.isGeographic() && f.info.crs.sameSpace(scene.frame.crs());
+        const bool translate = scene.frame.isTranslation() && f.info.crs == scene.frame.crs();
         const glm::dvec2 shift = translate ? f.info.origin - scene.frame.centre() : glm::dvec2(0.0);
         auto move = [&](glm::vec3& p) {
             if (translate) {

@@ -1,10 +1,10 @@
 #include "BandReader.h"
 
+#include "GdalSupport.h"
 #include "JpegSupport.h"
 #include "ParallelIndices.h"
 #include "TiffSupport.h"
 
-#include <OpenImageIO/imageio.h>
 #include <libdeflate.h>
 #include <zstd.h>
 
@@ -124,12 +124,12 @@ bool decodeJpeg(JpegDecoder& d, const std::vector<std::uint8_t>& tables, const s
 } // namespace
 
 // Deflate, Zstandard and JPEG TIFFs, the kinds GeoTiffStreamWriter writes and most GeoTIFFs and orthophotos are,
-// decoded here rather than by OpenImageIO: the compressed tiles (or strips) of a band are read raw through libtiff and
-// decoded on all cores, deflate by libdeflate (about twice as fast as zlib), Zstandard by libzstd (about five times
-// faster again), JPEG by libjpeg as libtiff's codec decodes it for GDAL (YCbCr to RGB). Only layouts where the
-// result is certain to equal OpenImageIO's or libtiff's: unsigned 8/16-bit, contiguous RGB or grey (JPEG: 8-bit
-// YCbCr, RGB or grey), no unassociated alpha (OpenImageIO would premultiply it), native byte order, predictor none or horizontal.
-// Anything else, and any tile that does not decode, goes to OpenImageIO.
+// decoded here rather than by GDAL: the compressed tiles (or strips) of a band are read raw through libtiff and
+// decoded on all cores, deflate by libdeflate (about twice as fast as zlib), Zstandard by libzstd, JPEG by libjpeg as
+// libtiff's codec decodes it for GDAL (YCbCr to RGB). Only layouts where the result is certain to equal GDAL's:
+// unsigned 8/16-bit, contiguous RGB or grey with any extra samples (alpha is read raw, as GDAL does; JPEG: 8-bit
+// YCbCr, RGB or grey), native byte order, predictor none or horizontal. Anything else, and any tile that does not
+// decode, goes to GDAL.
 struct RawTiff {
     TIFF* tif = nullptr;
     std::string error;                // libtiff's last message about this file
@@ -149,7 +149,7 @@ struct RawTiff {
         if (tif) TIFFClose(tif);
     }
 
-    /// Opens `path` when its layout qualifies (width × height as OpenImageIO saw it), else null.
+    /// Opens `path` when its layout qualifies (width × height as GDAL saw it), else null.
     static std::unique_ptr<RawTiff> open(const std::filesystem::path& path, int width, int height,
                                                 int maxStripRows) {
         auto r = std::make_unique<RawTiff>();
@@ -180,9 +180,8 @@ struct RawTiff {
         const bool colours = (photometric == PHOTOMETRIC_RGB && spp >= 3) ||
                              (photometric == PHOTOMETRIC_MINISBLACK && spp >= 1) || r->ycbcr;
         if (r->jpeg) {
-            // 8-bit YCbCr (what orthophotos use; OpenImageIO 2.4 reads it through libtiff's RGBA interface, which
-            // fails on tiles and holds a whole image of strips), RGB or grey; the tables shared by every tile. The
-            // JPEG codec has no predictor tag.
+            // 8-bit YCbCr (what orthophotos use), RGB or grey; the tables shared by every tile. The JPEG codec has no
+            // predictor tag.
             const bool layout = r->ycbcr || (photometric == PHOTOMETRIC_RGB && spp == 3) ||
                                 (photometric == PHOTOMETRIC_MINISBLACK && spp == 1);
             if (!layout || bits != 8 || extraCount > 0) return nullptr;
@@ -192,11 +191,8 @@ struct RawTiff {
             if (TIFFGetField(t, TIFFTAG_JPEGTABLES, &count, &tables) && tables && count > 0)
                 r->jpegTables.assign(static_cast<std::uint8_t*>(tables), static_cast<std::uint8_t*>(tables) + count);
         }
-        bool unassociated = false;
-        for (std::uint16_t i = 0; i < extraCount && extra; ++i) unassociated |= extra[i] == EXTRASAMPLE_UNASSALPHA;
         if (int(w) != width || int(h) != height || !(deflate || r->zstd || r->jpeg) || planar != PLANARCONFIG_CONTIG ||
-            !colours ||
-            unassociated || (bits != 8 && bits != 16) || format != SAMPLEFORMAT_UINT ||
+            !colours || (bits != 8 && bits != 16) || format != SAMPLEFORMAT_UINT ||
             (bits == 16 && TIFFIsByteSwapped(t)) || (predictor != PREDICTOR_NONE && predictor != PREDICTOR_HORIZONTAL))
             return nullptr;
         r->tiled = TIFFIsTiled(t) != 0;
@@ -250,7 +246,7 @@ struct RawTiff {
     }
 
     /// Rows [y0, y1) (whole block rows, except at the bottom) of channels [0, channels) into `out`, samples of the
-    /// file's own size. False when a block cannot be read or decoded (OpenImageIO then tries and reports).
+    /// file's own size. False when a block cannot be read or decoded (GDAL then tries and reports).
     bool read(int width, int height, int y0, int y1, int channels, std::uint8_t* out) {
         failure.clear();
         const size_t pixelBytes = size_t(samples) * size_t(sampleBytes);
@@ -284,7 +280,7 @@ struct RawTiff {
                 if (c.empty()) std::memset(block.data(), 0, bytes);
                 else if (!decode(c, block.data(), bytes, worker)) {
                     const bool first = ok.exchange(false);
-                    // The first failure's words (only it writes), for the error if OpenImageIO cannot read it either.
+                    // The first failure's words (only it writes), for the error if GDAL cannot read it either.
                     if (first && jpeg)
                         failure = std::string("JPEG ") + (tiled ? "tile " : "strip ") +
                                   std::to_string(tiled ? by * across + i : by) + ": " +
@@ -319,8 +315,8 @@ struct RawTiff {
 };
 
 struct BandReader::Input {
-    std::unique_ptr<OIIO::ImageInput> in;
-    std::unique_ptr<RawTiff> raw; // null: OpenImageIO decodes everything
+    gdal::Dataset ds;
+    std::unique_ptr<RawTiff> raw; // null: GDAL decodes everything
 };
 
 BandReader::BandReader(BandReader&&) noexcept = default;
@@ -331,32 +327,25 @@ Result<BandReader> BandReader::open(const std::filesystem::path& path, int prefe
     BandReader r;
     r.m_path = path;
     r.m_in = std::make_unique<Input>();
-    r.m_in->in = OIIO::ImageInput::open(path.string());
-    if (!r.m_in->in) {
-        std::error_code ec;
-        if (!std::filesystem::exists(path, ec)) return fileError(path.string(), "file not found");
-        const std::string e = firstLine(OIIO::geterror());
-        return fileError(path.string(), "not a readable image" + (e.empty() ? std::string() : " (" + e + ")"));
-    }
-    const OIIO::ImageSpec& spec = r.m_in->in->spec();
-    r.m_width = spec.width;
-    r.m_height = spec.height;
-    r.m_channels = spec.nchannels;
-    switch (spec.format.basetype) {
-    case OIIO::TypeDesc::UINT8: r.m_type = SampleType::U8; break;
-    case OIIO::TypeDesc::UINT16: r.m_type = SampleType::U16; break;
-    case OIIO::TypeDesc::INT16: r.m_type = SampleType::I16; break;
-    case OIIO::TypeDesc::FLOAT: r.m_type = SampleType::F32; break;
-    default: return fileError(path.string(), std::string("unsupported sample type ") + spec.format.c_str());
-    }
-    if (spec.tile_width > 0 && spec.tile_height > 0 && spec.tile_depth <= 1) {
-        r.m_tileHeight = spec.tile_height;
-        r.m_bandRows = r.m_tileHeight * std::max(1, preferredRows / r.m_tileHeight);
-    } else {
-        r.m_bandRows = std::max(1, preferredRows);
-    }
-    if (std::string_view(r.m_in->in->format_name()) == "tiff" &&
-        (r.m_type == SampleType::U8 || r.m_type == SampleType::U16)) {
+    auto ds = gdal::openRaster(path);
+    if (!ds) return ds.error();
+    r.m_in->ds = std::move(*ds);
+    GDALDataset& d = *r.m_in->ds;
+    r.m_width = d.GetRasterXSize();
+    r.m_height = d.GetRasterYSize();
+    r.m_channels = d.GetRasterCount();
+    GDALRasterBand* first = d.GetRasterBand(1);
+    const auto type = gdal::sampleTypeOf(first->GetRasterDataType());
+    if (!type)
+        return fileError(path.string(),
+                         std::string("unsupported sample type ") + GDALGetDataTypeName(first->GetRasterDataType()));
+    r.m_type = *type;
+    int bx = 0, by = 0;
+    first->GetBlockSize(&bx, &by);
+    r.m_tileHeight = std::max(1, by);
+    r.m_bandRows = r.m_tileHeight * std::max(1, preferredRows / r.m_tileHeight);
+    const bool tiff = d.GetDriver() && std::string_view(d.GetDriver()->GetDescription()) == "GTiff";
+    if (tiff && (r.m_type == SampleType::U8 || r.m_type == SampleType::U16)) {
         r.m_in->raw = RawTiff::open(path, r.m_width, r.m_height, std::max(preferredRows, 256));
         // Bands of whole strips, so that every band starts on a strip (tiles: already whole tile rows).
         if (r.m_in->raw && !r.m_in->raw->tiled) {
@@ -377,13 +366,21 @@ Status BandReader::read(int y0, int y1, int channels, SampleType type, void* out
         if (m_in->raw->read(m_width, m_height, y0, y1, channels, static_cast<std::uint8_t*>(out))) return Ok{};
         ++m_handedOver;
     }
-    const OIIO::TypeDesc t = type == SampleType::U16 ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::UINT8;
-    OIIO::ImageInput& in = *m_in->in;
-    const bool ok = m_tileHeight > 0 ? in.read_tiles(0, 0, 0, m_width, y0, y1, 0, 1, 0, channels, t, out)
-                                     : in.read_scanlines(0, 0, y0, y1, 0, 0, channels, t, out);
-    if (ok) return Ok{};
-    // The own decoder's words first when it tried (OpenImageIO's on JPEG YCbCr tiles say nothing useful).
-    const std::string e = m_in->raw && !m_in->raw->failure.empty() ? m_in->raw->failure : firstLine(in.geterror());
+    int bands[4] = {1, 2, 3, 4};
+    std::vector<int> many;
+    if (channels > 4) {
+        many.resize(size_t(channels));
+        for (int c = 0; c < channels; ++c) many[size_t(c)] = c + 1;
+    }
+    const GSpacing sample = type == SampleType::U16 ? 2 : 1;
+    gdal::ErrorCapture errors;
+    const CPLErr err = m_in->ds->RasterIO(GF_Read, 0, y0, m_width, y1 - y0, out, m_width, y1 - y0,
+                                          gdal::gdalTypeOf(type), channels, channels > 4 ? many.data() : bands,
+                                          sample * channels, sample * channels * m_width, sample, nullptr);
+    // A warning during a read is lost data too (libtiff reports some short reads as warnings).
+    if (err == CE_None && !errors.failed()) return Ok{};
+    // The own decoder's words first when it tried.
+    const std::string e = m_in->raw && !m_in->raw->failure.empty() ? m_in->raw->failure : errors.message();
     return fileError(m_path.string(), "truncated or corrupt image data" + (e.empty() ? std::string() : " (" + e + ")"));
 }
 

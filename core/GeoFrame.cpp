@@ -2,16 +2,25 @@
 
 #include <GeographicLib/LocalCartesian.hpp>
 
+#include <cmath>
+
 namespace seasonview {
 
 struct GeoFrame::Impl {
     GeographicLib::LocalCartesian lc;
 };
 
+bool isMetricAt(const Crs& crs, glm::dvec2 p) {
+    if (crs.isGeographic()) return false;
+    const glm::dvec2 k = pointScale(crs, p);
+    return std::abs(k.x - 1.0) < 0.01 && std::abs(k.y - 1.0) < 0.01;
+}
+
 GeoFrame::GeoFrame(const Crs& crs, glm::dvec2 centre) : m_crs(crs), m_centre(centre) {
-    glm::dvec2 lonlat = convert(crs, Crs::geographic(), centre);
+    const glm::dvec2 lonlat = convert(crs, Crs::geographic(), centre);
     m_centreLatLon = {lonlat.y, lonlat.x};
-    if (crs.isGeographic()) m_impl = std::make_unique<Impl>(Impl{GeographicLib::LocalCartesian(lonlat.y, lonlat.x, 0.0)});
+    if (!isMetricAt(crs, centre))
+        m_impl = std::make_unique<Impl>(Impl{GeographicLib::LocalCartesian(lonlat.y, lonlat.x, 0.0)});
 }
 
 GeoFrame::~GeoFrame() = default;
@@ -29,11 +38,11 @@ GeoFrame& GeoFrame::operator=(const GeoFrame& o) {
 }
 
 glm::dvec3 GeoFrame::toLocal(const Crs& from, glm::dvec2 p, double h) const {
-    if (!m_impl) { // UTM frame: translate only
-        glm::dvec2 q = convert(from, m_crs, p);
+    if (!m_impl) { // metric projected frame: translate only
+        const glm::dvec2 q = convert(from, m_crs, p);
         return {q.x - m_centre.x, q.y - m_centre.y, h};
     }
-    glm::dvec2 lonlat = convert(from, Crs::geographic(), p);
+    const glm::dvec2 lonlat = convert(from, Crs::geographic(), p);
     double x = 0, y = 0, z = 0;
     m_impl->lc.Forward(lonlat.y, lonlat.x, h, x, y, z);
     return {x, y, z};

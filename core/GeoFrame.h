@@ -1,7 +1,9 @@
 #pragma once
-// The scene's local metric frame: x east, y north, z up, metres.
-//  - UTM data: the frame is the UTM grid translated to the scene centre (z = height). Exact, no curvature.
-//  - Geographic data: GeographicLib::LocalCartesian (ENU tangent plane) at the scene centre.
+// The scene's local metric frame: x east, y north, z up, metres, origin at the scene centre.
+//  - A projected CRS whose scale at the centre is within 1 % of true (UTM, national grids such as Lambert-93, RD New,
+//    LV95, British National Grid): the frame is that grid translated to the centre (z = height). Exact, no curvature.
+//  - Anything else (geographic longitude/latitude, Web Mercator, whose scale is 1/cos(latitude)): GeographicLib's
+//    LocalCartesian (an east-north-up tangent plane) at the centre, reached through geographic coordinates.
 #include "Crs.h"
 
 #include <glm/vec2.hpp>
@@ -23,6 +25,9 @@ public:
     glm::dvec2 centre() const { return m_centre; }
     /// Latitude, longitude (degrees) of the centre.
     glm::dvec2 centreLatLon() const { return m_centreLatLon; }
+    /// True when local = the frame CRS's coordinates minus the centre (a metric projected CRS); false for the
+    /// tangent-plane frame.
+    bool isTranslation() const { return !m_impl; }
 
     /// A point given in `from` (its units) at ellipsoidal/orthometric height h (metres) -> local (metres).
     glm::dvec3 toLocal(const Crs& from, glm::dvec2 p, double h = 0.0) const;
@@ -36,5 +41,9 @@ private:
     struct Impl;
     std::unique_ptr<Impl> m_impl;
 };
+
+/// Whether a projected CRS is close enough to true scale at `p` (within 1 % east and north) to serve as a metric
+/// frame by translation; false for geographic CRSs.
+bool isMetricAt(const Crs& crs, glm::dvec2 p);
 
 } // namespace seasonview

@@ -1,6 +1,7 @@
 #include "GeoTiffStreamWriter.h"
 
 #include "AtomicFile.h"
+#include "GdalSupport.h"
 #include "JpegSupport.h"
 #include "ParallelIndices.h"
 #include "TiffSupport.h"
@@ -214,7 +215,9 @@ Result<GeoTiffStreamWriter> GeoTiffStreamWriter::open(const std::filesystem::pat
         if (!TIFFSetField(t, TIFFTAG_REFERENCEBLACKWHITE, referenceBlackWhite))
             return w.fail("cannot set the YCbCr reference tag").error();
     }
-    if (georef && !tiff::writeGeoTags(t, *georef, options.nodata)) return w.fail("cannot write GeoTIFF keys").error();
+    w.m_georef = georef;
+    w.m_nodata = options.nodata;
+    if (options.nodata && !tiff::writeNodataTag(t, *options.nodata)) return w.fail("cannot write the nodata tag").error();
     if (w.m_tiled) {
         TIFFSetField(t, TIFFTAG_TILEWIDTH, std::uint32_t(options.tileSize));
         TIFFSetField(t, TIFFTAG_TILELENGTH, std::uint32_t(options.tileSize));
@@ -268,6 +271,8 @@ GeoTiffStreamWriter& GeoTiffStreamWriter::operator=(GeoTiffStreamWriter&& other)
         m_error = std::move(other.m_error);
         m_encoder = std::move(other.m_encoder);
         m_pending = std::move(other.m_pending);
+        m_georef = std::move(other.m_georef);
+        m_nodata = other.m_nodata;
         m_pendingRows = other.m_pendingRows;
     }
     return *this;
@@ -400,6 +405,14 @@ Status GeoTiffStreamWriter::finish() {
     m_tif = nullptr;
     m_encoder.reset();
     m_pending = {};
+    // GDAL writes the georeferencing (GeoTIFF keys for any CRS PROJ knows) into the closed file before it gets its
+    // name.
+    if (m_georef)
+        if (auto st = gdal::stampGeoreference(m_tmp, *m_georef, m_nodata); !st) {
+            std::error_code ec;
+            std::filesystem::remove(m_tmp, ec);
+            return fileError(m_path.string(), st.message());
+        }
     std::string err;
     if (!commitTemporary(m_tmp, m_path, err)) return fileError(m_path.string(), err);
     return Ok{};

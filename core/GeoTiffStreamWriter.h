@@ -71,6 +71,8 @@ private:
     std::unique_ptr<std::string> m_error;     // libtiff's last message about this file (stable address)
     std::unique_ptr<Encoder> m_encoder;
     std::vector<std::uint8_t> m_pending;      // rows of an incomplete block row
+    std::optional<Georef> m_georef;           // stamped by GDAL in finish()
+    std::optional<double> m_nodata;
     int m_pendingRows = 0;
 };
 

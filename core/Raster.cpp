@@ -1,147 +1,71 @@
 #include "Raster.h"
 
+#include "GdalSupport.h"
 #include "GeoTiffStreamWriter.h"
 #include "ImageStreamWriter.h"
 #include "TiffSupport.h"
 
-#include <OpenImageIO/imageio.h>
-#include <geokeys.h>
-#include <geotiffio.h>
+#include <ogr_spatialref.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
-#include <cstdlib>
-#include <memory>
 
 namespace seasonview {
 
 namespace {
 
-bool isTiffExtension(const std::filesystem::path& p) {
-    std::string e = p.extension().string();
-    std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    return e == ".tif" || e == ".tiff" || e == ".gtif";
-}
-
-struct TiffCloser {
-    void operator()(TIFF* t) const { TIFFClose(t); }
-};
-struct GtifCloser {
-    void operator()(GTIF* g) const { GTIFFree(g); }
-};
-
-// Reads GeoTIFF tags. Returns an empty optional when the file has none; an error for unsupported CRS.
-Result<std::optional<Georef>> readGeoTags(const std::filesystem::path& path, std::optional<double>& nodata) {
-    std::string tiffError;
-    std::unique_ptr<TIFF, TiffCloser> tif(tiff::open(path, "rm", &tiffError)); // tags only: no memory map
-    if (!tif) return std::optional<Georef>{};
-    char* nodataText = nullptr;
-    if (TIFFGetField(tif.get(), tiff::kTagGdalNodata, &nodataText) && nodataText) {
-        char* end = nullptr;
-        double v = std::strtod(nodataText, &end);
-        if (end != nodataText) nodata = v;
-    }
-    std::uint16_t n = 0;
-    double* scale = nullptr;
-    double* tie = nullptr;
-    double* matrix = nullptr;
-    bool hasScale = TIFFGetField(tif.get(), TIFFTAG_GEOPIXELSCALE, &n, &scale) && n >= 2;
-    std::uint16_t nt = 0;
-    bool hasTie = TIFFGetField(tif.get(), TIFFTAG_GEOTIEPOINTS, &nt, &tie) && nt >= 6;
-    std::uint16_t nm = 0;
-    bool hasMatrix = TIFFGetField(tif.get(), TIFFTAG_GEOTRANSMATRIX, &nm, &matrix) && nm >= 16;
-    if (!((hasScale && hasTie) || hasMatrix)) return std::optional<Georef>{};
-
-    std::unique_ptr<GTIF, GtifCloser> gt(GTIFNew(tif.get()));
-    if (!gt) return fileError(path.string(), "unreadable GeoTIFF key directory");
-    unsigned short modelType = 0, rasterType = RasterPixelIsArea, code = 0;
-    GTIFKeyGet(gt.get(), GTModelTypeGeoKey, &modelType, 0, 1);
-    GTIFKeyGet(gt.get(), GTRasterTypeGeoKey, &rasterType, 0, 1);
-    int epsg = 0;
-    if (modelType == ModelTypeProjected) {
-        if (GTIFKeyGet(gt.get(), ProjectedCSTypeGeoKey, &code, 0, 1)) epsg = code;
-    } else if (modelType == ModelTypeGeographic) {
-        if (GTIFKeyGet(gt.get(), GeographicTypeGeoKey, &code, 0, 1)) epsg = code;
-        else epsg = 4326; // geographic without a datum code: assume WGS84
-    }
-    if (epsg == 0 || epsg == KvUserDefined)
-        return fileError(path.string(), "unknown CRS (no EPSG code in the GeoTIFF keys; reproject to UTM or EPSG:4326)");
-    Result<Crs> crs = Crs::fromEpsg(epsg);
-    if (!crs) return fileError(path.string(), crs.message());
-
+/// The georeferencing GDAL reads (GeoTIFF keys, world files, .prj, VRT, JP2 boxes, ...): a north-up affine grid.
+/// Sets info.georef, or geotransformWithoutCrs; errors for rotated/sheared or degenerate grids.
+Status readGeoreference(GDALDataset& ds, const std::filesystem::path& path, const std::optional<Crs>& assumedCrs,
+                        RasterInfo& info) {
+    double gt[6] = {0, 1, 0, 0, 0, 1};
+    const bool hasTransform = ds.GetGeoTransform(gt) == CE_None;
+    const OGRSpatialReference* srs = ds.GetSpatialRef();
+    if (!hasTransform) return Ok{}; // a plain image (PNG mask, photo)
+    if (gt[2] != 0.0 || gt[4] != 0.0) return fileError(path.string(), "rotated or sheared rasters are not supported");
     Georef g;
-    g.crs = *crs;
-    if (hasScale && hasTie) {
-        g.pixelSize = {scale[0], scale[1]};
-        g.origin = {tie[3] - tie[0] * scale[0], tie[4] + tie[1] * scale[1]};
-    } else {
-        if (matrix[1] != 0.0 || matrix[4] != 0.0)
-            return fileError(path.string(), "rotated or sheared rasters are not supported");
-        g.pixelSize = {matrix[0], -matrix[5]};
-        g.origin = {matrix[3], matrix[7]};
-    }
+    g.pixelSize = {gt[1], -gt[5]};
+    g.origin = {gt[0], gt[3]};
     if (!(g.pixelSize.x > 0.0) || !(g.pixelSize.y > 0.0) || !std::isfinite(g.origin.x) || !std::isfinite(g.origin.y))
         return fileError(path.string(), "invalid georeferencing (pixel size must be positive, north-up)");
-    if (rasterType == RasterPixelIsPoint) { // tiepoint names the pixel centre
-        g.origin.x -= 0.5 * g.pixelSize.x;
-        g.origin.y += 0.5 * g.pixelSize.y;
+    if (srs && !srs->IsEmpty()) {
+        char* wkt = nullptr;
+        const char* options[] = {"FORMAT=WKT2_2019", nullptr};
+        srs->exportToWkt(&wkt, options);
+        auto crs = Crs::fromWkt(wkt ? wkt : "");
+        CPLFree(wkt);
+        if (!crs) return fileError(path.string(), "unsupported CRS (" + crs.message() + ")");
+        g.crs = *crs;
+    } else if (assumedCrs) {
+        g.crs = *assumedCrs;
+    } else {
+        info.geotransformWithoutCrs = true;
+        return Ok{};
     }
-    return std::optional<Georef>{g};
-}
-
-std::string oiioOpenError(const std::filesystem::path& path) {
-    std::string e = firstLine(OIIO::geterror());
-    std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) return "file not found";
-    if (std::filesystem::is_directory(path, ec)) return "is a directory, not an image";
-    if (std::filesystem::file_size(path, ec) == 0) return "empty file, not an image";
-    return "not a readable image" + (e.empty() ? std::string() : " (" + e + ")");
+    info.georef = g;
+    return Ok{};
 }
 
 template <typename T>
-Result<Image<T>> readPixels(const std::filesystem::path& path, int maxChannels, OIIO::TypeDesc want) {
-    std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) return fileError(path.string(), "file not found");
-    auto in = OIIO::ImageInput::open(path.string());
-    if (!in) return fileError(path.string(), oiioOpenError(path));
-    const OIIO::ImageSpec& spec = in->spec();
+Result<Image<T>> readPixels(const std::filesystem::path& path, int maxChannels, SampleType want) {
+    auto ds = gdal::openRaster(path);
+    if (!ds) return ds.error();
     Image<T> img;
-    img.width = spec.width;
-    img.height = spec.height;
-    img.channels = std::min(spec.nchannels, maxChannels);
-    if (img.width <= 0 || img.height <= 0 || img.channels <= 0) return fileError(path.string(), "image has no pixels");
+    img.width = (*ds)->GetRasterXSize();
+    img.height = (*ds)->GetRasterYSize();
+    img.channels = std::min((*ds)->GetRasterCount(), maxChannels);
     img.pixels.resize(size_t(img.width) * size_t(img.height) * size_t(img.channels));
-    bool ok = false;
-    if (want == OIIO::TypeDesc::FLOAT && spec.format != OIIO::TypeDesc::FLOAT) {
-        // OpenImageIO normalises integers when converting to float; heights need the raw values, so read the
-        // native type and cast.
-        const OIIO::TypeDesc native = spec.format;
-        std::vector<std::uint8_t> raw(img.pixels.size() * native.size());
-        ok = in->read_image(0, 0, 0, img.channels, native, raw.data());
-        if (ok) {
-            auto cast = [&](auto tag) {
-                using S = decltype(tag);
-                const S* p = reinterpret_cast<const S*>(raw.data());
-                for (size_t i = 0; i < img.pixels.size(); ++i) img.pixels[i] = T(p[i]);
-            };
-            switch (native.basetype) {
-            case OIIO::TypeDesc::INT16: cast(std::int16_t{}); break;
-            case OIIO::TypeDesc::UINT16: cast(std::uint16_t{}); break;
-            case OIIO::TypeDesc::UINT8: cast(std::uint8_t{}); break;
-            case OIIO::TypeDesc::INT8: cast(std::int8_t{}); break;
-            case OIIO::TypeDesc::INT32: cast(std::int32_t{}); break;
-            case OIIO::TypeDesc::UINT32: cast(std::uint32_t{}); break;
-            case OIIO::TypeDesc::DOUBLE: cast(double{}); break;
-            default: return fileError(path.string(), std::string("unsupported sample type ") + native.c_str());
-            }
-        }
-    } else {
-        ok = in->read_image(0, 0, 0, img.channels, want, img.pixels.data());
-    }
-    if (!ok) {
-        std::string e = firstLine(in->geterror());
-        return fileError(path.string(), "truncated or corrupt image data" + (e.empty() ? std::string() : " (" + e + ")"));
+    std::vector<int> bands(size_t(img.channels));
+    for (int b = 0; b < img.channels; ++b) bands[size_t(b)] = b + 1;
+    gdal::ErrorCapture errors;
+    const GSpacing pixel = GSpacing(sizeof(T)) * img.channels;
+    const CPLErr err = (*ds)->RasterIO(GF_Read, 0, 0, img.width, img.height, img.pixels.data(), img.width, img.height,
+                                       gdal::gdalTypeOf(want), img.channels, bands.data(), pixel,
+                                       pixel * img.width, GSpacing(sizeof(T)), nullptr);
+    // A warning during a read is lost data too (libtiff reports some short reads as warnings).
+    if (err != CE_None || errors.failed()) {
+        const std::string why = errors.message();
+        return fileError(path.string(), "truncated or corrupt image data" + (why.empty() ? std::string() : " (" + why + ")"));
     }
     return img;
 }
@@ -158,44 +82,57 @@ const char* sampleTypeName(SampleType t) {
     return "?";
 }
 
-Result<RasterInfo> readRasterInfo(const std::filesystem::path& path) {
-    std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) return fileError(path.string(), "file not found");
-    auto in = OIIO::ImageInput::open(path.string());
-    if (!in) return fileError(path.string(), oiioOpenError(path));
-    const OIIO::ImageSpec& spec = in->spec();
+Result<RasterInfo> readRasterInfo(const std::filesystem::path& path, const std::optional<Crs>& assumedCrs) {
+    auto opened = gdal::openRaster(path);
+    if (!opened) return opened.error();
+    GDALDataset& ds = **opened;
     RasterInfo info;
     info.path = path;
-    info.width = spec.width;
-    info.height = spec.height;
-    info.channels = spec.nchannels;
-    info.tiled = spec.tile_width > 0;
-    switch (spec.format.basetype) {
-    case OIIO::TypeDesc::UINT8: info.type = SampleType::U8; break;
-    case OIIO::TypeDesc::UINT16: info.type = SampleType::U16; break;
-    case OIIO::TypeDesc::INT16: info.type = SampleType::I16; break;
-    case OIIO::TypeDesc::FLOAT: info.type = SampleType::F32; break;
-    default:
-        return fileError(path.string(), std::string("unsupported sample type ") + spec.format.c_str() +
-                                            " (seasonview reads uint8, uint16, int16 and float32)");
+    info.width = ds.GetRasterXSize();
+    info.height = ds.GetRasterYSize();
+    info.channels = ds.GetRasterCount();
+    info.driver = ds.GetDriver() ? ds.GetDriver()->GetDescription() : "";
+    GDALRasterBand* first = ds.GetRasterBand(1);
+    const auto type = gdal::sampleTypeOf(first->GetRasterDataType());
+    if (!type)
+        return fileError(path.string(), std::string("unsupported sample type ") +
+                                            GDALGetDataTypeName(first->GetRasterDataType()) +
+                                            " (seasonview reads integer and floating-point bands)");
+    info.type = *type;
+    if (info.driver == "GTiff") {
+        std::string error;
+        if (TIFF* t = tiff::open(path, "rm", &error)) {
+            info.tiled = TIFFIsTiled(t) != 0;
+            TIFFClose(t);
+        }
+    } else {
+        int bx = 0, by = 0;
+        first->GetBlockSize(&bx, &by);
+        info.tiled = by > 1 && bx < info.width;
     }
-    if (info.width <= 0 || info.height <= 0) return fileError(path.string(), "image has no pixels");
-    if (isTiffExtension(path) || in->format_name() == std::string("tiff")) {
-        auto geo = readGeoTags(path, info.nodata);
-        if (!geo) return geo.error();
-        info.georef = *geo;
-    }
+    for (int b = 1; b <= info.channels; ++b)
+        if (ds.GetRasterBand(b)->GetColorInterpretation() == GCI_AlphaBand) info.alphaBand = b;
+    int hasNodata = 0;
+    const double nodata = first->GetNoDataValue(&hasNodata);
+    if (hasNodata) info.nodata = nodata;
+    const int flags = first->GetMaskFlags();
+    info.nodataKind = (flags & GMF_ALL_VALID) ? NodataKind::None
+                      : (flags & GMF_NODATA)  ? NodataKind::Value
+                      : (flags & GMF_ALPHA) || info.alphaBand ? NodataKind::Alpha
+                                                              : NodataKind::Mask;
+    if (info.alphaBand && info.nodataKind == NodataKind::None) info.nodataKind = NodataKind::Alpha;
+    if (auto st = readGeoreference(ds, path, assumedCrs, info); !st) return st.error();
     return info;
 }
 
 Result<Image<std::uint8_t>> readImageU8(const std::filesystem::path& path, int maxChannels) {
-    return readPixels<std::uint8_t>(path, maxChannels, OIIO::TypeDesc::UINT8);
+    return readPixels<std::uint8_t>(path, maxChannels, SampleType::U8);
 }
 Result<Image<std::uint16_t>> readImageU16(const std::filesystem::path& path, int maxChannels) {
-    return readPixels<std::uint16_t>(path, maxChannels, OIIO::TypeDesc::UINT16);
+    return readPixels<std::uint16_t>(path, maxChannels, SampleType::U16);
 }
 Result<Image<float>> readImageF32(const std::filesystem::path& path, int maxChannels) {
-    return readPixels<float>(path, maxChannels, OIIO::TypeDesc::FLOAT);
+    return readPixels<float>(path, maxChannels, SampleType::F32);
 }
 
 const char* tiffCompressionName(TiffCompression c) {

@@ -1,7 +1,8 @@
 #pragma once
-// Raster IO: GeoTIFF georeferencing through libgeotiff (Debian's OpenImageIO 2.4 does not expose the GeoTIFF tags),
-// pixels through OpenImageIO. Writing georeferenced tiled GeoTIFFs goes through libtiff + libgeotiff
-// (GeoTiffStreamWriter.h, which also streams rasters too large to hold).
+// Raster IO: every input raster is opened through GDAL (any format it reads: GeoTIFF with any compression, COG,
+// JPEG 2000, PNG/JPEG with world files, VRT, ...; any CRS PROJ knows). Writing tiled GeoTIFFs goes through libtiff
+// with our own parallel codecs (GeoTiffStreamWriter.h, which also streams rasters too large to hold); GDAL stamps
+// their georeferencing.
 #include "Crs.h"
 #include "Result.h"
 
@@ -29,14 +30,26 @@ struct Georef {
     glm::dvec2 crsToPixel(glm::dvec2 p) const { return {(p.x - origin.x) / pixelSize.x, (origin.y - p.y) / pixelSize.y}; }
 };
 
+/// How a raster marks pixels without data (GDAL's mask flags, simplified).
+enum class NodataKind {
+    None,       // every pixel is data
+    Value,      // bands' nodata value (a pixel is nodata where every band has it)
+    Alpha,      // an alpha band (0 = no data)
+    Mask        // a per-dataset mask (an internal TIFF mask, a .msk file, a VRT's mask band)
+};
+
 /// What a raster file holds, read from its header only.
 struct RasterInfo {
     std::filesystem::path path;
-    int width = 0, height = 0, channels = 0;
+    int width = 0, height = 0, channels = 0; // channels: all bands, an alpha band (alphaBand) included
     SampleType type = SampleType::U8;
-    std::optional<Georef> georef;     // absent for plain images (PNG masks)
-    std::optional<double> nodata;     // GDAL_NODATA tag when present
+    std::optional<Georef> georef;     // absent for plain images (PNG masks) and for rasters without a CRS
+    bool geotransformWithoutCrs = false; // georeferenced pixels, but no CRS (give one: --crs)
+    std::optional<double> nodata;     // the first band's nodata value when it has one
+    NodataKind nodataKind = NodataKind::None;
+    int alphaBand = 0;                // 1-based GDAL band of the alpha channel, 0 = none
     bool tiled = false;
+    std::string driver;               // GDAL's short name: GTiff, PNG, JP2OpenJPEG, VRT, ...
 };
 
 /// Pixels of a raster, interleaved, row 0 = north (top).
@@ -49,12 +62,14 @@ template <typename T> struct Image {
     }
 };
 
-/// Reads the header (size, type, georeferencing). Errors: missing file, not an image, unsupported sample type,
-/// unsupported CRS. A file without GeoTIFF tags has no georef (the caller decides whether that is an error).
-Result<RasterInfo> readRasterInfo(const std::filesystem::path& path);
+/// Reads the header (size, type, georeferencing, nodata) through GDAL. Errors: missing file, not an image,
+/// unsupported sample type, rotated or sheared grids. A file without georeferencing has no georef; one with a
+/// geotransform but no CRS gets `assumedCrs` when given, else no georef and geotransformWithoutCrs (the caller
+/// decides whether either is an error).
+Result<RasterInfo> readRasterInfo(const std::filesystem::path& path, const std::optional<Crs>& assumedCrs = {});
 
-/// Reads all pixels converted to T (u8, u16 or float), first `maxChannels` channels. Errors name the file
-/// (truncated, corrupt).
+/// Reads all pixels converted to T (u8, u16 or float: values converted numerically, clamped to T's range, never
+/// rescaled), first `maxChannels` bands. Errors name the file (truncated, corrupt: any GDAL read error).
 Result<Image<std::uint8_t>> readImageU8(const std::filesystem::path& path, int maxChannels = 4);
 Result<Image<std::uint16_t>> readImageU16(const std::filesystem::path& path, int maxChannels = 4);
 Result<Image<float>> readImageF32(const std::filesystem::path& path, int maxChannels = 1);
@@ -81,13 +96,13 @@ struct GeoTiffWriteOptions {
     std::uint64_t bigTiffAbove = std::uint64_t(2) << 30; // BigTIFF when the raw samples exceed this many bytes
 };
 
-/// Writes an interleaved raster as a tiled, compressed (options.compression) GeoTIFF (UTM or geographic, PixelIsArea) through
+/// Writes an interleaved raster as a tiled, compressed (options.compression) GeoTIFF (any CRS, PixelIsArea) through
 /// GeoTiffStreamWriter. Atomic: written to a temporary name in the same folder, renamed on success. `data` holds
 /// width*height*channels samples of the given type.
 Status writeGeoTiff(const std::filesystem::path& path, const void* data, SampleType type, int width, int height,
                     int channels, const Georef& georef, const GeoTiffWriteOptions& options = {});
 
-/// Writes an 8-bit image (PNG, TIFF, ... by extension) through OpenImageIO, atomically. Row 0 is the top row.
+/// Writes an 8-bit image (PNG, TIFF, ... by extension), atomically. Row 0 is the top row.
 Status writeImageAtomic(const std::filesystem::path& path, const std::uint8_t* data, int width, int height, int channels);
 
 } // namespace seasonview

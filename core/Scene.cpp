@@ -102,8 +102,10 @@ Result<ImageryLayer> openImagery(const std::filesystem::path& path, const char* 
                                  const std::filesystem::path& cacheDir) {
     auto info = readRasterInfo(path);
     if (!info) return info.error();
+    if (info->geotransformWithoutCrs) return fileError(path.string(), "has no CRS (give one with --crs EPSG:CODE)");
     if (!info->georef)
-        return fileError(path.string(), std::string(role) + " image has no GeoTIFF georeferencing");
+        return fileError(path.string(), std::string(role) +
+                                            " image has no georeferencing (no GeoTIFF keys, world file or .prj)");
     if (info->channels < 3)
         return fileError(path.string(), std::string(role) + " image needs RGB bands, has " +
                                             std::to_string(info->channels));

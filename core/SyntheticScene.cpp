@@ -173,21 +173,22 @@ Result<SynthReport> generateSyntheticScene(const SynthOptions& options, const st
         auto d = openDem(options.dem);
         if (!d) return d.error();
         const glm::dvec2 ll = d->centreLonLat;
-        crs = Crs::utm(std::clamp(int(std::floor((ll.x + 180.0) / 6.0)) + 1, 1, 60), ll.y >= 0.0);
+        crs = Crs::utmAt(ll.x, ll.y);
         centre = glm::round(convert(Crs::geographic(), crs, ll));
         dem = std::move(*d);
     } else if (options.centreLonLat) {
         const glm::dvec2 ll = *options.centreLonLat;
         if (!(std::abs(ll.y) < 84.0) || !(std::abs(ll.x) <= 180.0))
             return Error{"synth: --centre must be longitude,latitude within UTM's range (|latitude| < 84)"};
-        crs = Crs::utm(std::clamp(int(std::floor((ll.x + 180.0) / 6.0)) + 1, 1, 60), ll.y >= 0.0);
+        crs = Crs::utmAt(ll.x, ll.y);
         centre = glm::round(convert(Crs::geographic(), crs, ll));
     }
+    const bool south = convert(crs, Crs::geographic(), centre).y < 0.0;
     const glm::dvec2 origin = centre + glm::dvec2(-0.5 * extent, 0.5 * extent);
     const Georef georef{crs, origin, glm::dvec2(gsd)};
     const Georef demGeoref{crs, origin, glm::dvec2(demSpacing)};
 
-    const SeasonLook looks[2] = {makeSeasonLook(true, seed, !crs.north), makeSeasonLook(false, seed, !crs.north)};
+    const SeasonLook looks[2] = {makeSeasonLook(true, seed, south), makeSeasonLook(false, seed, south)};
     const double lowestSun = std::min(looks[0].sunElevationDeg, looks[1].sunElevationDeg) * 0.017453292519943295;
     const double marginM = kMaxCasterHeight / std::tan(lowestSun) + 2.0 * gsd;
     const float half = static_cast<float>(0.5 * extent);

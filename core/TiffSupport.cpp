@@ -1,7 +1,6 @@
 #include "TiffSupport.h"
 
-#include <geokeys.h>
-#include <geotiffio.h>
+#include "GdalSupport.h"
 
 #include <cstdarg>
 #include <cstdio>
@@ -10,9 +9,6 @@
 namespace seasonview::tiff {
 
 namespace {
-
-// Files opened by OpenImageIO report through libtiff's global handlers; OpenImageIO reports its own errors.
-void ignoreGlobal(const char*, const char*, va_list) {} // unknown private tags etc.: not the user's problem
 
 TIFFExtendProc g_parentExtender = nullptr;
 void gdalTagExtender(TIFF* tif) {
@@ -36,9 +32,9 @@ int ignoreWarning(TIFF*, void*, const char*, const char*, va_list) { return 1; }
 void init() {
     static std::once_flag once;
     std::call_once(once, [] {
-        TIFFSetErrorHandler(ignoreGlobal);
-        TIFFSetWarningHandler(ignoreGlobal);
-        XTIFFInitialize(); // registers the GeoTIFF tags
+        // GDAL owns libtiff's global handlers (it routes them to CPLError, which core captures per call); the files
+        // opened here get per-handle handlers instead.
+        gdal::init();
         g_parentExtender = TIFFSetTagExtender(gdalTagExtender);
     });
 }
@@ -54,26 +50,10 @@ TIFF* open(const std::filesystem::path& path, const char* mode, std::string* err
     return tif;
 }
 
-bool writeGeoTags(TIFF* tif, const Georef& georef, const std::optional<double>& nodata) {
-    if (nodata) {
-        char text[64];
-        std::snprintf(text, sizeof text, "%.17g", *nodata);
-        TIFFSetField(tif, kTagGdalNodata, text);
-    }
-    double scale[3] = {georef.pixelSize.x, georef.pixelSize.y, 0.0};
-    double tie[6] = {0.0, 0.0, 0.0, georef.origin.x, georef.origin.y, 0.0};
-    TIFFSetField(tif, TIFFTAG_GEOPIXELSCALE, 3, scale);
-    TIFFSetField(tif, TIFFTAG_GEOTIEPOINTS, 6, tie);
-    GTIF* gt = GTIFNew(tif);
-    if (!gt) return false;
-    GTIFKeySet(gt, GTModelTypeGeoKey, TYPE_SHORT, 1,
-               georef.crs.isGeographic() ? ModelTypeGeographic : ModelTypeProjected);
-    GTIFKeySet(gt, GTRasterTypeGeoKey, TYPE_SHORT, 1, RasterPixelIsArea);
-    if (georef.crs.isGeographic()) GTIFKeySet(gt, GeographicTypeGeoKey, TYPE_SHORT, 1, georef.crs.epsg);
-    else GTIFKeySet(gt, ProjectedCSTypeGeoKey, TYPE_SHORT, 1, georef.crs.epsg);
-    const bool ok = GTIFWriteKeys(gt) != 0;
-    GTIFFree(gt);
-    return ok;
+bool writeNodataTag(TIFF* tif, double nodata) {
+    char text[64];
+    std::snprintf(text, sizeof text, "%.17g", nodata);
+    return TIFFSetField(tif, kTagGdalNodata, text) != 0;
 }
 
 } // namespace seasonview::tiff

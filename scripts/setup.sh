@@ -7,7 +7,7 @@ cd "$ROOT"
 PACKAGES=(cmake g++ make pkg-config
   libglfw3-dev libglm-dev libopenimageio-dev openimageio-tools
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev
-  libgeographiclib-dev libgeotiff-dev libtiff-dev libdeflate-dev libzstd-dev libjpeg-dev libpng-dev
+  libgeographiclib-dev libgdal-dev libtiff-dev libdeflate-dev libzstd-dev libjpeg-dev libpng-dev
   libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri libepoxy-dev
   libgtest-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev libstb-dev libimgui-dev libcitygml-dev libtinyobjloader-dev
   xvfb xauth)

@@ -41,7 +41,7 @@ ElevationGrid elevationGrid(const Scene& scene) {
         // finest spacing (measured in local metres at its centre) for a DEM in the frame's own UTM zone, and half
         // of it for other CRSs (EPSG:4326, other zones), keeping the resampled surface close to the DEM's own
         // triangulated one, as long as the grid stays within 16384 samples per side.
-        const bool sameSpace = !scene.frame.crs().isGeographic() && r.crs.sameSpace(scene.frame.crs());
+        const bool sameSpace = scene.frame.isTranslation() && r.crs == scene.frame.crs();
         const glm::dvec2 c(double(dem.heights.width) / 2.0, double(dem.heights.height) / 2.0);
         auto local = [&](glm::dvec2 px) { return glm::dvec2(scene.frame.toLocal(r.crs, r.pixelToCrs(px))); };
         const glm::dvec2 p0 = local(c);

@@ -1,7 +1,7 @@
 // BandReader: the deflate, Zstandard and JPEG TIFFs it decodes itself (libdeflate, libzstd, libjpeg) give exactly the
-// samples OpenImageIO (libtiff's own codecs) gives, tiled or in strips, 8- or 16-bit, RGB (JPEG: YCbCr) or grey, whole
-// or some channels, any band height; the layouts it leaves to OpenImageIO still read; damaged tiles are one error
-// naming the file.
+// samples GDAL (libtiff's own codecs) gives, tiled or in strips, 8- or 16-bit, RGB (JPEG: YCbCr) or grey, with or
+// without alpha, whole or some channels, any band height; the layouts and formats it leaves to GDAL still read;
+// damaged tiles are one error naming the file.
 #include "BandReader.h"
 #include "Raster.h"
 #include "TestUtil.h"
@@ -52,7 +52,7 @@ std::vector<T> readBands(const fs::path& path, int preferredRows, int channels, 
                           out.data() + size_t(y) * size_t(r->width()) * size_t(channels));
         EXPECT_TRUE(st.ok()) << st.message();
     }
-    EXPECT_EQ(r->readsHandedOver(), 0) << path << ": the own decoder failed and OpenImageIO stood in";
+    EXPECT_EQ(r->readsHandedOver(), 0) << path << ": the own decoder failed and GDAL stood in";
     return out;
 }
 
@@ -69,7 +69,7 @@ template <typename T> std::vector<T> readWhole(const fs::path& path, int channel
 }
 
 template <typename T>
-void expectSameAsOiio(const fs::path& dir, int w, int h, int channels, int tile,
+void expectSameAsGdal(const fs::path& dir, int w, int h, int channels, int tile,
                       TiffCompression compression = TiffCompression::Deflate) {
     const SampleType type = sizeof(T) == 1 ? SampleType::U8 : SampleType::U16;
     const std::vector<T> data = pattern<T>(w, h, channels, unsigned(w * 7 + channels));
@@ -79,8 +79,8 @@ void expectSameAsOiio(const fs::path& dir, int w, int h, int channels, int tile,
     const fs::path path = dir / ("img_" + std::to_string(channels) + "_" + std::to_string(tile) + "_" +
                                  tiffCompressionName(compression) + ".tif");
     ASSERT_TRUE(writeGeoTiff(path, data.data(), type, w, h, channels, testGeoref(), o).ok());
-    // 2 and 4 channels carry unassociated alpha, which OpenImageIO premultiplies: those stay with it.
-    const bool own = channels == 1 || channels == 3;
+    // Alpha (2 and 4 channels) is read raw, as GDAL reads it.
+    const bool own = true;
     for (int wanted = 1; wanted <= channels; ++wanted) {
         const std::vector<T> whole = readWhole<T>(path, wanted);
         for (int rows : {1, 16, 50, 256, 1000}) {
@@ -94,8 +94,7 @@ void expectSameAsOiio(const fs::path& dir, int w, int h, int channels, int tile,
 /// A JPEG-in-TIFF written by libtiff's own codec, tiled or in strips of 16 rows: by default as orthophotos come
 /// (GDAL's COMPRESS=JPEG PHOTOMETRIC=YCBCR: RGB converted to YCbCr, 2×2 subsampled); `photometric` RGB or MINISBLACK
 /// (then 1 channel) as the components are; `tablesMode` what the JPEGTABLES tag holds (quantisation and Huffman by
-/// default; QUANT: the Huffman tables in every tile). (OpenImageIO 2.4's own JPEG tiles do not decode, not even by
-/// libtiff.)
+/// default; QUANT: the Huffman tables in every tile).
 void writeJpegTiff(const fs::path& path, const std::vector<std::uint8_t>& px, int w, int h, int tile,
                    std::uint16_t photometric = PHOTOMETRIC_YCBCR,
                    int tablesMode = JPEGTABLESMODE_QUANT | JPEGTABLESMODE_HUFF) {
@@ -178,8 +177,7 @@ std::vector<std::uint8_t> libtiffPixels(const fs::path& path) {
 } // namespace
 
 TEST(BandReaderTest, OwnJpegDecoderEqualsLibtiff) {
-    // OpenImageIO 2.4 reads YCbCr through libtiff's RGBA interface, which fails on tiles (and holds a whole image of
-    // strips), so the reference is libtiff's JPEG codec with JPEGCOLORMODE_RGB, as GDAL reads them.
+    // The reference is libtiff's JPEG codec with JPEGCOLORMODE_RGB, as GDAL reads them.
     TempDir dir("bandreader-jpeg");
     struct Variant {
         const char* name;
@@ -242,7 +240,7 @@ TEST(BandReaderTest, OwnJpegDecoderEqualsLibtiff) {
         EXPECT_GT(edge, all - 3.0) << "tile " << tile << ": the edge as good as the rest (not padded with black)";
         std::printf("own JPEG, tile %d: PSNR %.1f dB, last column and row %.1f dB\n", tile, all, edge);
     }
-    // A tile that is not JPEG at all: the own decoder refuses it, OpenImageIO cannot read it either: one line naming
+    // A tile that is not JPEG at all: the own decoder refuses it, GDAL cannot read it either: one line naming
     // the file and saying what libjpeg said, no crash.
     const fs::path path = dir / "damaged.tif";
     writeJpegTiff(path, pattern<std::uint8_t>(512, 512, 3, 9), 512, 512, 256);
@@ -270,43 +268,54 @@ TEST(BandReaderTest, OwnJpegDecoderEqualsLibtiff) {
     EXPECT_TRUE(r->read(256, 512, 3, SampleType::U8, out.data()).ok()) << "the intact row of tiles still reads";
 }
 
-TEST(BandReaderTest, OwnDeflateDecoderEqualsOpenImageIo) {
+TEST(BandReaderTest, OwnDeflateDecoderEqualsGdal) {
     TempDir dir("bandreader-same");
     for (int tile : {0, 64, 256}) { // strips of 16 rows, small and usual tiles
-        expectSameAsOiio<std::uint8_t>(dir.path(), 301, 197, 3, tile);
-        expectSameAsOiio<std::uint8_t>(dir.path(), 301, 197, 1, tile);
-        expectSameAsOiio<std::uint16_t>(dir.path(), 301, 197, 3, tile);
-        expectSameAsOiio<std::uint16_t>(dir.path(), 130, 67, 1, tile);
+        expectSameAsGdal<std::uint8_t>(dir.path(), 301, 197, 3, tile);
+        expectSameAsGdal<std::uint8_t>(dir.path(), 301, 197, 1, tile);
+        expectSameAsGdal<std::uint16_t>(dir.path(), 301, 197, 3, tile);
+        expectSameAsGdal<std::uint16_t>(dir.path(), 130, 67, 1, tile);
     }
-    expectSameAsOiio<std::uint8_t>(dir.path(), 100, 90, 4, 64); // RGBA: OpenImageIO's
-    expectSameAsOiio<std::uint8_t>(dir.path(), 1, 1, 3, 16);    // one pixel, one mostly empty tile
+    expectSameAsGdal<std::uint8_t>(dir.path(), 100, 90, 4, 64); // RGBA
+    expectSameAsGdal<std::uint8_t>(dir.path(), 1, 1, 3, 16);    // one pixel, one mostly empty tile
 }
 
-TEST(BandReaderTest, OwnZstdDecoderEqualsOpenImageIo) {
+TEST(BandReaderTest, OwnZstdDecoderEqualsGdal) {
     TempDir dir("bandreader-zstd");
     constexpr TiffCompression zstd = TiffCompression::Zstd;
     for (int tile : {0, 64, 256}) {
-        expectSameAsOiio<std::uint8_t>(dir.path(), 301, 197, 3, tile, zstd);
-        expectSameAsOiio<std::uint8_t>(dir.path(), 301, 197, 1, tile, zstd);
-        expectSameAsOiio<std::uint16_t>(dir.path(), 301, 197, 3, tile, zstd);
+        expectSameAsGdal<std::uint8_t>(dir.path(), 301, 197, 3, tile, zstd);
+        expectSameAsGdal<std::uint8_t>(dir.path(), 301, 197, 1, tile, zstd);
+        expectSameAsGdal<std::uint16_t>(dir.path(), 301, 197, 3, tile, zstd);
     }
-    expectSameAsOiio<std::uint8_t>(dir.path(), 100, 90, 4, 64, zstd);
-    expectSameAsOiio<std::uint8_t>(dir.path(), 1, 1, 3, 16, zstd);
+    expectSameAsGdal<std::uint8_t>(dir.path(), 100, 90, 4, 64, zstd);
+    expectSameAsGdal<std::uint8_t>(dir.path(), 1, 1, 3, 16, zstd);
 }
 
-TEST(BandReaderTest, OtherFormatsStillReadThroughOpenImageIo) {
+TEST(BandReaderTest, OtherFormatsStillReadThroughGdal) {
     TempDir dir("bandreader-other");
     const std::vector<std::uint8_t> grey = pattern<std::uint8_t>(77, 45, 1, 3);
     ASSERT_TRUE(writeImageAtomic(dir / "mask.png", grey.data(), 77, 45, 1).ok());
     EXPECT_TRUE(readBands<std::uint8_t>(dir / "mask.png", 10, 1, false) == grey);
-    // An 8-bit file read as 16-bit goes through OpenImageIO's conversion.
+    // LZW (GDAL's codec) and JPEG 2000 files.
+    const std::vector<std::uint8_t> rgbLzw = pattern<std::uint8_t>(70, 50, 3, 6);
+    GdalRasterSpec lzw;
+    lzw.creationOptions = {"COMPRESS=LZW", "TILED=YES", "BLOCKXSIZE=32", "BLOCKYSIZE=32"};
+    writeGdalRaster(dir / "lzw.tif", rgbLzw.data(), SampleType::U8, 70, 50, 3, lzw);
+    EXPECT_TRUE(readBands<std::uint8_t>(dir / "lzw.tif", 40, 3, false) == rgbLzw);
+    GdalRasterSpec jp2;
+    jp2.driver = "JP2OpenJPEG";
+    jp2.creationOptions = {"REVERSIBLE=YES", "QUALITY=100"};
+    writeGdalRaster(dir / "a.jp2", rgbLzw.data(), SampleType::U8, 70, 50, 3, jp2);
+    EXPECT_TRUE(readBands<std::uint8_t>(dir / "a.jp2", 40, 3, false) == rgbLzw);
+    // An 8-bit file read as 16-bit: GDAL converts numerically (the values stay, nothing is rescaled).
     const std::vector<std::uint8_t> rgb = pattern<std::uint8_t>(64, 40, 3, 4);
     ASSERT_TRUE(writeGeoTiff(dir / "rgb.tif", rgb.data(), SampleType::U8, 64, 40, 3, testGeoref()).ok());
     auto r = BandReader::open(dir / "rgb.tif", 64);
     ASSERT_TRUE(r.ok());
     std::vector<std::uint16_t> wide(rgb.size());
     ASSERT_TRUE(r->read(0, 40, 3, SampleType::U16, wide.data()).ok());
-    for (size_t i = 0; i < rgb.size(); ++i) ASSERT_EQ(wide[i], std::uint16_t(rgb[i] * 257)) << i;
+    for (size_t i = 0; i < rgb.size(); ++i) ASSERT_EQ(wide[i], std::uint16_t(rgb[i])) << i;
 }
 
 TEST(BandReaderTest, DamagedTilesAreOneLineNamingTheFile) {

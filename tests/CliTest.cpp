@@ -120,12 +120,13 @@ TEST_F(CliFixture, DemWithNodataValue) {
     expectOneLineError(render(args), "void.tif: DEM has no valid heights");
 }
 
-TEST_F(CliFixture, UnknownCrs) {
-    Georef g = testGeoref(1.0);
-    g.crs.epsg = 3857;
-    writeTestImage(dir / "merc.tif", 48, 32, g, false, 1);
-    expectOneLineError(render({"--leafon", (dir / "merc.tif").string(), "--leafoff", (dir / "off.tif").string()}),
-                       "merc.tif: unsupported CRS EPSG:3857");
+TEST_F(CliFixture, NoCrsAtAll) {
+    std::vector<std::uint8_t> px(48 * 32 * 3, 100);
+    GdalRasterSpec spec;
+    spec.geotransform = geotransformOf(testGeoref(1.0));
+    writeGdalRaster(dir / "nocrs.tif", px.data(), SampleType::U8, 48, 32, 3, spec);
+    expectOneLineError(render({"--leafon", (dir / "nocrs.tif").string(), "--leafoff", (dir / "off.tif").string()}),
+                       "nocrs.tif: has no CRS (give one with --crs EPSG:CODE)");
 }
 
 TEST_F(CliFixture, MalformedManifest) {

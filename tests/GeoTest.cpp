@@ -2,6 +2,10 @@
 #include "GeoFrame.h"
 
 #include <gtest/gtest.h>
+#include <ogr_spatialref.h>
+
+#include <cmath>
+#include <vector>
 
 using namespace seasonview;
 
@@ -25,23 +29,97 @@ TEST(GeoTest, ForcedZoneAcrossZones) {
     EXPECT_NEAR(lonlat.y, 52.5, 1e-8);
 }
 
-TEST(GeoTest, EpsgCodes) {
+TEST(GeoTest, AnyCrsProjKnows) {
     EXPECT_TRUE(Crs::fromEpsg(4326)->isGeographic());
-    EXPECT_TRUE(Crs::fromEpsg(6697)->isGeographic());
-    auto u = Crs::fromEpsg(32617);
-    ASSERT_TRUE(u.ok());
-    EXPECT_EQ(u->zone, 17);
-    EXPECT_TRUE(u->north);
-    auto s = Crs::fromEpsg(32733);
-    ASSERT_TRUE(s.ok());
-    EXPECT_FALSE(s->north);
-    auto e = Crs::fromEpsg(25833);
-    ASSERT_TRUE(e.ok());
-    EXPECT_EQ(e->zone, 33);
-    EXPECT_EQ(e->epsg, 25833);
-    auto bad = Crs::fromEpsg(3857);
+    EXPECT_TRUE(Crs::fromEpsg(6697)->isGeographic()); // JGD2011 + height: the horizontal part
+    EXPECT_EQ(Crs::utm(17, true).epsg(), 32617);
+    EXPECT_EQ(Crs::utm(33, false).epsg(), 32733);
+    // National grids and Web Mercator, by every spelling users and files have.
+    for (const char* text : {"EPSG:2154", "epsg:2154", "urn:ogc:def:crs:EPSG::2154",
+                             "http://www.opengis.net/def/crs/EPSG/0/2154"}) {
+        auto c = Crs::fromUserInput(text);
+        ASSERT_TRUE(c.ok()) << text << ": " << c.message();
+        EXPECT_EQ(c->epsg(), 2154) << text;
+        EXPECT_EQ(*c, *Crs::fromEpsg(2154)) << text;
+        EXPECT_FALSE(c->isGeographic());
+    }
+    for (int code : {3857, 28992, 2056, 27700, 25833, 2263}) {
+        auto c = Crs::fromEpsg(code);
+        ASSERT_TRUE(c.ok()) << code << ": " << c.message();
+        EXPECT_EQ(c->epsg(), code);
+        EXPECT_NE(c->name().find("EPSG:" + std::to_string(code)), std::string::npos) << c->name();
+    }
+    EXPECT_NEAR(Crs::fromEpsg(2263)->metresPerUnit(), 0.3048006, 1e-6); // New York Long Island, US survey feet
+    // A WKT without its authority (as many GeoTIFFs carry it) is the same CRS.
+    OGRSpatialReference l93;
+    l93.importFromEPSG(2154);
+    l93.StripTOWGS84IfKnownDatumAndAllowed();
+    char* wkt = nullptr;
+    l93.exportToWkt(&wkt);
+    std::string text(wkt);
+    CPLFree(wkt);
+    text = text.substr(0, text.rfind(",AUTHORITY")) + "]";
+    auto fromWkt = Crs::fromWkt(text);
+    ASSERT_TRUE(fromWkt.ok()) << fromWkt.message();
+    EXPECT_EQ(*fromWkt, *Crs::fromEpsg(2154));
+    auto bad = Crs::fromUserInput("EPSG:999999");
     ASSERT_FALSE(bad.ok());
-    EXPECT_NE(bad.message().find("EPSG:3857"), std::string::npos);
+    EXPECT_NE(bad.message().find("EPSG:999999"), std::string::npos) << bad.message();
+    EXPECT_FALSE(Crs::fromUserInput("not a crs").ok());
+}
+
+TEST(GeoTest, NationalGridsAgreeWithKnownCoordinates) {
+    // Points whose coordinates the national agencies publish (to the centimetre).
+    // Amersfoort, the RD New origin: 155000, 463000 at 52.15517440 N, 5.38720621 E.
+    glm::dvec2 rd = convert(Crs::geographic(), *Crs::fromEpsg(28992), {5.38720621, 52.15517440});
+    EXPECT_NEAR(rd.x, 155000.0, 1.5); // WGS 84 vs Bessel/Amersfoort: PROJ's datum shift, about a metre
+    EXPECT_NEAR(rd.y, 463000.0, 1.5);
+    // Lambert-93's false origin: 3° E, 46.5° N -> 700000, 6600000 (RGF93 = WGS 84 here).
+    glm::dvec2 l93 = convert(Crs::geographic(), *Crs::fromEpsg(2154), {3.0, 46.5});
+    EXPECT_NEAR(l93.x, 700000.0, 0.01);
+    EXPECT_NEAR(l93.y, 6600000.0, 0.01);
+    // LV95's origin, the old observatory of Bern: 2600000, 1200000 at 7.43863263 E, 46.95108028 N (CH1903+).
+    glm::dvec2 ch = convert(Crs::geographic(), *Crs::fromEpsg(2056), {7.43863263, 46.95108028});
+    EXPECT_NEAR(ch.x, 2600000.0, 3.0); // CH1903+ vs WGS 84: PROJ's datum shift, a few metres
+    EXPECT_NEAR(ch.y, 1200000.0, 3.0);
+    // Web Mercator: the equator and Greenwich at 0, 0; scale 1 / cos(latitude).
+    const Crs merc = *Crs::fromEpsg(3857);
+    const glm::dvec2 m = convert(Crs::geographic(), merc, {2.18, 48.70});
+    const glm::dvec2 k = pointScale(merc, m);
+    EXPECT_NEAR(k.x, 1.0 / std::cos(48.70 * 3.14159265358979 / 180.0), 0.01);
+    EXPECT_FALSE(isMetricAt(merc, m));
+    EXPECT_TRUE(isMetricAt(*Crs::fromEpsg(2154), l93));
+    EXPECT_TRUE(isMetricAt(Crs::utm(32, true), {405000, 5757000}));
+}
+
+TEST(GeoTest, BatchConversionMatchesSinglePoints) {
+    const Crs utm = Crs::utm(31, true), l93 = *Crs::fromEpsg(2154);
+    std::vector<glm::dvec2> pts;
+    for (int i = 0; i < 50; ++i) pts.push_back({430000.0 + 100.0 * i, 5395000.0 - 70.0 * i});
+    std::vector<glm::dvec2> batch = pts;
+    convert(utm, l93, std::span<glm::dvec2>(batch));
+    for (size_t i = 0; i < pts.size(); ++i) {
+        const glm::dvec2 one = convert(utm, l93, pts[i]);
+        EXPECT_EQ(one, batch[i]);
+        const glm::dvec2 back = convert(l93, utm, one);
+        EXPECT_NEAR(back.x, pts[i].x, 1e-6);
+        EXPECT_NEAR(back.y, pts[i].y, 1e-6);
+    }
+}
+
+TEST(GeoTest, WebMercatorFrameIsATangentPlane) {
+    // Web Mercator metres are 1.51 ground metres apart at Saclay: the frame goes through geographic coordinates.
+    const Crs merc = *Crs::fromEpsg(3857);
+    const glm::dvec2 c = convert(Crs::geographic(), merc, {2.18, 48.70});
+    GeoFrame f(merc, c);
+    EXPECT_FALSE(f.isTranslation());
+    const glm::dvec3 p = f.toLocal(merc, c + glm::dvec2(151.0, 0.0));
+    EXPECT_NEAR(p.x, 151.0 * std::cos(48.70 * 3.14159265358979 / 180.0), 0.3);
+    const glm::dvec2 back = f.fromLocal(merc, glm::dvec2(p));
+    EXPECT_NEAR(back.x, c.x + 151.0, 1e-6);
+    EXPECT_NEAR(back.y, c.y, 1e-6);
+    GeoFrame l(*Crs::fromEpsg(2154), convert(Crs::geographic(), *Crs::fromEpsg(2154), {2.18, 48.70}));
+    EXPECT_TRUE(l.isTranslation());
 }
 
 TEST(GeoTest, UtmFrameIsATranslation) {

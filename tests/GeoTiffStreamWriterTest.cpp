@@ -73,7 +73,7 @@ TEST(GeoTiffStreamWriterTest, RoundTripTiledRgbWithGeoref) {
     EXPECT_EQ(info->type, SampleType::U8);
     EXPECT_TRUE(info->tiled);
     ASSERT_TRUE(info->georef);
-    EXPECT_EQ(info->georef->crs.epsg, 32632);
+    EXPECT_EQ(info->georef->crs.epsg(), 32632);
     EXPECT_DOUBLE_EQ(info->georef->origin.x, 405000.0);
     EXPECT_DOUBLE_EQ(info->georef->origin.y, 5758000.0);
     EXPECT_DOUBLE_EQ(info->georef->pixelSize.x, 0.25);

@@ -23,8 +23,8 @@ TEST(RasterTest, GeoTiffRoundTripUtm8Bit) {
     EXPECT_EQ(info->type, SampleType::U8);
     EXPECT_TRUE(info->tiled);
     ASSERT_TRUE(info->georef);
-    EXPECT_EQ(info->georef->crs.epsg, 32632);
-    EXPECT_EQ(info->georef->crs.zone, 32);
+    EXPECT_EQ(info->georef->crs.epsg(), 32632);
+    EXPECT_EQ(info->georef->crs, Crs::utm(32, true));
     EXPECT_DOUBLE_EQ(info->georef->origin.x, 405000);
     EXPECT_DOUBLE_EQ(info->georef->origin.y, 5758000);
     EXPECT_DOUBLE_EQ(info->georef->pixelSize.x, 0.25);
@@ -110,14 +110,41 @@ TEST(RasterTest, BadFilesGiveOneLineNamingTheFile) {
         EXPECT_EQ(r->find('\n'), std::string::npos) << *r;
 }
 
-TEST(RasterTest, UnknownCrsIsAnError) {
+TEST(RasterTest, AnyCrsAndNoCrs) {
     TempDir dir("raster-crs");
-    Georef g = testGeoref();
-    g.crs.epsg = 3857; // Web Mercator: not supported
-    writeTestImage(dir / "merc.tif", 16, 16, g);
+    std::vector<std::uint8_t> px(16 * 16 * 3, 90);
+    GdalRasterSpec spec;
+    spec.geotransform = std::array<double, 6>{238044.0, 12.0, 0.0, 6230904.0, 0.0, -12.0};
+    spec.crs = "EPSG:3857";
+    writeGdalRaster(dir / "merc.tif", px.data(), SampleType::U8, 16, 16, 3, spec);
     auto info = readRasterInfo(dir / "merc.tif");
-    ASSERT_FALSE(info.ok());
-    EXPECT_NE(info.message().find("merc.tif: unsupported CRS EPSG:3857"), std::string::npos) << info.message();
+    ASSERT_TRUE(info.ok()) << info.message();
+    ASSERT_TRUE(info->georef);
+    EXPECT_EQ(info->georef->crs.epsg(), 3857);
+    EXPECT_DOUBLE_EQ(info->georef->origin.x, 238044.0);
+    // A geotransform without a CRS: no georef unless one is assumed (--crs).
+    spec.crs.clear();
+    writeGdalRaster(dir / "nocrs.tif", px.data(), SampleType::U8, 16, 16, 3, spec);
+    auto bare = readRasterInfo(dir / "nocrs.tif");
+    ASSERT_TRUE(bare.ok()) << bare.message();
+    EXPECT_FALSE(bare->georef);
+    EXPECT_TRUE(bare->geotransformWithoutCrs);
+    auto assumed = readRasterInfo(dir / "nocrs.tif", *Crs::fromEpsg(2154));
+    ASSERT_TRUE(assumed.ok());
+    ASSERT_TRUE(assumed->georef);
+    EXPECT_EQ(assumed->georef->crs.epsg(), 2154);
+    // Our own writer stamps any CRS too (here one without an EPSG code).
+    auto custom = Crs::fromUserInput("+proj=tmerc +lat_0=0 +lon_0=2.25 +k=1 +x_0=500000 +y_0=0 +ellps=GRS80 +units=m");
+    ASSERT_TRUE(custom.ok()) << custom.message();
+    ASSERT_EQ(custom->epsg(), 0);
+    const Georef g{*custom, {512000.0, 5396000.0}, {0.5, 0.5}};
+    ASSERT_TRUE(writeGeoTiff(dir / "tm.tif", px.data(), SampleType::U8, 16, 16, 3, g).ok());
+    auto tm = readRasterInfo(dir / "tm.tif");
+    ASSERT_TRUE(tm.ok()) << tm.message();
+    ASSERT_TRUE(tm->georef);
+    EXPECT_EQ(tm->georef->crs, *custom);
+    EXPECT_DOUBLE_EQ(tm->georef->origin.y, 5396000.0);
+    EXPECT_DOUBLE_EQ(tm->georef->pixelSize.x, 0.5);
 }
 
 TEST(RasterTest, WriteIsAtomic) {

@@ -182,7 +182,7 @@ TEST(SyntheticSceneTest, LargeScenesGetGeoTiffTruthMasks) {
         EXPECT_EQ(info->type, SampleType::U8);
         EXPECT_TRUE(info->tiled);
         ASSERT_TRUE(info->georef);
-        EXPECT_EQ(info->georef->crs.epsg, imagery->georef->crs.epsg);
+        EXPECT_EQ(info->georef->crs.epsg(), imagery->georef->crs.epsg());
         EXPECT_DOUBLE_EQ(info->georef->origin.x, imagery->georef->origin.x);
         EXPECT_DOUBLE_EQ(info->georef->origin.y, imagery->georef->origin.y);
         EXPECT_DOUBLE_EQ(info->georef->pixelSize.x, imagery->georef->pixelSize.x);
@@ -258,14 +258,14 @@ TEST_F(SynthSceneTest, GeoreferencingIsUtm32NearMuensterOnOneExtent) {
         EXPECT_EQ(i->type, SampleType::U8);
         EXPECT_TRUE(i->tiled);
         ASSERT_TRUE(i->georef);
-        EXPECT_EQ(i->georef->crs.epsg, 32632);
+        EXPECT_EQ(i->georef->crs.epsg(), 32632);
         EXPECT_DOUBLE_EQ(i->georef->origin.x, 405000.0 - 64.0);
         EXPECT_DOUBLE_EQ(i->georef->origin.y, 5757000.0 + 64.0);
         EXPECT_DOUBLE_EQ(i->georef->pixelSize.x, 0.5);
     }
     EXPECT_EQ(dem->type, SampleType::F32);
     ASSERT_TRUE(dem->georef);
-    EXPECT_EQ(dem->georef->crs.epsg, 32632);
+    EXPECT_EQ(dem->georef->crs.epsg(), 32632);
     EXPECT_DOUBLE_EQ(dem->georef->origin.x, on->georef->origin.x);
     EXPECT_DOUBLE_EQ(dem->georef->origin.y, on->georef->origin.y);
     EXPECT_NEAR(dem->georef->pixelSize.x * dem->width, 128.0, 1e-9); // same extent as the imagery
@@ -376,7 +376,7 @@ TEST(SyntheticSceneTest, RealDemGivesItsHeightsInItsUtmZone) {
     auto info = readRasterInfo(d / "dem.tif");
     ASSERT_TRUE(dem.ok() && info.ok());
     ASSERT_TRUE(info->georef);
-    EXPECT_EQ(info->georef->crs.epsg, 32610);
+    EXPECT_EQ(info->georef->crs.epsg(), 32610);
     // Centred on the DEM's centre, rounded to whole metres.
     const glm::dvec2 c = info->georef->origin + glm::dvec2(64.0, -64.0);
     EXPECT_EQ(c.x, std::round(c.x));

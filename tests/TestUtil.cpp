@@ -1,5 +1,8 @@
 #include "TestUtil.h"
 
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -67,6 +70,56 @@ void writeTestImage(const std::filesystem::path& path, int w, int h, const Geore
     Status st = sixteenBit ? writeGeoTiff(path, px16.data(), SampleType::U16, w, h, 3, g)
                            : writeGeoTiff(path, px8.data(), SampleType::U8, w, h, 3, g);
     ASSERT_TRUE(st.ok()) << st.message();
+}
+
+std::array<double, 6> geotransformOf(const Georef& g) {
+    return {g.origin.x, g.pixelSize.x, 0.0, g.origin.y, 0.0, -g.pixelSize.y};
+}
+
+void writeGdalRaster(const std::filesystem::path& path, const void* data, SampleType type, int w, int h, int bands,
+                     const GdalRasterSpec& spec) {
+    GDALAllRegister();
+    GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+    GDALDriver* target = GetGDALDriverManager()->GetDriverByName(spec.driver.c_str());
+    ASSERT_TRUE(mem && target) << "GDAL driver " << spec.driver;
+    const GDALDataType t = type == SampleType::U8 ? GDT_Byte : type == SampleType::U16 ? GDT_UInt16
+                           : type == SampleType::I16 ? GDT_Int16 : GDT_Float32;
+    GDALDataset* ds = mem->Create("", w, h, bands, t, nullptr);
+    ASSERT_TRUE(ds);
+    const int size = GDALGetDataTypeSizeBytes(t);
+    std::vector<int> map(static_cast<size_t>(bands));
+    for (int b = 0; b < bands; ++b) map[size_t(b)] = b + 1;
+    ASSERT_EQ(ds->RasterIO(GF_Write, 0, 0, w, h, const_cast<void*>(data), w, h, t, bands, map.data(),
+                           GSpacing(size) * bands, GSpacing(size) * bands * w, size, nullptr),
+              CE_None);
+    if (spec.geotransform) {
+        std::array<double, 6> gt = *spec.geotransform;
+        ds->SetGeoTransform(gt.data());
+    }
+    if (!spec.crs.empty()) {
+        OGRSpatialReference srs;
+        ASSERT_EQ(srs.SetFromUserInput(spec.crs.c_str()), OGRERR_NONE) << spec.crs;
+        ds->SetSpatialRef(&srs);
+    }
+    for (int b = 1; b <= bands; ++b) {
+        if (spec.nodata) ds->GetRasterBand(b)->SetNoDataValue(*spec.nodata);
+        if (bands >= 3 && b <= 3) ds->GetRasterBand(b)->SetColorInterpretation(GDALColorInterp(GCI_RedBand + b - 1));
+    }
+    if (spec.lastBandIsAlpha) ds->GetRasterBand(bands)->SetColorInterpretation(GCI_AlphaBand);
+    if (spec.mask) {
+        ASSERT_EQ(ds->CreateMaskBand(GMF_PER_DATASET), CE_None);
+        ASSERT_EQ(ds->GetRasterBand(1)->GetMaskBand()->RasterIO(GF_Write, 0, 0, w, h, const_cast<std::uint8_t*>(spec.mask),
+                                                               w, h, GDT_Byte, 0, 0, nullptr),
+                  CE_None);
+    }
+    std::vector<const char*> options;
+    for (const std::string& o : spec.creationOptions) options.push_back(o.c_str());
+    options.push_back(nullptr);
+    CPLSetConfigOption("GDAL_TIFF_INTERNAL_MASK", "YES");
+    GDALDataset* out = target->CreateCopy(path.c_str(), ds, FALSE, const_cast<char**>(options.data()), nullptr, nullptr);
+    GDALClose(ds);
+    ASSERT_TRUE(out) << "cannot write " << path << ": " << CPLGetLastErrorMsg();
+    GDALClose(out);
 }
 
 Result<Scene> writeTestPair(const std::filesystem::path& dir, int w, int h, double gsd, bool sixteenBit) {

@@ -41,6 +41,26 @@ Georef testGeoref(double gsd = 1.0, double easting = 405000.0, double northing =
 void writeTestImage(const std::filesystem::path& path, int w, int h, const Georef& g, bool sixteenBit = false,
                     int seed = 0);
 
+/// How writeGdalRaster writes a fixture: any GDAL driver and creation options, georeferencing as a geotransform and
+/// a CRS PROJ knows, and the ways real data marks pixels without data.
+struct GdalRasterSpec {
+    std::string driver = "GTiff";
+    std::vector<std::string> creationOptions;    // e.g. "TILED=YES", "COMPRESS=JPEG", "PHOTOMETRIC=YCBCR"
+    std::optional<std::array<double, 6>> geotransform; // GDAL order: x0, dx, 0, y0, 0, -dy
+    std::string crs;                              // "EPSG:2154", WKT, ...; empty: none written
+    std::optional<double> nodata;                 // every band's nodata value
+    bool lastBandIsAlpha = false;                 // the last band's colour interpretation is alpha
+    const std::uint8_t* mask = nullptr;           // w×h, 0 = no data: written as a per-dataset (internal) mask
+};
+
+/// Writes interleaved samples (w×h×bands of `type`) through GDAL (drivers without Create go through a MEM copy).
+/// Fails the test on error.
+void writeGdalRaster(const std::filesystem::path& path, const void* data, SampleType type, int w, int h, int bands,
+                     const GdalRasterSpec& spec);
+
+/// GDAL's geotransform of a georef (x0, dx, 0, y0, 0, -dy).
+std::array<double, 6> geotransformOf(const Georef& g);
+
 /// Writes on.tif and off.tif (w×h, `gsd` m/px, UTM 32N, seeds 1 and 2) into `dir` and loads them as a flat scene
 /// (stretch cache in dir/cache).
 Result<Scene> writeTestPair(const std::filesystem::path& dir, int w, int h, double gsd, bool sixteenBit = false);

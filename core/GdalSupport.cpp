@@ -1,0 +1,111 @@
+#include "GdalSupport.h"
+
+#include <cpl_conv.h>
+#include <ogr_spatialref.h>
+
+#include <mutex>
+
+namespace seasonview::gdal {
+
+void init() {
+    static std::once_flag once;
+    std::call_once(once, [] {
+        // Reading must never write next to the user's data (GDAL's .aux.xml statistics and metadata files).
+        CPLSetConfigOption("GDAL_PAM_ENABLED", "NO");
+        // JPEG-in-TIFF (YCbCr) decoded to RGB by libjpeg, as every orthophoto reader does.
+        CPLSetConfigOption("CONVERT_YCBCR_TO_RGB", "YES");
+        GDALAllRegister();
+        // Messages outside an ErrorCapture are dropped: every failure reaches the user as one Result line.
+        CPLSetErrorHandler(CPLQuietErrorHandler);
+        // The block cache bounds what GDAL keeps of decoded source tiles (its default is 5 % of RAM).
+        GDALSetCacheMax64(std::int64_t(256) << 20);
+    });
+}
+
+ErrorCapture::ErrorCapture() {
+    init();
+    CPLPushErrorHandlerEx(
+        [](CPLErr level, CPLErrorNum code, const char* text) {
+            auto* self = static_cast<ErrorCapture*>(CPLGetErrorHandlerUserData());
+            (void)code;
+            if (!self) return;
+            std::string& slot = level >= CE_Failure ? self->m_failure : self->m_warning;
+            if (slot.empty() && level >= CE_Warning) slot = firstLine(text ? text : "");
+        },
+        this);
+}
+
+ErrorCapture::~ErrorCapture() { CPLPopErrorHandler(); }
+
+Result<Dataset> openRaster(const std::filesystem::path& path) {
+    init();
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) return fileError(path.string(), "file not found");
+    if (std::filesystem::is_directory(path, ec)) return fileError(path.string(), "is a directory, not an image");
+    if (std::filesystem::is_regular_file(path, ec) && std::filesystem::file_size(path, ec) == 0)
+        return fileError(path.string(), "empty file, not an image");
+    ErrorCapture errors;
+    Dataset ds(GDALDataset::FromHandle(
+        GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR, nullptr, nullptr, nullptr)));
+    if (!ds) {
+        const std::string why = errors.message();
+        return fileError(path.string(), "not a readable image" + (why.empty() ? std::string() : " (" + why + ")"));
+    }
+    if (ds->GetRasterCount() < 1 || ds->GetRasterXSize() < 1 || ds->GetRasterYSize() < 1)
+        return fileError(path.string(), "image has no pixels");
+    return ds;
+}
+
+std::optional<SampleType> sampleTypeOf(GDALDataType t) {
+    switch (t) {
+    case GDT_Byte: return SampleType::U8;
+    case GDT_UInt16: return SampleType::U16;
+    case GDT_Int16: return SampleType::I16;
+    case GDT_Float32:
+    case GDT_Float64:
+    case GDT_Int32:
+    case GDT_UInt32:
+    case GDT_Int64:
+    case GDT_UInt64: return SampleType::F32;
+    default: return std::nullopt;
+    }
+}
+
+GDALDataType gdalTypeOf(SampleType t) {
+    switch (t) {
+    case SampleType::U8: return GDT_Byte;
+    case SampleType::U16: return GDT_UInt16;
+    case SampleType::I16: return GDT_Int16;
+    case SampleType::F32: return GDT_Float32;
+    }
+    return GDT_Byte;
+}
+
+Status stampGeoreference(const std::filesystem::path& tiff, const Georef& georef, const std::optional<double>& nodata) {
+    init();
+    ErrorCapture errors;
+    const char* drivers[] = {"GTiff", nullptr};
+    Dataset ds(GDALDataset::FromHandle(
+        GDALOpenEx(tiff.c_str(), GDAL_OF_RASTER | GDAL_OF_UPDATE, drivers, nullptr, nullptr)));
+    auto fail = [&](const char* what) {
+        const std::string why = errors.message();
+        return fileError(tiff.string(), std::string(what) + (why.empty() ? std::string() : " (" + why + ")"));
+    };
+    if (!ds) return fail("cannot open to write its georeferencing");
+    double gt[6] = {georef.origin.x, georef.pixelSize.x, 0.0, georef.origin.y, 0.0, -georef.pixelSize.y};
+    OGRSpatialReference srs;
+    if (srs.importFromWkt(georef.crs.wkt().c_str()) != OGRERR_NONE) return fail("cannot express its CRS");
+    srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    if (ds->SetGeoTransform(gt) != CE_None || ds->SetSpatialRef(&srs) != CE_None)
+        return fail("cannot write its georeferencing");
+    ds->SetMetadataItem("AREA_OR_POINT", "Area");
+    if (nodata)
+        for (int b = 1; b <= ds->GetRasterCount(); ++b)
+            if (ds->GetRasterBand(b)->SetNoDataValue(*nodata) != CE_None) return fail("cannot write its nodata value");
+    GDALDataset* raw = ds.release();
+    GDALClose(GDALDataset::ToHandle(raw));
+    if (errors.failed()) return fail("cannot write its georeferencing");
+    return Ok{};
+}
+
+} // namespace seasonview::gdal

@@ -1,0 +1,57 @@
+#pragma once
+// GDAL plumbing shared by core's readers and writers: one-time driver registration and settings, datasets as
+// move-only handles, and GDAL's error messages caught per call so that each failure becomes one line naming the
+// file. Internal to core: other modules go through Raster.h, RasterSource.h and GridReader.h.
+#include "Raster.h"
+#include "Result.h"
+
+#include <gdal_priv.h>
+
+#include <filesystem>
+#include <memory>
+#include <string>
+
+namespace seasonview::gdal {
+
+/// Registers GDAL's drivers and sets what seasonview relies on: no .aux.xml side files (reading never writes next
+/// to the user's data), a bounded block cache (256 MB), JPEG-in-TIFF decoded to RGB. Idempotent and thread-safe;
+/// every entry point of core that touches GDAL calls it first.
+void init();
+
+struct DatasetCloser {
+    void operator()(GDALDataset* d) const { GDALClose(GDALDataset::ToHandle(d)); }
+};
+using Dataset = std::unique_ptr<GDALDataset, DatasetCloser>;
+
+/// Collects the GDAL errors raised on this thread while it lives (GDAL's handlers are per thread), without
+/// printing them. `message()` is the first failure (else the first warning), as one line.
+class ErrorCapture {
+public:
+    ErrorCapture();
+    ~ErrorCapture();
+    ErrorCapture(const ErrorCapture&) = delete;
+    ErrorCapture& operator=(const ErrorCapture&) = delete;
+
+    bool failed() const { return !m_failure.empty(); }
+    /// The first failure's text, or else the first warning's; "" when GDAL said nothing.
+    std::string message() const { return m_failure.empty() ? m_warning : m_failure; }
+
+private:
+    std::string m_failure, m_warning;
+};
+
+/// Opens a raster read-only (any driver GDAL has). Errors name the file: not found, a folder, empty, or not a
+/// raster GDAL can read (with GDAL's words).
+Result<Dataset> openRaster(const std::filesystem::path& path);
+
+/// Our sample type for a GDAL data type: Byte → U8, UInt16 → U16, Int16 → I16, everything else numeric → F32 (read
+/// as float). Nothing for complex types.
+std::optional<SampleType> sampleTypeOf(GDALDataType t);
+/// The GDAL data type of our sample type.
+GDALDataType gdalTypeOf(SampleType t);
+
+/// Writes the georeferencing (geotransform, CRS) and, when given, the nodata value of every band into an existing,
+/// closed GeoTIFF, which GDAL rewrites in place (the pixels are untouched). Errors name the file.
+Status stampGeoreference(const std::filesystem::path& tiff, const Georef& georef, const std::optional<double>& nodata);
+
+} // namespace seasonview::gdal
