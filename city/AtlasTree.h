@@ -89,7 +89,7 @@ struct AtlasTreeInfo {
 
 /// The in-memory index of a tree file: everything except the atlas pixels.
 struct AtlasTreeFile {
-    static constexpr std::uint32_t kVersion = 1;
+    static constexpr std::uint32_t kVersion = 2; // 2: the CRS as its identifier (EPSG:N or WKT), not an EPSG number
     std::string path;
     AtlasTreeInfo info;
     std::vector<CityTexture> textures;   // original textures (paths as the model gave them)
