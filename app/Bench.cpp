@@ -338,7 +338,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         std::any_of(modes->begin(), modes->end(), [](const Mode& m) { return m.renderer == RendererKind::Clipmap; });
     std::vector<ImagePyramid> pyramids;
     std::optional<ImagePyramid> elevation;
-    if (anyClipmap) {
+    if (anyClipmap || scene->warped()) { // the reference reads warped seasons' level 0
         auto p = preparePyramids(*scene, cache);
         if (!p)
             return fail(p.message());
@@ -365,6 +365,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         if (m.renderer == RendererKind::Reference) {
             ReferenceOptions ro;
             ro.anisotropy = m.anisotropy;
+            ro.levelZero = levelZeroOf(*scene, pyramids);
             auto r = ReferenceRendererGL::create(*scene, ro);
             if (!r)
                 return fail(r.message());
@@ -605,7 +606,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
          {{"platform", (*ctx)->info().platform},
           {"renderer", (*ctx)->info().renderer},
           {"version", (*ctx)->info().version}}},
-        {"scene", scene->sources.manifest.empty() ? scene->sources.leafon.string() : scene->sources.manifest.string()},
+        {"scene", scene->sources.manifest.empty() ? scene->sources.leafon.describe() : scene->sources.manifest.string()},
         {"image_size", {scene->leafon.info.width, scene->leafon.info.height}},
         {"size", {w, h}},
         {"path", a->path},

@@ -17,18 +17,53 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <sstream>
 
 namespace seasonview::app {
 
-void SceneArgs::addTo(CLI::App& cmd) {
+void SceneArgs::addTo(CLI::App& cmd, bool withDem) {
     cmd.add_option("scene", manifest, "Scene manifest (scene.json); or give --leafon/--leafoff");
-    cmd.add_option("--leafon", leafon, "Leaf-on (summer) GeoTIFF, 8- or 16-bit RGB");
-    cmd.add_option("--leafoff", leafoff, "Leaf-off (winter) GeoTIFF on the same grid");
-    cmd.add_option("--dem", dem, "Elevation GeoTIFF (float32 or int16; geographic or UTM); flat without");
+    cmd.add_option("--leafon", leafon,
+                   "Leaf-on (summer) imagery, 8- or 16-bit RGB(A) in any format and CRS GDAL reads: a file, a folder "
+                   "of tiles, a glob or a VRT (several for a mosaic)")
+        ->expected(1, -1);
+    cmd.add_option("--leafoff", leafoff,
+                   "Leaf-off (winter) imagery, as --leafon; any grid, resolution and CRS (warped onto the working "
+                   "grid)")
+        ->expected(1, -1);
+    if (withDem)
+        cmd.add_option("--dem", dem,
+                       "Elevation (metres or feet) in any format and CRS: a file, folder, glob or VRT of tiles; flat "
+                       "without")
+            ->expected(1, -1);
+    cmd.add_option("--crs", crs, "CRS of inputs that carry none, e.g. EPSG:2154 (any EPSG code, URN, WKT or PROJ string)");
+    cmd.add_option("--grid-crs", gridCrs,
+                   "Working grid's CRS (default: the leaf-on's when projected, else its UTM zone)");
+    cmd.add_option("--grid-res", gridRes,
+                   "Working grid's pixel size in its CRS's units (default: the finest season's)");
+    cmd.add_option("--extent", extent,
+                   "Working grid's extent XMIN,YMIN,XMAX,YMAX in its CRS (default: the union of both seasons)");
+    cmd.add_option("--resampling", resampling,
+                   "How seasons are warped onto the working grid: auto|near|bilinear|cubic|average|lanczos (auto: "
+                   "near on the grid's lattice, average where a season is 1.5x finer, else bilinear)");
     cmd.add_option("--cache", cache, "Cache folder (default $SEASONVIEW_CACHE or ~/.cache/seasonview)");
 }
 
-Result<Scene> SceneArgs::load() const {
+std::filesystem::path SceneArgs::cacheDir() const {
+    return cache.empty() ? defaultCacheDir() : std::filesystem::path(cache);
+}
+
+namespace {
+
+SourceList listOf(const std::vector<std::string>& values) {
+    SourceList l;
+    for (const std::string& v : values) l.items.emplace_back(v);
+    return l;
+}
+
+} // namespace
+
+Result<SceneSources> SceneArgs::sources() const {
     SceneSources src;
     if (!manifest.empty()) {
         if (!leafon.empty() || !leafoff.empty() || !dem.empty())
@@ -39,12 +74,34 @@ Result<Scene> SceneArgs::load() const {
     } else {
         if (leafon.empty() || leafoff.empty())
             return Error{"scene: give a manifest (scene.json) or both --leafon and --leafoff"};
-        src.leafon = leafon;
-        src.leafoff = leafoff;
-        src.elevation = dem;
-        src.name = std::filesystem::path(leafon).stem().string();
+        src.leafon = listOf(leafon);
+        src.leafoff = listOf(leafoff);
+        src.elevation = listOf(dem);
+        src.name = std::filesystem::path(leafon.front()).stem().string();
     }
-    return loadScene(src, cache.empty() ? defaultCacheDir() : std::filesystem::path(cache));
+    if (!crs.empty()) src.crs = crs;
+    if (!gridCrs.empty()) src.grid.crs = gridCrs;
+    if (gridRes != 0.0) {
+        if (!(gridRes > 0.0) || !std::isfinite(gridRes))
+            return Error{"--grid-res: a positive number of grid CRS units per pixel expected"};
+        src.grid.resolution = gridRes;
+    }
+    if (!extent.empty()) {
+        std::array<double, 4> e{};
+        std::istringstream in(extent);
+        char comma = 0;
+        if (!(in >> e[0] >> comma >> e[1] >> comma >> e[2] >> comma >> e[3]) || !(in >> std::ws).eof())
+            return Error{"--extent '" + extent + "': expected XMIN,YMIN,XMAX,YMAX in the grid's CRS"};
+        src.grid.extent = e;
+    }
+    if (!resampling.empty()) src.resampling = resampling;
+    return src;
+}
+
+Result<Scene> SceneArgs::load() const {
+    auto src = sources();
+    if (!src) return src.error();
+    return loadScene(*src, cacheDir());
 }
 
 Result<std::pair<int, int>> parseSize(const std::string& text) {
@@ -116,6 +173,13 @@ Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std:
     }
     if (auto stats = preparePairStats(scene, out, cacheDir); !stats) return stats.error();
     return out;
+}
+
+std::optional<std::array<std::filesystem::path, 2>> levelZeroOf(const Scene& scene,
+                                                               const std::vector<ImagePyramid>& pyramids) {
+    if (!scene.warped()) return std::nullopt;
+    assert(pyramids.size() == 2 && "levelZeroOf(): the scene's two prepared pyramids");
+    return std::array<std::filesystem::path, 2>{pyramids[0].levels[0].file, pyramids[1].levels[0].file};
 }
 
 Result<SegmentationHistograms> preparePairStats(const Scene& scene, const std::vector<ImagePyramid>& pyramids,
@@ -241,7 +305,7 @@ Status parseCanopyGround(const std::string& under, const std::string& elsewhere,
 Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, const std::vector<StillRequest>& stills,
                                      const RenderSettings& settings) {
     std::vector<ImagePyramid> pyramids;
-    if (settings.renderer == RendererKind::Clipmap) {
+    if (settings.renderer == RendererKind::Clipmap || scene.warped()) { // the reference reads warped seasons' level 0
         auto p = preparePyramids(scene, settings.cacheDir);
         if (!p) return p.error();
         pyramids = std::move(*p);
@@ -266,6 +330,7 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
     if (settings.renderer == RendererKind::Reference) {
         ReferenceOptions options;
         options.anisotropy = settings.referenceAnisotropy;
+        options.levelZero = levelZeroOf(scene, pyramids);
         auto renderer = ReferenceRendererGL::create(scene, options);
         if (!renderer) return renderer.error();
         for (const StillRequest& s : stills) {
@@ -402,6 +467,7 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
             if (!reference) {
                 ReferenceOptions ro;
                 ro.anisotropy = s.imagery.anisotropy;
+                ro.levelZero = levelZeroOf(scene, pyramids);
                 auto r = ReferenceRendererGL::create(scene, ro);
                 if (!r) return r.error();
                 reference = std::move(*r);
@@ -482,7 +548,8 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
 
 void printSceneNotes(const Scene& scene) {
     for (const auto& w : scene.sources.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
-    for (const auto& n : scene.notes) std::fprintf(stderr, "note: %s\n", n.c_str());
+    for (const auto& n : scene.notes) std::printf("note: %s\n", n.c_str()); // information, not a problem: stdout
+    std::fflush(stdout);
 }
 
 } // namespace seasonview::app

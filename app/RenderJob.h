@@ -25,12 +25,21 @@
 namespace seasonview::app {
 
 /// A scene given as a manifest path or as --leafon/--leafoff/--dem flags.
+/// The scene options every command shares: a manifest or the inputs as flags (each a file, folder, glob or VRT, the
+/// flag repeated or given several values for a list), the CRS of inputs that carry none, the working grid, the
+/// resampling and the cache. Grid flags given with a manifest override its keys.
 struct SceneArgs {
     std::string manifest;
-    std::string leafon, leafoff, dem;
+    std::vector<std::string> leafon, leafoff, dem;
     std::string cache;
-    void addTo(CLI::App& cmd);
+    std::string crs, gridCrs, extent, resampling;
+    double gridRes = 0.0;
+    /// Adds the options to `cmd` (`withDem` false: commands that read no DEM).
+    void addTo(CLI::App& cmd, bool withDem = true);
+    /// The sources the options name (the manifest's, with the grid flags applied); errors name the flag.
+    Result<SceneSources> sources() const;
     Result<Scene> load() const;
+    std::filesystem::path cacheDir() const;
 };
 
 /// "WxH" -> width, height (1..16384 each).
@@ -96,6 +105,11 @@ struct RenderSettings {
 /// says so on stdout when it built one), and then the pair's segmentation statistics (preparePairStats). Returns
 /// leaf-on, leaf-off.
 Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std::filesystem::path& cacheDir);
+
+/// For a warped scene (Scene::warped()), its pyramids' level-0 files (leaf-on, leaf-off): what the reference renderer
+/// and the segmentation read instead of the seasons' own files. Nothing for a scene read as it is.
+std::optional<std::array<std::filesystem::path, 2>> levelZeroOf(const Scene& scene,
+                                                               const std::vector<ImagePyramid>& pyramids);
 
 /// The pair's segmentation histograms (foliage/PairStats.h) from the prepared pyramids `pyramids` (leaf-on,
 /// leaf-off, as preparePyramids returns them): read from the cache, or computed from both level-0 files and cached

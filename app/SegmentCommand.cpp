@@ -20,7 +20,7 @@ namespace seasonview::app {
 namespace {
 
 struct SegmentArgs {
-    std::string manifest, leafon, leafoff, cache;
+    SceneArgs scene;
     std::string method = "default";
     int k = kSegDefaultK;
     std::string truth, truthTrees, out, metrics, overlay, trees;
@@ -66,12 +66,18 @@ nlohmann::ordered_json metricsJson(const SegmentArgs& a, const Scene& scene, con
     ordered_json j;
     j["method"] = std::string(segmentationMethodName(job.params.method));
     j["k"] = effectiveK(job.params);
-    j["leafon"] = scene.leafon.info.path.string();
-    j["leafoff"] = scene.leafoff.info.path.string();
+    j["leafon"] = scene.sources.leafon.describe();
+    j["leafoff"] = scene.sources.leafoff.describe();
+    j["grid_crs"] = scene.grid.georef.crs.identifier().size() < 40 ? scene.grid.georef.crs.identifier()
+                                                                    : scene.grid.georef.crs.name();
+    j["grid_pixel_size"] = {scene.grid.georef.pixelSize.x, scene.grid.georef.pixelSize.y};
+    j["warped"] = scene.warped();
     j["truth"] = job.truth.empty() ? ordered_json(nullptr) : ordered_json(job.truth.string());
     j["width"] = r.width;
     j["height"] = r.height;
     j["pixels"] = std::uint64_t(r.width) * std::uint64_t(r.height);
+    j["nodata_pixels"] = r.nodataPixels; // a season has no data there: marked, never scored
+    j["scored_pixels"] = t ? ordered_json(c.pixels()) : ordered_json(nullptr);
     j["precision"] = orNull(t, c.precision());
     j["recall"] = orNull(t, c.recall());
     j["f1"] = orNull(t, c.f1());
@@ -114,23 +120,26 @@ Runner addSegmentCommand(CLI::App& app) {
     auto args = std::make_shared<SegmentArgs>();
     CLI::App* cmd = app.add_subcommand(
         "segment", "Segment deciduous treetops from the seasons (CPU) and check them against ground truth");
-    cmd->add_option("scene", args->manifest,
-                    "Scene manifest (scene.json; its truth.deciduous and truth.trees are used unless --truth is "
-                    "given); or give --leafon/--leafoff");
-    cmd->add_option("--leafon", args->leafon, "Leaf-on (summer) GeoTIFF, 8- or 16-bit RGB");
-    cmd->add_option("--leafoff", args->leafoff, "Leaf-off (winter) GeoTIFF on the same grid");
+    // The scene (its truth.deciduous and truth.trees are used unless --truth is given), as every command takes it.
+    args->scene.addTo(*cmd, false);
     cmd->add_option("--method", args->method, "pixel | neighborhood | equalized | default")->capture_default_str();
     cmd->add_option("--k", args->k, "Neighbourhood size (odd, 1.." + std::to_string(kSegMaxK) + "; pixel ignores it)")
         ->capture_default_str();
-    cmd->add_option("--truth", args->truth, "Truth mask on the imagery grid (non-zero = deciduous treetop)");
+    cmd->add_option("--truth", args->truth,
+                    "Truth mask (non-zero = deciduous treetop): on the working grid, or georeferenced on any grid");
     cmd->add_option("--truth-trees", args->truthTrees,
                     "True trees CSV (x, y, radius_m[, type]); default: trees.csv next to --truth when present");
-    cmd->add_option("--out", args->out, "Mask image to write (.png or .tif; 255 = treetop)")->required();
+    cmd->add_option("--out", args->out,
+                    "Mask to write: .tif a georeferenced GeoTIFF on the working grid (1 treetop, 0 not, nodata 255 where "
+                    "a season has no data); .png 255 treetop, 0 not")
+        ->required();
     cmd->add_option("--metrics", args->metrics, "Metrics JSON: precision, recall, f1, iou, pixels, seconds, ...");
     cmd->add_option("--overlay", args->overlay,
                     "Leaf-on with the result drawn over it: yellow true positive (or detected), magenta false "
                     "positive, blue false negative");
-    cmd->add_option("--trees", args->trees, "Crown centres CSV to write: id,x,y,easting,northing,radius_m");
+    cmd->add_option("--trees", args->trees,
+                    "Crown centres to write: .csv id,x,y,easting,northing,radius_m,lon,lat (easting/northing in the "
+                    "working grid's CRS, named by a .prj beside it) or .geojson (WGS 84 points)");
     cmd->add_option("--band-rows", args->bandRows,
                     "Rows segmented at a time (memory; the output does not depend on it)")
         ->capture_default_str()
@@ -140,9 +149,6 @@ Runner addSegmentCommand(CLI::App& app) {
                     "histograms; the output does not depend on it)")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 1e9));
-    cmd->add_option("--cache", args->cache,
-                    "Cache folder: the 16-bit stretch, and the pair statistics of `seasonview prepare` when present "
-                    "(default $SEASONVIEW_CACHE or ~/.cache/seasonview)");
     return [args]() -> int {
         const auto started = std::chrono::steady_clock::now();
         auto fail = [](const std::string& m) {
@@ -154,20 +160,10 @@ Runner addSegmentCommand(CLI::App& app) {
         if (args->k < 1 || args->k > kSegMaxK || args->k % 2 == 0)
             return fail("--k " + std::to_string(args->k) + ": must be odd, 1.." + std::to_string(kSegMaxK));
 
-        SceneSources src;
-        if (!args->manifest.empty()) {
-            if (!args->leafon.empty() || !args->leafoff.empty())
-                return fail("scene: give either a manifest or --leafon/--leafoff, not both");
-            auto parsed = parseManifest(args->manifest);
-            if (!parsed) return fail(parsed.message());
-            src = std::move(*parsed);
-        } else {
-            if (args->leafon.empty() || args->leafoff.empty())
-                return fail("scene: give a manifest (scene.json) or both --leafon and --leafoff");
-            src.leafon = args->leafon;
-            src.leafoff = args->leafoff;
-        }
-        src.elevation.clear(); // segmentation needs no DEM: do not load one
+        auto sources = args->scene.sources();
+        if (!sources) return fail(sources.message());
+        SceneSources src = std::move(*sources);
+        src.elevation = SourceList(); // segmentation needs no DEM: do not load one
 
         SegmentJob job;
         job.params = {*method, args->k};
@@ -191,11 +187,17 @@ Runner addSegmentCommand(CLI::App& app) {
             if (!text->empty())
                 if (auto st = checkTextOutput(*text); !st) return fail(st.message());
 
-        const std::filesystem::path cacheDir =
-            args->cache.empty() ? defaultCacheDir() : std::filesystem::path(args->cache);
+        const std::filesystem::path cacheDir = args->scene.cacheDir();
         auto scene = loadScene(src, cacheDir);
         if (!scene) return fail(scene.message());
         printSceneNotes(*scene);
+        if (scene->warped()) {
+            // Seasons on other grids, in mosaics or with nodata: segmented on the working grid, from the pyramids
+            // `prepare` warps them into (built here when missing), whose alpha says where each has data.
+            auto pyramids = preparePyramids(*scene, cacheDir);
+            if (!pyramids) return fail(pyramids.message());
+            job.levelZero = levelZeroOf(*scene, *pyramids);
+        }
         if (needsHistograms(job.params.method)) job.histograms = preparedHistograms(*scene, cacheDir);
         if (double(scene->leafon.info.width) * scene->leafon.info.height >= kProgressPixels)
             job.progress = terminalProgress("segment");
@@ -214,6 +216,8 @@ Runner addSegmentCommand(CLI::App& app) {
         const double mp = double(r.width) * r.height / 1e6;
         std::printf("wrote %s: %dx%d, %s (k %d)", args->out.c_str(), r.width, r.height,
                     std::string(segmentationMethodName(job.params.method)).c_str(), effectiveK(job.params));
+        if (r.nodataPixels)
+            std::printf(", %.1f %% without data in a season", 100.0 * double(r.nodataPixels) / (double(r.width) * r.height));
         if (r.confusion)
             std::printf(", precision %.3f recall %.3f F1 %.3f IoU %.3f", r.confusion->precision(),
                         r.confusion->recall(), r.confusion->f1(), r.confusion->iou());

@@ -29,22 +29,14 @@ PyramidBlockSource::~PyramidBlockSource() = default;
 Status PyramidBlockSource::read(int layer, int level, const TexelRect& t, std::uint8_t* rgba) {
     const std::filesystem::path& file = m_files[size_t(layer)][size_t(level)];
     const OIIO::ustring name(file.string());
-    // Imagery pyramid files are RGB: read 3 channels, then widen to RGBA in place from the back. Elevation: floats.
-    const size_t n = size_t(t.width()) * size_t(t.height());
-    const bool rgb = m_format == TexelFormat::Rgb8;
-    if (!m_cache->cache->get_pixels(name, 0, 0, t.x0, t.x1, t.y0, t.y1, 0, 1, 0, rgb ? 3 : 1,
+    // Imagery pyramid files are premultiplied RGBA, as the texture holds them. Elevation: floats.
+    const bool rgb = m_format == TexelFormat::Rgba8;
+    if (!m_cache->cache->get_pixels(name, 0, 0, t.x0, t.x1, t.y0, t.y1, 0, 1, 0, rgb ? 4 : 1,
                                     rgb ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT, rgba, OIIO::AutoStride,
                                     OIIO::AutoStride, OIIO::AutoStride)) {
         std::string e = m_cache->cache->geterror();
         if (auto nl = e.find('\n'); nl != std::string::npos) e.resize(nl);
         return fileError(file.string(), "cannot read texels (" + e + ")");
-    }
-    if (!rgb) return Ok{};
-    for (size_t i = n; i-- > 0;) {
-        rgba[i * 4 + 3] = 255;
-        rgba[i * 4 + 2] = rgba[i * 3 + 2];
-        rgba[i * 4 + 1] = rgba[i * 3 + 1];
-        rgba[i * 4 + 0] = rgba[i * 3 + 0];
     }
     return Ok{};
 }

@@ -35,9 +35,9 @@ public:
 class PyramidBlockSource final : public BlockSource {
 public:
     /// levelFiles[layer][level]: the tiled TIFF of that pyramid level. `cacheMegabytes` bounds the tile cache.
-    /// `format`: Rgb8 files are widened to RGBA8, R32F files read as floats.
+    /// `format`: Rgba8 files are read as they are (premultiplied RGBA8), R32F files as floats.
     PyramidBlockSource(std::vector<std::vector<std::filesystem::path>> levelFiles, int cacheMegabytes = 256,
-                       TexelFormat format = TexelFormat::Rgb8);
+                       TexelFormat format = TexelFormat::Rgba8);
     ~PyramidBlockSource() override;
     int layers() const override { return int(m_files.size()); }
     Status read(int layer, int level, const TexelRect& texels, std::uint8_t* rgba) override;

@@ -91,10 +91,8 @@ Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyra
         // The resident coarse pyramid: the first level that fits, mipmapped down to 1×1.
         auto base = readImageU8(p.levels[size_t(clipLevels)].file, 4);
         if (!base) return base.error();
-        std::vector<std::uint8_t> rgba(size_t(base->width) * size_t(base->height) * 4, 255);
-        for (size_t i = 0, n = size_t(base->width) * size_t(base->height); i < n; ++i)
-            for (int ch = 0; ch < 3; ++ch)
-                rgba[i * 4 + size_t(ch)] = base->pixels[i * size_t(base->channels) + size_t(std::min(ch, base->channels - 1))];
+        if (base->channels != 4) return fileError(p.levels[size_t(clipLevels)].file.string(), "is not RGBA");
+        const std::vector<std::uint8_t>& rgba = base->pixels;
         gl::Texture coarse = gl::Texture::create(GL_TEXTURE_2D);
         glTextureStorage2D(coarse.id(), c->m_coarseLevels, GL_RGBA8, base->width, base->height);
         glTextureSubImage2D(coarse.id(), 0, 0, 0, base->width, base->height, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());

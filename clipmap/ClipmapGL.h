@@ -61,7 +61,7 @@ public:
     /// replaced by it (uElevClip0, uElevClipTags, uElevLevel0Size, ...), so two clipmaps can feed one program.
     /// Units used: 2 × layers + 1.
     void bind(const gl::ShaderProgram& program, int firstUnit = 0, const std::string& prefix = "u") const;
-    /// Rgb8 pyramids: RGBA8 levels, a mipmapped coarse 2D texture. R32F (elevation): R32F levels read with
+    /// Rgba8 pyramids: RGBA8 levels, a mipmapped coarse 2D texture. R32F (elevation): R32F levels read with
     /// texelFetch, and the coarse pyramid's exact levels as the layers of a 2D array texture (level k at layer
     /// k - clip levels, stored from texel 0,0), since mipmaps would round sizes down where the pyramid rounds up.
     TexelFormat format() const { return m_format; }
@@ -86,8 +86,8 @@ private:
     std::unique_ptr<BlockLoader> m_loader;
     std::vector<gl::Texture> m_clip, m_coarse;
     gl::Texture m_tags;
-    TexelFormat m_format = TexelFormat::Rgb8;
-    int m_coarseLevels = 0; // mip levels (Rgb8) or array layers (R32F) of each coarse texture
+    TexelFormat m_format = TexelFormat::Rgba8;
+    int m_coarseLevels = 0; // mip levels (Rgba8) or array layers (R32F) of each coarse texture
     glm::ivec2 m_coarseSize{0};
     std::int64_t m_totalUploaded = 0;
 };

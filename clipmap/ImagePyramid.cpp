@@ -27,12 +27,13 @@ namespace {
 namespace fs = std::filesystem;
 
 /// Bumped whenever the level files' content or layout changes: old caches then no longer match any key.
-constexpr int kPyramidFormatVersion = 1;
+/// 2: RGBA, premultiplied, on the working grid.
+constexpr int kPyramidFormatVersion = 2;
 constexpr const char* kManifestName = "pyramid.json";
 
 struct SourceId {
-    std::string path; // canonical absolute path
-    std::string key;  // path | size | mtime | stretch | format version
+    std::string path; // what the pyramid is made from (older versions of it share this)
+    std::string key;  // its identity | format version
 };
 
 std::string stretchKey(const Stretch& stretch) {
@@ -47,32 +48,42 @@ std::string stretchKey(const Stretch& stretch) {
 }
 
 Result<SourceId> sourceId(const PyramidSource& source) {
-    const fs::path& p = source.file;
-    std::error_code ec;
-    if (!fs::is_regular_file(p, ec)) return fileError(p.string(), fs::exists(p, ec) ? "not a file" : "file not found");
     SourceId id;
-    id.path = fs::weakly_canonical(fs::absolute(p, ec), ec).string();
-    const auto size = fs::file_size(p, ec);
-    if (ec) return fileError(p.string(), "cannot read file size (" + ec.message() + ")");
-    const auto mtime = fs::last_write_time(p, ec).time_since_epoch().count();
-    if (ec) return fileError(p.string(), "cannot read modification time (" + ec.message() + ")");
-    id.key = id.path + "|" + std::to_string(size) + "|" + std::to_string(mtime) + "|" + source.params + "|v" +
-             std::to_string(kPyramidFormatVersion);
+    id.path = source.name;
+    id.key = source.identity + "|v" + std::to_string(kPyramidFormatVersion);
     return id;
 }
 
-PyramidSource imagerySource(const ImageryLayer& layer) {
+} // namespace
+
+Result<PyramidSource> imagerySource(const ImageryLayer& layer) {
     PyramidSource s;
-    s.file = layer.info.path;
-    s.params = stretchKey(layer.stretch);
-    s.width = layer.info.width;
-    s.height = layer.info.height;
-    s.format = TexelFormat::Rgb8;
+    const RasterMosaic& m = layer.source;
+    const WorkingGrid grid = layer.grid();
+    // The name finds older versions of the same pyramid (their files changed) to remove: a file, or a mosaic warped
+    // onto one grid (the same files on another grid are another pyramid, kept).
+    const std::string first = fs::weakly_canonical(fs::absolute(m.tiles.front().path)).string();
+    s.name = layer.direct ? first
+                          : std::to_string(m.tiles.size()) + " file(s) from " + first + " on " + grid.key();
+    // The identity: the files as they are now (a file changed since the scene was loaded is a new pyramid).
+    std::string files;
+    for (const RasterInfo& t : m.tiles) {
+        auto id = fileIdentity(t.path);
+        if (!id) return id.error();
+        files += *id + ";";
+    }
+    s.identity = files + "|" + m.key + "|" + stretchKey(layer.stretch) + "|" + grid.key() + "|" +
+                 (layer.direct ? "direct" : std::string("warp ") + resamplingName(layer.resampling));
+    s.width = grid.width;
+    s.height = grid.height;
+    s.format = TexelFormat::Rgba8;
     s.build = [&layer](const fs::path& folder, int tileSize, const ProgressFn& progress) {
         return buildPyramidLevels(layer, folder, tileSize, progress);
     };
     return s;
 }
+
+namespace {
 
 fs::path pyramidsDir(const fs::path& cacheDir) { return cacheDir / "pyramids"; }
 
@@ -105,8 +116,8 @@ std::string checkLevelFile(const fs::path& file, std::uintmax_t bytes, int width
         return name + " unreadable";
     }
     const OIIO::ImageSpec& s = in->spec();
-    const int channels = format == TexelFormat::Rgb8 ? 3 : 1;
-    const OIIO::TypeDesc type = format == TexelFormat::Rgb8 ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT;
+    const int channels = format == TexelFormat::Rgba8 ? 4 : 1;
+    const OIIO::TypeDesc type = format == TexelFormat::Rgba8 ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT;
     if (s.width != width || s.height != height || s.nchannels != channels || s.format != type ||
         s.tile_width != tileSize || s.tile_height != tileSize)
         return name + " is " + std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +
@@ -237,11 +248,15 @@ Status writeManifest(const fs::path& folder, const SourceId& id, int tileSize, c
 } // namespace
 
 Result<ImagePyramid> openPyramid(const ImageryLayer& layer, const std::filesystem::path& cacheDir) {
-    return openPyramid(imagerySource(layer), cacheDir);
+    auto source = imagerySource(layer);
+    if (!source) return source.error();
+    return openPyramid(*source, cacheDir);
 }
 
 Result<PrepareReport> preparePyramid(const ImageryLayer& layer, const PrepareOptions& options) {
-    return preparePyramid(imagerySource(layer), options);
+    auto source = imagerySource(layer);
+    if (!source) return source.error();
+    return preparePyramid(*source, options);
 }
 
 Result<ImagePyramid> openPyramid(const PyramidSource& layer, const std::filesystem::path& cacheDir) {
@@ -251,7 +266,7 @@ Result<ImagePyramid> openPyramid(const PyramidSource& layer, const std::filesyst
     Validation v = validate(folder, *id, layer);
     if (v.pyramid) return std::move(*v.pyramid);
     if (v.reason == "not prepared yet" && !siblingsOf(cacheDir, folder, *id).empty()) v.reason = "source changed";
-    return fileError(folder.string(), "no valid pyramid for " + layer.file.string() + ": " + v.reason +
+    return fileError(folder.string(), "no valid pyramid for " + layer.name + ": " + v.reason +
                                           " (run seasonview prepare)");
 }
 

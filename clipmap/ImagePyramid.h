@@ -1,8 +1,11 @@
 #pragma once
 // The prepared form of one imagery layer that clipmaps stream from: a folder in the cache holding one tiled
-// (256² by default), deflate-compressed 8-bit RGB TIFF per mip level, the layer's stored display stretch already
-// applied, plus a manifest (pyramid.json) written last. Built once per source file (`seasonview prepare`), reused
-// while the source is unchanged, rebuilt when it changed or when the cache is corrupt.
+// (256² by default), Zstandard-compressed 8-bit RGBA TIFF per mip level on the scene's working grid (the season
+// warped onto it when it was delivered on another grid or as a mosaic), the layer's stored display stretch already
+// applied, colour premultiplied by alpha (alpha 0 where the season has no data; coarser levels the box filter of
+// the finer, so alpha is coverage), plus a manifest (pyramid.json) written last. Built once per source
+// (`seasonview prepare`), reused while the source files are unchanged, rebuilt when they changed or when the cache is
+// corrupt.
 #include "Result.h"
 #include "Scene.h"
 #include "SyntheticScene.h" // ProgressFn
@@ -20,14 +23,15 @@ struct PyramidLevel {
     int width = 0, height = 0;  // level 0 = the source size; level k = ceil(level k-1 / 2), down to 1x1
 };
 
-/// What a pyramid's texels are: display RGB (imagery) or float heights (elevation, terrain/ElevationPyramid.h).
-enum class TexelFormat { Rgb8, R32F };
+/// What a pyramid's texels are: display RGBA, premultiplied (imagery) or float heights (elevation,
+/// terrain/ElevationPyramid.h).
+enum class TexelFormat { Rgba8, R32F };
 
 struct ImagePyramid {
     std::filesystem::path folder;   // <cache>/pyramids/<key hash>
-    std::string sourceKey;          // canonical source path | size | mtime | stretch: what the cache belongs to
+    std::string sourceKey;          // the sources' files (paths, sizes, mtimes), grid, stretch: what the cache belongs to
     int tileSize = 256;
-    TexelFormat format = TexelFormat::Rgb8;
+    TexelFormat format = TexelFormat::Rgba8;
     std::vector<PyramidLevel> levels;
     int width() const { return levels.empty() ? 0 : levels[0].width; }
     int height() const { return levels.empty() ? 0 : levels[0].height; }
@@ -48,14 +52,15 @@ struct PrepareReport {
     double seconds = 0.0;
 };
 
-/// Any pyramid's recipe: the source file (its path, size and mtime key the cache), the rest of the key, the level-0
-/// size and format, and the builder that writes the level files (level_LL.tif, sizes pyramidLevelSizes()) into a
-/// folder. The imagery overloads below fill it for an ImageryLayer.
+/// Any pyramid's recipe: what it is made from (`name`, for messages and to find older versions of it; `identity`,
+/// which changes whenever the texels would: the source files' paths, sizes and mtimes, the grid, the stretch, ...),
+/// the level-0 size and format, and the builder that writes the level files (level_LL.tif, sizes
+/// pyramidLevelSizes()) into a folder. The imagery overloads below fill it for an ImageryLayer.
 struct PyramidSource {
-    std::filesystem::path file;
-    std::string params; // appended to the key: anything else the texels depend on
+    std::string name;
+    std::string identity;
     int width = 0, height = 0;
-    TexelFormat format = TexelFormat::Rgb8;
+    TexelFormat format = TexelFormat::Rgba8;
     std::function<Result<std::vector<PyramidLevel>>(const std::filesystem::path& folder, int tileSize,
                                                     const ProgressFn& progress)>
         build;
@@ -63,6 +68,9 @@ struct PyramidSource {
 
 Result<PrepareReport> preparePyramid(const PyramidSource& source, const PrepareOptions& options);
 Result<ImagePyramid> openPyramid(const PyramidSource& source, const std::filesystem::path& cacheDir);
+
+/// The recipe of `layer`'s pyramid on its grid (`layer` must outlive it).
+Result<PyramidSource> imagerySource(const ImageryLayer& layer);
 
 /// Makes sure `layer` has an up-to-date, valid pyramid in the cache and returns it. Idempotent (an up-to-date
 /// pyramid is only validated, not rebuilt) and atomic (built in a temporary folder, renamed into place, so a crash

@@ -17,16 +17,18 @@ std::vector<std::pair<int, int>> pyramidLevelSizes(int width, int height);
 /// "level_LL.tif".
 std::string pyramidLevelFileName(int level);
 
-/// 2×2 box filter of one output row of level k+1 (ceil(width/2) RGB8 pixels) from rows `a` and `b` of level k
-/// (width RGB8 pixels each; `b` null when `a` is the last row of an odd height). An odd width's last output pixel
-/// averages the samples that exist. Rounds to nearest.
-void downsampleRow(const std::uint8_t* a, const std::uint8_t* b, int width, std::uint8_t* out);
+/// 2×2 box filter of one output row of level k+1 (ceil(width/2) pixels of `channels` bytes) from rows `a` and `b` of
+/// level k (width pixels each; `b` null when `a` is the last row of an odd height). An odd width's last output pixel
+/// averages the samples that exist. Rounds to nearest. On premultiplied RGBA this is the correct filter: alpha
+/// becomes coverage and colour the covered texels' mean times it.
+void downsampleRow(const std::uint8_t* a, const std::uint8_t* b, int width, std::uint8_t* out, int channels = 4);
 
 /// Writes every level of `layer`'s pyramid as `folder`/level_LL.tif (folder exists; files are overwritten).
-/// Level 0 is the source with `layer.stretch` applied (grey sources become grey RGB, alpha is dropped); each next
-/// level is the 2×2 box filter of the previous one. The source is read in bands of rows on a prefetch thread while
-/// tiles are compressed on all cores. Errors name the source (unreadable, truncated, size changed since the scene
-/// was loaded) or the level file (cannot write). `progress` gets the fraction of source rows done.
+/// Level 0 is the season on its working grid (GridReader: read as it is when direct, else warped) with
+/// `layer.stretch` applied, RGBA with alpha 255 where it has data and (0, 0, 0, 0) where it has none; each next level
+/// is the 2×2 box filter of the previous one. The source is read in bands of rows on a prefetch thread while tiles
+/// are compressed on all cores. Errors name the source (unreadable, truncated) or the level file (cannot write).
+/// `progress` gets the fraction of grid rows done.
 Result<std::vector<PyramidLevel>> buildPyramidLevels(const ImageryLayer& layer, const std::filesystem::path& folder,
                                                      int tileSize, const ProgressFn& progress);
 

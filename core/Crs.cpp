@@ -189,6 +189,15 @@ std::string Crs::identifier() const {
     return Registry::get().with(m_id, [](const Entry& e) { return e.epsg ? "EPSG:" + std::to_string(e.epsg) : e.wkt; });
 }
 const std::string& Crs::wkt() const { return Registry::get().wkt(m_id); }
+std::string Crs::esriWkt() const {
+    OGRSpatialReference srs = Registry::get().with(m_id, [](const Entry& e) { return e.srs; });
+    char* text = nullptr;
+    const char* options[] = {"FORMAT=WKT1_ESRI", nullptr};
+    srs.exportToWkt(&text, options);
+    std::string s = text ? text : "";
+    CPLFree(text);
+    return s;
+}
 bool Crs::northFirst() const {
     return Registry::get().with(m_id, [](const Entry& e) { return e.northFirst; });
 }

@@ -41,6 +41,8 @@ public:
     std::string identifier() const;
     /// WKT2 (2019) of the CRS.
     const std::string& wkt() const;
+    /// The CRS as ESRI WKT, what a .prj file next to a shapefile or table holds.
+    std::string esriWkt() const;
     /// Metres per unit of the projected axes (1 for metres, 0.3048 for feet); for geographic CRSs, metres per
     /// degree of latitude (about 111 km).
     double metresPerUnit() const;

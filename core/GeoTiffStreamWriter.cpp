@@ -189,7 +189,7 @@ Result<GeoTiffStreamWriter> GeoTiffStreamWriter::open(const std::filesystem::pat
     TIFFSetField(t, TIFFTAG_PHOTOMETRIC,
                  jpeg ? PHOTOMETRIC_YCBCR : channels >= 3 ? PHOTOMETRIC_RGB : PHOTOMETRIC_MINISBLACK);
     if (channels == 4 || channels == 2) {
-        std::uint16_t extra = EXTRASAMPLE_UNASSALPHA;
+        std::uint16_t extra = options.associatedAlpha ? EXTRASAMPLE_ASSOCALPHA : EXTRASAMPLE_UNASSALPHA;
         TIFFSetField(t, TIFFTAG_EXTRASAMPLES, std::uint16_t(1), &extra);
     }
     // The tiles are compressed here and written raw: a ZSTD tile is one Zstandard frame, as libtiff's codec

@@ -1,5 +1,10 @@
 #include "Heightfield.h"
 
+#include "GdalSupport.h"
+#include "GridReader.h"
+
+#include <glm/common.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -82,28 +87,92 @@ int fillHoles(Image<float>& img) {
     return holes;
 }
 
-Result<Heightfield> loadHeightfield(const std::filesystem::path& path) {
-    auto info = readRasterInfo(path);
-    if (!info) return info.error();
-    if (!info->georef) return fileError(path.string(), "DEM has no GeoTIFF georeferencing");
-    if (info->channels < 1) return fileError(path.string(), "DEM has no bands");
-    auto img = readImageF32(path, 1);
-    if (!img) return img.error();
+namespace {
+
+/// Metres per unit of a DEM band's heights, from GDAL's unit type; nothing for units that are not lengths we know.
+std::optional<double> metresPerHeightUnit(const std::string& unit) {
+    std::string u;
+    for (char c : unit) u += char(std::tolower(static_cast<unsigned char>(c)));
+    if (u.empty() || u == "m" || u == "metre" || u == "metres" || u == "meter" || u == "meters") return 1.0;
+    if (u == "ft" || u == "foot" || u == "feet" || u == "international foot") return 0.3048;
+    if (u == "us survey foot" || u == "ftus" || u == "us-ft" || u == "survey foot") return 1200.0 / 3937.0;
+    return std::nullopt;
+}
+
+} // namespace
+
+Result<Heightfield> loadHeightfield(const RasterMosaic& dem, const WorkingGrid& area) {
+    const RasterInfo& first = dem.tiles.front();
+    const std::string name = first.path.string();
+    double unit = 1.0;
+    {
+        auto ds = gdal::openRaster(first.path);
+        if (!ds) return ds.error();
+        const char* u = (*ds)->GetRasterBand(1)->GetUnitType();
+        const auto m = metresPerHeightUnit(u ? u : "");
+        if (!m) return fileError(name, std::string("DEM heights in '") + u + "' (metres or feet expected)");
+        unit = *m;
+    }
+    // The area in the DEM's CRS, with a margin, on the finest tile's lattice, cut to where the DEM is.
+    RasterMosaic areaMosaic;
+    RasterInfo areaInfo;
+    areaInfo.width = area.width;
+    areaInfo.height = area.height;
+    areaInfo.georef = area.georef;
+    areaMosaic.tiles = {areaInfo};
+    auto [lo, hi] = extentIn(areaMosaic, dem.crs);
+    const glm::dvec2 centre = convert(area.georef.crs, dem.crs, area.georef.pixelToCrs({area.width * 0.5, area.height * 0.5}));
+    if (!(centre.x >= dem.min.x && centre.x <= dem.max.x && centre.y >= dem.min.y && centre.y <= dem.max.y))
+        return fileError(name, "DEM does not cover the imagery (its centre lies outside it)");
+    const Georef& f = *dem.finest().georef;
+    const glm::dvec2 margin = glm::max(0.25 * (hi - lo), 8.0 * f.pixelSize);
+    lo = glm::max(lo - margin, dem.min);
+    hi = glm::min(hi + margin, dem.max);
+    WorkingGrid g;
+    g.georef.crs = dem.crs;
+    g.georef.pixelSize = f.pixelSize;
+    const double x0 = f.origin.x + std::floor((lo.x - f.origin.x) / f.pixelSize.x) * f.pixelSize.x;
+    const double x1 = f.origin.x + std::ceil((hi.x - f.origin.x) / f.pixelSize.x) * f.pixelSize.x;
+    const double y0 = f.origin.y + std::floor((lo.y - f.origin.y) / f.pixelSize.y) * f.pixelSize.y;
+    const double y1 = f.origin.y + std::ceil((hi.y - f.origin.y) / f.pixelSize.y) * f.pixelSize.y;
+    g.georef.origin = {x0, y1};
+    g.width = std::max(1, int(std::lround((x1 - x0) / f.pixelSize.x)));
+    g.height = std::max(1, int(std::lround((y1 - y0) / f.pixelSize.y)));
+    if (std::int64_t(g.width) * g.height > (std::int64_t(1) << 30))
+        return fileError(name, "DEM over the scene would be " + std::to_string(g.width) + "x" +
+                                   std::to_string(g.height) + " samples (at most 2^30; give a coarser DEM)");
+
+    auto reader = GridReader::open(dem, g, Resampling::Auto, 512);
+    if (!reader) return reader.error();
     Heightfield hf;
-    hf.heights = std::move(*img);
-    hf.georef = *info->georef;
+    hf.georef = g.georef;
+    hf.sourceName = std::filesystem::weakly_canonical(std::filesystem::absolute(first.path)).string();
+    hf.sourceKey = dem.key + "|" + g.key() + "|unit " + std::to_string(unit);
+    hf.heights.width = g.width;
+    hf.heights.height = g.height;
+    hf.heights.channels = 1;
+    hf.heights.pixels.resize(size_t(g.width) * size_t(g.height));
+    std::vector<std::uint8_t> coverage(size_t(g.width) * size_t(reader->bandRows()));
     const float nan = std::numeric_limits<float>::quiet_NaN();
-    for (float& v : hf.heights.pixels) {
-        // -32768: SRTM void; |h| > 100 km: garbage (no terrain on Earth is there).
-        if (!std::isfinite(v) || (info->nodata && double(v) == *info->nodata) || v <= -32767.0f ||
-            std::fabs(v) > 1.0e5f)
-            v = nan;
+    for (int y = 0; y < g.height; y += reader->bandRows()) {
+        const int y1b = std::min(g.height, y + reader->bandRows());
+        float* rows = hf.heights.pixels.data() + size_t(y) * size_t(g.width);
+        if (auto st = reader->read(y, y1b, 1, SampleType::F32, rows, coverage.data()); !st) return st.error();
+        for (size_t i = 0, n = size_t(y1b - y) * size_t(g.width); i < n; ++i) {
+            float& v = rows[i];
+            // -32768: SRTM void; |h| > 100 km: garbage (no terrain on Earth is there).
+            if (!coverage[i] || !std::isfinite(v) || (first.nodata && double(v) == *first.nodata) || v <= -32767.0f ||
+                std::fabs(v) > 1.0e5f)
+                v = nan;
+            else
+                v = float(double(v) * unit);
+        }
     }
     const int filled = fillHoles(hf.heights);
     if (filled < 0)
-        return fileError(path.string(), "DEM has no valid heights (all " +
-                                            std::to_string(size_t(hf.heights.width) * size_t(hf.heights.height)) +
-                                            " samples are NaN or nodata)");
+        return fileError(name, "DEM has no valid heights (all " +
+                                   std::to_string(size_t(hf.heights.width) * size_t(hf.heights.height)) +
+                                   " samples are NaN or nodata)");
     hf.filledSamples = filled;
     auto [mn, mx] = std::minmax_element(hf.heights.pixels.begin(), hf.heights.pixels.end());
     hf.minHeight = *mn;

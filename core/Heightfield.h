@@ -2,6 +2,8 @@
 // A DEM in memory: float heights (metres) on its own georeferenced grid, with nodata holes filled.
 #include "GeoFrame.h"
 #include "Raster.h"
+#include "RasterMosaic.h"
+#include "WorkingGrid.h"
 #include "Result.h"
 
 #include <glm/vec2.hpp>
@@ -15,6 +17,8 @@ struct Heightfield {
     Georef georef;
     int filledSamples = 0;  // nodata/NaN samples replaced by push-pull interpolation
     float minHeight = 0, maxHeight = 0;
+    std::string sourceName; // the DEM's first file (messages, caches)
+    std::string sourceKey;  // its files' identities and the area read: what caches of it key on
 
     /// Bilinear height at a point in the DEM's CRS (clamped to the grid's edge samples).
     double sampleCrs(glm::dvec2 p) const;
@@ -28,10 +32,13 @@ struct Heightfield {
     }
 };
 
-/// Loads a DEM (float32 or int16 GeoTIFF, geographic or UTM). Samples that are NaN, infinite, equal to the file's
-/// nodata value or -32768 (SRTM voids) are nodata and get filled; a DEM with no valid sample, or without
-/// georeferencing, is an error naming the file.
-Result<Heightfield> loadHeightfield(const std::filesystem::path& path);
+/// Loads a DEM (any raster GDAL reads, one file or a mosaic of tiles such as SRTM's 1°×1° ones; any CRS) in its own
+/// CRS, on its finest tile's lattice, over `area`'s extent plus a margin (a quarter of the area's size, at least 8
+/// samples) where the DEM reaches. Heights in metres; a band whose unit is feet (international or US survey) is
+/// converted. Samples that are NaN, infinite, nodata (value, mask), outside every tile or -32768 (SRTM voids) are
+/// filled from their neighbours. Errors name the file: a DEM that does not cover the area's centre, one with no
+/// valid sample, a vertical unit other than metres or feet.
+Result<Heightfield> loadHeightfield(const RasterMosaic& dem, const WorkingGrid& area);
 
 /// Fills NaN samples of `img` from their valid neighbours (push-pull over a mip pyramid); returns how many were
 /// filled. Returns -1 when no sample is valid.

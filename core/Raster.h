@@ -92,6 +92,7 @@ struct GeoTiffWriteOptions {
     int zstdLevel = 1;         // Zstandard level 1..22; 1 is smaller than deflate level 1 on imagery
     int jpegQuality = 90;      // JPEG quality 1..100 (libjpeg's scale)
     std::optional<double> nodata;
+    bool associatedAlpha = false; // a 4th (or 2nd) channel is associated alpha: the colour is premultiplied by it
     int threads = 0;           // compression threads (0 = hardware concurrency); the bytes do not depend on it
     std::uint64_t bigTiffAbove = std::uint64_t(2) << 30; // BigTIFF when the raw samples exceed this many bytes
 };

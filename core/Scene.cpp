@@ -50,6 +50,10 @@ Result<SceneSources> parseManifest(const std::filesystem::path& manifest) {
     SceneSources s;
     s.manifest = manifest;
     const std::filesystem::path base = manifest.parent_path();
+    auto resolve = [&](const std::string& relative) {
+        const std::filesystem::path p = relative;
+        return p.is_absolute() ? p : base / p;
+    };
     auto path = [&](const json& obj, const char* key, bool required, std::filesystem::path& out,
                     const std::string& prefix) -> Status {
         auto it = obj.find(key);
@@ -59,12 +63,34 @@ Result<SceneSources> parseManifest(const std::filesystem::path& manifest) {
         }
         if (!it->is_string() || it->get<std::string>().empty())
             return fileError(name, "'" + prefix + key + "' must be a non-empty string (a path relative to the manifest)");
-        std::filesystem::path p = it->get<std::string>();
-        out = p.is_absolute() ? p : base / p;
+        out = resolve(it->get<std::string>());
+        return Ok{};
+    };
+    // A season or DEM: a path (file, folder, glob, VRT) or a list of them.
+    auto sources = [&](const char* key, bool required, SourceList& out) -> Status {
+        auto it = j.find(key);
+        if (it == j.end() || it->is_null()) {
+            if (required) return fileError(name, std::string("missing required key '") + key + "'");
+            return Ok{};
+        }
+        const std::string what = std::string("'") + key +
+                                 "' must be a non-empty string or list of strings (files, folders, globs or VRTs "
+                                 "relative to the manifest)";
+        if (it->is_string()) {
+            if (it->get<std::string>().empty()) return fileError(name, what);
+            out = SourceList(resolve(it->get<std::string>()));
+            return Ok{};
+        }
+        if (!it->is_array() || it->empty()) return fileError(name, what);
+        out.items.clear();
+        for (const json& e : *it) {
+            if (!e.is_string() || e.get<std::string>().empty()) return fileError(name, what);
+            out.items.push_back(resolve(e.get<std::string>()));
+        }
         return Ok{};
     };
     static const char* known[] = {"name", "leafon", "leafoff", "elevation", "buildings", "truth", "parameters",
-                                  "generator", "description"};
+                                  "generator", "description", "crs", "grid_crs", "grid_res", "extent", "resampling"};
     for (auto& [k, v] : j.items()) {
         (void)v;
         if (std::find_if(std::begin(known), std::end(known), [&](const char* n) { return k == n; }) == std::end(known))
@@ -74,9 +100,9 @@ Result<SceneSources> parseManifest(const std::filesystem::path& manifest) {
         if (!it->is_string()) return fileError(name, "'name' must be a string");
         s.name = it->get<std::string>();
     }
-    if (auto st = path(j, "leafon", true, s.leafon, ""); !st) return st.error();
-    if (auto st = path(j, "leafoff", true, s.leafoff, ""); !st) return st.error();
-    if (auto st = path(j, "elevation", false, s.elevation, ""); !st) return st.error();
+    if (auto st = sources("leafon", true, s.leafon); !st) return st.error();
+    if (auto st = sources("leafoff", true, s.leafoff); !st) return st.error();
+    if (auto st = sources("elevation", false, s.elevation); !st) return st.error();
     if (auto st = path(j, "buildings", false, s.buildings, ""); !st) return st.error();
     if (auto it = j.find("truth"); it != j.end() && !it->is_null()) {
         if (!it->is_object()) return fileError(name, "'truth' must be an object {deciduous, conifer, trees}");
@@ -92,73 +118,141 @@ Result<SceneSources> parseManifest(const std::filesystem::path& manifest) {
             s.treeHeightM = t->get<double>();
         }
     }
+    auto string = [&](const char* key, std::string& out) -> Status {
+        auto it = j.find(key);
+        if (it == j.end() || it->is_null()) return Ok{};
+        if (!it->is_string() || it->get<std::string>().empty())
+            return fileError(name, std::string("'") + key + "' must be a non-empty string");
+        out = it->get<std::string>();
+        return Ok{};
+    };
+    if (auto st = string("crs", s.crs); !st) return st.error();
+    if (auto st = string("grid_crs", s.grid.crs); !st) return st.error();
+    if (auto st = string("resampling", s.resampling); !st) return st.error();
+    if (auto it = j.find("grid_res"); it != j.end() && !it->is_null()) {
+        if (!it->is_number() || !(it->get<double>() > 0.0) || !std::isfinite(it->get<double>()))
+            return fileError(name, "'grid_res' must be a positive number (grid CRS units per pixel)");
+        s.grid.resolution = it->get<double>();
+    }
+    if (auto it = j.find("extent"); it != j.end() && !it->is_null()) {
+        if (!it->is_array() || it->size() != 4 ||
+            !std::all_of(it->begin(), it->end(), [](const json& v) { return v.is_number(); }))
+            return fileError(name, "'extent' must be [xmin, ymin, xmax, ymax] in the grid's CRS");
+        s.grid.extent = std::array<double, 4>{(*it)[0].get<double>(), (*it)[1].get<double>(), (*it)[2].get<double>(),
+                                              (*it)[3].get<double>()};
+    }
     if (s.name.empty()) s.name = manifest.parent_path().filename().string();
     return s;
 }
 
+Result<GridOptions> parseGridOptions(const SceneSources& sources) {
+    GridOptions o;
+    if (!sources.grid.crs.empty()) {
+        auto crs = Crs::fromUserInput(sources.grid.crs);
+        if (!crs) return Error{"--grid-crs: " + crs.message()};
+        o.crs = *crs;
+    }
+    if (sources.grid.resolution) {
+        if (!(*sources.grid.resolution > 0.0) || !std::isfinite(*sources.grid.resolution))
+            return Error{"--grid-res: a positive number of grid CRS units per pixel expected"};
+        o.resolution = sources.grid.resolution;
+    }
+    o.extent = sources.grid.extent;
+    return o;
+}
+
 namespace {
 
-Result<ImageryLayer> openImagery(const std::filesystem::path& path, const char* role,
+Result<ImageryLayer> openImagery(const SourceList& sources, const char* role, const std::optional<Crs>& assumedCrs,
                                  const std::filesystem::path& cacheDir) {
-    auto info = readRasterInfo(path);
-    if (!info) return info.error();
-    if (info->geotransformWithoutCrs) return fileError(path.string(), "has no CRS (give one with --crs EPSG:CODE)");
-    if (!info->georef)
-        return fileError(path.string(), std::string(role) +
-                                            " image has no georeferencing (no GeoTIFF keys, world file or .prj)");
-    if (info->channels < 3)
-        return fileError(path.string(), std::string(role) + " image needs RGB bands, has " +
-                                            std::to_string(info->channels));
-    if (info->type != SampleType::U8 && info->type != SampleType::U16)
-        return fileError(path.string(), std::string(role) + " image must be 8- or 16-bit, is " +
-                                            sampleTypeName(info->type));
-    auto stretch = stretchFor(*info, cacheDir);
+    auto mosaic = openMosaic(sources, role, assumedCrs);
+    if (!mosaic) return mosaic.error();
+    const RasterInfo& first = mosaic->tiles.front();
+    if (mosaic->bands < 3)
+        return fileError(first.path.string(), std::string(role) + " image needs RGB bands, has " +
+                                                  std::to_string(mosaic->bands));
+    if (mosaic->type != SampleType::U8 && mosaic->type != SampleType::U16)
+        return fileError(first.path.string(), std::string(role) + " image must be 8- or 16-bit, is " +
+                                                  sampleTypeName(mosaic->type));
+    ImageryLayer layer;
+    layer.source = std::move(*mosaic);
+    auto stretch = stretchFor(layer.source, cacheDir);
     if (!stretch) return stretch.error();
-    return ImageryLayer{std::move(*info), *stretch};
+    layer.stretch = *stretch;
+    return layer;
+}
+
+/// The layer as it is read on the grid (info), and whether that is its file as it is.
+void placeOnGrid(ImageryLayer& layer, const WorkingGrid& grid) {
+    const RasterMosaic& m = layer.source;
+    const RasterInfo& t = m.tiles.front();
+    layer.direct = m.tiles.size() == 1 && !m.hasNodata() && onGridLattice(t, grid) && t.width == grid.width &&
+                   t.height == grid.height && grid.georef.crsToPixel(t.georef->origin) == glm::dvec2(0.0);
+    RasterInfo& i = layer.info;
+    i = RasterInfo{};
+    i.path = layer.direct ? t.path : std::filesystem::path();
+    i.width = grid.width;
+    i.height = grid.height;
+    i.channels = 3;
+    i.type = m.type;
+    i.georef = grid.georef;
+    i.tiled = layer.direct && t.tiled;
+    i.driver = layer.direct ? t.driver : "warped";
 }
 
 } // namespace
+
+Result<ImageryLayer> openImageryLayer(const SourceList& sources, const std::string& role,
+                                      const std::filesystem::path& cacheDir, const WorkingGrid* grid,
+                                      const std::optional<Crs>& assumedCrs, Resampling resampling) {
+    auto layer = openImagery(sources, role.c_str(), assumedCrs, cacheDir);
+    if (!layer) return layer.error();
+    const RasterInfo& first = layer->source.tiles.front();
+    const WorkingGrid own{*first.georef, first.width, first.height};
+    placeOnGrid(*layer, grid ? *grid : own);
+    layer->resampling = resampling;
+    return layer;
+}
 
 Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path& cacheDir) {
     Scene scene;
     scene.sources = sources;
     if (sources.leafon.empty()) return Error{"scene: no leaf-on image given (--leafon or a manifest)"};
     if (sources.leafoff.empty()) return Error{"scene: no leaf-off image given (--leafoff or a manifest)"};
-    // Header checks first (cheap), then the expensive stretch.
-    auto onInfo = readRasterInfo(sources.leafon);
-    if (!onInfo) return onInfo.error();
-    auto offInfo = readRasterInfo(sources.leafoff);
-    if (!offInfo) return offInfo.error();
-    if (onInfo->width != offInfo->width || onInfo->height != offInfo->height)
-        return fileError(sources.leafoff.string(),
-                         "leaf-off is " + std::to_string(offInfo->width) + "x" + std::to_string(offInfo->height) +
-                             " pixels but leaf-on " + sources.leafon.string() + " is " +
-                             std::to_string(onInfo->width) + "x" + std::to_string(onInfo->height) +
-                             " (seasons must cover the same grid)");
-    auto on = openImagery(sources.leafon, "leaf-on", cacheDir);
+    std::optional<Crs> assumed;
+    if (!sources.crs.empty()) {
+        auto crs = Crs::fromUserInput(sources.crs);
+        if (!crs) return Error{"--crs: " + crs.message()};
+        assumed = *crs;
+    }
+    auto options = parseGridOptions(sources);
+    if (!options) return options.error();
+    auto resampling = parseResampling(sources.resampling);
+    if (!resampling) return resampling.error();
+    scene.resampling = *resampling;
+
+    auto on = openImagery(sources.leafon, "leaf-on", assumed, cacheDir);
     if (!on) return on.error();
-    auto off = openImagery(sources.leafoff, "leaf-off", cacheDir);
+    auto off = openImagery(sources.leafoff, "leaf-off", assumed, cacheDir);
     if (!off) return off.error();
     scene.leafon = std::move(*on);
     scene.leafoff = std::move(*off);
+    auto grid = chooseWorkingGrid(scene.leafon.source, scene.leafoff.source, *options, sources.leafon.describe(),
+                                  sources.leafoff.describe());
+    if (!grid) return grid.error();
+    scene.grid = *grid;
+    placeOnGrid(scene.leafon, scene.grid);
+    placeOnGrid(scene.leafoff, scene.grid);
+    scene.leafon.resampling = scene.leafoff.resampling = scene.resampling;
+    for (const ImageryLayer* l : {&scene.leafon, &scene.leafoff})
+        if (!l->direct)
+            scene.notes.push_back(std::string(l == &scene.leafon ? "leaf-on " : "leaf-off ") + "(" +
+                                  std::to_string(l->source.tiles.size()) + " file" +
+                                  (l->source.tiles.size() == 1 ? "" : "s") + ", " + l->source.crs.name() +
+                                  ") is warped onto the working grid when prepared");
 
-    const Georef& a = *scene.leafon.info.georef;
-    const Georef& b = *scene.leafoff.info.georef;
-    const int w = scene.leafon.info.width, h = scene.leafon.info.height;
-    double worst = 0.0;
-    for (glm::dvec2 c : {glm::dvec2(0, 0), glm::dvec2(w, 0), glm::dvec2(0, h), glm::dvec2(w, h)}) {
-        const glm::dvec2 pb = convert(b.crs, a.crs, b.pixelToCrs(c));
-        const glm::dvec2 d = a.crsToPixel(pb) - c;
-        worst = std::max(worst, std::max(std::fabs(d.x), std::fabs(d.y)));
-    }
-    if (worst > 0.5) {
-        char buf[64];
-        std::snprintf(buf, sizeof buf, "%.2f", worst);
-        return fileError(sources.leafoff.string(), "georeferencing disagrees with leaf-on " + sources.leafon.string() +
-                                                       " by " + buf +
-                                                       " pixels (seasons must be registered on the same grid)");
-    }
-
+    const Georef& a = scene.grid.georef;
+    const int w = scene.grid.width, h = scene.grid.height;
     scene.frame = GeoFrame(a.crs, a.pixelToCrs({w * 0.5, h * 0.5}));
     scene.localMin = glm::dvec2(1e300);
     scene.localMax = glm::dvec2(-1e300);
@@ -175,16 +269,13 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
     }
 
     if (!sources.elevation.empty()) {
-        auto hf = loadHeightfield(sources.elevation);
+        auto dem = openMosaic(sources.elevation, "DEM", assumed);
+        if (!dem) return dem.error();
+        auto hf = loadHeightfield(*dem, scene.grid);
         if (!hf) return hf.error();
         if (hf->filledSamples > 0)
-            scene.notes.push_back(sources.elevation.string() + ": filled " + std::to_string(hf->filledSamples) +
+            scene.notes.push_back(sources.elevation.describe() + ": filled " + std::to_string(hf->filledSamples) +
                                   " NaN/nodata samples from their neighbours");
-        // The DEM must overlap the imagery, else the user gave the wrong file.
-        const Georef& g = hf->georef;
-        const glm::dvec2 c = g.crsToPixel(convert(a.crs, g.crs, a.pixelToCrs({w * 0.5, h * 0.5})));
-        if (c.x < 0 || c.y < 0 || c.x > hf->heights.width || c.y > hf->heights.height)
-            return fileError(sources.elevation.string(), "DEM does not cover the imagery (its centre lies outside it)");
         scene.elevation = std::move(*hf);
     }
     return scene;

@@ -1,16 +1,21 @@
 #pragma once
-// A scene: a registered leaf-on/leaf-off imagery pair, optional elevation, buildings and ground truth, and the
-// local metric frame everything is placed in. Given as a JSON manifest or as CLI flags.
+// A scene: a leaf-on/leaf-off imagery pair (each a file or a mosaic, in any CRS and on any grid), optional elevation,
+// buildings and ground truth, the working grid both seasons are read on, and the local metric frame everything is
+// placed in. Given as a JSON manifest or as CLI flags.
 #include "GeoFrame.h"
+#include "GridReader.h"
 #include "Heightfield.h"
 #include "Raster.h"
+#include "RasterMosaic.h"
 #include "Result.h"
 #include "Stretch.h"
+#include "WorkingGrid.h"
 
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
 
+#include <array>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -18,52 +23,88 @@
 
 namespace seasonview {
 
+/// The grid options as the user wrote them (validated by parseGridOptions).
+struct GridOptionsText {
+    std::string crs;                              // --grid-crs
+    std::optional<double> resolution;             // --grid-res
+    std::optional<std::array<double, 4>> extent;  // --extent xmin,ymin,xmax,ymax
+};
+
 /// Where a scene's files are (absolute or relative to the working directory) and its parameters.
 struct SceneSources {
     std::filesystem::path manifest; // empty when given as flags
     std::string name;
-    std::filesystem::path leafon, leafoff, elevation, buildings;
+    SourceList leafon, leafoff, elevation; // each: files, folders, globs or VRTs
+    std::filesystem::path buildings;
     std::filesystem::path truthDeciduous, truthConifer, truthTrees;
     double treeHeightM = 15.0;      // parameters.tree_height_m: canopy height used by the foliage layers
+    std::string crs;                // --crs / "crs": the CRS of rasters that carry none (PROJ user input)
+    GridOptionsText grid;           // --grid-crs, --grid-res, --extent / "grid_crs", "grid_res", "extent"
+    std::string resampling = "auto"; // --resampling / "resampling"
     std::vector<std::string> warnings; // e.g. unknown manifest keys
 };
 
-/// Parses a manifest: {"leafon": path, "leafoff": path, "elevation"?: path, "buildings"?: path,
-/// "truth"?: {"deciduous"?, "conifer"?, "trees"?}, "parameters"?: {"tree_height_m"?: number}, "name"?: string}.
-/// Paths are relative to the manifest's folder. Errors name the manifest and the key.
+/// Parses a manifest: {"leafon": P, "leafoff": P, "elevation"?: P, "buildings"?: path,
+/// "truth"?: {"deciduous"?, "conifer"?, "trees"?}, "parameters"?: {"tree_height_m"?: number}, "name"?: string,
+/// "crs"?: string, "grid_crs"?: string, "grid_res"?: number, "extent"?: [xmin, ymin, xmax, ymax],
+/// "resampling"?: string}, where P is a path (a file, a folder, a glob, a VRT) or a list of them. Paths are relative
+/// to the manifest's folder. Errors name the manifest and the key.
 Result<SceneSources> parseManifest(const std::filesystem::path& manifest);
 
 struct ImageryLayer {
-    RasterInfo info; // georef always present
+    RasterMosaic source; // the season as delivered
+    /// The season as it is read: on the working grid (its size and georef), 3 channels of the source's sample type;
+    /// `path` the source file when `direct`, else empty.
+    RasterInfo info;
     Stretch stretch;
+    /// One file that is the working grid and marks no pixel as nodata: read as it is (BandReader), never warped.
+    bool direct = false;
+    Resampling resampling = Resampling::Auto; // how it is warped onto the grid
+    /// The working grid (info's georef and size).
+    WorkingGrid grid() const { return WorkingGrid{*info.georef, info.width, info.height}; }
 };
 
 struct Scene {
     SceneSources sources;
+    WorkingGrid grid;                       // both seasons are read on it; outputs are written on it
+    Resampling resampling = Resampling::Auto;
     ImageryLayer leafon, leafoff;
     std::optional<Heightfield> elevation; // absent: the scene is flat at height 0
     GeoFrame frame{Crs::geographic(), glm::dvec2(0.0)};
     glm::dvec2 localMin{0.0}, localMax{0.0}; // imagery extent in the local frame, metres
-    double gsd = 1.0;                        // leaf-on pixel size along x in local metres
-    std::vector<std::string> notes;          // things the user should know (filled DEM holes, ...)
+    double gsd = 1.0;                        // grid pixel size along x in local metres
+    std::vector<std::string> notes;          // things the user should know (filled DEM holes, warped seasons, ...)
 
     /// Terrain height (metres) under a local point; 0 for a flat scene.
     double terrainHeight(double x, double y) const {
         return elevation ? elevation->sampleLocal(frame, {x, y}) : 0.0;
     }
-    /// Leaf-on pixel coordinates (0..width, 0..height, top-left origin) of a local point.
+    /// Grid pixel coordinates (0..width, 0..height, top-left origin) of a local point.
     glm::dvec2 localToImagePixel(glm::dvec2 local) const {
-        return leafon.info.georef->crsToPixel(frame.fromLocal(leafon.info.georef->crs, local));
+        return grid.georef.crsToPixel(frame.fromLocal(grid.georef.crs, local));
     }
-    /// The local point of leaf-on pixel coordinates (the inverse of localToImagePixel).
+    /// The local point of grid pixel coordinates (the inverse of localToImagePixel).
     glm::dvec2 imagePixelToLocal(glm::dvec2 px) const {
-        return glm::dvec2(frame.toLocal(leafon.info.georef->crs, leafon.info.georef->pixelToCrs(px)));
+        return glm::dvec2(frame.toLocal(grid.georef.crs, grid.georef.pixelToCrs(px)));
     }
+    /// Whether either season is warped (read from its prepared pyramid rather than from its file).
+    bool warped() const { return !leafon.direct || !leafoff.direct; }
 };
 
-/// Opens the scene's files and checks them: both seasons georeferenced on the same grid (sizes equal, corners
-/// within half a pixel), supported CRS, readable DEM with at least one valid sample. Computes (or reads from
-/// `cacheDir`) the 16-bit stretch of each season.
+/// Opens the scene's inputs and checks them: each season a mosaic of georeferenced rasters (8- or 16-bit, at least
+/// 3 bands) in any CRS; the working grid chosen from both (chooseWorkingGrid: they must overlap); the DEM (any CRS,
+/// mosaics too) read over the grid's area with at least one valid sample. Computes (or reads from `cacheDir`) each
+/// season's 16-bit stretch.
 Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path& cacheDir);
+
+/// One season opened as loadScene opens it (a mosaic of 8- or 16-bit rasters of 3 or more bands, its stretch), placed
+/// on `grid` (default: its first file's own grid). For tools and tests that need one layer without a pair.
+Result<ImageryLayer> openImageryLayer(const SourceList& sources, const std::string& role,
+                                      const std::filesystem::path& cacheDir, const WorkingGrid* grid = nullptr,
+                                      const std::optional<Crs>& assumedCrs = {},
+                                      Resampling resampling = Resampling::Auto);
+
+/// The grid options of `sources` parsed: errors name the flag (--grid-crs, --grid-res, --extent, --crs).
+Result<GridOptions> parseGridOptions(const SceneSources& sources);
 
 } // namespace seasonview

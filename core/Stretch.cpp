@@ -3,6 +3,7 @@
 #include "AtomicFile.h"
 
 #include "BandReader.h"
+#include "GdalSupport.h"
 
 #include <nlohmann/json.hpp>
 
@@ -80,18 +81,11 @@ std::filesystem::path defaultCacheDir() {
     return std::filesystem::temp_directory_path() / "seasonview-cache";
 }
 
-Result<Stretch> stretchFor(const RasterInfo& info, const std::filesystem::path& cacheDir) {
-    if (info.type == SampleType::U8) {
-        Stretch s;
-        s.channels = info.channels;
-        return s;
-    }
-    std::error_code ec;
-    const std::filesystem::path abs = std::filesystem::weakly_canonical(std::filesystem::absolute(info.path, ec), ec);
-    const auto size = std::filesystem::file_size(info.path, ec);
-    const auto mtime = std::filesystem::last_write_time(info.path, ec).time_since_epoch().count();
-    const std::string key = abs.string() + "|" + std::to_string(size) + "|" + std::to_string(mtime) + "|" +
-                            std::to_string(kStretchLowPercent) + "-" + std::to_string(kStretchHighPercent);
+namespace {
+
+/// The stretch stored in the cache under `key`, or computed by `compute` and stored (best effort).
+Result<Stretch> cachedStretch(const std::string& key, const std::string& what, const std::filesystem::path& cacheDir,
+                              const std::function<Result<Stretch>()>& compute) {
     char name[64];
     std::snprintf(name, sizeof name, "stretch-%016zx.json", std::hash<std::string>{}(key));
     const std::filesystem::path cached = cacheDir / name;
@@ -108,19 +102,85 @@ Result<Stretch> stretchFor(const RasterInfo& info, const std::filesystem::path& 
             return s;
         }
     }
-    auto streamed = streamedStretch(info.path, kStretchLowPercent, kStretchHighPercent);
-    if (!streamed) return streamed.error();
-    const Stretch s = *streamed;
+    auto computed = compute();
+    if (!computed) return computed.error();
+    const Stretch s = *computed;
     nlohmann::json j = {{"key", key},
-                        {"file", abs.string()},
+                        {"file", what},
                         {"percentiles", {kStretchLowPercent, kStretchHighPercent}},
                         {"channels", s.channels},
                         {"low", std::vector<float>(s.low.begin(), s.low.begin() + s.channels)},
                         {"high", std::vector<float>(s.high.begin(), s.high.begin() + s.channels)}};
+    std::error_code ec;
     std::filesystem::create_directories(cacheDir, ec);
     std::string err;
     (void)writeTextAtomic(cached, j.dump(2) + "\n", err); // best effort
     return s;
+}
+
+std::string percentilesKey() {
+    return std::to_string(kStretchLowPercent) + "-" + std::to_string(kStretchHighPercent);
+}
+
+/// Histograms of every tile's valid pixels (their mask band: nodata, alpha or mask), tile by tile, bands of rows.
+Result<Stretch> mosaicStretch(const RasterMosaic& m) {
+    const int channels = std::min(m.bands, 4);
+    Histograms hist(size_t(channels), std::vector<std::uint64_t>(65536, 0));
+    for (const RasterInfo& t : m.tiles) {
+        auto ds = gdal::openRaster(t.path);
+        if (!ds) return ds.error();
+        std::vector<int> bands;
+        for (int b = 1; b <= t.channels && int(bands.size()) < channels; ++b)
+            if (b != t.alphaBand) bands.push_back(b);
+        GDALRasterBand* mask = (*ds)->GetRasterBand(bands.front())->GetMaskBand();
+        constexpr int kRows = 256;
+        std::vector<std::uint16_t> px(size_t(t.width) * kRows * size_t(channels));
+        std::vector<std::uint8_t> valid(size_t(t.width) * kRows);
+        for (int y = 0; y < t.height; y += kRows) {
+            const int rows = std::min(kRows, t.height - y);
+            gdal::ErrorCapture errors;
+            CPLErr err = (*ds)->RasterIO(GF_Read, 0, y, t.width, rows, px.data(), t.width, rows, GDT_UInt16, channels,
+                                         bands.data(), 2 * channels, 2 * channels * GSpacing(t.width), 2, nullptr);
+            if (err == CE_None)
+                err = mask->RasterIO(GF_Read, 0, y, t.width, rows, valid.data(), t.width, rows, GDT_Byte, 0, 0, nullptr);
+            if (err != CE_None || errors.failed())
+                return fileError(t.path.string(), "truncated or corrupt image data (" + errors.message() + ")");
+            const size_t n = size_t(rows) * size_t(t.width);
+            for (size_t c = 0; c < size_t(channels); ++c)
+                for (size_t i = 0; i < n; ++i)
+                    if (valid[i]) ++hist[c][px[i * size_t(channels) + c]];
+        }
+    }
+    return stretchFromHistograms(hist, kStretchLowPercent, kStretchHighPercent);
+}
+
+} // namespace
+
+Result<Stretch> stretchFor(const RasterInfo& info, const std::filesystem::path& cacheDir) {
+    if (info.type == SampleType::U8) {
+        Stretch s;
+        s.channels = info.channels;
+        return s;
+    }
+    std::error_code ec;
+    const std::filesystem::path abs = std::filesystem::weakly_canonical(std::filesystem::absolute(info.path, ec), ec);
+    const auto size = std::filesystem::file_size(info.path, ec);
+    const auto mtime = std::filesystem::last_write_time(info.path, ec).time_since_epoch().count();
+    const std::string key =
+        abs.string() + "|" + std::to_string(size) + "|" + std::to_string(mtime) + "|" + percentilesKey();
+    return cachedStretch(key, abs.string(), cacheDir,
+                         [&] { return streamedStretch(info.path, kStretchLowPercent, kStretchHighPercent); });
+}
+
+Result<Stretch> stretchFor(const RasterMosaic& mosaic, const std::filesystem::path& cacheDir) {
+    if (mosaic.type == SampleType::U8) {
+        Stretch s;
+        s.channels = mosaic.bands;
+        return s;
+    }
+    if (mosaic.tiles.size() == 1 && !mosaic.hasNodata()) return stretchFor(mosaic.tiles.front(), cacheDir);
+    return cachedStretch("mosaic|" + mosaic.key + "|" + percentilesKey(), mosaic.tiles.front().path.string(),
+                         cacheDir, [&] { return mosaicStretch(mosaic); });
 }
 
 Result<Image<std::uint8_t>> readDisplayRgba(const RasterInfo& info, const Stretch& stretch) {

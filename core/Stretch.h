@@ -3,6 +3,7 @@
 // linear stretch between the 0.5 and 99.5 percentiles. Computed once per file and stored in the cache, never
 // per tile (tiles would otherwise get different colours).
 #include "Raster.h"
+#include "RasterMosaic.h"
 #include "Result.h"
 
 #include <array>
@@ -39,6 +40,11 @@ std::filesystem::path defaultCacheDir();
 /// and stored there. A cache that cannot be written is not an
 /// error (the stretch is just recomputed next time).
 Result<Stretch> stretchFor(const RasterInfo& info, const std::filesystem::path& cacheDir);
+
+/// The stretch of a season delivered as a mosaic: identity for 8-bit; a single file without nodata as above;
+/// otherwise the percentiles of every tile's valid pixels (nodata values, alpha and masks honoured, zeros ignored)
+/// at their own resolution, so that all tiles share one stretch. Cached like the above, keyed by the mosaic.
+Result<Stretch> stretchFor(const RasterMosaic& mosaic, const std::filesystem::path& cacheDir);
 
 /// 8-bit RGBA pixels of an imagery file with its stretch applied (alpha 255 unless the file has alpha).
 Result<Image<std::uint8_t>> readDisplayRgba(const RasterInfo& info, const Stretch& stretch);

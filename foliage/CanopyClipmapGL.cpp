@@ -19,7 +19,7 @@ std::int32_t blockTag(int bx, int by) { return bx | (by << 16); }
 
 Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL& source, const SegmentationStats& stats,
                                                                  const CanopyOptions& options) {
-    assert(source.layers() >= 2 && source.format() == TexelFormat::Rgb8 && "CanopyClipmapGL: needs two seasons of RGB");
+    assert(source.layers() >= 2 && source.format() == TexelFormat::Rgba8 && "CanopyClipmapGL: needs two seasons of RGB");
     if (options.layers < 1 || options.layers > kMaxLayers)
         return Error{"canopy layers must be 1.." + std::to_string(kMaxLayers) + ", got " + std::to_string(options.layers)};
     const int k = effectiveK(options.params);

@@ -21,7 +21,7 @@ namespace {
 namespace fs = std::filesystem;
 
 /// Bumped whenever what the file holds or how the histograms are sampled changes: old files then no longer match.
-constexpr int kPairStatsVersion = 1;
+constexpr int kPairStatsVersion = 2; // 2: pixels where a season has no data left out, their count stored
 constexpr const char* kFormatName = "seasonview pair histograms";
 
 std::string pairKey(const ImagePyramid& on, const ImagePyramid& off) {
@@ -53,7 +53,11 @@ CacheRead readCache(const fs::path& file, const std::string& key, int width, int
         return r;
     }
     const nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
-    const std::uint64_t samples = sampleCount(width, height);
+    // The sampled pixels where both seasons have data: all of them, or fewer (stored) where a season has none.
+    const std::uint64_t all = sampleCount(width, height);
+    std::uint64_t samples = all;
+    if (j.is_object() && j.contains("samples") && j["samples"].is_number_unsigned())
+        samples = std::min(all, j["samples"].get<std::uint64_t>());
     SegmentationHistograms h;
     // Each histogram must be complete: its bins add up to the number of samples (a cut or edited file does not).
     auto take = [&](const nlohmann::json& bins, std::uint64_t* out, size_t count) {
@@ -77,7 +81,7 @@ CacheRead readCache(const fs::path& file, const std::string& key, int width, int
             ok = take(j.at("leafon").at(c), h.on[c].data(), 256) && take(j.at("leafoff").at(c), h.off[c].data(), 256);
         if (ok) ok = take(j.at("drop"), h.drop.data(), h.drop.size());
         if (!ok) {
-            r.reason = "cache corrupt: " + name + " does not hold " + std::to_string(samples) + " samples of a " +
+            r.reason = "cache corrupt: " + name + " does not hold its " + std::to_string(samples) + " samples of a " +
                        std::to_string(width) + "x" + std::to_string(height) + " pair";
             return r;
         }
@@ -98,6 +102,7 @@ std::string cacheText(const SegmentationHistograms& h, const ImagePyramid& on, c
                         {"step", kSegHistogramStep},
                         {"width", on.width()},
                         {"height", on.height()},
+                        {"samples", std::accumulate(h.drop.begin(), h.drop.end(), std::uint64_t(0))},
                         {"leafon", h.on},
                         {"leafoff", h.off},
                         {"drop", h.drop}};
@@ -128,18 +133,18 @@ void removeStale(const fs::path& dir, const fs::path& keep, const ImagePyramid& 
 
 /// Level 0 of a pyramid opened for banded reading, checked against what the pyramid says it is.
 Result<BandReader> openLevel0(const ImagePyramid& p, int preferredRows) {
-    assert(!p.levels.empty() && p.format == TexelFormat::Rgb8 &&
-           "preparePairHistograms(): two prepared imagery (RGB8) pyramids");
+    assert(!p.levels.empty() && p.format == TexelFormat::Rgba8 &&
+           "preparePairHistograms(): two prepared imagery (RGBA8) pyramids");
     const PyramidLevel& level = p.levels[0];
     auto reader = BandReader::open(level.file, preferredRows);
     if (!reader) return reader.error();
-    if (reader->width() != level.width || reader->height() != level.height || reader->channels() != 3 ||
+    if (reader->width() != level.width || reader->height() != level.height || reader->channels() != 4 ||
         reader->type() != SampleType::U8)
         return fileError(level.file.string(),
                          "is " + std::to_string(reader->width()) + "x" + std::to_string(reader->height()) + "x" +
                              std::to_string(reader->channels()) + " " + sampleTypeName(reader->type()) +
                              ", the pyramid says " + std::to_string(level.width) + "x" +
-                             std::to_string(level.height) + "x3 u8");
+                             std::to_string(level.height) + "x4 u8");
     return reader;
 }
 
@@ -160,17 +165,22 @@ Result<SegmentationHistograms> computeHistograms(const ImagePyramid& on, const I
         return fileError(off.levels[0].file.string(), "tiles of another height than those of " +
                                                           on.levels[0].file.string() + " (pyramids of another tile size)");
     const int w = on.width(), h = on.height(), band = a->bandRows();
-    std::vector<std::uint8_t> bufOn(size_t(band) * size_t(w) * 3), bufOff(bufOn.size());
+    std::vector<std::uint8_t> rgbaOn(size_t(band) * size_t(w) * 4), rgbaOff(rgbaOn.size());
+    std::vector<std::uint8_t> bufOn(size_t(band) * size_t(w) * 3), bufOff(bufOn.size()), valid(size_t(band) * size_t(w));
     SegmentationHistograms total;
     for (int y0 = 0; y0 < h; y0 += band) {
         const int y1 = std::min(h, y0 + band);
         Status offStatus = Ok{};
-        std::thread t([&] { offStatus = b->read(y0, y1, 3, SampleType::U8, bufOff.data()); });
-        const Status onStatus = a->read(y0, y1, 3, SampleType::U8, bufOn.data());
+        std::thread t([&] { offStatus = b->read(y0, y1, 4, SampleType::U8, rgbaOff.data()); });
+        const Status onStatus = a->read(y0, y1, 4, SampleType::U8, rgbaOn.data());
         t.join();
         if (!onStatus) return onStatus.error();
         if (!offStatus) return offStatus.error();
-        total.merge(rowHistograms(RgbRows{bufOn.data(), bufOff.data(), w, h, y0, y1 - y0}, true, true));
+        const bool complete = splitPairRgba(rgbaOn.data(), rgbaOff.data(), size_t(y1 - y0) * size_t(w), bufOn.data(),
+                                            bufOff.data(), valid.data());
+        RgbRows pairRows{bufOn.data(), bufOff.data(), w, h, y0, y1 - y0};
+        if (!complete) pairRows.valid = valid.data(); // pixels where a season has no data are left out
+        total.merge(rowHistograms(pairRows, true, true));
         if (progress) progress(double(y1) / double(h), "pair statistics");
     }
     return total;

@@ -3,6 +3,8 @@
 #include "AtomicFile.h"
 #include "BandReader.h"
 #include "CrownCentres.h"
+#include "GeoTiffStreamWriter.h"
+#include "GridReader.h"
 #include "ImageStreamWriter.h"
 
 #include <algorithm>
@@ -15,6 +17,7 @@
 #include <fstream>
 #include <future>
 #include <memory>
+#include <span>
 #include <sstream>
 #include <thread>
 
@@ -29,18 +32,20 @@ double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(
 
 // Rows of an image in increasing order, any ranges, as 8-bit samples of its first `channels` channels: read a band at
 // a time through BandReader; 16-bit samples go through the layer's stretch (tables built once), other non-8-bit
-// samples (truth masks) become 255 where non-zero.
+// samples (truth masks) become 255 where non-zero. `rgba`: a pyramid's premultiplied RGBA level 0, read as RGB and
+// its alpha (the season's coverage) given separately.
 class RowReader {
 public:
     static Result<RowReader> open(const std::filesystem::path& path, int channels, const Stretch* stretch,
-                                  int preferredRows) {
+                                  int preferredRows, bool rgba = false) {
         auto reader = BandReader::open(path, preferredRows);
         if (!reader) return reader.error();
-        if (reader->channels() < channels)
-            return fileError(path.string(), "needs " + std::to_string(channels) + " channels, has " +
+        if (reader->channels() < channels + (rgba ? 1 : 0))
+            return fileError(path.string(), "needs " + std::to_string(channels + (rgba ? 1 : 0)) + " channels, has " +
                                                 std::to_string(reader->channels()));
         RowReader r(std::move(*reader));
         r.m_channels = channels;
+        r.m_rgba = rgba;
         r.m_sixteen = r.m_reader.type() != SampleType::U8;
         if (r.m_sixteen) {
             r.m_lut.resize(size_t(channels) * 65536);
@@ -51,12 +56,15 @@ public:
         return r;
     }
 
-    /// Rows [y0, y1) into `out` (rows × width × channels bytes). y0 must not lie before the band of the last call.
-    Status read(int y0, int y1, std::uint8_t* out) {
+    /// Rows [y0, y1) into `out` (rows × width × channels bytes) and, for an RGBA reader, their alpha into `alpha`
+    /// (rows × width bytes). y0 must not lie before the band of the last call.
+    Status read(int y0, int y1, std::uint8_t* out, std::uint8_t* alpha = nullptr) {
+        assert((alpha != nullptr) == m_rgba && "RowReader::read(): alpha is read from RGBA readers alone");
         const size_t rowBytes = size_t(m_reader.width()) * size_t(m_channels);
         for (int y = y0; y < y1;) {
             const int bandEnd = std::min(m_reader.height(), y + m_reader.bandRows());
-            if (!m_sixteen && y % m_reader.bandRows() == 0 && bandEnd <= y1 && (y < m_band0 || y >= m_band1)) {
+            if (!m_sixteen && !m_rgba && y % m_reader.bandRows() == 0 && bandEnd <= y1 &&
+                (y < m_band0 || y >= m_band1)) {
                 // A whole band wanted and not loaded: straight into `out`, no copy.
                 if (auto st = m_reader.read(y, bandEnd, m_channels, SampleType::U8, out + size_t(y - y0) * rowBytes);
                     !st)
@@ -72,6 +80,10 @@ public:
             const int n = std::min(y1, m_band1) - y;
             std::memcpy(out + size_t(y - y0) * rowBytes, m_band.data() + size_t(y - m_band0) * rowBytes,
                         size_t(n) * rowBytes);
+            if (alpha)
+                std::memcpy(alpha + size_t(y - y0) * size_t(m_reader.width()),
+                            m_alpha.data() + size_t(y - m_band0) * size_t(m_reader.width()),
+                            size_t(n) * size_t(m_reader.width()));
             y += n;
         }
         return Ok{};
@@ -80,9 +92,26 @@ public:
 private:
     explicit RowReader(BandReader r) : m_reader(std::move(r)) {}
 
+public:
+    int width() const { return m_reader.width(); }
+
+private:
+
     Status load() {
         const size_t samples = size_t(m_band1 - m_band0) * size_t(m_reader.width()) * size_t(m_channels);
         m_band.resize(samples);
+        if (m_rgba) {
+            const size_t pixels = samples / size_t(m_channels);
+            m_raw8.resize(pixels * size_t(m_channels + 1));
+            m_alpha.resize(pixels);
+            if (auto st = m_reader.read(m_band0, m_band1, m_channels + 1, SampleType::U8, m_raw8.data()); !st) return st;
+            const size_t in = size_t(m_channels) + 1, outc = size_t(m_channels);
+            for (size_t i = 0; i < pixels; ++i) {
+                for (size_t c = 0; c < outc; ++c) m_band[i * outc + c] = m_raw8[i * in + c];
+                m_alpha[i] = m_raw8[i * in + outc];
+            }
+            return Ok{};
+        }
         if (!m_sixteen) return m_reader.read(m_band0, m_band1, m_channels, SampleType::U8, m_band.data());
         m_raw.resize(samples);
         if (auto st = m_reader.read(m_band0, m_band1, m_channels, SampleType::U16, m_raw.data()); !st) return st;
@@ -94,19 +123,29 @@ private:
     BandReader m_reader;
     int m_channels = 3;
     bool m_sixteen = false;
+    bool m_rgba = false;
+    std::vector<std::uint8_t> m_raw8, m_alpha; // RGBA: the band as read, its alpha
     std::vector<std::uint8_t> m_lut; // per channel, 65536 entries
     std::vector<std::uint16_t> m_raw;
     std::vector<std::uint8_t> m_band;
     int m_band0 = 0, m_band1 = 0;
 };
 
-// Reads the same rows of both seasons, the leaf-off one on a second thread.
-Status readPair(RowReader& on, RowReader& off, int y0, int y1, std::uint8_t* onOut, std::uint8_t* offOut) {
+// Reads the same rows of both seasons, the leaf-off one on a second thread. With `valid` (RGBA readers: the pair's
+// pyramid level 0), 255 where both seasons have data, else 0.
+Status readPair(RowReader& on, RowReader& off, int y0, int y1, std::uint8_t* onOut, std::uint8_t* offOut,
+                std::uint8_t* valid = nullptr) {
+    const size_t n = size_t(y1 - y0) * size_t(on.width());
+    std::vector<std::uint8_t> alphaOff(valid ? n : 0);
     Status offStatus = Ok{};
-    std::thread t([&] { offStatus = off.read(y0, y1, offOut); });
-    Status onStatus = on.read(y0, y1, onOut);
+    std::thread t([&] { offStatus = off.read(y0, y1, offOut, valid ? alphaOff.data() : nullptr); });
+    Status onStatus = on.read(y0, y1, onOut, valid);
     t.join();
-    return onStatus ? offStatus : onStatus;
+    if (!onStatus) return onStatus;
+    if (!offStatus) return offStatus;
+    if (valid)
+        for (size_t i = 0; i < n; ++i) valid[i] = valid[i] && alphaOff[i] ? 255 : 0;
+    return Ok{};
 }
 
 // Bytes that are not zeroed when they grow: every byte of the window is read into before it is used, and zeroing
@@ -145,9 +184,14 @@ private:
 };
 
 // Rows [first, last) of both seasons held in memory; the window slides down the image.
+// Rows [first, last) of both seasons held in memory, and (withValid) where both have data; the window slides down
+// the image.
 struct PairWindow {
-    ByteBuffer on, off;
+    ByteBuffer on, off, valid;
     int first = 0, last = 0, width = 0;
+    bool withValid = false;
+
+    const std::uint8_t* validRows(int row) { return withValid ? valid.data() + size_t(row - first) * size_t(width) : nullptr; }
 
     Status slide(RowReader& onReader, RowReader& offReader, int newFirst, int newLast) {
         const size_t rowBytes = size_t(width) * 3;
@@ -155,17 +199,131 @@ struct PairWindow {
             const size_t keep = size_t(std::max(0, last - newFirst)) * rowBytes;
             std::memmove(on.data(), on.data() + size_t(newFirst - first) * rowBytes, keep);
             std::memmove(off.data(), off.data() + size_t(newFirst - first) * rowBytes, keep);
+            if (withValid)
+                std::memmove(valid.data(), valid.data() + size_t(newFirst - first) * size_t(width), keep / 3);
             first = newFirst;
             last = std::max(last, first);
         }
         if (newLast <= last) return Ok{};
         on.resize(size_t(newLast - first) * rowBytes);
         off.resize(size_t(newLast - first) * rowBytes);
+        if (withValid) valid.resize(size_t(newLast - first) * size_t(width));
         const size_t at = size_t(last - first) * rowBytes;
-        if (auto st = readPair(onReader, offReader, last, newLast, on.data() + at, off.data() + at); !st) return st;
+        if (auto st = readPair(onReader, offReader, last, newLast, on.data() + at, off.data() + at,
+                               withValid ? valid.data() + at / 3 : nullptr);
+            !st)
+            return st;
         last = newLast;
         return Ok{};
     }
+};
+
+// The truth mask's rows on the working grid, as 0/255, and where it has data: a raster without georeferencing must
+// have the grid's size (its pixels are the grid's); a georeferenced one is read on the grid (nearest neighbour, as
+// it is when it is the grid), 0 where it does not reach.
+class TruthRows {
+public:
+    static Result<TruthRows> open(const std::filesystem::path& path, const WorkingGrid& grid, int preferredRows) {
+        auto info = readRasterInfo(path);
+        if (!info) return info.error();
+        TruthRows t;
+        t.m_width = grid.width;
+        if (!info->georef) {
+            if (info->width != grid.width || info->height != grid.height)
+                return fileError(path.string(), "truth mask is " + std::to_string(info->width) + "x" +
+                                                    std::to_string(info->height) + " pixels but the imagery is " +
+                                                    std::to_string(grid.width) + "x" + std::to_string(grid.height) +
+                                                    " (a truth mask on another grid needs georeferencing)");
+            auto r = RowReader::open(path, 1, nullptr, preferredRows);
+            if (!r) return r.error();
+            t.m_plain.emplace(std::move(*r));
+            return t;
+        }
+        auto mosaic = openMosaic(SourceList(path), "truth");
+        if (!mosaic) return mosaic.error();
+        auto r = GridReader::open(*mosaic, grid, Resampling::Nearest, preferredRows);
+        if (!r) return r.error();
+        t.m_complete = r->direct();
+        t.m_grid.emplace(std::move(*r));
+        return t;
+    }
+    /// Whether the truth covers every pixel (then the coverage read is all 255).
+    bool complete() const { return m_complete; }
+
+    /// Rows [y0, y1) (increasing from call to call): `truth` 255 where the truth is non-zero, `covered` 255 where it
+    /// has data.
+    Status read(int y0, int y1, std::uint8_t* truth, std::uint8_t* covered) {
+        const size_t n = size_t(y1 - y0) * size_t(m_width);
+        if (m_plain) {
+            std::memset(covered, 255, n);
+            return m_plain->read(y0, y1, truth);
+        }
+        const int band = m_grid->bandRows();
+        for (int y = y0; y < y1;) {
+            if (y < m_band0 || y >= m_band1) {
+                m_band0 = y - y % band;
+                m_band1 = std::min(m_grid->height(), m_band0 + band);
+                const size_t pixels = size_t(m_band1 - m_band0) * size_t(m_width);
+                m_values.resize(pixels);
+                m_covered.resize(pixels);
+                if (auto st = m_grid->read(m_band0, m_band1, 1, SampleType::U8, m_values.data(), m_covered.data()); !st)
+                    return st;
+                for (std::uint8_t& v : m_values) v = v ? 255 : 0;
+            }
+            const int rows = std::min(y1, m_band1) - y;
+            const size_t at = size_t(y - m_band0) * size_t(m_width), to = size_t(y - y0) * size_t(m_width);
+            std::memcpy(truth + to, m_values.data() + at, size_t(rows) * size_t(m_width));
+            std::memcpy(covered + to, m_covered.data() + at, size_t(rows) * size_t(m_width));
+            y += rows;
+        }
+        return Ok{};
+    }
+
+private:
+    std::optional<RowReader> m_plain;
+    std::optional<GridReader> m_grid;
+    std::vector<std::uint8_t> m_values, m_covered;
+    int m_width = 0, m_band0 = 0, m_band1 = 0;
+    bool m_complete = true;
+};
+
+// One output image: a PNG (or other plain image) through ImageStreamWriter, or a GeoTIFF on the scene's working grid
+// through GeoTiffStreamWriter (tiled, deflate, with the grid's georeferencing and, for masks, nodata 255).
+class OutputImage {
+public:
+    static Result<OutputImage> open(const std::filesystem::path& path, int w, int h, int channels, bool mask,
+                                    const Georef& grid) {
+        OutputImage o;
+        if (isTiff(path)) {
+            GeoTiffWriteOptions options;
+            options.compression = TiffCompression::Deflate;
+            if (mask) options.nodata = double(kMaskNodata);
+            auto writer = GeoTiffStreamWriter::open(path, w, h, channels, SampleType::U8, grid, options);
+            if (!writer) return writer.error();
+            o.m_tiff.emplace(std::move(*writer));
+        } else {
+            auto writer = ImageStreamWriter::open(path, w, h, channels, mask ? ImageEncoding::FastMask
+                                                                             : ImageEncoding::Default);
+            if (!writer) return writer.error();
+            o.m_plain.emplace(std::move(*writer));
+        }
+        return o;
+    }
+    bool geotiff() const { return m_tiff.has_value(); }
+    Status writeRows(int y0, int rows, const std::uint8_t* data) {
+        return m_tiff ? m_tiff->writeRows(y0, rows, data) : m_plain->writeRows(y0, rows, data);
+    }
+    Status finish() { return m_tiff ? m_tiff->finish() : m_plain->finish(); }
+
+    static bool isTiff(const std::filesystem::path& p) {
+        std::string e = p.extension().string();
+        for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+        return e == ".tif" || e == ".tiff";
+    }
+
+private:
+    std::optional<GeoTiffStreamWriter> m_tiff;
+    std::optional<ImageStreamWriter> m_plain;
 };
 
 std::vector<std::string> splitCsv(const std::string& line) {
@@ -183,33 +341,66 @@ std::vector<std::string> splitCsv(const std::string& line) {
 // image centre (they differ for geographic imagery, whose pixels are square in degrees; the distance transform
 // treats pixels as square).
 double pixelMetres(const Scene& scene) {
-    const Georef& g = *scene.leafon.info.georef;
-    const glm::dvec2 c(scene.leafon.info.width * 0.5, scene.leafon.info.height * 0.5);
+    const Georef& g = scene.grid.georef;
+    const glm::dvec2 c(scene.grid.width * 0.5, scene.grid.height * 0.5);
     const glm::dvec3 p0 = scene.frame.toLocal(g.crs, g.pixelToCrs(c));
     const glm::dvec3 px = scene.frame.toLocal(g.crs, g.pixelToCrs(c + glm::dvec2(1.0, 0.0)));
     const glm::dvec3 py = scene.frame.toLocal(g.crs, g.pixelToCrs(c + glm::dvec2(0.0, 1.0)));
     return std::sqrt(glm::length(glm::dvec2(px - p0)) * glm::length(glm::dvec2(py - p0)));
 }
 
-// The crown list as CSV rows: the pixel centre in the scene's local frame and in the imagery's CRS.
+// The crown list as CSV rows: the pixel centre in the scene's local frame, in the working grid's CRS (easting,
+// northing; the .prj written next to the file names it) and in WGS 84 (lon, lat).
 std::string crownCsv(const Scene& scene, const std::vector<CrownDetection>& crowns, std::vector<CrownPoint>& local) {
-    const Georef& g = *scene.leafon.info.georef;
+    const Georef& g = scene.grid.georef;
     const bool geographic = g.crs.isGeographic();
     const double metres = pixelMetres(scene);
-    std::string text = "id,x,y,easting,northing,radius_m\n";
-    char line[160];
+    std::string text = "id,x,y,easting,northing,radius_m,lon,lat\n";
+    char line[200];
     local.clear();
     local.reserve(crowns.size());
+    std::vector<glm::dvec2> lonLat(crowns.size());
+    for (size_t i = 0; i < crowns.size(); ++i) lonLat[i] = g.pixelToCrs({crowns[i].px, crowns[i].py});
+    convert(g.crs, Crs::geographic(), std::span<glm::dvec2>(lonLat));
     for (size_t i = 0; i < crowns.size(); ++i) {
         const glm::dvec2 crs = g.pixelToCrs({crowns[i].px, crowns[i].py});
         const glm::dvec3 p = scene.frame.toLocal(g.crs, crs);
         const double r = crowns[i].radiusPx * metres;
         local.push_back({p.x, p.y, r});
-        const char* format = geographic ? "%zu,%.3f,%.3f,%.8f,%.8f,%.3f\n" : "%zu,%.3f,%.3f,%.3f,%.3f,%.3f\n";
-        std::snprintf(line, sizeof line, format, i + 1, p.x, p.y, crs.x, crs.y, r);
+        const char* format = geographic ? "%zu,%.3f,%.3f,%.8f,%.8f,%.3f,%.8f,%.8f\n"
+                                        : "%zu,%.3f,%.3f,%.3f,%.3f,%.3f,%.8f,%.8f\n";
+        std::snprintf(line, sizeof line, format, i + 1, p.x, p.y, crs.x, crs.y, r, lonLat[i].x, lonLat[i].y);
         text += line;
     }
     return text;
+}
+
+bool isGeoJson(const std::filesystem::path& p) {
+    std::string e = p.extension().string();
+    for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return e == ".geojson" || e == ".json";
+}
+
+// The crowns as a GeoJSON FeatureCollection of points in WGS 84 (RFC 7946), each with its id, local x/y, the
+// working grid's easting/northing and radius.
+std::string crownGeoJson(const Scene& scene, const std::vector<CrownDetection>& crowns,
+                         const std::vector<CrownPoint>& local) {
+    const Georef& g = scene.grid.georef;
+    std::vector<glm::dvec2> grid(crowns.size()), lonLat(crowns.size());
+    for (size_t i = 0; i < crowns.size(); ++i) grid[i] = lonLat[i] = g.pixelToCrs({crowns[i].px, crowns[i].py});
+    convert(g.crs, Crs::geographic(), std::span<glm::dvec2>(lonLat));
+    std::string text = "{\"type\": \"FeatureCollection\", \"features\": [\n";
+    char line[400];
+    for (size_t i = 0; i < crowns.size(); ++i) {
+        std::snprintf(line, sizeof line,
+                      "%s{\"type\": \"Feature\", \"geometry\": {\"type\": \"Point\", \"coordinates\": [%.8f, %.8f]}, "
+                      "\"properties\": {\"id\": %zu, \"x\": %.3f, \"y\": %.3f, \"easting\": %.3f, \"northing\": %.3f, "
+                      "\"radius_m\": %.3f}}",
+                      i ? ",\n" : "", lonLat[i].x, lonLat[i].y, i + 1, local[i].x, local[i].y, grid[i].x, grid[i].y,
+                      local[i].radiusM);
+        text += line;
+    }
+    return text + "\n]}\n";
 }
 
 void drawOverlay(const std::uint8_t* onRgb, const std::uint8_t* mask, const std::uint8_t* truth, size_t n,
@@ -282,7 +473,8 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
     [[maybe_unused]] const int k = effectiveK(params);
     assert(k >= 1 && k <= kSegMaxK && k % 2 == 1 && "segmentScene(): k must be odd, 1..kSegMaxK");
     assert(!job.mask.empty() && job.bandRows > 0 && "segmentScene(): a mask path and a positive band height");
-    const int w = scene.leafon.info.width, h = scene.leafon.info.height;
+    assert((job.levelZero || !scene.warped()) && "segmentScene(): a warped scene is read from its prepared level 0");
+    const int w = scene.grid.width, h = scene.grid.height;
     const int halo = segmentationHalo(params);
     const int bandRows = job.bandRows;
     SegmentReport report;
@@ -293,14 +485,14 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
     };
 
     // Inputs first (cheap checks), then the outputs, before any pixel work.
+    // The readers' bands: at least the halo, so that a window never needs more than the bands around it.
+    const int preferredRows = std::max({256, bandRows, 2 * halo});
     const bool withTruth = !job.truth.empty();
+    std::optional<TruthRows> truthReader;
     if (withTruth) {
-        auto info = readRasterInfo(job.truth);
-        if (!info) return info.error();
-        if (info->width != w || info->height != h)
-            return fileError(job.truth.string(), "truth mask is " + std::to_string(info->width) + "x" +
-                                                     std::to_string(info->height) + " pixels but the imagery is " +
-                                                     std::to_string(w) + "x" + std::to_string(h));
+        auto t = TruthRows::open(job.truth, scene.grid, preferredRows);
+        if (!t) return t.error();
+        truthReader = std::move(*t);
     }
     std::optional<std::vector<CrownPoint>> trueTrees;
     if (!job.truthTrees.empty()) {
@@ -309,23 +501,25 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
         trueTrees = std::move(*t);
     }
     const bool withCrowns = !job.trees.empty() || trueTrees.has_value();
-    auto maskOut = ImageStreamWriter::open(job.mask, w, h, 1, ImageEncoding::FastMask);
+    auto maskOut = OutputImage::open(job.mask, w, h, 1, true, scene.grid.georef);
     if (!maskOut) return maskOut.error();
-    std::optional<ImageStreamWriter> overlayOut;
+    std::optional<OutputImage> overlayOut;
     if (!job.overlay.empty()) {
-        auto o = ImageStreamWriter::open(job.overlay, w, h, 3);
+        auto o = OutputImage::open(job.overlay, w, h, 3, false, scene.grid.georef);
         if (!o) return o.error();
         overlayOut = std::move(*o);
     }
 
-    // The readers' bands: at least the halo, so that a window never needs more than the bands around it.
     const CrownParams crownParams = crownParamsForGsd(pixelMetres(scene));
     const int crownHaloRows = withCrowns ? crownHalo(crownParams) : 0;
-    const int preferredRows = std::max({256, bandRows, 2 * halo});
+    // A warped pair is read from its prepared level 0 (premultiplied RGBA: alpha is each season's coverage).
+    const bool fromLevelZero = job.levelZero.has_value();
     auto openPair = [&]() -> Result<std::pair<RowReader, RowReader>> {
-        auto a = RowReader::open(scene.leafon.info.path, 3, &scene.leafon.stretch, preferredRows);
+        auto a = fromLevelZero ? RowReader::open((*job.levelZero)[0], 3, nullptr, preferredRows, true)
+                               : RowReader::open(scene.leafon.info.path, 3, &scene.leafon.stretch, preferredRows);
         if (!a) return a.error();
-        auto b = RowReader::open(scene.leafoff.info.path, 3, &scene.leafoff.stretch, preferredRows);
+        auto b = fromLevelZero ? RowReader::open((*job.levelZero)[1], 3, nullptr, preferredRows, true)
+                               : RowReader::open(scene.leafoff.info.path, 3, &scene.leafoff.stretch, preferredRows);
         if (!b) return b.error();
         return std::make_pair(std::move(*a), std::move(*b));
     };
@@ -338,6 +532,7 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
     const std::uint64_t pairBytes = 2 * std::uint64_t(w) * std::uint64_t(h) * 3;
     PairWindow window;
     window.width = w;
+    window.withValid = fromLevelZero;
     if (!needsHistograms(params.method)) {
         report.statsSource = StatsSource::None;
     } else if (job.histograms) {
@@ -349,6 +544,7 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
         report.heldInMemory = true;
         window.on.reserve(pairBytes / 2);
         window.off.reserve(pairBytes / 2);
+        if (fromLevelZero) window.valid.reserve(pairBytes / 6);
         SegmentationHistograms hist;
         const size_t rowBytes = size_t(w) * 3;
         for (int y0 = 0; y0 < h; y0 += preferredRows) {
@@ -357,9 +553,10 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
             if (auto st = window.slide(pair->first, pair->second, 0, y1); !st) return st.error();
             report.readSeconds += secondsSince(t);
             t = Clock::now(); // each band's histograms while its rows are still in cache
-            hist.merge(rowHistograms(RgbRows{window.on.data() + size_t(y0) * rowBytes,
-                                             window.off.data() + size_t(y0) * rowBytes, w, h, y0, y1 - y0},
-                                     colour, drop));
+            RgbRows rows{window.on.data() + size_t(y0) * rowBytes, window.off.data() + size_t(y0) * rowBytes, w, h, y0,
+                         y1 - y0};
+            rows.valid = window.validRows(y0);
+            hist.merge(rowHistograms(rows, colour, drop));
             report.segmentSeconds += secondsSince(t);
             progress(0.5 * y1 / h, "reading");
         }
@@ -369,16 +566,22 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
         report.statsSource = StatsSource::HistogramPass;
         report.inputPasses = 2;
         SegmentationHistograms hist;
-        std::vector<std::uint8_t> on, off;
+        std::vector<std::uint8_t> on, off, valid;
         for (int y0 = 0; y0 < h; y0 += bandRows) {
             const int y1 = std::min(h, y0 + bandRows);
             on.resize(size_t(y1 - y0) * size_t(w) * 3);
             off.resize(on.size());
+            valid.resize(fromLevelZero ? size_t(y1 - y0) * size_t(w) : 0);
             auto t = Clock::now();
-            if (auto st = readPair(pair->first, pair->second, y0, y1, on.data(), off.data()); !st) return st.error();
+            if (auto st = readPair(pair->first, pair->second, y0, y1, on.data(), off.data(),
+                                   fromLevelZero ? valid.data() : nullptr);
+                !st)
+                return st.error();
             report.readSeconds += secondsSince(t);
             t = Clock::now();
-            hist.merge(rowHistograms(RgbRows{on.data(), off.data(), w, h, y0, y1 - y0}, colour, drop));
+            RgbRows rows{on.data(), off.data(), w, h, y0, y1 - y0};
+            rows.valid = fromLevelZero ? valid.data() : nullptr;
+            hist.merge(rowHistograms(rows, colour, drop));
             report.segmentSeconds += secondsSince(t);
             progress(0.3 * y1 / h, "histograms");
         }
@@ -391,17 +594,12 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
 
     // Bands of output rows with their halo. The mask and overlay of a band are encoded on a writer thread while the
     // next band is segmented (two buffers of each, taking turns).
-    std::optional<RowReader> truthReader;
-    if (withTruth) {
-        auto t = RowReader::open(job.truth, 1, nullptr, preferredRows);
-        if (!t) return t.error();
-        truthReader = std::move(*t);
-    }
-    std::vector<std::uint8_t> mask[2], overlay[2], truth;
+    std::vector<std::uint8_t> mask[2], encoded[2], overlay[2], truth, truthCovered, scored;
     std::vector<std::uint8_t> crownMask; // mask rows [crownFirst, crownLast) for the crown search
     int crownFirst = 0, crownLast = 0, crownDone = 0;
     std::vector<CrownDetection> crowns;
     Confusion confusion;
+    std::uint64_t nodataPixels = 0;
     double writerSeconds = 0.0; // the writer thread's own time
     // Declared after everything the writer thread touches: destroyed (joined) before them on an early return.
     std::future<Status> pendingWrite;
@@ -417,31 +615,65 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
             if (auto st = window.slide(pair->first, pair->second, std::max(0, y0 - halo), std::min(h, y1 + halo)); !st)
                 return st.error();
         truth.resize(withTruth ? n : 0);
+        truthCovered.resize(withTruth ? n : 0);
         if (withTruth)
-            if (auto st = truthReader->read(y0, y1, truth.data()); !st) return st.error();
+            if (auto st = truthReader->read(y0, y1, truth.data(), truthCovered.data()); !st) return st.error();
         report.readSeconds += secondsSince(t);
 
         t = Clock::now();
         std::vector<std::uint8_t>& m = mask[band % 2];
         m.resize(n);
-        const RgbRows in{window.on.data(), window.off.data(), w, h, window.first, window.last - window.first};
+        RgbRows in{window.on.data(), window.off.data(), w, h, window.first, window.last - window.first};
+        in.valid = window.validRows(window.first);
         segmentRows(in, y0, rows, params, report.stats, m.data());
+        // Pixels where a season has no data are neither canopy nor background: not canopy for the crowns, left
+        // out of the scores, their own value in the written mask.
+        const std::uint8_t* valid = window.validRows(y0);
+        if (valid)
+            for (size_t i = 0; i < n; ++i)
+                if (!valid[i]) {
+                    m[i] = 0;
+                    ++nodataPixels;
+                }
         report.segmentSeconds += secondsSince(t);
 
-        if (withTruth) confusion.add(m.data(), truth.data(), n);
+        if (withTruth) {
+            const std::uint8_t* score = valid;
+            if (!truthReader->complete()) {
+                scored.resize(n);
+                for (size_t i = 0; i < n; ++i) scored[i] = truthCovered[i] && (!valid || valid[i]) ? 255 : 0;
+                score = scored.data();
+            }
+            confusion.add(m.data(), truth.data(), n, score);
+        }
+        // The mask as written: GeoTIFF 1 canopy, 0 background, kMaskNodata without data; PNG 255 / 0.
+        std::vector<std::uint8_t>& e = encoded[band % 2];
+        const std::uint8_t* written = m.data();
+        if (maskOut->geotiff()) {
+            e.resize(n);
+            for (size_t i = 0; i < n; ++i) e[i] = valid && !valid[i] ? kMaskNodata : m[i] ? 1 : 0;
+            written = e.data();
+        }
         std::vector<std::uint8_t>& o = overlay[band % 2];
         if (overlayOut) {
             t = Clock::now();
             o.resize(n * 3);
             drawOverlay(window.on.data() + size_t(y0 - window.first) * size_t(w) * 3, m.data(),
                         withTruth ? truth.data() : nullptr, n, o.data());
+            if (valid) // no data: a grey checkerboard, as image editors show transparency
+                for (size_t i = 0; i < n; ++i)
+                    if (!valid[i]) {
+                        const size_t x = i % size_t(w), y = size_t(y0) + i / size_t(w);
+                        const std::uint8_t v = ((x / 8 + y / 8) % 2) ? 96 : 160;
+                        o[3 * i] = o[3 * i + 1] = o[3 * i + 2] = v;
+                    }
             report.writeSeconds += secondsSince(t);
         }
         // The writer of the previous band must be done before this band's turn (and its buffers are free again).
         if (auto st = waitForWriter(); !st) return st.error();
-        pendingWrite = std::async(std::launch::async, [&, y0, rows, band]() -> Status {
+        pendingWrite = std::async(std::launch::async, [&, y0, rows, band, written]() -> Status {
             const auto t0 = Clock::now();
-            if (auto st = maskOut->writeRows(y0, rows, mask[band % 2].data()); !st) return st;
+            if (auto st = maskOut->writeRows(y0, rows, written); !st) return st;
             if (overlayOut)
                 if (auto st = overlayOut->writeRows(y0, rows, overlay[band % 2].data()); !st) return st;
             writerSeconds += secondsSince(t0);
@@ -477,10 +709,19 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
     const std::string csv = crownCsv(scene, crowns, local);
     if (!job.trees.empty()) {
         std::string err;
-        if (!writeTextAtomic(job.trees, csv, err)) return fileError(job.trees.string(), err);
+        if (isGeoJson(job.trees)) {
+            if (!writeTextAtomic(job.trees, crownGeoJson(scene, crowns, local), err))
+                return fileError(job.trees.string(), err);
+        } else {
+            if (!writeTextAtomic(job.trees, csv, err)) return fileError(job.trees.string(), err);
+            // The CRS of the easting/northing columns, as GIS tools read it from a .prj next to the table.
+            const std::filesystem::path prj = std::filesystem::path(job.trees).replace_extension(".prj");
+            if (!writeTextAtomic(prj, scene.grid.georef.crs.esriWkt() + "\n", err)) return fileError(prj.string(), err);
+        }
     }
     report.writeSeconds += writerSeconds + secondsSince(t);
     if (withTruth) report.confusion = confusion;
+    report.nodataPixels = nodataPixels;
     report.crowns = int(crowns.size());
     if (trueTrees) report.centres = matchCentres(local, *trueTrees);
     report.totalSeconds = secondsSince(start);

@@ -12,6 +12,7 @@
 #include "SegmentationMetrics.h"
 #include "SyntheticScene.h" // ProgressFn
 
+#include <array>
 #include <filesystem>
 #include <optional>
 #include <vector>
@@ -24,12 +25,20 @@ inline constexpr std::uint64_t kSegmentMemoryBudget = std::uint64_t(2) << 30;
 /// Where the segmentation's pair statistics came from.
 enum class StatsSource { None, Given, HeldPair, HistogramPass };
 
+/// The value of pixels without data in a GeoTIFF mask (where either season has no data).
+inline constexpr std::uint8_t kMaskNodata = 255;
+
 struct SegmentJob {
     SegmentationParams params;
-    std::filesystem::path mask;       // required: 8-bit, 255 = treetop (format by extension: .png, .tif)
-    std::filesystem::path overlay;    // optional: leaf-on with the result (and truth) drawn over it, RGB
-    std::filesystem::path trees;      // optional: crown centres CSV id,x,y,easting,northing,radius_m
-    std::filesystem::path truth;      // optional: truth mask on the imagery grid (non-zero = deciduous treetop)
+    /// Required. By extension: .png 8-bit, 255 treetop, 0 not (and where a season has no data); .tif a georeferenced
+    /// GeoTIFF on the working grid: 1 treetop, 0 not, kMaskNodata where a season has no data (its nodata value).
+    std::filesystem::path mask;
+    std::filesystem::path overlay;    // optional: leaf-on with the result (and truth) drawn over it, RGB (.tif: GeoTIFF)
+    /// Optional crown centres: .csv id,x,y,easting,northing,radius_m,lon,lat (easting/northing in the working grid's
+    /// CRS, written beside it as a .prj), or .geojson points in WGS 84.
+    std::filesystem::path trees;
+    /// Optional truth mask (non-zero = deciduous treetop): on the working grid, or georeferenced on any grid.
+    std::filesystem::path truth;
     std::filesystem::path truthTrees; // optional: true trees CSV (synth's trees.csv: x, y, radius_m[, type])
     int bandRows = 256;               // output rows per band; memory grows with it, the output does not depend on it
     /// Bytes the decoded pair (2 × width × height × 3) may take when the histograms must be computed: within it the
@@ -39,6 +48,9 @@ struct SegmentJob {
     /// The pair's histograms when they are known already (cachedPairHistograms of PairStats.h, from the same 8-bit
     /// values): no histogram pass. They must be those of this pair, or the mask is wrong.
     std::optional<SegmentationHistograms> histograms;
+    /// The pair's prepared pyramid level 0 (leaf-on, leaf-off; premultiplied RGBA, alpha the season's coverage).
+    /// Required when the scene is warped (Scene::warped()); read instead of the scene's files when given.
+    std::optional<std::array<std::filesystem::path, 2>> levelZero;
     ProgressFn progress;
 };
 
@@ -46,6 +58,7 @@ struct SegmentReport {
     int width = 0, height = 0;
     SegmentationStats stats;                 // what the rule used (drop threshold, tables)
     std::optional<Confusion> confusion;      // with a truth mask
+    std::uint64_t nodataPixels = 0;          // pixels where a season has no data (marked, never scored)
     int crowns = 0;                          // crowns found (with `trees` or `truthTrees`)
     std::optional<CentreScores> centres;     // with true trees
     StatsSource statsSource = StatsSource::None; // none needed (pixel, neighborhood), given, or computed

@@ -270,6 +270,21 @@ void segmentRows(const RgbRows& in, int outRow0, int outRows, const Segmentation
     else segmentPaper(in, outRow0, outRows, k, params.method == SegmentationMethod::Equalized, stats, mask);
 }
 
+bool splitPairRgba(const std::uint8_t* onRgba, const std::uint8_t* offRgba, size_t n, std::uint8_t* onRgb,
+                   std::uint8_t* offRgb, std::uint8_t* valid) {
+    bool all = true;
+    for (size_t i = 0; i < n; ++i) {
+        for (size_t c = 0; c < 3; ++c) {
+            onRgb[3 * i + c] = onRgba[4 * i + c];
+            offRgb[3 * i + c] = offRgba[4 * i + c];
+        }
+        const bool v = onRgba[4 * i + 3] != 0 && offRgba[4 * i + 3] != 0;
+        valid[i] = v ? 255 : 0;
+        all &= v;
+    }
+    return all;
+}
+
 SegmentationHistograms rowHistograms(const RgbRows& in, bool colour, bool drop) {
     SegmentationHistograms total;
     std::mutex m;
@@ -283,15 +298,19 @@ SegmentationHistograms rowHistograms(const RgbRows& in, bool colour, bool drop) 
             if ((in.row0 + r) % step != 0) continue; // sampled rows are fixed in image rows: bands agree
             const std::uint8_t* a = in.on + size_t(r) * rowBytes;
             const std::uint8_t* b = in.off + size_t(r) * rowBytes;
+            const std::uint8_t* valid = in.valid ? in.valid + size_t(r) * size_t(in.width) : nullptr;
             if (colour)
-                for (int x = 0; x < in.width; x += step)
+                for (int x = 0; x < in.width; x += step) {
+                    if (valid && !valid[x]) continue;
                     for (size_t c = 0; c < 3; ++c) {
                         ++part.on[c][a[3 * size_t(x) + c]];
                         ++part.off[c][b[3 * size_t(x) + c]];
                     }
+                }
             if (drop) {
                 dropBins(a, b, sampled, step, bins.data());
-                for (int v : bins) ++part.drop[size_t(v)];
+                for (int i = 0; i < sampled; ++i)
+                    if (!valid || valid[size_t(i) * size_t(step)]) ++part.drop[size_t(bins[size_t(i)])];
             }
         }
         std::lock_guard<std::mutex> lock(m);

@@ -29,7 +29,15 @@ struct RgbRows {
     const std::uint8_t* on = nullptr;
     const std::uint8_t* off = nullptr;
     int width = 0, imageHeight = 0, row0 = 0, rows = 0;
+    /// rows × width bytes, 0 where either season has no data (nullptr: both have data everywhere). The histograms
+    /// skip those pixels; segmentRows evaluates them like any other (callers mark them as no data).
+    const std::uint8_t* valid = nullptr;
 };
+
+/// A pair of premultiplied RGBA rows (pyramid level 0, whose alpha is 0 or 255) split into RGB and `valid` (255 where
+/// both seasons have data, else 0), n pixels. Returns true when every pixel is valid.
+bool splitPairRgba(const std::uint8_t* onRgba, const std::uint8_t* offRgba, size_t n, std::uint8_t* onRgb,
+                   std::uint8_t* offRgb, std::uint8_t* valid);
 
 /// Segments image rows [outRow0, outRow0 + outRows) into `mask` (outRows × width bytes, 255 = treetop, 0 = not).
 /// `in` must hold every image row within segmentationHalo(params) of the output rows (rows outside the image are

@@ -6,9 +6,13 @@
 
 namespace seasonview {
 
-void Confusion::add(const std::uint8_t* mask, const std::uint8_t* truth, std::size_t n) {
-    std::uint64_t a = 0, b = 0, both = 0;
+void Confusion::add(const std::uint8_t* mask, const std::uint8_t* truth, std::size_t n, const std::uint8_t* scored) {
+    std::uint64_t a = 0, b = 0, both = 0, left = 0;
     for (std::size_t i = 0; i < n; ++i) {
+        if (scored && !scored[i]) {
+            ++left;
+            continue;
+        }
         const bool m = mask[i] != 0, t = truth[i] != 0;
         a += m;
         b += t;
@@ -17,7 +21,8 @@ void Confusion::add(const std::uint8_t* mask, const std::uint8_t* truth, std::si
     tp += both;
     fp += a - both;
     fn += b - both;
-    tn += n - a - b + both;
+    tn += n - left - a - b + both;
+    excluded += left;
 }
 
 Confusion& Confusion::operator+=(const Confusion& o) {
@@ -25,6 +30,7 @@ Confusion& Confusion::operator+=(const Confusion& o) {
     fp += o.fp;
     fn += o.fn;
     tn += o.tn;
+    excluded += o.excluded;
     return *this;
 }
 

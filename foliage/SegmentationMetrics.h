@@ -11,8 +11,11 @@ namespace seasonview {
 struct Confusion {
     std::uint64_t tp = 0, fp = 0, fn = 0, tn = 0;
 
-    /// Adds `n` pixels of a mask and the truth at the same place.
-    void add(const std::uint8_t* mask, const std::uint8_t* truth, std::size_t n);
+    std::uint64_t excluded = 0; // pixels left out: a season (or the truth) has no data there
+
+    /// Adds `n` pixels of a mask and the truth at the same place; where `scored` is given, only pixels where it is
+    /// non-zero count (the others add to `excluded`).
+    void add(const std::uint8_t* mask, const std::uint8_t* truth, std::size_t n, const std::uint8_t* scored = nullptr);
     Confusion& operator+=(const Confusion& o);
 
     std::uint64_t pixels() const { return tp + fp + fn + tn; }

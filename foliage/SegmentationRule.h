@@ -54,6 +54,17 @@ constexpr int kSegTextureNum = 9;
 constexpr int kSegTextureDen = 10000;
 /// Halo (texels beyond the output on each side) the default method's texture needs before its vote.
 constexpr int kSegTextureHalo = kSegTexturePrefilter / 2 + kSegTextureWindow / 2;
+/// Texels count as data when both seasons cover at least this much of them (alpha of 255); elsewhere no treetop.
+constexpr int kSegMinAlpha = 128;
+
+// ---- Premultiplied imagery (pyramids and clipmaps store colour times coverage) ----
+
+/// The colour of a premultiplied 8-bit component `c` whose coverage `a` is partial (0 < a < 255, a coarser level at a
+/// data edge): round(c · 255 / a), at most 255; unchanged where a is 0 or 255, so texels with all their data are
+/// exactly as stored. Integer arithmetic, the same on the GPU (svUnpremultiply).
+constexpr int unpremultiply(int c, int a) {
+    return a > 0 && a < 255 ? ((c * 255 + a / 2) / a > 255 ? 255 : (c * 255 + a / 2) / a) : c;
+}
 
 // ---- Per-texel rule. r, g, b are 8-bit samples (0..255) after the stretch / equalisation LUT. ----
 

@@ -66,12 +66,30 @@ ivec3 fetch8(int season, ivec2 t) {
         ivec3 q = ivec3(t % int(uClipSize), uLevel);
         c = season == 0 ? texelFetch(uClip0, q, 0) : texelFetch(uClip1, q, 0);
     }
+    // Premultiplied: a texel partly without data (coarser levels at a data edge) holds the mean colour of its covered
+    // part times its coverage. Texels with all their data are exactly as stored.
     ivec3 v = ivec3(round(c.rgb * 255.0));
+    int a = int(round(c.a * 255.0));
+    v = ivec3(svUnpremultiply(v.r, a), svUnpremultiply(v.g, a), svUnpremultiply(v.b, a));
     if (uMethod == 2) {
         int o = season * 768;
         v = ivec3(luts[o + v.r], luts[o + 256 + v.g], luts[o + 512 + v.b]);
     }
     return v;
+}
+
+// Whether both seasons have data at texel t (more than half of it): elsewhere no treetop is derived.
+bool hasData(ivec2 t) {
+    float a, b;
+    if (uCoarsePass != 0) {
+        a = texelFetch(uCoarse0, t, 0).a;
+        b = texelFetch(uCoarse1, t, 0).a;
+    } else {
+        ivec3 q = ivec3(t % int(uClipSize), uLevel);
+        a = texelFetch(uClip0, q, 0).a;
+        b = texelFetch(uClip1, q, 0).a;
+    }
+    return int(round(a * 255.0)) >= SV_SEG_MIN_ALPHA && int(round(b * 255.0)) >= SV_SEG_MIN_ALPHA;
 }
 
 void main() {
@@ -187,6 +205,7 @@ void main() {
             bool yes = texture ? svIsMajority(a, k) : svIsMajority(a, k) && svIsMajority(b, k);
             if (yes) top = layer + 1;
         }
+        if (top > 0 && !hasData(g)) top = 0;
         if (top > 0) atomicMax(sCellMax[(out2.y / CELL) * (TILE / CELL) + out2.x / CELL], uint(top));
         if (uCoarsePass != 0) {
             imageStore(uCanopyCoarseOut, g, uvec4(uint(top)));

@@ -54,14 +54,19 @@ void main() {
         vec2 p = vImageUv * uLevel0Size;
         ClipFootprint f = clipmapFootprint(p);
         int used, used1;
+        // Premultiplied imagery: where the season shown has no data, the other one, then the roof's plain colour.
+        vec4 on = sampleClipmap(uClip0, uCoarse0, p, f, used);
+        vec4 off = sampleClipmap(uClip1, uCoarse1, p, f, used1);
+        vec3 onFilled = on.rgb + (1.0 - on.a) * (off.rgb + (1.0 - off.a) * uPlainColour);
+        vec3 offFilled = off.rgb + (1.0 - off.a) * (on.rgb + (1.0 - on.a) * uPlainColour);
         if (uSwipeX >= 0.0 && abs(gl_FragCoord.x - uSwipeX) < 1.0)
             c = vec4(1.0);
         else if (uSwipeX < 0.0 && uBlend >= 0.0)
-            c = mix(sampleClipmap(uClip0, uCoarse0, p, f, used), sampleClipmap(uClip1, uCoarse1, p, f, used1), uBlend);
+            c = vec4(mix(onFilled, offFilled, uBlend), 1.0);
         else if (uSwipeX >= 0.0 ? gl_FragCoord.x < uSwipeX : uSeason == 0)
-            c = sampleClipmap(uClip0, uCoarse0, p, f, used);
+            c = vec4(onFilled, 1.0);
         else
-            c = sampleClipmap(uClip1, uCoarse1, p, f, used);
+            c = vec4(offFilled, 1.0);
     } else {
         c = vec4(uPlainColour, 1.0);
         light = 0.62 + 0.38 * abs(dot(n, uSunDir));

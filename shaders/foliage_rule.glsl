@@ -13,6 +13,10 @@ const int SV_SEG_TEXTURE_WINDOW = 5;
 const int SV_SEG_TEXTURE_NUM = 9;
 const int SV_SEG_TEXTURE_DEN = 10000;
 const int SV_SEG_TEXTURE_HALO = 3; // SV_SEG_TEXTURE_PREFILTER / 2 + SV_SEG_TEXTURE_WINDOW / 2
+const int SV_SEG_MIN_ALPHA = 128;
+
+// A premultiplied 8-bit component back to its colour where coverage a is partial, as unpremultiply() on the CPU.
+int svUnpremultiply(int c, int a) { return a > 0 && a < 255 ? min(255, (c * 255 + a / 2) / a) : c; }
 
 // maxchannel(c) = g (Ropinski et al. 2007 §4.1): green strictly brighter than red and blue.
 bool svGreenIsMax(ivec3 c) { return c.g > c.r && c.g > c.b; }

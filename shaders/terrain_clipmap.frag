@@ -22,6 +22,7 @@ uniform vec3 uSunDir;
 uniform float uBlend;
 uniform float uSwipeX;   // pixels
 uniform vec3 uLevelColors[8];
+uniform vec3 uNoDataColour; // where neither season has data (imagery/clipmap texels are premultiplied RGBA)
 
 in vec2 vImageUv;
 in vec3 vNormal;
@@ -43,6 +44,16 @@ uniform float uCrownBase;
 uniform int uFirstLayer;
 #endif
 out vec4 fragColor;
+
+// Season s (0 leaf-on, 1 leaf-off) where it has data, the other season where it has none, then uNoDataColour: never
+// black. The other season is fetched only where s lacks data.
+vec3 seasonColour(int s, vec2 p, ClipFootprint f, out int used) {
+    vec4 a = s == 0 ? sampleClipmap(uClip0, uCoarse0, p, f, used) : sampleClipmap(uClip1, uCoarse1, p, f, used);
+    if (a.a >= 0.999) return a.rgb;
+    int other;
+    vec4 b = s == 0 ? sampleClipmap(uClip1, uCoarse1, p, f, other) : sampleClipmap(uClip0, uCoarse0, p, f, other);
+    return a.rgb + (1.0 - a.a) * (b.rgb + (1.0 - b.a) * uNoDataColour);
+}
 
 void main() {
     if (any(lessThan(vImageUv, vec2(0.0))) || any(greaterThan(vImageUv, vec2(1.0)))) discard;
@@ -120,40 +131,36 @@ void main() {
         return;
     }
     if (uView == 0) {
-        c = sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
+        c = seasonColour(0, p, f, used);
     } else if (uView == 1) {
-        c = sampleClipmap(uClip1, uCoarse1, p, f, used).rgb;
+        c = seasonColour(1, p, f, used);
     } else if (uView == 2) {
         int u1;
-        c = mix(sampleClipmap(uClip0, uCoarse0, p, f, used).rgb, sampleClipmap(uClip1, uCoarse1, p, f, u1).rgb,
-                uBlend);
+        c = mix(seasonColour(0, p, f, used), seasonColour(1, p, f, u1), uBlend);
     } else if (uView == 3) {
         // Split screen: leaf-on left of uSwipeX, leaf-off right, a 2-pixel white divider.
         if (abs(gl_FragCoord.x - uSwipeX) < 1.0) {
             c = vec3(1.0);
-        } else if (gl_FragCoord.x < uSwipeX) {
-            c = sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
         } else {
-            c = sampleClipmap(uClip1, uCoarse1, p, f, used).rgb;
+            c = seasonColour(gl_FragCoord.x < uSwipeX ? 0 : 1, p, f, used);
         }
     } else if (uView == 8) {
         // The ground of the canopy view: leaf-off under the crowns (the trees stand on it as layers), leaf-on
         // elsewhere; both configurable.
         bool under = uHasCanopy != 0 && canopyAt(p, int(floor(max(f.lambdaIso, 0.0)))) > 0;
         if (under && uCanopyBase > 0.0)
-            c = uCanopyBase * sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
+            c = uCanopyBase * seasonColour(0, p, f, used);
         else
-            c = uCanopyGround[under ? 1 : 0] == 0 ? sampleClipmap(uClip0, uCoarse0, p, f, used).rgb
-                                                  : sampleClipmap(uClip1, uCoarse1, p, f, used).rgb;
+            c = seasonColour(uCanopyGround[under ? 1 : 0], p, f, used);
     } else if (uView == 4 || uView == 6) {
         // Level colours over the imagery's brightness: the imagery level used (lod, Ropinski 2007 Fig. 2) or
         // the geometry level drawn (levels).
-        vec3 img = sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
+        vec3 img = seasonColour(0, p, f, used);
         float luma = dot(img, vec3(0.299, 0.587, 0.114));
         c = uLevelColors[min(uView == 4 ? used : vLevel, 7)] * (0.45 + 0.55 * luma);
     } else {
         // Wireframe, first pass: the leaf-on imagery dimmed under the lines.
-        c = 0.55 * sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
+        c = 0.55 * seasonColour(0, p, f, used);
     }
     if (uShade > 0.0) c *= mix(1.0, 0.25 + 0.75 * max(dot(normalize(vNormal), uSunDir), 0.0), uShade);
     fragColor = vec4(c, 1.0);

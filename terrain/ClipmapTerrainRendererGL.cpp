@@ -106,6 +106,7 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
     m_program.set("uCanopyGround[0]", std::clamp(s.groundElsewhere, 0, 1));
     m_program.set("uCanopyGround[1]", std::clamp(s.groundUnderCanopy, 0, 1));
     m_program.set("uCanopyBase", std::clamp(s.canopyBase, 0.0f, 1.0f));
+    m_program.set("uNoDataColour", kNoDataColor);
     for (int i = 0; i < 8; ++i)
         m_program.set(("uLevelColors[" + std::to_string(i) + "]").c_str(),
                       glm::vec3(kLevelColors[i][0], kLevelColors[i][1], kLevelColors[i][2]));

@@ -95,11 +95,12 @@ std::vector<float> resampleElevation(const Scene& scene, const ElevationGrid& gr
 PyramidSource elevationPyramidSource(const Scene& scene, const ElevationGrid& grid) {
     assert(scene.elevation && "elevationPyramidSource(): the scene has no DEM");
     PyramidSource s;
-    s.file = scene.sources.elevation;
+    s.name = "elevation from " + scene.elevation->sourceName;
     char params[160];
-    std::snprintf(params, sizeof params, "elevation r32f triangulated|%.9g|%.6f,%.6f|%dx%d|%s", grid.spacing, grid.origin.x,
-                  grid.origin.y, grid.width, grid.height, scene.frame.crs().name().c_str());
-    s.params = params;
+    std::snprintf(params, sizeof params, "elevation r32f triangulated|%.9g|%.6f,%.6f|%dx%d|", grid.spacing, grid.origin.x,
+                  grid.origin.y, grid.width, grid.height);
+    s.identity = scene.elevation->sourceKey + "|" + params + scene.frame.crs().identifier() +
+                 (scene.frame.isTranslation() ? "|translation" : "|tangent plane");
     s.width = grid.width;
     s.height = grid.height;
     s.format = TexelFormat::R32F;

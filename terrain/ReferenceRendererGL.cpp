@@ -69,9 +69,15 @@ Result<std::unique_ptr<ReferenceRendererGL>> ReferenceRendererGL::create(const S
     r->m_imageWidth = scene.leafon.info.width;
     r->m_imageHeight = scene.leafon.info.height;
     const ImageryLayer* layers[2] = {&scene.leafon, &scene.leafoff};
+    if (!options.levelZero && scene.warped())
+        return Error{"reference renderer: a warped scene is drawn from its prepared pyramids' level 0"};
     for (int s = 0; s < 2; ++s) {
-        auto rgba = readDisplayRgba(layers[s]->info, layers[s]->stretch);
+        auto rgba = options.levelZero ? readImageU8((*options.levelZero)[size_t(s)], 4)
+                                      : readDisplayRgba(layers[s]->info, layers[s]->stretch);
         if (!rgba) return rgba.error();
+        if (rgba->channels != 4 || rgba->width != r->m_imageWidth || rgba->height != r->m_imageHeight)
+            return fileError(options.levelZero ? (*options.levelZero)[size_t(s)].string() : layers[s]->info.path.string(),
+                             "is not the scene's RGBA level 0");
         r->m_seasons[s] = upload(*rgba, maxSize, options.anisotropy);
     }
     r->m_stats.textureLayers = r->m_seasons[0].layout.layers();
@@ -85,6 +91,7 @@ void ReferenceRendererGL::render(const Camera& camera, Season season, const gl::
     glm::dmat4 view = camera.viewMatrix();
     const glm::mat4 viewProj = glm::mat4(camera.projectionMatrix(aspect, kNearPlane) * view);
     const SeasonTexture& st = m_seasons[season == Season::LeafOn ? 0 : 1];
+    const SeasonTexture& other = m_seasons[season == Season::LeafOn ? 1 : 0];
     const TileLayout& L = st.layout;
     m_program.set("uViewProj", viewProj);
     m_program.set("uImageSize", glm::vec2(float(m_imageWidth), float(m_imageHeight)));
@@ -94,8 +101,11 @@ void ReferenceRendererGL::render(const Camera& camera, Season season, const gl::
     m_program.set("uTilesX", L.tilesX);
     m_program.set("uTilesY", L.tilesY);
     m_program.set("uImagery", 0);
+    m_program.set("uOther", 1);
+    m_program.set("uNoDataColour", kNoDataColor);
     m_program.use();
     glBindTextureUnit(0, st.texture.id());
+    glBindTextureUnit(1, other.texture.id()); // same tile layout: both are the grid
     m_mesh->draw();
 }
 

@@ -13,7 +13,10 @@
 #include <glm/vec4.hpp>
 
 #include <cstdint>
+#include <array>
+#include <filesystem>
 #include <memory>
+#include <optional>
 
 namespace seasonview {
 
@@ -21,10 +24,15 @@ enum class Season { LeafOn, LeafOff };
 
 /// Sky colour behind the terrain (linear RGBA, 0..1). Tests look for it to find holes.
 inline const glm::vec4 kBackgroundColor{0.62f, 0.74f, 0.86f, 1.0f};
+/// The ground where neither season has data: a neutral grey, never black (black reads as dark imagery).
+inline const glm::vec3 kNoDataColor{0.56f, 0.55f, 0.52f};
 
 struct ReferenceOptions {
     int maxTextureSize = 0; // 0: GL_MAX_TEXTURE_SIZE; smaller values force the tiled path (tests)
     float anisotropy = 16.0f;
+    /// The seasons' prepared pyramid level 0 (leaf-on, leaf-off: premultiplied RGBA on the working grid). Required
+    /// for a warped scene (Scene::warped()); otherwise the seasons' own files are read.
+    std::optional<std::array<std::filesystem::path, 2>> levelZero;
 };
 
 struct ReferenceStats {

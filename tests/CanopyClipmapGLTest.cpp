@@ -20,14 +20,29 @@ using namespace seasonview::test;
 
 namespace {
 
-Image<std::uint8_t> readLevel(const ImagePyramid& p, int level) {
-    auto img = readImageU8(p.levels[size_t(level)].file, 3);
+// A pyramid level as the rule sees it: RGB un-premultiplied where coverage is partial, and the coverage.
+Image<std::uint8_t> readLevel(const ImagePyramid& p, int level, std::vector<std::uint8_t>* alpha = nullptr) {
+    auto img = readImageU8(p.levels[size_t(level)].file, 4);
     EXPECT_TRUE(img.ok()) << img.message();
-    return std::move(*img);
+    Image<std::uint8_t> rgb;
+    rgb.width = img->width;
+    rgb.height = img->height;
+    rgb.channels = 3;
+    const size_t n = size_t(img->width) * size_t(img->height);
+    rgb.pixels.resize(n * 3);
+    if (alpha) alpha->resize(n);
+    for (size_t i = 0; i < n; ++i) {
+        const int a = img->pixels[4 * i + 3];
+        for (size_t c = 0; c < 3; ++c) rgb.pixels[3 * i + c] = std::uint8_t(unpremultiply(img->pixels[4 * i + c], a));
+        if (alpha) (*alpha)[i] = std::uint8_t(a);
+    }
+    return rgb;
 }
 
-// The CPU canopy value of every texel of a level: the highest layer whose k-vote is a majority, plus one.
+// The CPU canopy value of every texel of a level: the highest layer whose k-vote is a majority, plus one; none where
+// a season covers less than kSegMinAlpha of the texel.
 std::vector<std::uint8_t> cpuCanopy(const Image<std::uint8_t>& on, const Image<std::uint8_t>& off,
+                                    const std::vector<std::uint8_t>& alphaOn, const std::vector<std::uint8_t>& alphaOff,
                                     const CanopyClipmapGL& canopy, const SegmentationStats& stats, int level) {
     std::vector<std::uint8_t> value(size_t(on.width) * size_t(on.height), 0);
     std::vector<std::uint8_t> mask(value.size());
@@ -37,7 +52,7 @@ std::vector<std::uint8_t> cpuCanopy(const Image<std::uint8_t>& on, const Image<s
         p.k = canopy.layerK(i, level);
         segmentRows(rows, 0, on.height, p, stats, mask.data());
         for (size_t t = 0; t < value.size(); ++t)
-            if (mask[t]) value[t] = std::uint8_t(i + 1);
+            if (mask[t] && alphaOn[t] >= kSegMinAlpha && alphaOff[t] >= kSegMinAlpha) value[t] = std::uint8_t(i + 1);
     }
     return value;
 }
@@ -49,8 +64,9 @@ struct Agreement {
 // Compares the derived blocks of clip level `level` (and, with `coarse`, the coarse base) with the CPU.
 Agreement compareLevel(const std::vector<ImagePyramid>& pyr, const ClipmapGL& clip, const CanopyClipmapGL& canopy,
                        const SegmentationStats& stats, int level, bool coarse) {
-    const Image<std::uint8_t> on = readLevel(pyr[0], level), off = readLevel(pyr[1], level);
-    const std::vector<std::uint8_t> cpu = cpuCanopy(on, off, canopy, stats, level);
+    std::vector<std::uint8_t> alphaOn, alphaOff;
+    const Image<std::uint8_t> on = readLevel(pyr[0], level, &alphaOn), off = readLevel(pyr[1], level, &alphaOff);
+    const std::vector<std::uint8_t> cpu = cpuCanopy(on, off, alphaOn, alphaOff, canopy, stats, level);
     const ClipmapLayout& L = clip.schedule().layout();
     Agreement a;
     if (coarse) {

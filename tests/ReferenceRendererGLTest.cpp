@@ -151,9 +151,19 @@ TEST(ReferenceRendererGLTest, RealSentinelPairRendersStretched) {
     s.leafoff = *data / "seasons/saclay_w/leafoff_2016-03-15.tif";
     auto scene = loadScene(s, dir / "cache");
     ASSERT_TRUE(scene.ok()) << scene.message();
-    EXPECT_TRUE(scene->frame.crs().isGeographic());
+    // Geographic seasons are warped onto the UTM zone of their centre (31N, south of Paris).
+    EXPECT_EQ(scene->grid.georef.crs.epsg(), 32631);
+    EXPECT_TRUE(scene->frame.isTranslation());
+    EXPECT_TRUE(scene->warped());
     EXPECT_NEAR(scene->gsd, 10.0, 3.0); // Sentinel-2: ~10 m
-    const auto img = render(*scene, app::overviewCamera(*scene, 4.0 / 3.0), Season::LeafOn, 400, 300);
+    auto pyramids = app::preparePyramids(*scene, dir / "cache");
+    ASSERT_TRUE(pyramids.ok()) << pyramids.message();
+    ReferenceOptions o;
+    o.levelZero = app::levelZeroOf(*scene, *pyramids);
+    // Straight down over the part both seasons cover (the grid's corners are the warp's bare collar).
+    Camera cam = app::overviewCamera(*scene, 4.0 / 3.0);
+    cam.position.z *= 0.6;
+    const auto img = render(*scene, cam, Season::LeafOn, 400, 300, o);
     ASSERT_FALSE(img.empty());
     double mean = 0;
     int lo = 255, hi = 0;

@@ -120,8 +120,13 @@ TEST_F(SegmentCliTest, WritesMaskOverlayMetricsAndCrowns) {
     std::string header, first;
     std::getline(trees, header);
     std::getline(trees, first);
-    EXPECT_EQ(header, "id,x,y,easting,northing,radius_m");
+    EXPECT_EQ(header, "id,x,y,easting,northing,radius_m,lon,lat");
     EXPECT_EQ(first.rfind("1,", 0), 0u) << first;
+    // The easting/northing columns' CRS, as GIS tools read it next to a table.
+    std::ifstream prj(dir / "trees.prj");
+    std::string wkt;
+    std::getline(prj, wkt);
+    EXPECT_NE(wkt.find("UTM_Zone_32N"), std::string::npos) << wkt;
 }
 
 TEST_F(SegmentCliTest, WithoutTruthStillWritesMaskOverlayAndTiming) {
@@ -226,15 +231,34 @@ TEST_F(SegmentCliTest, HeldStreamedAndPreparedStatisticsGiveTheSameMask) {
     EXPECT_EQ(mask->pixels, segmentImage(pair.on, pair.off, {SegmentationMethod::Default, 5}).pixels);
 }
 
-TEST_F(SegmentCliTest, MismatchedSizesAreRejected) {
-    TreePair small = framedPair(80, 64);
-    writeRgb(dir / "small.tif", small.off, false);
-    expectOneLineError(segment("on.tif", "small.tif"), "small.tif: leaf-off is 80x64 pixels but leaf-on");
+TEST_F(SegmentCliTest, SeasonsThatDoNotOverlapAreRejected) {
+    writeRgb(dir / "far.tif", pair.off, false, testGeoref(0.5, 415000.0));
+    expectOneLineError(segment("on.tif", "far.tif"), "far.tif: does not overlap the leaf-on");
 }
 
-TEST_F(SegmentCliTest, UnregisteredPairIsRejected) {
+TEST_F(SegmentCliTest, ShiftedSeasonIsWarpedAndItsGapIsNoData) {
+    // The leaf-off 3 m (6 pixels) east of the leaf-on: the working grid is their union, each season warped onto it,
+    // and the 6 columns each season leaves bare are no data (255 in the GeoTIFF mask), never scored.
     writeRgb(dir / "shifted.tif", pair.off, false, testGeoref(0.5, 405003.0));
-    expectOneLineError(segment("on.tif", "shifted.tif"), "shifted.tif: georeferencing disagrees with leaf-on");
+    auto args = segment("on.tif", "shifted.tif");
+    args.insert(args.end(), {"--truth", (dir / "truth.png").string()});
+    expectOneLineError(args, "truth.png: truth mask is 96x64 pixels but the imagery is 102x64");
+    args = segment("on.tif", "shifted.tif");
+    args.insert(args.end(), {"--out", (dir / "mask.tif").string(), "--metrics", (dir / "m.json").string()});
+    const CliResult r = runCli(args);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    auto mask = readImageU8(dir / "mask.tif");
+    ASSERT_TRUE(mask.ok()) << mask.message();
+    ASSERT_EQ(mask->width, 102);
+    for (int y = 0; y < 64; ++y)
+        for (int x = 0; x < 102; ++x) {
+            const bool bare = x < 6 || x >= 96;
+            if (bare) ASSERT_EQ(mask->at(x, y), 255) << x << "," << y;
+            else ASSERT_LE(mask->at(x, y), 1) << x << "," << y;
+        }
+    const nlohmann::json m = readJson(dir / "m.json");
+    EXPECT_EQ(m["nodata_pixels"].get<int>(), 12 * 64);
+    EXPECT_EQ(m["warped"], true);
 }
 
 TEST_F(SegmentCliTest, BadTruthAndArgumentsAreRejected) {

@@ -215,7 +215,8 @@ TEST(SegmentationRuleTest, GlslConstantsEqualCpp) {
                                             {"SV_SEG_TEXTURE_WINDOW", kSegTextureWindow},
                                             {"SV_SEG_TEXTURE_NUM", kSegTextureNum},
                                             {"SV_SEG_TEXTURE_DEN", kSegTextureDen},
-                                            {"SV_SEG_TEXTURE_HALO", kSegTextureHalo}};
+                                            {"SV_SEG_TEXTURE_HALO", kSegTextureHalo},
+                                            {"SV_SEG_MIN_ALPHA", kSegMinAlpha}};
     std::map<std::string, int> parsed;
     const std::regex line(R"(^\s*const\s+int\s+(SV_SEG_\w+)\s*=\s*(-?\d+)\s*;)");
     std::istringstream in(glsl);

@@ -1,0 +1,268 @@
+#include "GridReader.h"
+
+#include "BandReader.h"
+#include "GdalSupport.h"
+
+#include <gdal_alg.h>
+#include <gdalwarper.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <span>
+#include <vector>
+
+namespace seasonview {
+
+namespace {
+
+/// One tile of a warped mosaic: opened while bands of rows reach it.
+struct WarpTile {
+    RasterInfo info;
+    int row0 = 0, row1 = 0, col0 = 0, col1 = 0; // the grid window it can touch (a margin for the kernel included)
+    GDALResampleAlg alg = GRA_Bilinear;
+    gdal::Dataset ds;
+    void* transform = nullptr; // GDALGenImgProjTransform: tile pixels <-> grid pixels (of the band's dataset)
+    void* approx = nullptr;    // the same, approximated to 1/8 pixel
+    void close() {
+        if (approx) GDALDestroyApproxTransformer(approx);
+        if (transform) GDALDestroyGenImgProjTransformer(transform);
+        approx = transform = nullptr;
+        ds.reset();
+    }
+    ~WarpTile() { close(); }
+    WarpTile() = default;
+    WarpTile(WarpTile&& o) noexcept { *this = std::move(o); }
+    WarpTile& operator=(WarpTile&& o) noexcept {
+        if (this != &o) {
+            close();
+            info = o.info;
+            row0 = o.row0;
+            row1 = o.row1;
+            col0 = o.col0;
+            col1 = o.col1;
+            alg = o.alg;
+            ds = std::move(o.ds);
+            transform = std::exchange(o.transform, nullptr);
+            approx = std::exchange(o.approx, nullptr);
+        }
+        return *this;
+    }
+};
+
+GDALResampleAlg gdalAlg(Resampling r) {
+    switch (r) {
+    case Resampling::Nearest: return GRA_NearestNeighbour;
+    case Resampling::Cubic: return GRA_Cubic;
+    case Resampling::Average: return GRA_Average;
+    case Resampling::Lanczos: return GRA_Lanczos;
+    default: return GRA_Bilinear;
+    }
+}
+
+int bytesOf(SampleType t) { return t == SampleType::U8 ? 1 : t == SampleType::F32 ? 4 : 2; }
+
+} // namespace
+
+const char* resamplingName(Resampling r) {
+    switch (r) {
+    case Resampling::Auto: return "auto";
+    case Resampling::Nearest: return "near";
+    case Resampling::Bilinear: return "bilinear";
+    case Resampling::Cubic: return "cubic";
+    case Resampling::Average: return "average";
+    case Resampling::Lanczos: return "lanczos";
+    }
+    return "?";
+}
+
+Result<Resampling> parseResampling(const std::string& name) {
+    for (Resampling r : {Resampling::Auto, Resampling::Nearest, Resampling::Bilinear, Resampling::Cubic,
+                         Resampling::Average, Resampling::Lanczos})
+        if (name == resamplingName(r)) return r;
+    return Error{"--resampling '" + name + "': expected auto|near|bilinear|cubic|average|lanczos"};
+}
+
+struct GridReader::Impl {
+    WorkingGrid grid;
+    int bands = 0;
+    std::optional<BandReader> direct;
+    std::vector<WarpTile> tiles;
+    std::string gridWkt;
+};
+
+GridReader::GridReader() = default;
+GridReader::GridReader(GridReader&&) noexcept = default;
+GridReader& GridReader::operator=(GridReader&&) noexcept = default;
+GridReader::~GridReader() = default;
+
+bool GridReader::direct() const { return m_impl->direct.has_value(); }
+
+Result<GridReader> GridReader::open(const RasterMosaic& mosaic, const WorkingGrid& grid, Resampling resampling,
+                                    int preferredRows) {
+    assert(!mosaic.tiles.empty() && grid.width > 0 && grid.height > 0 && preferredRows > 0 &&
+           "GridReader::open(): a mosaic, a grid, positive rows");
+    GridReader r;
+    r.m_impl = std::make_unique<Impl>();
+    Impl& impl = *r.m_impl;
+    impl.grid = grid;
+    impl.bands = mosaic.bands;
+    r.m_width = grid.width;
+    r.m_height = grid.height;
+    const RasterInfo& first = mosaic.tiles.front();
+    const bool isGrid = mosaic.tiles.size() == 1 && onGridLattice(first, grid) && first.width == grid.width &&
+                        first.height == grid.height && grid.georef.crsToPixel(first.georef->origin) == glm::dvec2(0.0);
+    if (isGrid && first.nodataKind == NodataKind::None && (first.type == SampleType::U8 || first.type == SampleType::U16)) {
+        auto reader = BandReader::open(first.path, preferredRows);
+        if (!reader) return reader.error();
+        r.m_bandRows = reader->bandRows();
+        impl.direct = std::move(*reader);
+        return r;
+    }
+    r.m_bandRows = preferredRows;
+    impl.gridWkt = grid.georef.crs.wkt();
+    for (const RasterInfo& t : mosaic.tiles) {
+        WarpTile w;
+        w.info = t;
+        // The grid pixels the tile's outline covers, with a margin for the resampling kernel (lanczos: 3 pixels).
+        RasterMosaic one;
+        one.tiles = {t};
+        auto [lo, hi] = extentIn(one, grid.georef.crs);
+        const glm::dvec2 a = grid.georef.crsToPixel({lo.x, hi.y}), b = grid.georef.crsToPixel({hi.x, lo.y});
+        constexpr int kMargin = 4;
+        w.col0 = std::max(0, int(std::floor(a.x)) - kMargin);
+        w.row0 = std::max(0, int(std::floor(a.y)) - kMargin);
+        w.col1 = std::min(grid.width, int(std::ceil(b.x)) + kMargin);
+        w.row1 = std::min(grid.height, int(std::ceil(b.y)) + kMargin);
+        if (w.col0 >= w.col1 || w.row0 >= w.row1) continue; // outside the grid (an --extent cut it away)
+        Resampling alg = resampling;
+        if (alg == Resampling::Auto) {
+            if (onGridLattice(t, grid)) {
+                alg = Resampling::Nearest;
+            } else {
+                // The tile's pixel in grid pixels: finer than 1/1.5 of a grid pixel is averaged.
+                const double tileArea = double(t.width) * double(t.height);
+                const double gridArea = (b.x - a.x) * (b.y - a.y);
+                alg = tileArea > 2.25 * gridArea ? Resampling::Average : Resampling::Bilinear;
+            }
+        }
+        w.alg = gdalAlg(alg);
+        impl.tiles.push_back(std::move(w));
+    }
+    return r;
+}
+
+Status GridReader::read(int y0, int y1, int channels, SampleType type, void* samples, std::uint8_t* coverage) {
+    assert(y0 % m_bandRows == 0 && y0 < y1 && y1 - y0 <= m_bandRows && y1 <= m_height && channels >= 1 &&
+           channels <= m_impl->bands && "GridReader::read(): whole bands of existing rows and bands");
+    Impl& impl = *m_impl;
+    const int rows = y1 - y0;
+    const size_t pixels = size_t(rows) * size_t(m_width);
+    if (impl.direct) {
+        assert(type != SampleType::F32 && "GridReader::read(): the direct path reads 8- or 16-bit");
+        if (coverage) std::memset(coverage, 255, pixels);
+        return impl.direct->read(y0, y1, channels, type, samples);
+    }
+    const int sample = bytesOf(type);
+    std::memset(samples, 0, pixels * size_t(channels) * size_t(sample));
+    std::vector<std::uint8_t> ownCoverage;
+    if (!coverage) {
+        ownCoverage.resize(pixels);
+        coverage = ownCoverage.data();
+    }
+    std::memset(coverage, 0, pixels);
+
+    // The band as a GDAL dataset over our buffers: bands 1..channels the samples, band channels+1 the coverage.
+    GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+    gdal::Dataset band(mem->Create("", m_width, rows, 0, GDT_Byte, nullptr));
+    if (!band) return Error{"cannot create the warp's band of rows (out of memory?)"};
+    auto addBand = [&](void* data, GDALDataType t, int pixelBytes, int lineBytes) {
+        char ptr[64], pix[32], line[32];
+        std::snprintf(ptr, sizeof ptr, "DATAPOINTER=%p", data);
+        std::snprintf(pix, sizeof pix, "PIXELOFFSET=%d", pixelBytes);
+        std::snprintf(line, sizeof line, "LINEOFFSET=%d", lineBytes);
+        const char* options[] = {ptr, pix, line, nullptr};
+        return band->AddBand(t, const_cast<char**>(options)) == CE_None;
+    };
+    const GDALDataType gt = gdal::gdalTypeOf(type);
+    for (int c = 0; c < channels; ++c)
+        if (!addBand(static_cast<std::uint8_t*>(samples) + size_t(c) * size_t(sample), gt, sample * channels,
+                     sample * channels * m_width))
+            return Error{"cannot create the warp's band of rows"};
+    if (!addBand(coverage, GDT_Byte, 1, m_width)) return Error{"cannot create the warp's band of rows"};
+    const Georef& g = impl.grid.georef;
+    double geo[6] = {g.origin.x, g.pixelSize.x, 0.0, g.origin.y - g.pixelSize.y * y0, 0.0, -g.pixelSize.y};
+    band->SetGeoTransform(geo);
+
+    for (WarpTile& t : impl.tiles) {
+        if (t.row1 <= y0) {
+            t.close(); // the bands have passed it
+            continue;
+        }
+        if (t.row0 >= y1) continue;
+        const std::string name = t.info.path.string();
+        gdal::ErrorCapture errors;
+        if (!t.ds) {
+            const char* open[] = {"NUM_THREADS=ALL_CPUS", nullptr};
+            t.ds.reset(GDALDataset::FromHandle(GDALOpenEx(t.info.path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY,
+                                                          nullptr, open, nullptr)));
+            if (!t.ds) return fileError(name, "cannot be opened again (" + errors.message() + ")");
+            const std::string srcSrs = "SRC_SRS=" + t.info.georef->crs.wkt();
+            const std::string dstSrs = "DST_SRS=" + impl.gridWkt;
+            const char* options[] = {srcSrs.c_str(), dstSrs.c_str(), nullptr};
+            t.transform = GDALCreateGenImgProjTransformer2(GDALDataset::ToHandle(t.ds.get()), nullptr,
+                                                           const_cast<char**>(options));
+            if (!t.transform) return fileError(name, "no transformation into the grid's CRS (" + errors.message() + ")");
+            t.approx = GDALCreateApproxTransformer(GDALGenImgProjTransform, t.transform, 0.125);
+        }
+        GDALSetGenImgProjTransformerDstGeoTransform(t.transform, geo);
+        GDALWarpOptions* o = GDALCreateWarpOptions();
+        o->hSrcDS = GDALDataset::ToHandle(t.ds.get());
+        o->hDstDS = GDALDataset::ToHandle(band.get());
+        o->nBandCount = channels;
+        o->panSrcBands = static_cast<int*>(CPLMalloc(sizeof(int) * size_t(channels)));
+        o->panDstBands = static_cast<int*>(CPLMalloc(sizeof(int) * size_t(channels)));
+        for (int c = 0, src = 1; c < channels; ++c, ++src) {
+            if (src == t.info.alphaBand) ++src;
+            o->panSrcBands[c] = src;
+            o->panDstBands[c] = c + 1;
+        }
+        o->nSrcAlphaBand = t.info.alphaBand;
+        o->nDstAlphaBand = channels + 1;
+        o->eResampleAlg = t.alg;
+        o->dfWarpMemoryLimit = 256.0 * 1024 * 1024;
+        o->pfnTransformer = GDALApproxTransform;
+        o->pTransformerArg = t.approx;
+        if (t.info.nodataKind == NodataKind::Value && t.info.nodata) {
+            o->padfSrcNoDataReal = static_cast<double*>(CPLMalloc(sizeof(double) * size_t(channels)));
+            for (int c = 0; c < channels; ++c) o->padfSrcNoDataReal[c] = *t.info.nodata;
+        }
+        o->papszWarpOptions = CSLSetNameValue(o->papszWarpOptions, "NUM_THREADS", "ALL_CPUS");
+        o->papszWarpOptions = CSLSetNameValue(o->papszWarpOptions, "UNIFIED_SRC_NODATA", "YES");
+        o->papszWarpOptions = CSLSetNameValue(o->papszWarpOptions, "SKIP_NOSOURCE", "YES");
+        GDALWarpOperation op;
+        CPLErr err = op.Initialize(o);
+        const int r0 = std::max(t.row0, y0) - y0, r1 = std::min(t.row1, y1) - y0;
+        if (err == CE_None) err = op.ChunkAndWarpImage(t.col0, r0, t.col1 - t.col0, r1 - r0);
+        GDALDestroyWarpOptions(o);
+        if (err != CE_None || errors.failed()) {
+            const std::string why = errors.message();
+            return fileError(name, "truncated or corrupt image data" + (why.empty() ? std::string() : " (" + why + ")"));
+        }
+    }
+    // Coverage is binary: a pixel more than half covered by data is data.
+    auto* bytes = static_cast<std::uint8_t*>(samples);
+    const size_t pixelBytes = size_t(channels) * size_t(sample);
+    for (size_t i = 0; i < pixels; ++i) {
+        if (coverage[i] >= 128) {
+            coverage[i] = 255;
+        } else {
+            coverage[i] = 0;
+            std::memset(bytes + i * pixelBytes, 0, pixelBytes);
+        }
+    }
+    return Ok{};
+}
+
+} // namespace seasonview
