@@ -46,6 +46,10 @@ void SceneArgs::addTo(CLI::App& cmd, bool withDem) {
     cmd.add_option("--resampling", resampling,
                    "How seasons are warped onto the working grid: auto|near|bilinear|cubic|average|lanczos (auto: "
                    "near on the grid's lattice, average where a season is 1.5x finer, else bilinear)");
+    cmd.add_option("--stretch", stretch,
+                   "Display (and segmentation) colour: auto (16-bit through a per-band 0.5-99.5 % stretch, 8-bit as "
+                   "it is), percentile (the stretch for 8-bit too: 8-bit radiometric data such as scaled reflectance), "
+                   "none");
     cmd.add_option("--cache", cache, "Cache folder (default $SEASONVIEW_CACHE or ~/.cache/seasonview)");
 }
 
@@ -95,6 +99,7 @@ Result<SceneSources> SceneArgs::sources() const {
         src.grid.extent = e;
     }
     if (!resampling.empty()) src.resampling = resampling;
+    if (!stretch.empty()) src.stretch = stretch;
     return src;
 }
 

@@ -90,7 +90,8 @@ Result<SceneSources> parseManifest(const std::filesystem::path& manifest) {
         return Ok{};
     };
     static const char* known[] = {"name", "leafon", "leafoff", "elevation", "buildings", "truth", "parameters",
-                                  "generator", "description", "crs", "grid_crs", "grid_res", "extent", "resampling"};
+                                  "generator", "description", "crs", "grid_crs", "grid_res", "extent", "resampling",
+                                  "stretch"};
     for (auto& [k, v] : j.items()) {
         (void)v;
         if (std::find_if(std::begin(known), std::end(known), [&](const char* n) { return k == n; }) == std::end(known))
@@ -129,6 +130,7 @@ Result<SceneSources> parseManifest(const std::filesystem::path& manifest) {
     if (auto st = string("crs", s.crs); !st) return st.error();
     if (auto st = string("grid_crs", s.grid.crs); !st) return st.error();
     if (auto st = string("resampling", s.resampling); !st) return st.error();
+    if (auto st = string("stretch", s.stretch); !st) return st.error();
     if (auto it = j.find("grid_res"); it != j.end() && !it->is_null()) {
         if (!it->is_number() || !(it->get<double>() > 0.0) || !std::isfinite(it->get<double>()))
             return fileError(name, "'grid_res' must be a positive number (grid CRS units per pixel)");
@@ -164,7 +166,7 @@ Result<GridOptions> parseGridOptions(const SceneSources& sources) {
 namespace {
 
 Result<ImageryLayer> openImagery(const SourceList& sources, const char* role, const std::optional<Crs>& assumedCrs,
-                                 const std::filesystem::path& cacheDir) {
+                                 const std::filesystem::path& cacheDir, StretchMode mode) {
     auto mosaic = openMosaic(sources, role, assumedCrs);
     if (!mosaic) return mosaic.error();
     const RasterInfo& first = mosaic->tiles.front();
@@ -176,7 +178,7 @@ Result<ImageryLayer> openImagery(const SourceList& sources, const char* role, co
                                                   sampleTypeName(mosaic->type));
     ImageryLayer layer;
     layer.source = std::move(*mosaic);
-    auto stretch = stretchFor(layer.source, cacheDir);
+    auto stretch = stretchFor(layer.source, cacheDir, mode);
     if (!stretch) return stretch.error();
     layer.stretch = *stretch;
     return layer;
@@ -204,8 +206,9 @@ void placeOnGrid(ImageryLayer& layer, const WorkingGrid& grid) {
 
 Result<ImageryLayer> openImageryLayer(const SourceList& sources, const std::string& role,
                                       const std::filesystem::path& cacheDir, const WorkingGrid* grid,
-                                      const std::optional<Crs>& assumedCrs, Resampling resampling) {
-    auto layer = openImagery(sources, role.c_str(), assumedCrs, cacheDir);
+                                      const std::optional<Crs>& assumedCrs, Resampling resampling,
+                                      StretchMode stretch) {
+    auto layer = openImagery(sources, role.c_str(), assumedCrs, cacheDir, stretch);
     if (!layer) return layer.error();
     const RasterInfo& first = layer->source.tiles.front();
     const WorkingGrid own{*first.georef, first.width, first.height};
@@ -230,10 +233,12 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
     auto resampling = parseResampling(sources.resampling);
     if (!resampling) return resampling.error();
     scene.resampling = *resampling;
+    auto stretch = parseStretchMode(sources.stretch);
+    if (!stretch) return stretch.error();
 
-    auto on = openImagery(sources.leafon, "leaf-on", assumed, cacheDir);
+    auto on = openImagery(sources.leafon, "leaf-on", assumed, cacheDir, *stretch);
     if (!on) return on.error();
-    auto off = openImagery(sources.leafoff, "leaf-off", assumed, cacheDir);
+    auto off = openImagery(sources.leafoff, "leaf-off", assumed, cacheDir, *stretch);
     if (!off) return off.error();
     scene.leafon = std::move(*on);
     scene.leafoff = std::move(*off);

@@ -41,13 +41,14 @@ struct SceneSources {
     std::string crs;                // --crs / "crs": the CRS of rasters that carry none (PROJ user input)
     GridOptionsText grid;           // --grid-crs, --grid-res, --extent / "grid_crs", "grid_res", "extent"
     std::string resampling = "auto"; // --resampling / "resampling"
+    std::string stretch = "auto";    // --stretch / "stretch": StretchMode
     std::vector<std::string> warnings; // e.g. unknown manifest keys
 };
 
 /// Parses a manifest: {"leafon": P, "leafoff": P, "elevation"?: P, "buildings"?: path,
 /// "truth"?: {"deciduous"?, "conifer"?, "trees"?}, "parameters"?: {"tree_height_m"?: number}, "name"?: string,
 /// "crs"?: string, "grid_crs"?: string, "grid_res"?: number, "extent"?: [xmin, ymin, xmax, ymax],
-/// "resampling"?: string}, where P is a path (a file, a folder, a glob, a VRT) or a list of them. Paths are relative
+/// "resampling"?: string, "stretch"?: string}, where P is a path (a file, a folder, a glob, a VRT) or a list of them. Paths are relative
 /// to the manifest's folder. Errors name the manifest and the key.
 Result<SceneSources> parseManifest(const std::filesystem::path& manifest);
 
@@ -102,7 +103,8 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
 Result<ImageryLayer> openImageryLayer(const SourceList& sources, const std::string& role,
                                       const std::filesystem::path& cacheDir, const WorkingGrid* grid = nullptr,
                                       const std::optional<Crs>& assumedCrs = {},
-                                      Resampling resampling = Resampling::Auto);
+                                      Resampling resampling = Resampling::Auto,
+                                      StretchMode stretch = StretchMode::Auto);
 
 /// The grid options of `sources` parsed: errors name the flag (--grid-crs, --grid-res, --extent, --crs).
 Result<GridOptions> parseGridOptions(const SceneSources& sources);

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <optional>
 #include <cstdlib>
 #include <fstream>
 #include <functional>
@@ -156,30 +157,58 @@ Result<Stretch> mosaicStretch(const RasterMosaic& m) {
 
 } // namespace
 
-Result<Stretch> stretchFor(const RasterInfo& info, const std::filesystem::path& cacheDir) {
-    if (info.type == SampleType::U8) {
-        Stretch s;
-        s.channels = info.channels;
+const char* stretchModeName(StretchMode m) {
+    switch (m) {
+    case StretchMode::Auto: return "auto";
+    case StretchMode::None: return "none";
+    case StretchMode::Percentile: return "percentile";
+    }
+    return "?";
+}
+
+Result<StretchMode> parseStretchMode(const std::string& name) {
+    for (StretchMode m : {StretchMode::Auto, StretchMode::None, StretchMode::Percentile})
+        if (name == stretchModeName(m)) return m;
+    return Error{"--stretch '" + name + "': expected auto|none|percentile"};
+}
+
+namespace {
+
+/// The stretch a mode gives without looking at the pixels, if any: identity for 8-bit (Auto, None), the full
+/// 16-bit range for None.
+std::optional<Stretch> fixedStretch(SampleType type, int channels, StretchMode mode) {
+    Stretch s;
+    s.channels = channels;
+    if (type == SampleType::U8 && mode != StretchMode::Percentile) return s;
+    if (type != SampleType::U8 && mode == StretchMode::None) {
+        s.identity = false;
+        s.low.fill(0.0f);
+        s.high.fill(65535.0f);
         return s;
     }
+    return std::nullopt;
+}
+
+} // namespace
+
+Result<Stretch> stretchFor(const RasterInfo& info, const std::filesystem::path& cacheDir, StretchMode mode) {
+    if (auto fixed = fixedStretch(info.type, info.channels, mode)) return *fixed;
     std::error_code ec;
     const std::filesystem::path abs = std::filesystem::weakly_canonical(std::filesystem::absolute(info.path, ec), ec);
     const auto size = std::filesystem::file_size(info.path, ec);
     const auto mtime = std::filesystem::last_write_time(info.path, ec).time_since_epoch().count();
-    const std::string key =
-        abs.string() + "|" + std::to_string(size) + "|" + std::to_string(mtime) + "|" + percentilesKey();
+    const std::string key = abs.string() + "|" + std::to_string(size) + "|" + std::to_string(mtime) + "|" +
+                            percentilesKey() + (info.type == SampleType::U8 ? "|8-bit" : "");
     return cachedStretch(key, abs.string(), cacheDir,
                          [&] { return streamedStretch(info.path, kStretchLowPercent, kStretchHighPercent); });
 }
 
-Result<Stretch> stretchFor(const RasterMosaic& mosaic, const std::filesystem::path& cacheDir) {
-    if (mosaic.type == SampleType::U8) {
-        Stretch s;
-        s.channels = mosaic.bands;
-        return s;
-    }
-    if (mosaic.tiles.size() == 1 && !mosaic.hasNodata()) return stretchFor(mosaic.tiles.front(), cacheDir);
-    return cachedStretch("mosaic|" + mosaic.key + "|" + percentilesKey(), mosaic.tiles.front().path.string(),
+Result<Stretch> stretchFor(const RasterMosaic& mosaic, const std::filesystem::path& cacheDir, StretchMode mode) {
+    if (auto fixed = fixedStretch(mosaic.type, mosaic.bands, mode)) return *fixed;
+    if (mosaic.tiles.size() == 1 && !mosaic.hasNodata()) return stretchFor(mosaic.tiles.front(), cacheDir, mode);
+    return cachedStretch("mosaic|" + mosaic.key + "|" + percentilesKey() +
+                             (mosaic.type == SampleType::U8 ? "|8-bit" : ""),
+                         mosaic.tiles.front().path.string(),
                          cacheDir, [&] { return mosaicStretch(mosaic); });
 }
 

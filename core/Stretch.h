@@ -28,6 +28,17 @@ struct Stretch {
 
 constexpr double kStretchLowPercent = 0.5, kStretchHighPercent = 99.5;
 
+/// How a season's samples become display (and segmentation) colour:
+/// - Auto: 16-bit data through the percentile stretch, 8-bit data as they are (what orthophotos in natural colour
+///   need);
+/// - Percentile: the per-band 0.5–99.5 % stretch for 8-bit data too (8-bit deliveries of radiometric data, such as
+///   top-of-atmosphere reflectance scaled into a byte, whose colour is not balanced for display);
+/// - None: samples as they are (16-bit data scaled by 1/257).
+enum class StretchMode { Auto, None, Percentile };
+const char* stretchModeName(StretchMode m);
+/// The mode called `name` ("auto", "none", "percentile"); an error names --stretch.
+Result<StretchMode> parseStretchMode(const std::string& name);
+
 /// Percentile stretch of a 16-bit image (per band; zero samples, the usual nodata fill, are ignored).
 Stretch computeStretch(const Image<std::uint16_t>& image, double lowPercent = kStretchLowPercent,
                        double highPercent = kStretchHighPercent);
@@ -35,16 +46,18 @@ Stretch computeStretch(const Image<std::uint16_t>& image, double lowPercent = kS
 /// The cache folder: $SEASONVIEW_CACHE, else $XDG_CACHE_HOME/seasonview, else ~/.cache/seasonview.
 std::filesystem::path defaultCacheDir();
 
-/// The stretch of an imagery file: identity for 8-bit, else read from `cacheDir` (keyed by absolute path, size
-/// and modification time) or computed from the pixels (streamed in bands of rows: bounded memory for any size)
-/// and stored there. A cache that cannot be written is not an
+/// The stretch of an imagery file as `mode` says: identity for 8-bit (Auto, None), a full-range scale for 16-bit
+/// (None), else percentiles read from `cacheDir` (keyed by absolute path, size and modification time) or computed
+/// from the pixels (streamed in bands of rows: bounded memory for any size) and stored there. A cache that cannot be written is not an
 /// error (the stretch is just recomputed next time).
-Result<Stretch> stretchFor(const RasterInfo& info, const std::filesystem::path& cacheDir);
+Result<Stretch> stretchFor(const RasterInfo& info, const std::filesystem::path& cacheDir,
+                           StretchMode mode = StretchMode::Auto);
 
 /// The stretch of a season delivered as a mosaic: identity for 8-bit; a single file without nodata as above;
 /// otherwise the percentiles of every tile's valid pixels (nodata values, alpha and masks honoured, zeros ignored)
 /// at their own resolution, so that all tiles share one stretch. Cached like the above, keyed by the mosaic.
-Result<Stretch> stretchFor(const RasterMosaic& mosaic, const std::filesystem::path& cacheDir);
+Result<Stretch> stretchFor(const RasterMosaic& mosaic, const std::filesystem::path& cacheDir,
+                           StretchMode mode = StretchMode::Auto);
 
 /// 8-bit RGBA pixels of an imagery file with its stretch applied (alpha 255 unless the file has alpha).
 Result<Image<std::uint8_t>> readDisplayRgba(const RasterInfo& info, const Stretch& stretch);

@@ -52,6 +52,11 @@ public:
             for (int c = 0; c < channels; ++c)
                 for (int v = 0; v < 65536; ++v)
                     r.m_lut[size_t(c) * 65536 + size_t(v)] = stretch ? stretch->apply(c, float(v)) : (v ? 255 : 0);
+        } else if (stretch && !stretch->identity && !rgba) {
+            // 8-bit samples through a stretch (--stretch percentile): tables of 256.
+            r.m_lut8.resize(size_t(channels) * 256);
+            for (int c = 0; c < channels; ++c)
+                for (int v = 0; v < 256; ++v) r.m_lut8[size_t(c) * 256 + size_t(v)] = stretch->apply(c, float(v));
         }
         return r;
     }
@@ -63,7 +68,7 @@ public:
         const size_t rowBytes = size_t(m_reader.width()) * size_t(m_channels);
         for (int y = y0; y < y1;) {
             const int bandEnd = std::min(m_reader.height(), y + m_reader.bandRows());
-            if (!m_sixteen && !m_rgba && y % m_reader.bandRows() == 0 && bandEnd <= y1 &&
+            if (!m_sixteen && !m_rgba && m_lut8.empty() && y % m_reader.bandRows() == 0 && bandEnd <= y1 &&
                 (y < m_band0 || y >= m_band1)) {
                 // A whole band wanted and not loaded: straight into `out`, no copy.
                 if (auto st = m_reader.read(y, bandEnd, m_channels, SampleType::U8, out + size_t(y - y0) * rowBytes);
@@ -112,7 +117,14 @@ private:
             }
             return Ok{};
         }
-        if (!m_sixteen) return m_reader.read(m_band0, m_band1, m_channels, SampleType::U8, m_band.data());
+        if (!m_sixteen) {
+            if (auto st = m_reader.read(m_band0, m_band1, m_channels, SampleType::U8, m_band.data()); !st) return st;
+            if (!m_lut8.empty()) {
+                const size_t ch = size_t(m_channels);
+                for (size_t i = 0; i < samples; ++i) m_band[i] = m_lut8[(i % ch) * 256 + m_band[i]];
+            }
+            return Ok{};
+        }
         m_raw.resize(samples);
         if (auto st = m_reader.read(m_band0, m_band1, m_channels, SampleType::U16, m_raw.data()); !st) return st;
         const size_t ch = size_t(m_channels);
@@ -125,7 +137,8 @@ private:
     bool m_sixteen = false;
     bool m_rgba = false;
     std::vector<std::uint8_t> m_raw8, m_alpha; // RGBA: the band as read, its alpha
-    std::vector<std::uint8_t> m_lut; // per channel, 65536 entries
+    std::vector<std::uint8_t> m_lut;  // per channel, 65536 entries
+    std::vector<std::uint8_t> m_lut8; // 8-bit samples through a stretch: per channel, 256 entries
     std::vector<std::uint16_t> m_raw;
     std::vector<std::uint8_t> m_band;
     int m_band0 = 0, m_band1 = 0;

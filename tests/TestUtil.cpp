@@ -1,6 +1,7 @@
 #include "TestUtil.h"
 
 #include <gdal_priv.h>
+#include <gdal_utils.h>
 #include <ogr_spatialref.h>
 
 #include <gtest/gtest.h>
@@ -70,6 +71,69 @@ void writeTestImage(const std::filesystem::path& path, int w, int h, const Geore
     Status st = sixteenBit ? writeGeoTiff(path, px16.data(), SampleType::U16, w, h, 3, g)
                            : writeGeoTiff(path, px8.data(), SampleType::U8, w, h, 3, g);
     ASSERT_TRUE(st.ok()) << st.message();
+}
+
+namespace {
+
+std::vector<char*> argv(const std::vector<std::string>& args, std::vector<std::string>& storage) {
+    storage = args;
+    std::vector<char*> v;
+    for (std::string& s : storage) v.push_back(s.data());
+    v.push_back(nullptr);
+    return v;
+}
+
+} // namespace
+
+void gdalWarp(const std::filesystem::path& src, const std::filesystem::path& dst, const std::vector<std::string>& args) {
+    GDALAllRegister();
+    std::vector<std::string> storage;
+    auto a = argv(args, storage);
+    GDALWarpAppOptions* o = GDALWarpAppOptionsNew(a.data(), nullptr);
+    ASSERT_TRUE(o) << "gdalwarp arguments";
+    GDALDatasetH in = GDALOpen(src.c_str(), GA_ReadOnly);
+    ASSERT_TRUE(in) << src;
+    int usageError = 0;
+    GDALDatasetH out = GDALWarp(dst.c_str(), nullptr, 1, &in, o, &usageError);
+    GDALWarpAppOptionsFree(o);
+    GDALClose(in);
+    ASSERT_TRUE(out && !usageError) << "gdalwarp " << src << " -> " << dst << ": " << CPLGetLastErrorMsg();
+    GDALClose(out);
+}
+
+void gdalTranslate(const std::filesystem::path& src, const std::filesystem::path& dst,
+                   const std::vector<std::string>& args) {
+    GDALAllRegister();
+    std::vector<std::string> storage;
+    auto a = argv(args, storage);
+    GDALTranslateOptions* o = GDALTranslateOptionsNew(a.data(), nullptr);
+    ASSERT_TRUE(o) << "gdal_translate arguments";
+    GDALDatasetH in = GDALOpen(src.c_str(), GA_ReadOnly);
+    ASSERT_TRUE(in) << src;
+    int usageError = 0;
+    GDALDatasetH out = GDALTranslate(dst.c_str(), in, o, &usageError);
+    GDALTranslateOptionsFree(o);
+    GDALClose(in);
+    ASSERT_TRUE(out && !usageError) << "gdal_translate " << src << " -> " << dst << ": " << CPLGetLastErrorMsg();
+    GDALClose(out);
+}
+
+void gdalBuildVrt(const std::filesystem::path& dst, const std::vector<std::filesystem::path>& sources,
+                  const std::vector<std::string>& args) {
+    GDALAllRegister();
+    std::vector<std::string> storage;
+    auto a = argv(args, storage);
+    GDALBuildVRTOptions* o = GDALBuildVRTOptionsNew(a.data(), nullptr);
+    ASSERT_TRUE(o) << "gdalbuildvrt arguments";
+    std::vector<std::string> names;
+    for (const auto& s : sources) names.push_back(s.string());
+    std::vector<const char*> list;
+    for (const auto& n : names) list.push_back(n.c_str());
+    int usageError = 0;
+    GDALDatasetH out = GDALBuildVRT(dst.c_str(), int(list.size()), nullptr, list.data(), o, &usageError);
+    GDALBuildVRTOptionsFree(o);
+    ASSERT_TRUE(out && !usageError) << "gdalbuildvrt " << dst << ": " << CPLGetLastErrorMsg();
+    GDALClose(out);
 }
 
 std::array<double, 6> geotransformOf(const Georef& g) {

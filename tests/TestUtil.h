@@ -58,6 +58,15 @@ struct GdalRasterSpec {
 void writeGdalRaster(const std::filesystem::path& path, const void* data, SampleType type, int w, int h, int bands,
                      const GdalRasterSpec& spec);
 
+/// Runs GDAL's own utilities (gdal_utils.h) to make fixtures the way data providers make deliveries: gdalwarp,
+/// gdal_translate and gdalbuildvrt with their command-line arguments (e.g. {"-t_srs", "EPSG:2154", "-tr", "0.5",
+/// "0.5"}). Fail the test on error.
+void gdalWarp(const std::filesystem::path& src, const std::filesystem::path& dst, const std::vector<std::string>& args);
+void gdalTranslate(const std::filesystem::path& src, const std::filesystem::path& dst,
+                   const std::vector<std::string>& args);
+void gdalBuildVrt(const std::filesystem::path& dst, const std::vector<std::filesystem::path>& sources,
+                  const std::vector<std::string>& args = {});
+
 /// GDAL's geotransform of a georef (x0, dx, 0, y0, 0, -dy).
 std::array<double, 6> geotransformOf(const Georef& g);
 
