@@ -54,8 +54,15 @@ Result<std::filesystem::path> prepareCityTree(const Scene& scene, const std::fil
     const auto size = std::filesystem::file_size(model, ec);
     if (ec) return fileError(model.string(), "no such city model");
     const auto mtime = std::filesystem::last_write_time(model, ec).time_since_epoch().count();
+    std::optional<Crs> modelCrs;
+    if (!scene.sources.buildingsCrs.empty()) {
+        auto crs = city::crsFromSrsName(scene.sources.buildingsCrs);
+        if (!crs) return Error{"--city-crs: " + crs.message()};
+        modelCrs = *crs;
+    }
     const std::string key = abs.string() + "|" + std::to_string(size) + "|" + std::to_string(mtime) + "|v" +
-                            std::to_string(city::AtlasTreeFile::kVersion) + "|defaults1";
+                            std::to_string(city::AtlasTreeFile::kVersion) + "|defaults1" +
+                            (modelCrs ? "|" + modelCrs->identifier() : std::string());
     char name[64];
     std::snprintf(name, sizeof name, "%016llx.svat", (unsigned long long)stableHash64(key));
     const auto dir = cacheDir / "atlas";
@@ -66,8 +73,10 @@ Result<std::filesystem::path> prepareCityTree(const Scene& scene, const std::fil
 
     const auto t0 = std::chrono::steady_clock::now();
     city::CityLoadOptions options;
-    // An OBJ that comes with a scene and names no CRS is in the scene's frame (seasonview synth's city.obj).
-    options.localFrame = true;
+    // An OBJ that comes with a scene and names no CRS is in the scene's frame (seasonview synth's city.obj), unless
+    // --city-crs / buildings_crs says which CRS its coordinates are in.
+    options.localFrame = !modelCrs;
+    options.crs = modelCrs;
     auto m = city::loadCityModel(model.string(), options);
     if (!m) return m.error();
     for (const auto& w : m->warnings) std::fprintf(stderr, "seasonview: warning: %s\n", w.c_str());

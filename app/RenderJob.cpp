@@ -31,11 +31,16 @@ void SceneArgs::addTo(CLI::App& cmd, bool withDem) {
                    "Leaf-off (winter) imagery, as --leafon; any grid, resolution and CRS (warped onto the working "
                    "grid)")
         ->expected(1, -1);
-    if (withDem)
+    if (withDem) {
         cmd.add_option("--dem", dem,
                        "Elevation (metres or feet) in any format and CRS: a file, folder, glob or VRT of tiles; flat "
                        "without")
             ->expected(1, -1);
+        cmd.add_option("--buildings", buildings, "City model (CityGML or OBJ) for --city, when no manifest names one");
+        cmd.add_option("--city-crs", cityCrs,
+                       "CRS of a city model that names none (an OBJ in real coordinates), e.g. EPSG:25833; without it "
+                       "an OBJ is in the scene's local frame");
+    }
     cmd.add_option("--crs", crs, "CRS of inputs that carry none, e.g. EPSG:2154 (any EPSG code, URN, WKT or PROJ string)");
     cmd.add_option("--grid-crs", gridCrs,
                    "Working grid's CRS (default: the leaf-on's when projected, else its UTM zone)");
@@ -99,6 +104,8 @@ Result<SceneSources> SceneArgs::sources() const {
         src.grid.extent = e;
     }
     if (!resampling.empty()) src.resampling = resampling;
+    if (!buildings.empty()) src.buildings = buildings;
+    if (!cityCrs.empty()) src.buildingsCrs = cityCrs;
     if (!stretch.empty()) src.stretch = stretch;
     return src;
 }

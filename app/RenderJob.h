@@ -32,7 +32,7 @@ struct SceneArgs {
     std::string manifest;
     std::vector<std::string> leafon, leafoff, dem;
     std::string cache;
-    std::string crs, gridCrs, extent, resampling, stretch;
+    std::string crs, gridCrs, extent, resampling, stretch, buildings, cityCrs;
     double gridRes = 0.0;
     /// Adds the options to `cmd` (`withDem` false: commands that read no DEM).
     void addTo(CLI::App& cmd, bool withDem = true);

@@ -91,7 +91,7 @@ Result<SceneSources> parseManifest(const std::filesystem::path& manifest) {
     };
     static const char* known[] = {"name", "leafon", "leafoff", "elevation", "buildings", "truth", "parameters",
                                   "generator", "description", "crs", "grid_crs", "grid_res", "extent", "resampling",
-                                  "stretch"};
+                                  "stretch", "buildings_crs"};
     for (auto& [k, v] : j.items()) {
         (void)v;
         if (std::find_if(std::begin(known), std::end(known), [&](const char* n) { return k == n; }) == std::end(known))
@@ -131,6 +131,7 @@ Result<SceneSources> parseManifest(const std::filesystem::path& manifest) {
     if (auto st = string("grid_crs", s.grid.crs); !st) return st.error();
     if (auto st = string("resampling", s.resampling); !st) return st.error();
     if (auto st = string("stretch", s.stretch); !st) return st.error();
+    if (auto st = string("buildings_crs", s.buildingsCrs); !st) return st.error();
     if (auto it = j.find("grid_res"); it != j.end() && !it->is_null()) {
         if (!it->is_number() || !(it->get<double>() > 0.0) || !std::isfinite(it->get<double>()))
             return fileError(name, "'grid_res' must be a positive number (grid CRS units per pixel)");

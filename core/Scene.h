@@ -36,6 +36,8 @@ struct SceneSources {
     std::string name;
     SourceList leafon, leafoff, elevation; // each: files, folders, globs or VRTs
     std::filesystem::path buildings;
+    std::string buildingsCrs;       // --city-crs / "buildings_crs": the CRS of a model that names none (OBJ); empty:
+                                    // an OBJ is in the scene's local frame (what `synth` writes)
     std::filesystem::path truthDeciduous, truthConifer, truthTrees;
     double treeHeightM = 15.0;      // parameters.tree_height_m: canopy height used by the foliage layers
     std::string crs;                // --crs / "crs": the CRS of rasters that carry none (PROJ user input)
@@ -48,7 +50,7 @@ struct SceneSources {
 /// Parses a manifest: {"leafon": P, "leafoff": P, "elevation"?: P, "buildings"?: path,
 /// "truth"?: {"deciduous"?, "conifer"?, "trees"?}, "parameters"?: {"tree_height_m"?: number}, "name"?: string,
 /// "crs"?: string, "grid_crs"?: string, "grid_res"?: number, "extent"?: [xmin, ymin, xmax, ymax],
-/// "resampling"?: string, "stretch"?: string}, where P is a path (a file, a folder, a glob, a VRT) or a list of them. Paths are relative
+/// "resampling"?: string, "stretch"?: string, "buildings_crs"?: string}, where P is a path (a file, a folder, a glob, a VRT) or a list of them. Paths are relative
 /// to the manifest's folder. Errors name the manifest and the key.
 Result<SceneSources> parseManifest(const std::filesystem::path& manifest);
 

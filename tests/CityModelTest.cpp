@@ -603,3 +603,32 @@ TEST(CityModelTest, TriangulatePolygonHandlesConvexConcaveAndDegenerate) {
     }
     EXPECT_NEAR(area, 2.0, 1e-12); // 3 - 1
 }
+
+TEST(CityModelTest, ModelsInNationalGridsLandWhereTheyAreInAUtmScene) {
+    // A building near Bern whose corner is at a known spot of a UTM 32N scene, written in Swiss LV95 (EPSG:2056,
+    // which no hand-written table held) as CityGML and as an OBJ given that CRS: reframed into the scene, the corner
+    // is where it was put, to a centimetre.
+    test::TempDir dir("city_lv95");
+    writePng(dir / "wall.png", 8, 8);
+    const Crs utm = Crs::utm(32, true), lv95 = *Crs::fromEpsg(2056);
+    const glm::dvec2 sceneCentre = glm::round(convert(Crs::geographic(), utm, {7.44, 46.95}));
+    const glm::dvec2 corner = convert(utm, lv95, sceneCentre + glm::dvec2(30.0, -40.0)); // local (30, -40)
+    writeText(dir / "b.gml", cityGml("urn:ogc:def:crs:EPSG::2056", "wall.png", "", corner.x, corner.y));
+    auto gml = loadCityModel((dir / "b.gml").string());
+    ASSERT_TRUE(gml) << gml.error().message;
+    // The OBJ: the same corner and the building's far corner, y up (OBJ's convention): x = east, z = -north.
+    writeText(dir / "b.obj", "v " + std::to_string(corner.x) + " 34 " + std::to_string(-corner.y) + "\nv " +
+                                 std::to_string(corner.x + 10) + " 34 " + std::to_string(-corner.y) + "\nv " +
+                                 std::to_string(corner.x + 10) + " 42 " + std::to_string(-corner.y) + "\nf 1 2 3\n");
+    CityLoadOptions o;
+    o.crs = *crsFromSrsName("EPSG:2056");
+    auto obj = loadCityModel((dir / "b.obj").string(), o);
+    ASSERT_TRUE(obj) << obj.error().message;
+    for (CityModel* m : {&*gml, &*obj}) {
+        reframe(*m, utm, sceneCentre);
+        double best = 1e9;
+        for (const auto& t : m->triangles)
+            for (const auto& v : t.v) best = std::min(best, glm::length(glm::dvec2(v.x, v.y) - glm::dvec2(30.0, -40.0)));
+        EXPECT_LT(best, 0.01) << m->source;
+    }
+}
