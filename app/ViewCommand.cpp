@@ -8,6 +8,7 @@
 #include "CityJob.h"
 #include "Commands.h"
 #include "RenderJob.h"
+#include "SeasonCoverage.h"
 #include "ViewerScript.h"
 #include "gl/GlDebug.h"
 
@@ -89,6 +90,7 @@ const char* kViewKeys[] = {"leafon", "leafoff", "blend", "swipe", "canopy", "lod
 struct LiveScene {
     const Scene* scene = nullptr;
     std::vector<ImagePyramid> pyramids;
+    std::optional<SeasonCoverageProbe> coverage; // which season has data under the cursor (HUD)
     std::optional<ImagePyramid> elevation;
     std::optional<SegmentationHistograms> histograms;
     std::filesystem::path cache;
@@ -471,6 +473,9 @@ Runner addViewCommand(CLI::App& app) {
         auto pyr = preparePyramids(*scene, live.cache);
         if (!pyr) return fail(pyr.message());
         live.pyramids = std::move(*pyr);
+        auto probe = SeasonCoverageProbe::open(live.pyramids);
+        if (!probe) return fail(probe.message());
+        live.coverage = std::move(*probe);
         auto elev = prepareElevation(*scene, live.cache);
         if (!elev) return fail(elev.message());
         live.elevation = std::move(*elev);
@@ -786,7 +791,7 @@ Runner addViewCommand(CLI::App& app) {
                     ImGui::Separator();
                     // HUD.
                     const glm::dvec2 local(cam.position.x, cam.position.y);
-                    const Crs& crs = scene->leafon.info.georef->crs;
+                    const Crs& crs = scene->grid.georef.crs;
                     const glm::dvec2 inCrs = scene->frame.fromLocal(crs, local);
                     const glm::dvec2 lonLat = crs.isGeographic() ? inCrs : convert(crs, Crs::geographic(), inCrs);
                     ImGui::Text("frame %.1f ms (%.1f fps)", frameMsAvg, frameMsAvg > 0 ? 1000.0 / frameMsAvg : 0.0);
@@ -807,6 +812,13 @@ Runner addViewCommand(CLI::App& app) {
                     ImGui::Text("%.2f m above ground", cam.position.z - ground(cam.position.x, cam.position.y));
                     ImGui::Text("%s: %.2f, %.2f", crs.name().c_str(), inCrs.x, inCrs.y);
                     ImGui::Text("lat %.6f, lon %.6f", lonLat.y, lonLat.x);
+                    {
+                        // The seasons that have data at the ground point under the cursor.
+                        const auto hit = pickGround(cam, input.cursor, viewport, ground);
+                        const auto c = hit ? live.coverage->at(scene->localToImagePixel(glm::dvec2(*hit)))
+                                           : std::optional<SeasonCoverage>();
+                        ImGui::Text("under the cursor: %s", c ? c->describe() : "outside the imagery");
+                    }
                     if (!status.empty()) ImGui::TextWrapped("%s", status.c_str());
                     ImGui::End();
                 }

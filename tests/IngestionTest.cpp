@@ -3,6 +3,8 @@
 // and the bad input of each. Fixtures are made from a small synthetic scene with GDAL's own utilities, the way data
 // providers make deliveries.
 #include "GridReader.h"
+#include "ImagePyramid.h"
+#include "SeasonCoverage.h"
 #include "RasterMosaic.h"
 #include "Scene.h"
 #include "SyntheticScene.h"
@@ -359,4 +361,33 @@ TEST(IngestionTest, DemTilesInAnotherCrsAndInFeet) {
     auto feet = loadScene(*src, dir / "cache");
     ASSERT_TRUE(feet.ok()) << feet.message();
     EXPECT_NEAR(feet->terrainHeight(10, 20), reference->terrainHeight(10, 20), 2e-3);
+}
+
+TEST(IngestionTest, CoverageUnderACursorSaysWhichSeasonHasData) {
+    // The leaf-off 10 m east of the leaf-on: on the union grid the west strip has the leaf-on only, the east strip the
+    // leaf-off only, the middle both (what the viewer's HUD reports under the cursor).
+    TempDir dir("ingest-coverage");
+    writeTestImage(dir / "on.tif", 64, 48, testGeoref(0.5), false, 1);
+    writeTestImage(dir / "off.tif", 64, 48, testGeoref(0.5, 405010.0), false, 2);
+    SceneSources s;
+    s.leafon = dir / "on.tif";
+    s.leafoff = dir / "off.tif";
+    auto scene = loadScene(s, dir / "cache");
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    ASSERT_EQ(scene->grid.width, 84);
+    std::vector<ImagePyramid> pyramids;
+    for (const ImageryLayer* l : {&scene->leafon, &scene->leafoff}) {
+        PrepareOptions o;
+        o.cacheDir = dir / "cache";
+        auto r = preparePyramid(*l, o);
+        ASSERT_TRUE(r.ok()) << r.message();
+        pyramids.push_back(r->pyramid);
+    }
+    auto probe = SeasonCoverageProbe::open(pyramids);
+    ASSERT_TRUE(probe.ok()) << probe.message();
+    EXPECT_STREQ(probe->at({5.5, 10.0})->describe(), "leaf-on only");
+    EXPECT_STREQ(probe->at({40.0, 10.0})->describe(), "both seasons");
+    EXPECT_STREQ(probe->at({80.2, 47.9})->describe(), "leaf-off only");
+    EXPECT_FALSE(probe->at({84.5, 10.0}));
+    EXPECT_FALSE(probe->at({-0.5, 10.0}));
 }
