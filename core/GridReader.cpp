@@ -2,6 +2,7 @@
 
 #include "BandReader.h"
 #include "GdalSupport.h"
+#include "WarpKernel.h"
 
 #include <gdal_alg.h>
 #include <gdalwarper.h>
@@ -11,6 +12,7 @@
 #include <cstring>
 #include <limits>
 #include <span>
+#include <thread>
 #include <vector>
 
 namespace seasonview {
@@ -22,6 +24,7 @@ struct WarpTile {
     RasterInfo info;
     int row0 = 0, row1 = 0, col0 = 0, col1 = 0; // the grid window it can touch (a margin for the kernel included)
     GDALResampleAlg alg = GRA_Bilinear;
+    bool ownKernel = false; // nearest and bilinear: WarpKernel.h; the other kernels: GDAL's warper
     gdal::Dataset ds;
     void* transform = nullptr; // GDALGenImgProjTransform: tile pixels <-> grid pixels (of the band's dataset)
     void* approx = nullptr;    // the same, approximated to 1/8 pixel
@@ -43,6 +46,7 @@ struct WarpTile {
             col0 = o.col0;
             col1 = o.col1;
             alg = o.alg;
+            ownKernel = o.ownKernel;
             ds = std::move(o.ds);
             transform = std::exchange(o.transform, nullptr);
             approx = std::exchange(o.approx, nullptr);
@@ -62,6 +66,83 @@ GDALResampleAlg gdalAlg(Resampling r) {
 }
 
 int bytesOf(SampleType t) { return t == SampleType::U8 ? 1 : t == SampleType::F32 ? 4 : 2; }
+
+/// A tile's part of a band of rows through WarpKernel: the lattice of where grid pixels sample the tile (PROJ), the
+/// window of the tile it reaches with its validity (alpha, mask or nodata value), then nearest or bilinear.
+template <typename T>
+Status ownWarpTyped(const WarpTile& t, const WorkingGrid& grid, int y0, int y1, int channels, T* out,
+                    std::uint8_t* coverage, int width) {
+    const RasterInfo& info = t.info;
+    const std::string name = info.path.string();
+    const int r0 = std::max(t.row0, y0), r1 = std::min(t.row1, y1);
+    const Georef& gg = grid.georef;
+    const Georef& tg = *info.georef;
+    const Crs gridCrs = gg.crs, tileCrs = tg.crs;
+    const SourceLattice lattice = SourceLattice::build(t.col0, r0, t.col1, r1, [&](std::span<glm::dvec2> pts) {
+        for (glm::dvec2& p : pts) p = gg.pixelToCrs(p);
+        convert(gridCrs, tileCrs, pts);
+        for (glm::dvec2& p : pts) p = tg.crsToPixel(p);
+    });
+    if (lattice.min().x > lattice.max().x) return Ok{}; // nothing of the band maps into the tile's CRS
+    const int sx0 = std::max(0, int(std::floor(lattice.min().x)) - 2);
+    const int sy0 = std::max(0, int(std::floor(lattice.min().y)) - 2);
+    const int sx1 = std::min(info.width, int(std::ceil(lattice.max().x)) + 2);
+    const int sy1 = std::min(info.height, int(std::ceil(lattice.max().y)) + 2);
+    if (sx0 >= sx1 || sy0 >= sy1) return Ok{};
+    SourceWindow<T> src;
+    src.x0 = sx0;
+    src.y0 = sy0;
+    src.width = sx1 - sx0;
+    src.height = sy1 - sy0;
+    src.channels = channels;
+    const size_t n = size_t(src.width) * size_t(src.height);
+    src.samples.resize(n * size_t(channels));
+    src.valid.assign(n, 1);
+    std::vector<int> bands;
+    for (int b = 1; b <= info.channels && int(bands.size()) < channels; ++b)
+        if (b != info.alphaBand) bands.push_back(b);
+    gdal::ErrorCapture errors;
+    GDALDataset& ds = *t.ds;
+    const GSpacing bytes = GSpacing(sizeof(T));
+    CPLErr err = ds.RasterIO(GF_Read, sx0, sy0, src.width, src.height, src.samples.data(), src.width, src.height,
+                             gdal::gdalTypeOf(sizeof(T) == 1 ? SampleType::U8 : sizeof(T) == 2 ? SampleType::U16
+                                                                                            : SampleType::F32),
+                             channels, bands.data(), bytes * channels, bytes * channels * src.width, bytes, nullptr);
+    if (err == CE_None && (info.nodataKind == NodataKind::Alpha || info.nodataKind == NodataKind::Mask)) {
+        // Alpha and masks through GDAL's mask band: 0 no data, 255 data (alpha scaled to a byte).
+        err = ds.GetRasterBand(bands.front())
+                  ->GetMaskBand()
+                  ->RasterIO(GF_Read, sx0, sy0, src.width, src.height, src.valid.data(), src.width, src.height,
+                             GDT_Byte, 0, 0, nullptr);
+        for (std::uint8_t& v : src.valid) v = v >= 128 ? 1 : 0;
+    } else if (err == CE_None && info.nodataKind == NodataKind::Value && info.nodata) {
+        // A pixel is no data where every band has the nodata value (GDAL's UNIFIED_SRC_NODATA).
+        const T nd = T(*info.nodata);
+        for (size_t i = 0; i < n; ++i) {
+            bool all = true;
+            for (int c = 0; c < channels && all; ++c) all = src.samples[i * size_t(channels) + size_t(c)] == nd;
+            src.valid[i] = all ? 0 : 1;
+        }
+    }
+    if (err != CE_None || errors.failed()) {
+        const std::string why = errors.message();
+        return fileError(name, "truncated or corrupt image data" + (why.empty() ? std::string() : " (" + why + ")"));
+    }
+    const int threads = std::max(1, int(std::thread::hardware_concurrency()));
+    resampleWindow(lattice, src, t.alg == GRA_Bilinear, t.col0, r0, t.col1, r1, out, coverage, width, y0, threads);
+    return Ok{};
+}
+
+Status ownWarp(const WarpTile& t, const WorkingGrid& grid, int y0, int y1, int channels, SampleType type, void* out,
+               std::uint8_t* coverage, int width) {
+    switch (type) {
+    case SampleType::U8:
+        return ownWarpTyped(t, grid, y0, y1, channels, static_cast<std::uint8_t*>(out), coverage, width);
+    case SampleType::U16:
+        return ownWarpTyped(t, grid, y0, y1, channels, static_cast<std::uint16_t*>(out), coverage, width);
+    default: return ownWarpTyped(t, grid, y0, y1, channels, static_cast<float*>(out), coverage, width);
+    }
+}
 
 } // namespace
 
@@ -148,6 +229,7 @@ Result<GridReader> GridReader::open(const RasterMosaic& mosaic, const WorkingGri
             }
         }
         w.alg = gdalAlg(alg);
+        w.ownKernel = alg == Resampling::Nearest || alg == Resampling::Bilinear;
         impl.tiles.push_back(std::move(w));
     }
     return r;
@@ -173,27 +255,33 @@ Status GridReader::read(int y0, int y1, int channels, SampleType type, void* sam
     }
     std::memset(coverage, 0, pixels);
 
-    // The band as a GDAL dataset over our buffers: bands 1..channels the samples, band channels+1 the coverage.
-    GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
-    gdal::Dataset band(mem->Create("", m_width, rows, 0, GDT_Byte, nullptr));
-    if (!band) return Error{"cannot create the warp's band of rows (out of memory?)"};
-    auto addBand = [&](void* data, GDALDataType t, int pixelBytes, int lineBytes) {
-        char ptr[64], pix[32], line[32];
-        std::snprintf(ptr, sizeof ptr, "DATAPOINTER=%p", data);
-        std::snprintf(pix, sizeof pix, "PIXELOFFSET=%d", pixelBytes);
-        std::snprintf(line, sizeof line, "LINEOFFSET=%d", lineBytes);
-        const char* options[] = {ptr, pix, line, nullptr};
-        return band->AddBand(t, const_cast<char**>(options)) == CE_None;
-    };
-    const GDALDataType gt = gdal::gdalTypeOf(type);
-    for (int c = 0; c < channels; ++c)
-        if (!addBand(static_cast<std::uint8_t*>(samples) + size_t(c) * size_t(sample), gt, sample * channels,
-                     sample * channels * m_width))
-            return Error{"cannot create the warp's band of rows"};
-    if (!addBand(coverage, GDT_Byte, 1, m_width)) return Error{"cannot create the warp's band of rows"};
     const Georef& g = impl.grid.georef;
     double geo[6] = {g.origin.x, g.pixelSize.x, 0.0, g.origin.y - g.pixelSize.y * y0, 0.0, -g.pixelSize.y};
-    band->SetGeoTransform(geo);
+    // For GDAL's warper (average, cubic, lanczos): the band as a GDAL dataset over our buffers, bands 1..channels the
+    // samples, band channels+1 the coverage; made when a tile needs it.
+    gdal::Dataset band;
+    auto memBand = [&]() -> Status {
+        if (band) return Ok{};
+        GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+        band.reset(mem->Create("", m_width, rows, 0, GDT_Byte, nullptr));
+        if (!band) return Error{"cannot create the warp's band of rows (out of memory?)"};
+        auto addBand = [&](void* data, GDALDataType t, int pixelBytes, int lineBytes) {
+            char ptr[64], pix[32], line[32];
+            std::snprintf(ptr, sizeof ptr, "DATAPOINTER=%p", data);
+            std::snprintf(pix, sizeof pix, "PIXELOFFSET=%d", pixelBytes);
+            std::snprintf(line, sizeof line, "LINEOFFSET=%d", lineBytes);
+            const char* options[] = {ptr, pix, line, nullptr};
+            return band->AddBand(t, const_cast<char**>(options)) == CE_None;
+        };
+        const GDALDataType gt = gdal::gdalTypeOf(type);
+        for (int c = 0; c < channels; ++c)
+            if (!addBand(static_cast<std::uint8_t*>(samples) + size_t(c) * size_t(sample), gt, sample * channels,
+                         sample * channels * m_width))
+                return Error{"cannot create the warp's band of rows"};
+        if (!addBand(coverage, GDT_Byte, 1, m_width)) return Error{"cannot create the warp's band of rows"};
+        band->SetGeoTransform(geo);
+        return Ok{};
+    };
 
     for (WarpTile& t : impl.tiles) {
         if (t.row1 <= y0) {
@@ -216,6 +304,11 @@ Status GridReader::read(int y0, int y1, int channels, SampleType type, void* sam
             if (!t.transform) return fileError(name, "no transformation into the grid's CRS (" + errors.message() + ")");
             t.approx = GDALCreateApproxTransformer(GDALGenImgProjTransform, t.transform, 0.125);
         }
+        if (t.ownKernel) {
+            if (auto st = ownWarp(t, impl.grid, y0, y1, channels, type, samples, coverage, m_width); !st) return st;
+            continue;
+        }
+        if (auto st = memBand(); !st) return st;
         GDALSetGenImgProjTransformerDstGeoTransform(t.transform, geo);
         GDALWarpOptions* o = GDALCreateWarpOptions();
         o->hSrcDS = GDALDataset::ToHandle(t.ds.get());

@@ -391,3 +391,42 @@ TEST(IngestionTest, CoverageUnderACursorSaysWhichSeasonHasData) {
     EXPECT_FALSE(probe->at({84.5, 10.0}));
     EXPECT_FALSE(probe->at({-0.5, 10.0}));
 }
+
+TEST(IngestionTest, OwnBilinearKernelMatchesGdalsWarper) {
+    // A Lambert-93 delivery with a nodata collar warped back onto the UTM grid by GridReader (own kernel) and by
+    // gdalwarp -r bilinear onto the same grid: the same pixels, to rounding and GDAL's 1/8-pixel approximation.
+    TempDir dir("ingest-kernel");
+    const fs::path scene = smallScene(dir, {2.18, 48.70});
+    const WorkingGrid grid = gridOf(scene / "leafon.tif");
+    gdalWarp(scene / "leafon.tif", dir / "l93.tif", {"-t_srs", "EPSG:2154", "-tr", "0.6", "0.6", "-r", "bilinear",
+                                                     "-dstnodata", "0"});
+    const GridPixels own = readOnGrid(mosaicOf(SourceList(dir / "l93.tif")), grid, Resampling::Bilinear);
+    const glm::dvec2 lo = grid.min(), hi = grid.max();
+    gdalWarp(dir / "l93.tif", dir / "back.tif",
+             {"-t_srs", "EPSG:32631", "-tr", "0.5", "0.5", "-te", std::to_string(lo.x), std::to_string(lo.y),
+              std::to_string(hi.x), std::to_string(hi.y), "-r", "bilinear", "-dstalpha"});
+    auto gdal = readImageU8(dir / "back.tif", 4);
+    ASSERT_TRUE(gdal.ok());
+    ASSERT_EQ(gdal->width, grid.width);
+    double sum = 0.0;
+    int worst = 0, n = 0, coverageDiffers = 0;
+    for (int y = 0; y < grid.height; ++y)
+        for (int x = 0; x < grid.width; ++x) {
+            const size_t i = size_t(y) * size_t(grid.width) + size_t(x);
+            const bool theirs = gdal->at(x, y, 3) >= 128, ours = own.coverage[i] == 255;
+            coverageDiffers += theirs != ours;
+            if (!theirs || !ours) continue;
+            for (int c = 0; c < 3; ++c) {
+                const int d = std::abs(int(own.rgb[i * 3 + size_t(c)]) - int(gdal->at(x, y, c)));
+                sum += d;
+                worst = std::max(worst, d);
+                ++n;
+            }
+        }
+    ASSERT_GT(n, 3 * 400 * 300);
+    std::printf("own vs gdalwarp bilinear: mean %.3f, max %d, coverage differs at %d pixels\n", sum / n, worst,
+                coverageDiffers);
+    EXPECT_LT(sum / n, 0.05);
+    EXPECT_LE(worst, 2) << "rounding, and GDAL's 1/8-pixel approximation against our 1/20";
+    EXPECT_LT(coverageDiffers, 40) << "a few pixels of the collar's edge";
+}
