@@ -6,14 +6,18 @@
 #   gdal    the same tiles first warped onto that grid by `gdalwarp -multi -wo NUM_THREADS=ALL_CPUS` (deflate, tiled),
 #           then prepared as in `grid`: the two-step a user would otherwise run.
 # Prints wall time, MP/s of output grid pixels (both seasons) and peak RSS per way. Usage:
-#   scripts/bench-warp.sh [SIZE_M=2048] [GSD=0.25] [WORK=/tmp/sv-bench-warp]
-# SIZE_M / GSD = pixels per side (2048 m at 0.25 m: 8192²). Needs build/seasonview and gdal-bin (installed if missing).
+#   scripts/bench-warp.sh [SIZE_M=2048] [GSD=0.25] [WORK=/tmp/sv-bench-warp] [TILES=2] [WAYS="grid mosaic gdal"]
+# SIZE_M / GSD = pixels per side (2048 m at 0.25 m: 8192²); TILES per side of each season's mosaic. The memory
+# figure: scripts/bench-warp.sh 8192 0.25 /tmp/sv-bench-32k 8 mosaic (32768² per season as 64 tiles).
+# Needs build/seasonview and gdal-bin (installed if missing).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 SV="$ROOT/build/seasonview"
 SIZE_M="${1:-2048}"
 GSD="${2:-0.25}"
 WORK="${3:-/tmp/sv-bench-warp}"
+TILES="${4:-2}"
+WAYS="${5:-grid mosaic gdal}"
 if ! command -v gdalwarp >/dev/null; then
   SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
   $SUDO apt-get install -y -qq --no-install-recommends gdal-bin >/dev/null
@@ -36,10 +40,12 @@ for s in leafon leafoff; do
       -co TILED=YES -co COMPRESS=DEFLATE -co BIGTIFF=IF_SAFER "scene/$s.tif" "merc_$s.tif"
     read -r MW MH < <(gdalinfo -json "merc_$s.tif" | python3 -c '
 import json, sys; s = json.load(sys.stdin)["size"]; print(s[0], s[1])')
-    HW=$((MW / 2)); HH=$((MH / 2))
-    for t in "0 0 $HW $HH" "$HW 0 $((MW - HW)) $HH" "0 $HH $HW $((MH - HH))" "$HW $HH $((MW - HW)) $((MH - HH))"; do
-      set -- $t
-      gdal_translate -q -srcwin "$1" "$2" "$3" "$4" -co TILED=YES -co COMPRESS=DEFLATE "merc_$s.tif" "tiles_$s/t_$1_$2.tif"
+    for ty in $(seq 0 $((TILES - 1))); do
+      for tx in $(seq 0 $((TILES - 1))); do
+        X0=$((MW * tx / TILES)); X1=$((MW * (tx + 1) / TILES)); Y0=$((MH * ty / TILES)); Y1=$((MH * (ty + 1) / TILES))
+        gdal_translate -q -srcwin "$X0" "$Y0" $((X1 - X0)) $((Y1 - Y0)) -co TILED=YES -co COMPRESS=DEFLATE \
+          "merc_$s.tif" "tiles_$s/t_${tx}_${ty}.tif"
+      done
     done
     rm "merc_$s.tif"
   fi
@@ -52,8 +58,11 @@ run() { # name, then the command; prints seconds and peak RSS
   read -r SEC KB < time.txt
   echo "$name: $SEC s, $(python3 -c "print(round($MP / $SEC, 1))") MP/s of output, peak RSS $(python3 -c "print(round($KB / 1048576, 2))") GB"
 }
-run grid "$SV" prepare --leafon scene/leafon.tif --leafoff scene/leafoff.tif --cache cache
-run mosaic "$SV" prepare --leafon tiles_leafon --leafoff tiles_leafoff "${GRID[@]}" --cache cache
+case " $WAYS " in *" grid "*) run grid "$SV" prepare --leafon scene/leafon.tif --leafoff scene/leafoff.tif --cache cache;; esac
+case " $WAYS " in *" mosaic "*)
+  echo "mosaic: $(ls tiles_leafon | wc -l) tiles per season"
+  run mosaic "$SV" prepare --leafon tiles_leafon --leafoff tiles_leafoff "${GRID[@]}" --cache cache;; esac
+case " $WAYS " in *" gdal "*) ;; *) exit 0;; esac
 T0=$(date +%s.%N)
 for s in leafon leafoff; do
   rm -f "gdal_$s.tif"
