@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <set>
+
 #include <glob.h>
 
 namespace seasonview {
@@ -73,12 +75,10 @@ Result<std::vector<fs::path>> expand(const SourceList& sources) {
     }
     // The same tile named twice (a folder and a glob over it) is read once.
     std::vector<fs::path> unique;
+    std::set<fs::path> seen;
     for (const fs::path& f : files) {
         std::error_code ec;
-        const fs::path canonical = fs::weakly_canonical(fs::absolute(f, ec), ec);
-        bool seen = false;
-        for (const fs::path& u : unique) seen |= fs::weakly_canonical(fs::absolute(u, ec), ec) == canonical;
-        if (!seen) unique.push_back(f);
+        if (seen.insert(fs::weakly_canonical(fs::absolute(f, ec), ec)).second) unique.push_back(f);
     }
     return unique;
 }

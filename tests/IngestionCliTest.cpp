@@ -293,3 +293,33 @@ TEST(IngestionCliTest, RealSaclayPairAsDeliveredSegmentsLikeTheOriginal) {
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_TRUE(fs::exists(dir / "swipe.png"));
 }
+
+TEST(IngestionCliTest, BadDeliveriesAreOneLineAndNoOutput) {
+    TempDir dir("ingest-cli-bad");
+    std::vector<std::uint8_t> rgb(64 * 64 * 3, 120), rg(64 * 64 * 2, 120);
+    GdalRasterSpec s;
+    s.geotransform = geotransformOf(testGeoref(1.0));
+    s.crs = "EPSG:32632";
+    fs::create_directories(dir / "tiles");
+    fs::create_directories(dir / "empty");
+    writeGdalRaster(dir / "tiles/a.tif", rgb.data(), SampleType::U8, 64, 64, 3, s);
+    writeGdalRaster(dir / "tiles/b.tif", rg.data(), SampleType::U8, 64, 64, 2, s);
+    writeGdalRaster(dir / "on.tif", rgb.data(), SampleType::U8, 64, 64, 3, s);
+    std::ofstream(dir / "empty/notes.txt") << "nothing";
+    struct Case {
+        std::string leafoff, needle;
+    } cases[] = {{(dir / "tiles").string(), (dir / "tiles/b.tif").string() + ": 2 bands but "},
+                 {(dir / "empty").string(), (dir / "empty").string() + ": no rasters in this folder"},
+                 {(dir / "none_*.tif").string(), "none_*.tif: matches no file"}};
+    for (const Case& c : cases) {
+        for (const char* command : {"segment", "render"}) {
+            SCOPED_TRACE(std::string(command) + " " + c.leafoff);
+            const CliResult r = runCli({command, "--leafon", (dir / "on.tif").string(), "--leafoff", c.leafoff,
+                                        "--cache", (dir / "cache").string(), "--out", (dir / "out.tif").string()});
+            EXPECT_EQ(r.exitCode, 1);
+            EXPECT_NE(r.err.find(c.needle), std::string::npos) << r.err;
+            EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+            EXPECT_FALSE(fs::exists(dir / "out.tif"));
+        }
+    }
+}
