@@ -445,6 +445,14 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     using clock = std::chrono::steady_clock;
     auto ms = [](clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
 
+    // A damaged cache tile is never drawn nor measured: the run stops (benchCommand rebuilds and runs again).
+    std::string damaged;
+    auto checkDamage = [&](Mode& m) {
+        if (!damaged.empty() || !m.clipmap) return;
+        if (const auto& e = m.clipmap->readError()) damaged = e->message;
+        else if (const auto g = m.clipRenderer->geometry().elevationReadError()) damaged = g->message;
+    };
+    auto damageError = [&] { return fail(damaged); }; // the command rebuilds the pyramid and runs again
     int recorded = 0;
     auto runFrame = [&](Mode& m, const Camera& cam, int frame, bool record) {
         FrameRow row;
@@ -466,6 +474,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                 cs = m.clipmap->update(clipmapCentres(*scene, cam, w, h, m.centers, g));
             }
             es = m.clipRenderer->updateGeometry(cam, h);
+            // A damaged cache tile is never drawn nor measured: the run stops, the pyramid is rebuilt next time.
+            checkDamage(m);
         }
         if (m.canopy) {
             // Upload-time derivation: only blocks newly resident; per-frame: everything resident, every frame.
@@ -549,6 +559,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     for (int i = 0; i < a->warmup; ++i)
         for (Mode& m : *modes)
             runFrame(m, path->at(0.0, terrain), -1, false);
+    if (!damaged.empty()) return damageError();
     // Measuring starts from a fully loaded view, so uploads compare with the texels the path's moves expose.
     for (Mode& m : *modes)
         if (m.clipmap) {
@@ -558,11 +569,14 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
                 m.city->complete(path->at(0.0, terrain), w, h);
                 m.city->resetOcclusion(); // the warm-up's answers came from a view with less resident
             }
+            checkDamage(m);
         }
+    if (!damaged.empty()) return damageError();
     for (int f = 0; f < a->frames; ++f) {
         const Camera cam = path->at(double(f) / double(a->frames - 1), terrain);
         for (Mode& m : *modes)
             runFrame(m, cam, f, true); // interleaved: every mode sees the same load
+        if (!damaged.empty()) return damageError();
     }
     const double seconds = ms(clock::now() - start) / 1000.0;
     if (const std::string e = gl::drainErrors(); !e.empty() || gl::debugErrorCount() != glErrors)

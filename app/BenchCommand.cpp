@@ -93,6 +93,7 @@ Runner addBenchCommand(CLI::App& app) {
         if (!scene) return fail(scene.message());
         printSceneNotes(*scene);
         auto r = runBench(*scene, a->b, a->out);
+        if (!r && rebuildingDamaged(r.message(), a->scene.cacheDir())) r = runBench(*scene, a->b, a->out);
         if (!r) return fail(r.message());
         std::printf("%s", r->table.c_str());
         std::printf("wrote %s/{frames.csv,summary.json%s,plot.png}: %d frames x %zu modes at %dx%d on %s in %.1f s\n",

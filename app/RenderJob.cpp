@@ -168,8 +168,18 @@ Status checkImageOutput(const std::filesystem::path& out) {
     return Ok{};
 }
 
-Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std::filesystem::path& cacheDir) {
-    std::vector<ImagePyramid> out;
+bool rebuildingDamaged(const std::string& message, const std::filesystem::path& cacheDir) {
+    if (!invalidateDamagedPyramid(message, cacheDir)) return false;
+    std::printf("note: %s: damaged in the cache; its pyramid is rebuilt from the source\n", message.c_str());
+    std::fflush(stdout);
+    return true;
+}
+
+namespace {
+
+Result<std::vector<ImagePyramid>> preparePyramidsOnce(const Scene& scene, const std::filesystem::path& cacheDir,
+                                                      std::vector<ImagePyramid>& out) {
+    out.clear();
     const std::pair<const char*, const ImageryLayer*> layers[] = {{"leafon", &scene.leafon}, {"leafoff", &scene.leafoff}};
     for (const auto& [name, layer] : layers) {
         PrepareOptions o;
@@ -185,6 +195,18 @@ Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std:
     }
     if (auto stats = preparePairStats(scene, out, cacheDir); !stats) return stats.error();
     return out;
+}
+
+} // namespace
+
+Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std::filesystem::path& cacheDir) {
+    std::vector<ImagePyramid> pyramids;
+    auto first = preparePyramidsOnce(scene, cacheDir, pyramids);
+    if (first) return first;
+    // A level file that does not decode (damaged in the cache: the pair statistics read every tile of level 0):
+    // rebuilt from the source, once.
+    if (!rebuildingDamaged(first.message(), cacheDir)) return first;
+    return preparePyramidsOnce(scene, cacheDir, pyramids);
 }
 
 std::optional<std::array<std::filesystem::path, 2>> levelZeroOf(const Scene& scene,
@@ -314,8 +336,11 @@ Status parseCanopyGround(const std::string& under, const std::string& elsewhere,
     return Ok{};
 }
 
-Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, const std::vector<StillRequest>& stills,
-                                     const RenderSettings& settings) {
+namespace {
+
+/// renderStills once. A pyramid tile that cannot be read stops it: nothing is written for the still.
+Result<gl::ContextInfo> renderStillsOnce(const Scene& scene, int width, int height, const std::vector<StillRequest>& stills,
+                                         const RenderSettings& settings) {
     std::vector<ImagePyramid> pyramids;
     if (settings.renderer == RendererKind::Clipmap || scene.warped()) { // the reference reads warped seasons' level 0
         auto p = preparePyramids(scene, settings.cacheDir);
@@ -400,10 +425,14 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
     for (const StillRequest& s : stills) {
         (*clipmap)->update(clipmapCentres(scene, s.camera, width, height, settings.centers, geometry));
         const ClipmapFrameStats loaded = (*clipmap)->completeSynchronously(); // a still waits for its texels
+        // A block that could not be read would be drawn from a coarser level: the still is not written, the
+        // damaged pyramid is rebuilt.
+        if (const auto& e = (*clipmap)->readError()) return Error{e->message};
         if (canopy) canopy->completeSynchronously();
         if (trunks && s.imagery.view == ImageryView::Canopy) trunks->find();
         (*renderer)->updateGeometry(s.camera, height);
         (*renderer)->completeGeometry();
+        if (const auto e = (*renderer)->geometry().elevationReadError()) return Error{e->message};
         const bool stacked = s.imagery.view == ImageryView::Canopy && settings.canopy.layers > 0;
         const CanopyDrawSettings cd = canopyDrawSettings(scene, settings.canopy, s.imagery);
         ImagerySettings imagery = s.imagery;
@@ -556,6 +585,15 @@ Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, 
         }
     }
     return (*ctx)->info();
+}
+
+} // namespace
+
+Result<gl::ContextInfo> renderStills(const Scene& scene, int width, int height, const std::vector<StillRequest>& stills,
+                                     const RenderSettings& settings) {
+    auto first = renderStillsOnce(scene, width, height, stills, settings);
+    if (first || !rebuildingDamaged(first.message(), settings.cacheDir)) return first;
+    return renderStillsOnce(scene, width, height, stills, settings);
 }
 
 void printSceneNotes(const Scene& scene) {

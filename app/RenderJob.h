@@ -106,6 +106,10 @@ struct RenderSettings {
 /// leaf-on, leaf-off.
 Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std::filesystem::path& cacheDir);
 
+/// When `message` names a file of a pyramid in the cache (a tile that did not decode), invalidates that pyramid and
+/// says so on stdout; returns whether it did (the caller then prepares and runs again, once).
+bool rebuildingDamaged(const std::string& message, const std::filesystem::path& cacheDir);
+
 /// For a warped scene (Scene::warped()), its pyramids' level-0 files (leaf-on, leaf-off): what the reference renderer
 /// and the segmentation read instead of the seasons' own files. Nothing for a scene read as it is.
 std::optional<std::array<std::filesystem::path, 2>> levelZeroOf(const Scene& scene,

@@ -191,18 +191,29 @@ Runner addSegmentCommand(CLI::App& app) {
         auto scene = loadScene(src, cacheDir);
         if (!scene) return fail(scene.message());
         printSceneNotes(*scene);
+        std::vector<ImagePyramid> pyramids;
         if (scene->warped()) {
             // Seasons on other grids, in mosaics or with nodata: segmented on the working grid, from the pyramids
             // `prepare` warps them into (built here when missing), whose alpha says where each has data.
-            auto pyramids = preparePyramids(*scene, cacheDir);
-            if (!pyramids) return fail(pyramids.message());
-            job.levelZero = levelZeroOf(*scene, *pyramids);
+            auto p = preparePyramids(*scene, cacheDir);
+            if (!p) return fail(p.message());
+            pyramids = std::move(*p);
+            job.levelZero = levelZeroOf(*scene, pyramids);
         }
         if (needsHistograms(job.params.method)) job.histograms = preparedHistograms(*scene, cacheDir);
         if (double(scene->leafon.info.width) * scene->leafon.info.height >= kProgressPixels)
             job.progress = terminalProgress("segment");
 
         auto report = segmentScene(*scene, job);
+        if (!report && rebuildingDamaged(report.message(), cacheDir)) {
+            // A level-0 tile damaged in the cache (the pair statistics did not read it: they came from the cache):
+            // rebuilt from the source, and the segmentation run again.
+            auto p = preparePyramids(*scene, cacheDir);
+            if (!p) return fail(p.message());
+            pyramids = std::move(*p);
+            job.levelZero = levelZeroOf(*scene, pyramids);
+            report = segmentScene(*scene, job);
+        }
         if (!report) return fail(report.message());
         // From the command's start (arguments parsed) to the mask written.
         const double endToEnd = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();

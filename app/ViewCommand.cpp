@@ -104,6 +104,7 @@ struct LiveScene {
     bool canopyTrunks = false;
     ClipmapFrameStats lastLoad;
     std::int64_t texelsTotal = 0;
+    bool damagedReported = false;
     std::unique_ptr<city::CityRendererGL> city;
     city::CityFrameStats cityStats;
 
@@ -151,6 +152,13 @@ struct LiveScene {
         const ClipmapGeometry g = clipmapGeometry(*scene, clip->schedule().layout());
         lastLoad = clip->update(clipmapCentres(*scene, cam, w, h, s.centers, g));
         texelsTotal += lastLoad.texelsUploaded;
+        if (const auto& e = clip->readError(); e && !damagedReported) {
+            // Never drawn (coarser levels stand in); the pyramid is rebuilt on the next start.
+            invalidateDamagedPyramid(e->message, cache);
+            damagedReported = true;
+            std::fprintf(stderr, "seasonview view: %s (damaged in the cache: drawn from coarser levels, rebuilt from "
+                                 "the source on the next start)\n", e->message.c_str());
+        }
         terrain->updateGeometry(cam, h);
         if (complete) {
             const ClipmapFrameStats more = clip->completeSynchronously();

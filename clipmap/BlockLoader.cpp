@@ -141,7 +141,10 @@ void BlockLoader::run() {
         for (int layer = 0; layer < m_source.layers() && block.error.empty(); ++layer) {
             auto& px = block.layers[size_t(layer)];
             px.resize(size_t(job.texels.area()) * 4);
-            if (Status st = m_source.read(layer, job.key.level, job.texels, px.data()); !st) block.error = st.message();
+            if (Status st = m_source.read(layer, job.key.level, job.texels, px.data()); !st) {
+                block.error = st.message();
+                block.errorLayer = layer;
+            }
         }
         ++m_read;
         if (!block.error.empty()) ++m_errors;

@@ -56,6 +56,7 @@ struct LoadedBlock {
     TexelRect texels;
     std::vector<std::vector<std::uint8_t>> layers;
     std::string error; // non-empty: the read failed (the block stays missing; the shader keeps falling back)
+    int errorLayer = -1; // the layer whose read failed
 };
 
 class BlockLoader {

@@ -114,7 +114,10 @@ int ClipmapGL::uploadReady(std::int64_t budget, ClipmapFrameStats& stats) {
     int uploaded = 0;
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
     for (LoadedBlock& blk : m_loader->take(budget)) {
-        if (!blk.error.empty()) continue; // stays missing; the shader keeps using a coarser level
+        if (!blk.error.empty()) { // stays missing, never drawn; the shader keeps using a coarser level
+            if (!m_readError) m_readError = ReadError{blk.error, blk.errorLayer};
+            continue;
+        }
         // A block of an older window (the view moved on while it loaded) would evict a wanted one: drop it.
         if (intersect(m_schedule.window(blk.key.level), blk.texels) != blk.texels) continue;
         const int dx = wrapTexel(blk.key.bx, slots) * b, dy = wrapTexel(blk.key.by, slots) * b;

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -55,6 +56,15 @@ public:
     /// Blocks until every wanted block is loaded and uploaded (stills and tests; never in an interactive loop).
     ClipmapFrameStats completeSynchronously();
 
+    /// The first block that could not be read (a damaged pyramid tile: its Zstandard checksum, a truncated file):
+    /// the message (naming the file) and its layer. Such a block is never drawn (coarser levels stand in); a still
+    /// must not be written with it missing.
+    struct ReadError {
+        std::string message;
+        int layer = -1;
+    };
+    const std::optional<ReadError>& readError() const { return m_readError; }
+
     /// Binds layer textures to units firstUnit + layer (sampler2DArray), their coarse textures to units after
     /// those, the tag texture after that, and sets the clipmap uniforms of common_clipmap.glsl. Layer sampler
     /// names: uClip0, uClip1, ..., uCoarse0, uCoarse1, ... With a `prefix` ("uElev") every name's leading "u" is
@@ -86,6 +96,7 @@ private:
     std::unique_ptr<BlockLoader> m_loader;
     std::vector<gl::Texture> m_clip, m_coarse;
     gl::Texture m_tags;
+    std::optional<ReadError> m_readError;
     TexelFormat m_format = TexelFormat::Rgba8;
     int m_coarseLevels = 0; // mip levels (Rgba8) or array layers (R32F) of each coarse texture
     glm::ivec2 m_coarseSize{0};

@@ -27,8 +27,8 @@ namespace {
 namespace fs = std::filesystem;
 
 /// Bumped whenever the level files' content or layout changes: old caches then no longer match any key.
-/// 2: RGBA, premultiplied, on the working grid.
-constexpr int kPyramidFormatVersion = 2;
+/// 2: RGBA, premultiplied, on the working grid. 3: tiles with Zstandard content checksums.
+constexpr int kPyramidFormatVersion = 3;
 constexpr const char* kManifestName = "pyramid.json";
 
 struct SourceId {
@@ -246,6 +246,22 @@ Status writeManifest(const fs::path& folder, const SourceId& id, int tileSize, c
 }
 
 } // namespace
+
+void invalidatePyramid(const ImagePyramid& pyramid) {
+    std::error_code ec;
+    fs::remove(pyramid.folder / kManifestName, ec);
+}
+
+bool invalidateDamagedPyramid(const std::string& message, const std::filesystem::path& cacheDir) {
+    std::error_code ec;
+    const std::string dir = fs::weakly_canonical(fs::absolute(pyramidsDir(cacheDir), ec), ec).string() + "/";
+    const std::string named = fs::weakly_canonical(fs::absolute(message.substr(0, message.find(": ")), ec), ec).string();
+    if (named.rfind(dir, 0) != 0) return false;
+    const std::string folder = named.substr(0, named.find('/', dir.size()));
+    if (!fs::exists(fs::path(folder) / kManifestName, ec)) return false;
+    fs::remove(fs::path(folder) / kManifestName, ec);
+    return !ec;
+}
 
 Result<ImagePyramid> openPyramid(const ImageryLayer& layer, const std::filesystem::path& cacheDir) {
     auto source = imagerySource(layer);

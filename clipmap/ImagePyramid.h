@@ -78,6 +78,15 @@ Result<PyramidSource> imagerySource(const ImageryLayer& layer);
 /// (a few tile rows per level) whatever the image size. Errors name the source or the cache file.
 Result<PrepareReport> preparePyramid(const ImageryLayer& layer, const PrepareOptions& options);
 
+/// Marks a pyramid found damaged (a tile that does not decode) as no longer valid: its manifest is removed, so the next
+/// prepare rebuilds it from its source.
+void invalidatePyramid(const ImagePyramid& pyramid);
+
+/// When `message` (one error line, which names its file first) names a file of a pyramid in `cacheDir` (imagery or
+/// elevation), that pyramid is invalidated; returns whether it was. What commands do with a read error before they
+/// prepare again.
+bool invalidateDamagedPyramid(const std::string& message, const std::filesystem::path& cacheDir);
+
 /// Opens an existing pyramid for `layer` without building: an error when it is missing, belongs to another
 /// source (or an older version of it), or is corrupt (missing or truncated level files, wrong sizes).
 Result<ImagePyramid> openPyramid(const ImageryLayer& layer, const std::filesystem::path& cacheDir);

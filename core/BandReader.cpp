@@ -378,10 +378,10 @@ Status BandReader::read(int y0, int y1, int channels, SampleType type, void* out
                                           gdal::gdalTypeOf(type), channels, channels > 4 ? many.data() : bands,
                                           sample * channels, sample * channels * m_width, sample, nullptr);
     // A warning during a read is lost data too (libtiff reports some short reads as warnings).
-    if (err == CE_None && !errors.failed()) return Ok{};
+    if (err == CE_None && !errors.lostData()) return Ok{};
     // The own decoder's words first when it tried.
-    const std::string e = m_in->raw && !m_in->raw->failure.empty() ? m_in->raw->failure : errors.message();
-    return fileError(m_path.string(), "truncated or corrupt image data" + (e.empty() ? std::string() : " (" + e + ")"));
+    return gdal::readFailure(m_path.string(), errors, y0, y1,
+                             m_in->raw && !m_in->raw->failure.empty() ? m_in->raw->failure : std::string());
 }
 
 } // namespace seasonview

@@ -22,6 +22,20 @@ void init() {
     });
 }
 
+namespace {
+
+/// Warnings that say nothing about the pixels read.
+bool harmlessWarning(const std::string& text) {
+    static const char* kHarmless[] = {"extraneous bytes before marker", "Unknown field with tag", "ASCII value for tag",
+                                      "wrong data type", "Invalid TIFF directory", "Nonstandard tile",
+                                      "Adobe transform", "TIFFReadDirectory", "TIFFFetchNormalTag"};
+    for (const char* h : kHarmless)
+        if (text.find(h) != std::string::npos) return true;
+    return false;
+}
+
+} // namespace
+
 ErrorCapture::ErrorCapture() {
     init();
     CPLPushErrorHandlerEx(
@@ -29,13 +43,31 @@ ErrorCapture::ErrorCapture() {
             auto* self = static_cast<ErrorCapture*>(CPLGetErrorHandlerUserData());
             (void)code;
             if (!self) return;
-            std::string& slot = level >= CE_Failure ? self->m_failure : self->m_warning;
-            if (slot.empty() && level >= CE_Warning) slot = firstLine(text ? text : "");
+            const std::string line = firstLine(text ? text : "");
+            if (level >= CE_Failure) {
+                if (self->m_failure.empty()) self->m_failure = line;
+            } else if (level == CE_Warning) {
+                if (self->m_warning.empty()) self->m_warning = line;
+                if (!harmlessWarning(line)) {
+                    self->m_dataWarning = true;
+                    if (self->m_dataWarningText.empty()) self->m_dataWarningText = line;
+                }
+            }
         },
         this);
 }
 
 ErrorCapture::~ErrorCapture() { CPLPopErrorHandler(); }
+
+Error readFailure(const std::string& file, const ErrorCapture& errors, int y0, int y1, const std::string& why) {
+    std::string w = why.empty() ? errors.message() : why;
+    // libtiff names row 2^32-1 when a strip fails before its first row is decoded: the rows are said here instead.
+    for (const std::string bogus : {" at scanline 4294967295", " at row 4294967295"})
+        if (const auto at = w.find(bogus); at != std::string::npos) w.erase(at, bogus.size());
+    std::string rows = y0 < 0 ? std::string() : " in row " + std::to_string(y0);
+    if (y0 >= 0 && y1 - 1 > y0) rows = " in rows " + std::to_string(y0) + "-" + std::to_string(y1 - 1);
+    return fileError(file, "truncated or corrupt image data" + rows + (w.empty() ? std::string() : " (" + w + ")"));
+}
 
 Result<Dataset> openRaster(const std::filesystem::path& path) {
     init();

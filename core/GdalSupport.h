@@ -33,12 +33,24 @@ public:
     ErrorCapture& operator=(const ErrorCapture&) = delete;
 
     bool failed() const { return !m_failure.empty(); }
-    /// The first failure's text, or else the first warning's; "" when GDAL said nothing.
-    std::string message() const { return m_failure.empty() ? m_warning : m_failure; }
+    /// A failure, or a warning that means pixels were not read as stored (a short read, a JPEG stream cut short or
+    /// corrupt: GDAL and libtiff report some of those as warnings and fill the pixels in). Warnings known to be
+    /// harmless (extraneous bytes before a JPEG marker, unknown TIFF tags) do not count. For reads of pixels.
+    bool lostData() const { return failed() || m_dataWarning; }
+    /// The first failure's text, or else the first data-losing warning's, or else the first warning's; "" when GDAL
+    /// said nothing.
+    std::string message() const {
+        return !m_failure.empty() ? m_failure : !m_dataWarningText.empty() ? m_dataWarningText : m_warning;
+    }
 
 private:
-    std::string m_failure, m_warning;
+    std::string m_failure, m_warning, m_dataWarningText;
+    bool m_dataWarning = false;
 };
+
+/// The error of a pixel read that lost data: "FILE: truncated or corrupt image data in rows Y0-Y1 (what the decoder
+/// said)"; no rows when y0 < 0 (GDAL's warper does not say which it read). `why` overrides GDAL's words (the own tile decoder's, which name the tile).
+Error readFailure(const std::string& file, const ErrorCapture& errors, int y0, int y1, const std::string& why = {});
 
 /// Opens a raster read-only (any driver GDAL has). Errors name the file: not found, a folder, empty, or not a
 /// raster GDAL can read (with GDAL's words).

@@ -237,6 +237,12 @@ Result<GeoTiffStreamWriter> GeoTiffStreamWriter::open(const std::filesystem::pat
             if (!w.m_encoder->jpegs.back()->created) return w.fail("cannot create the JPEG compressor").error();
         } else if (options.compression == TiffCompression::Zstd) {
             w.m_encoder->zstd.emplace_back(ZSTD_createCCtx());
+            // Every frame carries a checksum of its content (libzstd verifies it when decoding, in libtiff's codec
+            // and in BandReader's): a damaged tile fails to decode rather than decoding to wrong pixels.
+            if (ZSTD_CCtx* c = w.m_encoder->zstd.back().get()) {
+                ZSTD_CCtx_setParameter(c, ZSTD_c_compressionLevel, w.m_encoder->zstdLevel);
+                ZSTD_CCtx_setParameter(c, ZSTD_c_checksumFlag, 1);
+            }
             if (!w.m_encoder->zstd.back()) return w.fail("out of memory for the compressor").error();
         } else {
             w.m_encoder->compressors.emplace_back(
@@ -372,8 +378,8 @@ Status GeoTiffStreamWriter::encodeBlockRow(const std::uint8_t* rows, int y0, int
                 compressJpeg(*enc.jpegs[size_t(worker)], block, m_blockWidth, blockRows, enc.jpegQuality, out);
             } else if (enc.compression == TiffCompression::Zstd) {
                 out.resize(ZSTD_compressBound(blockBytes));
-                const size_t n = ZSTD_compressCCtx(enc.zstd[size_t(worker)].get(), out.data(), out.size(), block,
-                                                   blockBytes, enc.zstdLevel);
+                const size_t n =
+                    ZSTD_compress2(enc.zstd[size_t(worker)].get(), out.data(), out.size(), block, blockBytes);
                 out.resize(ZSTD_isError(n) ? 0 : n); // empty: reported as a failure below
             } else {
                 libdeflate_compressor* c = enc.compressors[size_t(worker)].get();

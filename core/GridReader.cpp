@@ -124,10 +124,7 @@ Status ownWarpTyped(const WarpTile& t, const WorkingGrid& grid, int y0, int y1, 
             src.valid[i] = all ? 0 : 1;
         }
     }
-    if (err != CE_None || errors.failed()) {
-        const std::string why = errors.message();
-        return fileError(name, "truncated or corrupt image data" + (why.empty() ? std::string() : " (" + why + ")"));
-    }
+    if (err != CE_None || errors.lostData()) return gdal::readFailure(name, errors, sy0, sy0 + src.height);
     const int threads = std::max(1, int(std::thread::hardware_concurrency()));
     resampleWindow(lattice, src, t.alg == GRA_Bilinear, t.col0, r0, t.col1, r1, out, coverage, width, y0, threads);
     return Ok{};
@@ -339,10 +336,7 @@ Status GridReader::read(int y0, int y1, int channels, SampleType type, void* sam
         const int r0 = std::max(t.row0, y0) - y0, r1 = std::min(t.row1, y1) - y0;
         if (err == CE_None) err = op.ChunkAndWarpImage(t.col0, r0, t.col1 - t.col0, r1 - r0);
         GDALDestroyWarpOptions(o);
-        if (err != CE_None || errors.failed()) {
-            const std::string why = errors.message();
-            return fileError(name, "truncated or corrupt image data" + (why.empty() ? std::string() : " (" + why + ")"));
-        }
+        if (err != CE_None || errors.lostData()) return gdal::readFailure(name, errors, -1, -1);
     }
     // Coverage is binary: a pixel more than half covered by data is data.
     auto* bytes = static_cast<std::uint8_t*>(samples);

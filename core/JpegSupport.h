@@ -1,10 +1,14 @@
 #pragma once
 // libjpeg plumbing shared by BandReader (JPEG TIFF tiles decoded) and GeoTiffStreamWriter (encoded): an error manager
-// whose error_exit longjmps back to the caller instead of exiting, and keeps the message. Internal to core.
+// whose error_exit longjmps back to the caller instead of exiting, and keeps the message. Warnings that mean lost
+// pixels (a stream cut short, corrupt entropy-coded data: libjpeg then pads with grey) are errors too; harmless ones
+// (extraneous bytes before a marker, an unusual Adobe transform) are tolerated, as libtiff and GDAL do. Internal to
+// core.
 #include <csetjmp>
 #include <cstdio> // jpeglib.h needs FILE
 
 #include <jpeglib.h>
+#include <jerror.h> // the message codes
 
 namespace seasonview::jpeg {
 
@@ -23,6 +27,19 @@ struct ErrorManager {
             std::longjmp(self->jump, 1);
         };
         mgr.output_message = remember; // warnings: kept, not printed
+        mgr.emit_message = [](j_common_ptr c, int level) {
+            if (level >= 0) return; // trace messages
+            auto* self = reinterpret_cast<ErrorManager*>(c->err);
+            remember(c);
+            ++c->err->num_warnings;
+            if (losesData(c->err->msg_code)) std::longjmp(self->jump, 1);
+        };
+    }
+    /// libjpeg warnings after which the decoded pixels are not the stored ones.
+    static bool losesData(int code) {
+        return code == JWRN_JPEG_EOF || code == JWRN_HIT_MARKER || code == JWRN_MUST_RESYNC ||
+               code == JWRN_HUFF_BAD_CODE || code == JWRN_ARITH_BAD_CODE || code == JWRN_BOGUS_PROGRESSION ||
+               code == JWRN_NOT_SEQUENTIAL;
     }
     static void remember(j_common_ptr c) {
         (*c->err->format_message)(c, reinterpret_cast<ErrorManager*>(c->err)->message);

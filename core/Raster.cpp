@@ -63,10 +63,7 @@ Result<Image<T>> readPixels(const std::filesystem::path& path, int maxChannels, 
                                        gdal::gdalTypeOf(want), img.channels, bands.data(), pixel,
                                        pixel * img.width, GSpacing(sizeof(T)), nullptr);
     // A warning during a read is lost data too (libtiff reports some short reads as warnings).
-    if (err != CE_None || errors.failed()) {
-        const std::string why = errors.message();
-        return fileError(path.string(), "truncated or corrupt image data" + (why.empty() ? std::string() : " (" + why + ")"));
-    }
+    if (err != CE_None || errors.lostData()) return gdal::readFailure(path.string(), errors, 0, img.height);
     return img;
 }
 

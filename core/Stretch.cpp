@@ -144,8 +144,8 @@ Result<Stretch> mosaicStretch(const RasterMosaic& m) {
                                          bands.data(), 2 * channels, 2 * channels * GSpacing(t.width), 2, nullptr);
             if (err == CE_None)
                 err = mask->RasterIO(GF_Read, 0, y, t.width, rows, valid.data(), t.width, rows, GDT_Byte, 0, 0, nullptr);
-            if (err != CE_None || errors.failed())
-                return fileError(t.path.string(), "truncated or corrupt image data (" + errors.message() + ")");
+            if (err != CE_None || errors.lostData())
+                return gdal::readFailure(t.path.string(), errors, y, y + rows);
             const size_t n = size_t(rows) * size_t(t.width);
             for (size_t c = 0; c < size_t(channels); ++c)
                 for (size_t i = 0; i < n; ++i)

@@ -97,6 +97,10 @@ public:
     double cellMetres(int g) const { return std::ldexp(m_grid.spacing, g - m_subLevels); }
     const ElevationGrid& grid() const { return m_grid; }
     std::int64_t residentBytes() const { return m_elevation ? m_elevation->residentBytes() : 0; }
+    /// The elevation clipmap's first unreadable block (ClipmapGL::readError), if any.
+    std::optional<ClipmapGL::ReadError> elevationReadError() const {
+        return m_elevation ? m_elevation->readError() : std::nullopt;
+    }
     std::int64_t totalTexelsUploaded() const { return m_elevation ? m_elevation->totalTexelsUploaded() : 0; }
     std::int64_t loaderCacheBytes() const { return m_elevation ? m_elevation->loaderCacheBytes() : 0; }
 

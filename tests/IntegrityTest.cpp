@@ -1,0 +1,123 @@
+// Damaged input is never read as pixels: bit flips anywhere in a Zstandard tile (its content checksum), files cut short
+// at many offsets, JPEG streams cut short — each one error naming the file, through every reader (BandReader's own
+// decoders, GDAL, the grid reader).
+#include "BandReader.h"
+#include "GridReader.h"
+#include "Raster.h"
+#include "TestUtil.h"
+
+#include <gtest/gtest.h>
+#include <tiffio.h>
+
+#include <fstream>
+
+using namespace seasonview;
+using namespace seasonview::test;
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<std::uint8_t> noiseRgb(int w, int h, unsigned seed) {
+    std::vector<std::uint8_t> v(size_t(w) * size_t(h) * 3);
+    std::uint32_t s = seed;
+    for (auto& b : v) {
+        s = s * 1664525u + 1013904223u;
+        b = std::uint8_t((s >> 24) / 2 + 64);
+    }
+    return v;
+}
+
+/// Offset and size of tile `index` of a TIFF.
+std::pair<std::uint64_t, std::uint64_t> tileBytes(const fs::path& p, int index) {
+    TIFF* t = TIFFOpen(p.c_str(), "r");
+    EXPECT_TRUE(t);
+    const std::uint64_t o = TIFFGetStrileOffset(t, std::uint32_t(index)), n = TIFFGetStrileByteCount(t, std::uint32_t(index));
+    TIFFClose(t);
+    return {o, n};
+}
+
+void flipByte(const fs::path& p, std::uint64_t at) {
+    std::fstream f(p, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(std::streamoff(at));
+    char c = 0;
+    f.read(&c, 1);
+    c = char(c ^ 0x55);
+    f.seekp(std::streamoff(at));
+    f.write(&c, 1);
+}
+
+/// Whether every reader refuses the file (one line naming it); false when any read it as pixels.
+bool everyReaderRefuses(const fs::path& p, std::string* why = nullptr) {
+    auto img = readImageU8(p, 3);
+    if (img.ok()) return false;
+    if (why) *why = img.message();
+    if (img.message().rfind(p.string() + ": ", 0) != 0 || img.message().find('\n') != std::string::npos) return false;
+    auto r = BandReader::open(p, 256);
+    if (!r) return true;
+    std::vector<std::uint8_t> buf(size_t(r->width()) * size_t(r->bandRows()) * 3);
+    bool failed = false;
+    for (int y = 0; y < r->height(); y += r->bandRows()) {
+        const Status st = r->read(y, std::min(r->height(), y + r->bandRows()), 3, SampleType::U8, buf.data());
+        if (!st) {
+            failed = true;
+            if (st.message().rfind(p.string() + ": ", 0) != 0) return false;
+        }
+    }
+    return failed;
+}
+
+} // namespace
+
+TEST(IntegrityTest, BitFlipsAnywhereInAZstdTileAreCaught) {
+    // Without a checksum, a flipped byte among a Zstandard frame's literals decodes to other pixels without a word.
+    TempDir dir("integrity-zstd");
+    const std::vector<std::uint8_t> px = noiseRgb(256, 256, 7);
+    GeoTiffWriteOptions o;
+    o.compression = TiffCompression::Zstd;
+    ASSERT_TRUE(writeGeoTiff(dir / "clean.tif", px.data(), SampleType::U8, 256, 256, 3, testGeoref(), o).ok());
+    const auto [offset, size] = tileBytes(dir / "clean.tif", 0);
+    ASSERT_GT(size, 64u);
+    int caught = 0, tried = 0;
+    for (std::uint64_t k = 1; k < 40; ++k) {
+        fs::copy_file(dir / "clean.tif", dir / "flipped.tif", fs::copy_options::overwrite_existing);
+        flipByte(dir / "flipped.tif", offset + size * k / 40);
+        ++tried;
+        caught += everyReaderRefuses(dir / "flipped.tif") ? 1 : 0;
+    }
+    EXPECT_EQ(caught, tried);
+}
+
+TEST(IntegrityTest, FilesCutShortAreErrorsNamingTheFile) {
+    // Every kind of file seasonview writes or reads imagery from, cut at 12 offsets: one line naming the file,
+    // never pixels.
+    TempDir dir("integrity-cut");
+    const std::vector<std::uint8_t> px = noiseRgb(512, 384, 3);
+    struct Kind {
+        const char* name;
+        TiffCompression compression;
+    } kinds[] = {{"zstd.tif", TiffCompression::Zstd}, {"deflate.tif", TiffCompression::Deflate},
+                 {"jpeg.tif", TiffCompression::Jpeg}};
+    for (const Kind& k : kinds) {
+        GeoTiffWriteOptions o;
+        o.compression = k.compression;
+        ASSERT_TRUE(writeGeoTiff(dir / k.name, px.data(), SampleType::U8, 512, 384, 3, testGeoref(), o).ok());
+    }
+    GdalRasterSpec lzw;
+    lzw.creationOptions = {"COMPRESS=LZW", "TILED=YES"};
+    lzw.geotransform = geotransformOf(testGeoref());
+    lzw.crs = "EPSG:32632";
+    writeGdalRaster(dir / "lzw.tif", px.data(), SampleType::U8, 512, 384, 3, lzw);
+    ASSERT_TRUE(writeImageAtomic(dir / "image.png", px.data(), 512, 384, 3).ok());
+    for (const char* name : {"zstd.tif", "deflate.tif", "jpeg.tif", "lzw.tif", "image.png"}) {
+        const auto full = fs::file_size(dir / name);
+        for (int cut = 1; cut <= 12; ++cut) {
+            SCOPED_TRACE(std::string(name) + " cut to " + std::to_string(cut) + "/13");
+            const fs::path p = dir / ("cut_" + std::to_string(cut) + "_" + name);
+            fs::copy_file(dir / name, p, fs::copy_options::overwrite_existing);
+            fs::resize_file(p, full * std::uintmax_t(cut) / 13);
+            std::string why;
+            EXPECT_TRUE(everyReaderRefuses(p, &why)) << why;
+        }
+    }
+}
