@@ -351,6 +351,8 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     auto ctx = gl::createHeadlessContext();
     if (!ctx)
         return fail(ctx.message());
+    if (auto st = gl::checkFramebufferSize((*ctx)->info(), settings.width, settings.height, "--size"); !st)
+        return fail(st.message());
     // The modes' GL objects must die while the context lives (it was created after them).
     struct ReleaseFirst {
         std::vector<Mode>& modes;

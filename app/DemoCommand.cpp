@@ -1,5 +1,6 @@
 // `seasonview demo`: generates (once, cached) the synthetic scene and writes stills plus an index.html.
 #include "AtlasTree.h"
+#include "JsonFile.h"
 #include "Bench.h"
 #include "CityJob.h"
 #include "Commands.h"
@@ -35,17 +36,17 @@ struct DemoArgs {
 
 // True when `dir` holds a complete scene generated with the same options.
 bool cachedSceneMatches(const std::filesystem::path& dir, const SynthOptions& o) {
-    std::ifstream f(dir / "scene.json");
-    if (!f) return false;
-    auto j = nlohmann::json::parse(f, nullptr, false);
-    if (j.is_discarded() || !j.contains("generator")) return false;
+    auto parsed = readJsonFile(dir / "scene.json", "manifest");
+    if (!parsed || !parsed->is_object() || !parsed->contains("generator") || !(*parsed)["generator"].is_object())
+        return false;
+    const nlohmann::json& j = *parsed;
     const auto& g = j["generator"];
-    return g.value("version", 0) == kSynthGeneratorVersion && g.value("seed", std::uint64_t(0)) == o.seed &&
-           g.value("size_m", 0.0) == o.sizeM &&
-           g.value("gsd", 0.0) == o.gsd && g.value("dem", std::string()) == o.dem.string() &&
-           g.value("compression", std::string("deflate")) == tiffCompressionName(o.compression) &&
-           g.value("block_city", 0) == o.blockCity &&
-           (!j.contains("buildings") || g.value("facade_size", 256) == o.facadeSize);
+    return jsonValue(g, "version", 0) == kSynthGeneratorVersion && jsonValue(g, "seed", std::uint64_t(0)) == o.seed &&
+           jsonValue(g, "size_m", 0.0) == o.sizeM && jsonValue(g, "gsd", 0.0) == o.gsd &&
+           jsonValue(g, "dem", std::string()) == o.dem.string() &&
+           jsonValue(g, "compression", std::string("deflate")) == tiffCompressionName(o.compression) &&
+           jsonValue(g, "block_city", 0) == o.blockCity &&
+           (!j.contains("buildings") || jsonValue(g, "facade_size", 256) == o.facadeSize);
 }
 
 // One method of the demo's offline segmentation.

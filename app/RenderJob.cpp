@@ -118,13 +118,14 @@ Result<Scene> SceneArgs::load() const {
 
 Result<std::pair<int, int>> parseSize(const std::string& text) {
     const size_t x = text.find_first_of("xX");
-    auto bad = [&] { return Error{"size '" + text + "': expected WxH, e.g. 1920x1080 (each 1..16384)"}; };
+    // The GL implementation's own limit (ContextInfo::maxFramebufferSide) is checked once a context exists.
+    auto bad = [&] { return Error{"size '" + text + "': expected WxH, e.g. 1920x1080 (each 1..65536)"}; };
     if (x == std::string::npos) return bad();
     int w = 0, h = 0;
     auto r1 = std::from_chars(text.data(), text.data() + x, w);
     auto r2 = std::from_chars(text.data() + x + 1, text.data() + text.size(), h);
     if (r1.ec != std::errc() || r1.ptr != text.data() + x || r2.ec != std::errc() ||
-        r2.ptr != text.data() + text.size() || w < 1 || h < 1 || w > 16384 || h > 16384)
+        r2.ptr != text.data() + text.size() || w < 1 || h < 1 || w > 65536 || h > 65536)
         return bad();
     return std::pair{w, h};
 }
@@ -350,6 +351,7 @@ Result<gl::ContextInfo> renderStillsOnce(const Scene& scene, int width, int heig
     auto ctx = settings.windowed ? gl::createWindowContext(width, height, "seasonview", false)
                                  : gl::createHeadlessContext();
     if (!ctx) return ctx.error();
+    if (auto st = gl::checkFramebufferSize((*ctx)->info(), width, height, "--size"); !st) return st.error();
     const int errorsBefore = gl::debugErrorCount();
     gl::RenderTarget target(width, height);
     auto checkGl = [&](const std::filesystem::path& out) -> Status {

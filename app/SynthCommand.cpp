@@ -1,5 +1,6 @@
 // `seasonview synth`: the deterministic synthetic two-season scene with ground truth.
 #include "Commands.h"
+#include "JsonFile.h"
 
 #include "SyntheticScene.h"
 
@@ -25,21 +26,21 @@ ProgressFn terminalProgress(const char* what) {
 }
 
 Result<SynthOptions> loadSynthPreset(const std::filesystem::path& path) {
-    std::ifstream f(path);
-    if (!f) return fileError(path.string(), "file not found");
-    auto j = nlohmann::json::parse(f, nullptr, false);
-    if (j.is_discarded() || !j.is_object()) return fileError(path.string(), "malformed JSON preset");
+    auto parsed = readJsonFile(path, "preset");
+    if (!parsed) return parsed.error();
+    const nlohmann::json& j = *parsed;
+    if (!j.is_object()) return fileError(path.string(), "malformed JSON preset (not an object)");
     SynthOptions o;
-    try {
-        o.sizeM = j.value("size_m", o.sizeM);
-        o.gsd = j.value("gsd", o.gsd);
-        o.seed = j.value("seed", o.seed);
-        o.blockCity = j.value("block_city", o.blockCity);
-        o.facadeSize = j.value("facade_size", o.facadeSize);
-    } catch (const nlohmann::json::exception&) {
+    const auto take = [&](const char* key, auto& out) {
+        if (!j.contains(key)) return true;
+        const auto v = jsonMember<std::decay_t<decltype(out)>>(j, key);
+        if (v) out = *v;
+        return v.has_value();
+    };
+    if (!take("size_m", o.sizeM) || !take("gsd", o.gsd) || !take("seed", o.seed) || !take("block_city", o.blockCity) ||
+        !take("facade_size", o.facadeSize))
         return fileError(path.string(),
                          "preset keys size_m, gsd must be numbers, seed, block_city and facade_size integers");
-    }
     if (o.blockCity < 0 || o.facadeSize < 16 || o.facadeSize > 4096)
         return fileError(path.string(), "preset block_city must be >= 0 and facade_size in 16..4096");
     if (!(o.sizeM >= 16.0) || !(o.gsd >= 0.01)) return fileError(path.string(), "preset size_m or gsd out of range");

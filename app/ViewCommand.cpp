@@ -4,6 +4,7 @@
 // `--screenshot-at` and `--quit-at` run it without a person (ViewerScript.h); with any of them the clock advances by
 // a fixed step per frame (`--fixed-dt`), so what a script does does not depend on how fast the machine draws.
 #include "AtomicFile.h"
+#include "JsonFile.h"
 #include "CameraControl.h"
 #include "CityJob.h"
 #include "Commands.h"
@@ -309,9 +310,10 @@ Result<Bookmarks> loadBookmarks(const std::string& file) {
     b.file = file;
     std::error_code ec;
     if (file.empty() || !std::filesystem::exists(file, ec)) return b;
-    std::ifstream f(file);
-    const nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
-    if (j.is_discarded() || !j.is_array()) return fileError(file, "bookmarks must be a JSON array of camera strings");
+    auto parsed = readJsonFile(file, "bookmarks");
+    if (!parsed) return parsed.error();
+    const nlohmann::json& j = *parsed;
+    if (!j.is_array()) return fileError(file, "bookmarks must be a JSON array of camera strings");
     for (size_t i = 0; i < j.size(); ++i) {
         if (!j[i].is_string()) return fileError(file, "bookmark " + std::to_string(i) + " is not a camera string");
         auto c = parseCamera(j[i].get<std::string>());
@@ -497,6 +499,11 @@ Runner addViewCommand(CLI::App& app) {
 
         auto ctx = gl::createWindowContext(size->first, size->second, "seasonview", true);
         if (!ctx) return fail(ctx.message());
+        if (shotSize)
+            if (auto st = gl::checkFramebufferSize((*ctx)->info(), shotSize->first, shotSize->second,
+                                                   "--screenshot-size");
+                !st)
+                return fail(st.message());
         // The scene's GL objects die before the context, whichever way this returns.
         struct ReleaseLive {
             LiveScene& live;

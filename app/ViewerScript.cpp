@@ -1,4 +1,5 @@
 #include "ViewerScript.h"
+#include "JsonFile.h"
 
 #include <algorithm>
 #include <cmath>
@@ -86,11 +87,9 @@ Result<std::vector<ScriptEvent>> parseViewerScript(const nlohmann::json& j, cons
 }
 
 Result<std::vector<ScriptEvent>> loadViewerScript(const std::filesystem::path& file) {
-    std::ifstream f(file);
-    if (!f) return fileError(file.string(), "cannot open the script");
-    nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
-    if (j.is_discarded()) return fileError(file.string(), "not valid JSON");
-    return parseViewerScript(j, file.string());
+    auto j = readJsonFile(file, "viewer script");
+    if (!j) return j.error();
+    return parseViewerScript(*j, file.string());
 }
 
 ScriptFrame scriptFrame(const std::vector<ScriptEvent>& events, double t0, double t1) {

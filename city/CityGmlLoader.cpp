@@ -177,7 +177,9 @@ Result<CityModel> loadCityGml(const std::string& path, const CityLoadOptions& op
     // The frame's origin: the centre of the buildings' vertices, in the CRS's own axis order.
     const bool latFirst = model.crs.northFirst();
     glm::dvec2 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
+    std::size_t polygons = 0;
     std::function<void(const Geometry&)> bound = [&](const Geometry& g) {
+        polygons += g.getPolygonsCount();
         for (unsigned i = 0; i < g.getPolygonsCount(); ++i)
             for (const auto& v : g.getPolygon(i)->getVertices()) {
                 const glm::dvec2 xy = latFirst ? glm::dvec2(v.y, v.x) : glm::dvec2(v.x, v.y);
@@ -191,6 +193,9 @@ Result<CityModel> loadCityGml(const std::string& path, const CityLoadOptions& op
         for (unsigned i = 0; i < o.getChildCityObjectsCount(); ++i) boundObject(o.getChildCityObject(i));
     };
     for (const CityObject* b : buildings) boundObject(*b);
+    if (polygons > kMaxCityPolygons)
+        return fileError(path, std::to_string(polygons) + " polygons, over the limit of " +
+                                   std::to_string(kMaxCityPolygons));
     if (lo.x > hi.x) return fileError(path, "no building geometry (no polygons)");
     if (model.crs.isGeographic() && (std::abs(lo.y) > 90.0 || std::abs(hi.y) > 90.0 || std::abs(lo.x) > 180.0))
         return fileError(path, "coordinates out of range for " + model.crs.name() + " (wrong CRS?)");

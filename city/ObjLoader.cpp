@@ -62,6 +62,33 @@ Result<CityModel> loadObj(const std::string& path, const CityLoadOptions& option
         materialMissing[m] = materialTexture[m] < 0;
     }
 
+    // Limits before anything is built from the faces, and indices checked (a cut or edited file may name vertices
+    // that do not exist).
+    const std::size_t vertexCount = attrib.vertices.size() / 3, uvCount = attrib.texcoords.size() / 2;
+    std::size_t faces = 0;
+    for (const auto& shape : shapes) {
+        faces += shape.mesh.num_face_vertices.size();
+        std::size_t first = 0;
+        for (std::size_t f = 0; f < shape.mesh.num_face_vertices.size(); first += shape.mesh.num_face_vertices[f], ++f) {
+            const std::size_t n = shape.mesh.num_face_vertices[f];
+            if (n > kMaxPolygonVertices)
+                return fileError(path, "a face of " + std::to_string(n) + " vertices, over the limit of " +
+                                           std::to_string(kMaxPolygonVertices));
+            if (first + n > shape.mesh.indices.size()) return fileError(path, "faces refer to missing vertex indices");
+            for (std::size_t k = 0; k < n; ++k) {
+                const auto& idx = shape.mesh.indices[first + k];
+                if (idx.vertex_index < 0 || std::size_t(idx.vertex_index) >= vertexCount)
+                    return fileError(path, "a face refers to vertex " + std::to_string(idx.vertex_index + 1) +
+                                               ", which does not exist (" + std::to_string(vertexCount) + " vertices)");
+                if (idx.texcoord_index >= 0 && std::size_t(idx.texcoord_index) >= uvCount)
+                    return fileError(path, "a face refers to texture coordinate " +
+                                               std::to_string(idx.texcoord_index + 1) + ", which does not exist");
+            }
+        }
+    }
+    if (faces > kMaxCityPolygons)
+        return fileError(path, std::to_string(faces) + " faces, over the limit of " + std::to_string(kMaxCityPolygons));
+
     PolygonChecks checks;
     std::size_t untexturedByMissing = 0;
     for (const auto& shape : shapes) {

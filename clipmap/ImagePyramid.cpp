@@ -1,5 +1,6 @@
 // The pyramid cache: keys, the manifest, validation, and the build-then-rename around buildPyramidLevels.
 #include "ImagePyramid.h"
+#include "JsonFile.h"
 
 #include "AtomicFile.h"
 #include "StableHash.h"
@@ -9,7 +10,6 @@
 #include <nlohmann/json.hpp>
 
 #include <cassert>
-#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -17,7 +17,6 @@
 #include <optional>
 #include <stdexcept>
 
-#include <signal.h>
 #include <unistd.h>
 
 namespace seasonview {
@@ -94,38 +93,11 @@ fs::path folderFor(const fs::path& cacheDir, const SourceId& id) {
 }
 
 std::optional<nlohmann::json> readManifest(const fs::path& folder) {
-    std::ifstream f(folder / kManifestName);
-    if (!f) return std::nullopt;
-    auto j = nlohmann::json::parse(f, nullptr, false);
-    if (j.is_discarded() || !j.is_object()) return nlohmann::json(nullptr);
-    return j;
-}
-
-/// Checks one level file against the manifest and the expected size; "" when it is fine.
-std::string checkLevelFile(const fs::path& file, std::uintmax_t bytes, int width, int height, int tileSize,
-                           TexelFormat format) {
-    const std::string name = file.filename().string();
     std::error_code ec;
-    if (!fs::is_regular_file(file, ec)) return name + " missing";
-    const std::uintmax_t actual = fs::file_size(file, ec);
-    if (ec || actual != bytes)
-        return name + " has " + std::to_string(actual) + " bytes, pyramid.json says " + std::to_string(bytes);
-    auto in = OIIO::ImageInput::open(file.string());
-    if (!in) {
-        (void)OIIO::geterror(); // consume the message so OpenImageIO does not print it at exit
-        return name + " unreadable";
-    }
-    const OIIO::ImageSpec& s = in->spec();
-    const int channels = format == TexelFormat::Rgba8 ? 4 : 1;
-    const OIIO::TypeDesc type = format == TexelFormat::Rgba8 ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT;
-    if (s.width != width || s.height != height || s.nchannels != channels || s.format != type ||
-        s.tile_width != tileSize || s.tile_height != tileSize)
-        return name + " is " + std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +
-               std::to_string(s.nchannels) + " " + s.format.c_str() + " in " + std::to_string(s.tile_width) + "x" +
-               std::to_string(s.tile_height) + " tiles, expected " + std::to_string(width) + "x" +
-               std::to_string(height) + "x" + std::to_string(channels) + " " + type.c_str() + " in " +
-               std::to_string(tileSize) + "x" + std::to_string(tileSize) + " tiles";
-    return {};
+    if (!fs::exists(folder / kManifestName, ec)) return std::nullopt;
+    auto j = readJsonFile(folder / kManifestName, "pyramid index");
+    if (!j || !j->is_object()) return nlohmann::json(nullptr);
+    return std::move(*j);
 }
 
 /// A valid pyramid in `folder` for `id`, or the reason why there is none ("not prepared yet", "source changed",
@@ -154,12 +126,18 @@ Validation validate(const fs::path& folder, const SourceId& id, const PyramidSou
     std::vector<std::uintmax_t> bytes;
     try {
         if (!j.is_object()) throw std::runtime_error("not an object");
+        const auto number = [](const nlohmann::json& o, const char* key) {
+            const auto n = jsonMember<int>(o, key);
+            if (!n) throw std::runtime_error(key);
+            return *n;
+        };
         p.sourceKey = j.at("source_key").get<std::string>();
-        p.tileSize = j.at("tile_size").get<int>();
+        p.tileSize = number(j, "tile_size");
         for (const auto& l : j.at("levels")) {
-            p.levels.push_back({folder / l.at("file").get<std::string>(), l.at("width").get<int>(),
-                                l.at("height").get<int>()});
-            bytes.push_back(l.at("bytes").get<std::uintmax_t>());
+            p.levels.push_back({folder / l.at("file").get<std::string>(), number(l, "width"), number(l, "height")});
+            const auto b = jsonMember<std::uintmax_t>(l, "bytes");
+            if (!b) throw std::runtime_error("bytes");
+            bytes.push_back(*b);
         }
     } catch (const std::exception&) {
         v.reason = "cache corrupt: pyramid.json unreadable";
@@ -169,7 +147,7 @@ Validation validate(const fs::path& folder, const SourceId& id, const PyramidSou
         v.reason = "source changed";
         return v;
     }
-    if (p.tileSize < 16 || p.tileSize % 16 != 0) {
+    if (p.tileSize < 16 || p.tileSize > 4096 || p.tileSize % 16 != 0) { // 4096² RGBA: 64 MiB, a quarter of the tile cache
         v.reason = "cache corrupt: pyramid.json has tile size " + std::to_string(p.tileSize);
         return v;
     }
@@ -213,16 +191,7 @@ std::vector<fs::path> siblingsOf(const fs::path& cacheDir, const fs::path& folde
 void removeStale(const fs::path& cacheDir, const fs::path& folder, const SourceId& id) {
     std::error_code ec;
     for (const fs::path& p : siblingsOf(cacheDir, folder, id)) fs::remove_all(p, ec);
-    for (fs::directory_iterator it(pyramidsDir(cacheDir), ec), end; !ec && it != end; it.increment(ec)) {
-        const std::string name = it->path().filename().string();
-        const auto at = name.find(".partial-");
-        if (at == std::string::npos) continue;
-        const long pid = std::strtol(name.c_str() + at + 9, nullptr, 10);
-        if (pid > 0 && pid != long(::getpid()) && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH) {
-            std::error_code ignored;
-            fs::remove_all(it->path(), ignored);
-        }
-    }
+    removeStaleTemporaries(pyramidsDir(cacheDir));
 }
 
 Status writeManifest(const fs::path& folder, const SourceId& id, int tileSize, const std::vector<PyramidLevel>& levels) {
@@ -246,6 +215,32 @@ Status writeManifest(const fs::path& folder, const SourceId& id, int tileSize, c
 }
 
 } // namespace
+
+std::string checkLevelFile(const fs::path& file, std::uintmax_t bytes, int width, int height, int tileSize,
+                           TexelFormat format) {
+    const std::string name = file.filename().string();
+    std::error_code ec;
+    if (!fs::is_regular_file(file, ec)) return name + " missing";
+    const std::uintmax_t actual = fs::file_size(file, ec);
+    if (ec || actual != bytes)
+        return name + " has " + std::to_string(actual) + " bytes, pyramid.json says " + std::to_string(bytes);
+    auto in = OIIO::ImageInput::open(file.string());
+    if (!in) {
+        (void)OIIO::geterror(); // consume the message so OpenImageIO does not print it at exit
+        return name + " unreadable";
+    }
+    const OIIO::ImageSpec& s = in->spec();
+    const int channels = format == TexelFormat::Rgba8 ? 4 : 1;
+    const OIIO::TypeDesc type = format == TexelFormat::Rgba8 ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT;
+    if (s.width != width || s.height != height || s.nchannels != channels || s.format != type ||
+        s.tile_width != tileSize || s.tile_height != tileSize)
+        return name + " is " + std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +
+               std::to_string(s.nchannels) + " " + s.format.c_str() + " in " + std::to_string(s.tile_width) + "x" +
+               std::to_string(s.tile_height) + " tiles, expected " + std::to_string(width) + "x" +
+               std::to_string(height) + "x" + std::to_string(channels) + " " + type.c_str() + " in " +
+               std::to_string(tileSize) + "x" + std::to_string(tileSize) + " tiles";
+    return {};
+}
 
 void invalidatePyramid(const ImagePyramid& pyramid) {
     std::error_code ec;

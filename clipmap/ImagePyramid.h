@@ -78,6 +78,12 @@ Result<PyramidSource> imagerySource(const ImageryLayer& layer);
 /// (a few tile rows per level) whatever the image size. Errors name the source or the cache file.
 Result<PrepareReport> preparePyramid(const ImageryLayer& layer, const PrepareOptions& options);
 
+/// Why a level file does not hold what its pyramid's index says (`bytes` long, width×height texels of `format` in
+/// tileSize² tiles), or "" when it does. Reads the header only. What opening a pyramid checks of every level before
+/// the block loader reads its tiles.
+std::string checkLevelFile(const std::filesystem::path& file, std::uintmax_t bytes, int width, int height,
+                           int tileSize, TexelFormat format);
+
 /// Marks a pyramid found damaged (a tile that does not decode) as no longer valid: its manifest is removed, so the next
 /// prepare rebuilds it from its source.
 void invalidatePyramid(const ImagePyramid& pyramid);

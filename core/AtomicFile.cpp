@@ -1,8 +1,11 @@
 #include "AtomicFile.h"
 
+#include <cerrno>
+#include <cstdlib>
 #include <fstream>
 #include <system_error>
 
+#include <signal.h>
 #include <unistd.h>
 
 namespace seasonview {
@@ -21,7 +24,24 @@ bool commitTemporary(const std::filesystem::path& tmp, const std::filesystem::pa
         discardTemporary(tmp);
         return false;
     }
+    removeStaleTemporaries(target.parent_path().empty() ? std::filesystem::path(".") : target.parent_path());
     return true;
+}
+
+void removeStaleTemporaries(const std::filesystem::path& dir) {
+    std::error_code ec;
+    for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        const auto at = name.find(".partial-");
+        if (at == std::string::npos) continue;
+        char* digitsEnd = nullptr;
+        const long pid = std::strtol(name.c_str() + at + 9, &digitsEnd, 10);
+        if (digitsEnd == name.c_str() + at + 9 || pid <= 0 || pid == long(::getpid())) continue;
+        if (::kill(pid_t(pid), 0) != 0 && errno == ESRCH) {
+            std::error_code ignored;
+            std::filesystem::remove_all(it->path(), ignored);
+        }
+    }
 }
 
 void discardTemporary(const std::filesystem::path& tmp) {

@@ -1,4 +1,5 @@
 #include "CameraPath.h"
+#include "JsonFile.h"
 
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
@@ -140,10 +141,9 @@ Result<CameraPath> CameraPath::named(const std::string& name, const PathScene& s
 
 Result<CameraPath> CameraPath::fromJson(const std::filesystem::path& file) {
     const std::string f = file.string();
-    std::ifstream in(file);
-    if (!in) return fileError(f, "file not found");
-    auto j = nlohmann::json::parse(in, nullptr, false);
-    if (j.is_discarded()) return fileError(f, "malformed JSON camera path");
+    auto parsed = readJsonFile(file, "camera path");
+    if (!parsed) return parsed.error();
+    nlohmann::json j = std::move(*parsed);
     if (j.is_object() && j.contains("keyframes")) j = j["keyframes"];
     if (!j.is_array() || j.size() < 2) return fileError(f, "a camera path needs an array of at least 2 keyframes");
     std::vector<CameraKeyframe> keys;

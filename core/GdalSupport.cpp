@@ -69,6 +69,31 @@ Error readFailure(const std::string& file, const ErrorCapture& errors, int y0, i
     return fileError(file, "truncated or corrupt image data" + rows + (w.empty() ? std::string() : " (" + w + ")"));
 }
 
+Status checkRasterLimits(GDALDataset& ds, const std::string& file) {
+    const std::int64_t w = ds.GetRasterXSize(), h = ds.GetRasterYSize(), bands = ds.GetRasterCount();
+    if (w > kMaxRasterSide || h > kMaxRasterSide)
+        return fileError(file, "declared size " + std::to_string(w) + "x" + std::to_string(h) +
+                                   " is over the limit of " + std::to_string(kMaxRasterSide) + " pixels a side");
+    if (bands > kMaxRasterBands)
+        return fileError(file, "declares " + std::to_string(bands) + " bands, over the limit of " +
+                                   std::to_string(kMaxRasterBands));
+    int bx = 0, by = 0;
+    ds.GetRasterBand(1)->GetBlockSize(&bx, &by);
+    bx = std::max(bx, 1);
+    by = std::max(by, 1);
+    const std::int64_t blocks = ((w + bx - 1) / bx) * ((h + by - 1) / by);
+    if (blocks > kMaxRasterBlocks)
+        return fileError(file, "declares " + std::to_string(blocks) + " tiles or strips of " + std::to_string(bx) +
+                                   "x" + std::to_string(by) + ", over the limit of " + std::to_string(kMaxRasterBlocks));
+    const std::int64_t blockBytes = std::int64_t(bx) * by * bands *
+                                    std::max(1, GDALGetDataTypeSizeBytes(ds.GetRasterBand(1)->GetRasterDataType()));
+    if (blockBytes > kMaxRasterBlockBytes)
+        return fileError(file, "declares a tile or strip of " + std::to_string(bx) + "x" + std::to_string(by) + " (" +
+                                   std::to_string(blockBytes >> 20) + " MiB decoded), over the limit of " +
+                                   std::to_string(kMaxRasterBlockBytes >> 20) + " MiB");
+    return Ok{};
+}
+
 Result<Dataset> openRaster(const std::filesystem::path& path) {
     init();
     std::error_code ec;
@@ -85,6 +110,7 @@ Result<Dataset> openRaster(const std::filesystem::path& path) {
     }
     if (ds->GetRasterCount() < 1 || ds->GetRasterXSize() < 1 || ds->GetRasterYSize() < 1)
         return fileError(path.string(), "image has no pixels");
+    if (auto st = checkRasterLimits(*ds, path.string()); !st) return st.error();
     return ds;
 }
 

@@ -52,6 +52,16 @@ private:
 /// said)"; no rows when y0 < 0 (GDAL's warper does not say which it read). `why` overrides GDAL's words (the own tile decoder's, which name the tile).
 Error readFailure(const std::string& file, const ErrorCapture& errors, int y0, int y1, const std::string& why = {});
 
+/// Limits on what a raster may declare, checked when it is opened, before anything is allocated for it: a side of
+/// 2^20 pixels (100 km at 10 cm), 256 bands, 2^24 tiles or strips (a 2^20-pixel square in 256² tiles), and one tile
+/// or strip of 1 GiB decoded. A header past them is damaged or not meant for seasonview; the error names the limit.
+inline constexpr std::int64_t kMaxRasterSide = std::int64_t(1) << 20;
+inline constexpr std::int64_t kMaxRasterBands = 256;
+inline constexpr std::int64_t kMaxRasterBlocks = std::int64_t(1) << 24;
+inline constexpr std::int64_t kMaxRasterBlockBytes = std::int64_t(1) << 30;
+/// Checks an open dataset against those limits; errors name `file`.
+Status checkRasterLimits(GDALDataset& ds, const std::string& file);
+
 /// Opens a raster read-only (any driver GDAL has). Errors name the file: not found, a folder, empty, or not a
 /// raster GDAL can read (with GDAL's words).
 Result<Dataset> openRaster(const std::filesystem::path& path);

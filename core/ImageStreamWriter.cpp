@@ -54,7 +54,7 @@ struct ImageStreamWriter::Impl {
 namespace {
 
 // The libpng calls, each in a function of its own with nothing to destroy between setjmp and a longjmp.
-bool pngStart(png_structp png, png_infop info, std::FILE* file, int width, int height, int channels) {
+bool pngStart(png_structp png, png_infop info, std::FILE* file, int width, int height, int channels, bool fast) {
     if (setjmp(png_jmpbuf(png))) return false;
     png_init_io(png, file);
     const int colour = channels == 1   ? PNG_COLOR_TYPE_GRAY
@@ -63,9 +63,14 @@ bool pngStart(png_structp png, png_infop info, std::FILE* file, int width, int h
                                        : PNG_COLOR_TYPE_RGB_ALPHA;
     png_set_IHDR(png, info, png_uint_32(width), png_uint_32(height), 8, colour, PNG_INTERLACE_NONE,
                  PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-    png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_NONE);
-    png_set_compression_level(png, 1);
-    png_set_compression_strategy(png, Z_RLE);
+    if (fast) {
+        png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_NONE);
+        png_set_compression_level(png, 1);
+        png_set_compression_strategy(png, Z_RLE);
+    } else { // what OpenImageIO does: adaptive row filters, zlib level 6
+        png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_ALL_FILTERS);
+        png_set_compression_level(png, 6);
+    }
     png_write_info(png, info);
     return true;
 }
@@ -126,13 +131,16 @@ Result<ImageStreamWriter> ImageStreamWriter::open(const std::filesystem::path& p
     w.m_width = width;
     w.m_height = height;
     w.m_channels = channels;
-    if (encoding == ImageEncoding::FastMask && isPng(path) && channels <= 4) {
+    // PNG through libpng, whose writes fail on a short fwrite (a full disk) where OpenImageIO's PNG writer reports
+    // success.
+    if (isPng(path) && channels <= 4) {
         impl.file = std::fopen(impl.tmp.c_str(), "wb");
         if (!impl.file) return fileError(path.string(), "cannot create file");
         std::setvbuf(impl.file, nullptr, _IOFBF, size_t(1) << 16); // fewer, larger writes
         impl.png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &impl.pngMessage, pngError, pngWarning);
         if (impl.png) impl.info = png_create_info_struct(impl.png);
-        if (!impl.png || !impl.info || !pngStart(impl.png, impl.info, impl.file, width, height, channels))
+        if (!impl.png || !impl.info || !pngStart(impl.png, impl.info, impl.file, width, height, channels,
+                                                             encoding == ImageEncoding::FastMask))
             return w.fail("cannot create file").error();
         return w;
     }

@@ -1,6 +1,7 @@
 #pragma once
-// Streams an 8-bit image through OpenImageIO (format by extension: PNG, TIFF, ...) top to bottom, a band of rows at
-// a time, so that an image larger than memory can be written. Written to a temporary name next to the target and
+// Streams an 8-bit image (format by extension: PNG through libpng, TIFF and the rest through OpenImageIO) top to
+// bottom, a band of rows at a time, so that an image larger than memory can be written. A failed write (a full
+// disk) is an error. Written to a temporary name next to the target and
 // renamed by finish(): a failed or abandoned image never appears under its final name. For PNG the file does not
 // depend on how the rows are split between writeRows() calls. Masks can be written fast (ImageEncoding::FastMask).
 #include "Result.h"
@@ -13,7 +14,7 @@ namespace seasonview {
 
 /// How an image is compressed; the pixels are the same either way.
 enum class ImageEncoding {
-    Default,  // OpenImageIO's defaults (PNG: adaptive row filters, zlib level 6)
+    Default,  // PNG: adaptive row filters, zlib level 6 (OpenImageIO's defaults), through libpng; other formats: OpenImageIO
     FastMask, // for images of long runs of a few values (masks): PNG written by libpng with no row filter and zlib's
               // run-length strategy at level 1, 3-5x faster than Default and smaller for masks; TIFF: deflate level 1
 };

@@ -54,6 +54,12 @@ Result<Image<T>> readPixels(const std::filesystem::path& path, int maxChannels, 
     img.width = (*ds)->GetRasterXSize();
     img.height = (*ds)->GetRasterYSize();
     img.channels = std::min((*ds)->GetRasterCount(), maxChannels);
+    const std::uint64_t bytes = std::uint64_t(img.width) * std::uint64_t(img.height) * std::uint64_t(img.channels) *
+                                sizeof(T);
+    if (bytes > kMaxWholeImageBytes)
+        return fileError(path.string(), std::to_string(img.width) + "x" + std::to_string(img.height) +
+                                            " pixels are too many to hold whole (" + std::to_string(bytes >> 20) +
+                                            " MiB; the limit is " + std::to_string(kMaxWholeImageBytes >> 20) + " MiB)");
     img.pixels.resize(size_t(img.width) * size_t(img.height) * size_t(img.channels));
     std::vector<int> bands(size_t(img.channels));
     for (int b = 0; b < img.channels; ++b) bands[size_t(b)] = b + 1;

@@ -68,6 +68,9 @@ template <typename T> struct Image {
 /// decides whether either is an error).
 Result<RasterInfo> readRasterInfo(const std::filesystem::path& path, const std::optional<Crs>& assumedCrs = {});
 
+/// Whole-image reads (truth masks, textures, small DEMs) hold at most this much; larger images are refused before
+/// allocation with the limit named (imagery and DEMs of any size stream through BandReader and GridReader instead).
+inline constexpr std::uint64_t kMaxWholeImageBytes = std::uint64_t(4) << 30;
 /// Reads all pixels converted to T (u8, u16 or float: values converted numerically, clamped to T's range, never
 /// rescaled), first `maxChannels` bands. Errors name the file (truncated, corrupt: any GDAL read error).
 Result<Image<std::uint8_t>> readImageU8(const std::filesystem::path& path, int maxChannels = 4);

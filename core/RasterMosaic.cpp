@@ -80,6 +80,9 @@ Result<std::vector<fs::path>> expand(const SourceList& sources) {
         std::error_code ec;
         if (seen.insert(fs::weakly_canonical(fs::absolute(f, ec), ec)).second) unique.push_back(f);
     }
+    if (unique.size() > kMaxMosaicTiles)
+        return fileError(sources.describe(), std::to_string(unique.size()) + " tiles, over the limit of " +
+                                                 std::to_string(kMaxMosaicTiles) + " (build a VRT of them: gdalbuildvrt)");
     return unique;
 }
 

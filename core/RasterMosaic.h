@@ -46,6 +46,9 @@ struct RasterMosaic {
     const RasterInfo& finest() const;
 };
 
+/// The most tile files one mosaic opens (each is opened to read its header; a VRT of more counts as one).
+inline constexpr std::size_t kMaxMosaicTiles = std::size_t(1) << 18;
+
 /// Expands `sources` (files, folders, globs; a VRT is a file) and opens every raster: files in a folder that GDAL
 /// does not take for a raster (world files, .prj, .aux.xml, .msk, text) are skipped. Tiles without a CRS take
 /// `assumedCrs` (--crs). `role` names the input in messages ("leaf-on"). Errors, one line naming the file: a path

@@ -1,5 +1,7 @@
 #include "Scene.h"
 
+#include "JsonFile.h"
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -13,38 +15,32 @@ namespace {
 
 using nlohmann::json;
 
-std::string lineColumn(const std::string& text, size_t byte) {
-    size_t line = 1, col = 1;
-    for (size_t i = 0; i < byte && i < text.size(); ++i) {
-        if (text[i] == '\n') {
-            ++line;
-            col = 1;
-        } else {
-            ++col;
-        }
-    }
-    return "line " + std::to_string(line) + ", column " + std::to_string(col);
-}
+} // namespace
+
+namespace {
+
+Result<SceneSources> manifestFromJson(const json& j, const std::filesystem::path& manifest);
 
 } // namespace
 
 Result<SceneSources> parseManifest(const std::filesystem::path& manifest) {
     const std::string name = manifest.string();
     std::error_code ec;
-    if (!std::filesystem::exists(manifest, ec)) return fileError(name, "file not found");
     if (std::filesystem::is_directory(manifest, ec))
         return fileError(name, "is a directory; give the scene's manifest (scene.json)");
-    std::ifstream f(manifest, std::ios::binary);
-    if (!f) return fileError(name, "cannot read file");
-    std::stringstream buf;
-    buf << f.rdbuf();
-    const std::string text = buf.str();
-    json j;
+    auto j = readJsonFile(manifest, "manifest");
+    if (!j) return j.error();
     try {
-        j = json::parse(text);
-    } catch (const json::parse_error& e) {
-        return fileError(name, "malformed JSON manifest (" + lineColumn(text, e.byte ? e.byte - 1 : 0) + ")");
+        return manifestFromJson(*j, manifest);
+    } catch (const json::exception& e) { // a value of an unexpected type that a check below missed
+        return fileError(name, "manifest: " + firstLine(e.what()));
     }
+}
+
+namespace {
+
+Result<SceneSources> manifestFromJson(const json& j, const std::filesystem::path& manifest) {
+    const std::string name = manifest.string();
     if (!j.is_object()) return fileError(name, "manifest must be a JSON object");
 
     SceneSources s;
@@ -92,8 +88,8 @@ Result<SceneSources> parseManifest(const std::filesystem::path& manifest) {
     static const char* known[] = {"name", "leafon", "leafoff", "elevation", "buildings", "truth", "parameters",
                                   "generator", "description", "crs", "grid_crs", "grid_res", "extent", "resampling",
                                   "stretch", "buildings_crs"};
-    for (auto& [k, v] : j.items()) {
-        (void)v;
+    for (const auto& item : j.items()) {
+        const std::string& k = item.key();
         if (std::find_if(std::begin(known), std::end(known), [&](const char* n) { return k == n; }) == std::end(known))
             s.warnings.push_back(name + ": unknown key '" + k + "' ignored");
     }
@@ -147,6 +143,8 @@ Result<SceneSources> parseManifest(const std::filesystem::path& manifest) {
     if (s.name.empty()) s.name = manifest.parent_path().filename().string();
     return s;
 }
+
+} // namespace
 
 Result<GridOptions> parseGridOptions(const SceneSources& sources) {
     GridOptions o;

@@ -1,4 +1,5 @@
 #include "Stretch.h"
+#include "JsonFile.h"
 
 #include "AtomicFile.h"
 
@@ -90,18 +91,20 @@ Result<Stretch> cachedStretch(const std::string& key, const std::string& what, c
     char name[64];
     std::snprintf(name, sizeof name, "stretch-%016zx.json", std::hash<std::string>{}(key));
     const std::filesystem::path cached = cacheDir / name;
-    if (std::ifstream f(cached); f) {
-        auto j = nlohmann::json::parse(f, nullptr, false);
-        if (!j.is_discarded() && j.value("key", "") == key) {
-            Stretch s;
-            s.identity = false;
-            s.channels = j.at("channels").get<int>();
-            for (int c = 0; c < s.channels && c < 4; ++c) {
-                s.low[size_t(c)] = j.at("low").at(size_t(c)).get<float>();
-                s.high[size_t(c)] = j.at("high").at(size_t(c)).get<float>();
-            }
-            return s;
+    // A stretch file that does not read back whole (cut, edited, another key) is computed again.
+    if (auto j = readJsonFile(cached, "stretch"); j && jsonValue<std::string>(*j, "key", "") == key) {
+        Stretch s;
+        s.identity = false;
+        s.channels = jsonValue<int>(*j, "channels", 0);
+        const auto low = jsonValue<std::vector<float>>(*j, "low", {});
+        const auto high = jsonValue<std::vector<float>>(*j, "high", {});
+        bool whole = s.channels >= 1 && s.channels <= 4 && low.size() == size_t(s.channels) && high.size() == low.size();
+        for (size_t c = 0; whole && c < low.size(); ++c) {
+            whole = std::isfinite(low[c]) && std::isfinite(high[c]) && low[c] < high[c];
+            s.low[c] = low[c];
+            s.high[c] = high[c];
         }
+        if (whole) return s;
     }
     auto computed = compute();
     if (!computed) return computed.error();

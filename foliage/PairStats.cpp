@@ -1,4 +1,5 @@
 #include "PairStats.h"
+#include "JsonFile.h"
 
 #include "AtomicFile.h"
 #include "StableHash.h"
@@ -47,12 +48,13 @@ struct CacheRead {
 CacheRead readCache(const fs::path& file, const std::string& key, int width, int height) {
     CacheRead r;
     const std::string name = file.filename().string();
-    std::ifstream f(file);
-    if (!f) {
+    std::error_code ec;
+    if (!fs::exists(file, ec)) {
         r.reason = "not prepared yet";
         return r;
     }
-    const nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
+    const nlohmann::json j = readJsonFile(file, "pair statistics").ok() ? *readJsonFile(file, "pair statistics")
+                                                                       : nlohmann::json(nullptr);
     // The sampled pixels where both seasons have data: all of them, or fewer (stored) where a season has none.
     const std::uint64_t all = sampleCount(width, height);
     std::uint64_t samples = all;
@@ -76,7 +78,7 @@ CacheRead readCache(const fs::path& file, const std::string& key, int width, int
             r.reason = "sources changed";
             return r;
         }
-        bool ok = j.at("width").get<int>() == width && j.at("height").get<int>() == height;
+        bool ok = jsonMember<int>(j, "width") == width && jsonMember<int>(j, "height") == height;
         for (size_t c = 0; c < 3 && ok; ++c)
             ok = take(j.at("leafon").at(c), h.on[c].data(), 256) && take(j.at("leafoff").at(c), h.off[c].data(), 256);
         if (ok) ok = take(j.at("drop"), h.drop.data(), h.drop.size());
@@ -118,8 +120,9 @@ void removeStale(const fs::path& dir, const fs::path& keep, const ImagePyramid& 
         const fs::path& p = it->path();
         if (p == keep || p.extension() != ".json" || p.filename().string().find(".partial-") != std::string::npos)
             continue;
-        std::ifstream f(p);
-        const nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
+        auto parsed = readJsonFile(p, "pair statistics");
+        if (!parsed) continue;
+        const nlohmann::json& j = *parsed;
         if (!j.is_object() || !j.contains("leafon_key") || !j.contains("leafoff_key") ||
             !j["leafon_key"].is_string() || !j["leafoff_key"].is_string())
             continue;

@@ -1,8 +1,7 @@
 #include "ElevationPyramid.h"
 
+#include "GeoTiffStreamWriter.h"
 #include "PyramidBuilder.h"
-
-#include <OpenImageIO/imageio.h>
 
 #include <algorithm>
 #include <cassert>
@@ -13,19 +12,16 @@ namespace seasonview {
 
 namespace {
 
-/// Writes one level as a tiled, deflate-compressed single-channel float TIFF.
+/// Writes one level as a tiled, Zstandard-compressed single-channel float TIFF (content checksums, as the imagery
+/// pyramids' levels), through the writer whose bytes depend only on the samples: a rebuilt level is byte-identical.
 Status writeLevel(const std::filesystem::path& file, const std::vector<float>& heights, int w, int h, int tileSize) {
-    auto out = OIIO::ImageOutput::create(file.string());
-    if (!out) {
-        (void)OIIO::geterror();
-        return fileError(file.string(), "cannot create a TIFF writer");
-    }
-    OIIO::ImageSpec spec(w, h, 1, OIIO::TypeDesc::FLOAT);
-    spec.tile_width = spec.tile_height = tileSize;
-    spec.attribute("compression", "zip");
-    if (!out->open(file.string(), spec) || !out->write_image(OIIO::TypeDesc::FLOAT, heights.data()) || !out->close())
-        return fileError(file.string(), "cannot write elevation level (" + out->geterror() + ")");
-    return Ok{};
+    GeoTiffWriteOptions o;
+    o.tileSize = tileSize;
+    o.compression = TiffCompression::Zstd;
+    auto out = GeoTiffStreamWriter::open(file, w, h, 1, SampleType::F32, std::nullopt, o);
+    if (!out) return out.error();
+    if (auto st = out->writeRows(0, h, heights.data()); !st) return st.error();
+    return out->finish();
 }
 
 } // namespace

@@ -165,7 +165,7 @@ TEST(ViewCliTest, BadArgumentsFailWithOneLine) {
     ASSERT_TRUE(pair.ok());
     const std::string on = (dir / "on.tif").string(), off = (dir / "off.tif").string();
     const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
-        {{"--script", (dir / "missing.json").string()}, "missing.json: cannot open the script"},
+        {{"--script", (dir / "missing.json").string()}, "missing.json: file not found"},
         {{"--script", (dir / "bad.json").string()}, "unknown key 'NoSuchKey'"},
         {{"--screenshot-at", "x:a.png"}, "--screenshot-at 'x:a.png'"},
         {{"--screenshot-at", "1:a.jpg2"}, "a.jpg2"},

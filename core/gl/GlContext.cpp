@@ -6,6 +6,7 @@
 #include <epoxy/gl.h>
 #include <GLFW/glfw3.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <vector>
@@ -21,6 +22,17 @@ void GlContext::fillInfo(const char* platform) {
     m_info.vendor = str(GL_VENDOR);
     m_info.renderer = str(GL_RENDERER);
     m_info.version = str(GL_VERSION);
+    GLint renderbuffer = 0, viewport[2] = {0, 0};
+    glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &renderbuffer);
+    glGetIntegerv(GL_MAX_VIEWPORT_DIMS, viewport);
+    m_info.maxFramebufferSide = std::min({renderbuffer, viewport[0], viewport[1]});
+}
+
+Status checkFramebufferSize(const ContextInfo& info, int width, int height, const std::string& what) {
+    if (width <= info.maxFramebufferSide && height <= info.maxFramebufferSide) return Ok{};
+    return Error{what + " " + std::to_string(width) + "x" + std::to_string(height) + ": larger than " + info.renderer +
+                 " allows (at most " + std::to_string(info.maxFramebufferSide) +
+                 " pixels a side: GL_MAX_RENDERBUFFER_SIZE, GL_MAX_VIEWPORT_DIMS)"};
 }
 
 namespace {

@@ -11,7 +11,12 @@ namespace seasonview::gl {
 struct ContextInfo {
     std::string platform;   // "EGL device", "EGL surfaceless", "GLFW window"
     std::string vendor, renderer, version;
+    int maxFramebufferSide = 0; // the largest render target side: min(GL_MAX_RENDERBUFFER_SIZE, GL_MAX_VIEWPORT_DIMS)
 };
+
+/// Whether a width×height render target fits what this context allows (`what` names the option, e.g. "--size");
+/// the error names the limit and the renderer.
+Status checkFramebufferSize(const ContextInfo& info, int width, int height, const std::string& what);
 
 class GlContext {
 public:

@@ -1,0 +1,242 @@
+// Crash safety: `synth`, `prepare`, `atlas build` and `segment` killed (SIGKILL) at random moments leave either the
+// complete earlier result or none, never a file a later run accepts; the run after the kills gives byte-identical
+// results to an uninterrupted one, and leftovers of the killed runs are cleaned away. A full disk (the file-size
+// limit RLIMIT_FSIZE, which makes every write past it fail as a full disk does) gives one line, exit 1, and no
+// output or cache entry.
+#include "TestUtil.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <fcntl.h>
+#include <map>
+#include <random>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <thread>
+#include <unistd.h>
+
+using namespace seasonview;
+using namespace seasonview::test;
+
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Starts seasonview with `args` (stdout and stderr to `log`); `fileSizeLimit` > 0 sets RLIMIT_FSIZE (bytes) with
+/// SIGXFSZ ignored, so writes past it fail with EFBIG.
+pid_t spawn(const std::vector<std::string>& args, const fs::path& log, rlim_t fileSizeLimit = 0) {
+    std::vector<std::string> all = {SEASONVIEW_BINARY};
+    all.insert(all.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (auto& a : all) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+        const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        ::dup2(fd, 1);
+        ::dup2(fd, 2);
+        if (fileSizeLimit > 0) {
+            ::signal(SIGXFSZ, SIG_IGN);
+            const rlimit r{fileSizeLimit, fileSizeLimit};
+            ::setrlimit(RLIMIT_FSIZE, &r);
+        }
+        ::execv(argv[0], argv.data());
+        ::_exit(127);
+    }
+    return pid;
+}
+
+/// Waits for `pid`: its exit code, or -signal when a signal ended it.
+int waitFor(pid_t pid) {
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -WTERMSIG(status);
+}
+
+/// A file's size and a hash of its bytes, for comparisons whose failures print short.
+std::string fingerprint(const fs::path& p) {
+    const std::string bytes = readBytes(p);
+    return std::to_string(bytes.size()) + " bytes, hash " + std::to_string(std::hash<std::string>{}(bytes));
+}
+
+/// Every file under `dir` (relative path → fingerprint), in-progress temporaries (".partial-") included.
+std::map<std::string, std::string> snapshot(const fs::path& dir) {
+    std::map<std::string, std::string> files;
+    if (!fs::exists(dir)) return files;
+    for (const auto& e : fs::recursive_directory_iterator(dir))
+        if (e.is_regular_file()) files[fs::relative(e.path(), dir).string()] = fingerprint(e.path());
+    return files;
+}
+
+bool isTemporary(const std::string& relative) { return relative.find(".partial-") != std::string::npos; }
+
+/// The files of `after` that are not temporaries.
+std::map<std::string, std::string> committed(const std::map<std::string, std::string>& after) {
+    std::map<std::string, std::string> out;
+    for (const auto& [k, v] : after)
+        if (!isTemporary(k)) out[k] = v;
+    return out;
+}
+
+struct CrashSafety : ::testing::Test {
+    TempDir dir{"crash-safety"};
+    std::mt19937 random{20261125};
+
+    void SetUp() override {
+        // A 2048² scene with a small city: each command takes from half a second (segment) to two (synth).
+        CliResult r = runCli({"synth", "--size-m", "1024", "--gsd", "0.5", "--seed", "3", "--block-city", "6", "--out",
+                              (dir / "scene").string()});
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+    }
+
+    /// Runs `args` once to completion: seconds taken (and the exit code checked).
+    double runWhole(const std::vector<std::string>& args) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const int rc = waitFor(spawn(args, dir / "log.txt"));
+        EXPECT_EQ(rc, 0) << readBytes(dir / "log.txt");
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    }
+
+    /// Kills `args` `kills` times at random moments within `seconds`; after each kill `check` sees what is on disk.
+    /// Returns how many of the runs were killed before they finished.
+    int killRepeatedly(const std::vector<std::string>& args, double seconds, int kills,
+                       const std::function<void()>& check) {
+        int killed = 0;
+        std::uniform_real_distribution<double> when(0.02, 1.0);
+        for (int i = 0; i < kills; ++i) {
+            const pid_t pid = spawn(args, dir / "log.txt");
+            std::this_thread::sleep_for(std::chrono::duration<double>(when(random) * seconds));
+            ::kill(pid, SIGKILL);
+            if (waitFor(pid) == -SIGKILL) ++killed;
+            check();
+        }
+        return killed;
+    }
+};
+
+} // namespace
+
+TEST_F(CrashSafety, SynthKilledLeavesNoSceneThatReadsAsWhole) {
+    const fs::path out = dir / "again";
+    const std::vector<std::string> args = {"synth",        "--size-m", "1024", "--gsd", "0.5", "--seed", "3",
+                                           "--block-city", "6",        "--out",  out.string()};
+    const auto reference = committed(snapshot(dir / "scene"));
+    const double seconds = runWhole(args);
+    ASSERT_EQ(committed(snapshot(out)), reference) << "synth is not deterministic";
+    fs::remove_all(out);
+    const int killed = killRepeatedly(args, seconds, 6, [&] {
+        // scene.json is written last: while it is there, every file it names is the complete one.
+        if (fs::exists(out / "scene.json")) {
+            for (const auto& [name, bytes] : committed(snapshot(out)))
+                EXPECT_EQ(bytes, reference.at(name)) << name << " differs while scene.json says the scene is whole";
+        }
+        // A file under its final name is whole even without scene.json (written under a temporary name first).
+        for (const auto& [name, bytes] : committed(snapshot(out)))
+            if (reference.count(name)) {
+                EXPECT_EQ(bytes, reference.at(name)) << name << " is not whole";
+            }
+    });
+    EXPECT_GE(killed, 3) << "too few runs were killed before they finished to mean anything";
+    runWhole(args);
+    EXPECT_EQ(snapshot(out), reference) << "after the kills: not identical, or temporaries left behind";
+}
+
+TEST_F(CrashSafety, PrepareKilledLeavesOnlyValidPyramidsAndResumes) {
+    const fs::path scene = dir / "scene/scene.json";
+    const std::vector<std::string> args = {"prepare", scene.string(), "--cache", (dir / "cache").string()};
+    const double seconds = runWhole(args);
+    const auto reference = snapshot(dir / "cache");
+    fs::remove_all(dir / "cache");
+    const int killed = killRepeatedly(args, seconds, 8, [&] {
+        // Every pyramid with an index, and every statistics file, is the complete one.
+        for (const auto& [name, bytes] : committed(snapshot(dir / "cache"))) {
+            const fs::path folder = fs::path(name).parent_path();
+            const bool indexed = fs::exists(dir / "cache" / folder / "pyramid.json") || folder.filename() == "pairstats" ||
+                                 folder.empty();
+            if (indexed) {
+                EXPECT_EQ(bytes, reference.count(name) ? reference.at(name) : "(absent)") << name;
+            }
+        }
+    });
+    EXPECT_GE(killed, 4);
+    runWhole(args);
+    EXPECT_EQ(snapshot(dir / "cache"), reference) << "after the kills: not identical, or temporaries left behind";
+}
+
+TEST_F(CrashSafety, AtlasBuildAndSegmentKilledLeaveTheOldResultOrNone) {
+    const fs::path model = dir / "scene/city/city.obj";
+    ASSERT_TRUE(fs::exists(model));
+    const std::vector<std::string> atlas = {"atlas", "build", model.string(), "--obj-local", "--atlas-size", "256",
+                                            "--out", (dir / "city.atlas").string()};
+    const std::vector<std::string> segment = {"segment", (dir / "scene/scene.json").string(), "--cache",
+                                              (dir / "cache").string(), "--out", (dir / "mask.png").string(),
+                                              "--overlay", (dir / "overlay.png").string(), "--trees",
+                                              (dir / "trees.csv").string()};
+    const std::vector<std::pair<const std::vector<std::string>*, std::vector<std::string>>> commands = {
+        {&atlas, {"city.atlas"}}, {&segment, {"mask.png", "overlay.png", "trees.csv"}}};
+    for (const auto& command : commands) {
+        const std::vector<std::string>* args = command.first;
+        const std::vector<std::string>& outputs = command.second;
+        SCOPED_TRACE(args->front());
+        const double seconds = runWhole(*args);
+        const auto reference = committed(snapshot(dir.path()));
+        // Outputs written by the whole run: each must stay byte-identical (the old result) or be absent.
+        for (const auto& o : outputs) ASSERT_TRUE(reference.count(o)) << o;
+        for (int round = 0; round < 2; ++round) { // with the old result in place, then with none
+            if (round == 1)
+                for (const auto& o : outputs) fs::remove(dir / o);
+            const int killed = killRepeatedly(*args, seconds, 4, [&] {
+                for (const auto& o : outputs)
+                    if (fs::exists(dir / o)) {
+                        EXPECT_EQ(fingerprint(dir / o), reference.at(o)) << o << " is not whole";
+                    }
+            });
+            EXPECT_GE(killed, 2);
+        }
+        runWhole(*args);
+        for (const auto& o : outputs) EXPECT_EQ(fingerprint(dir / o), reference.at(o)) << o;
+        for (const auto& [name, bytes] : snapshot(dir.path()))
+            EXPECT_FALSE(isTemporary(name) && fs::path(name).parent_path().empty()) << name << " left behind";
+    }
+}
+
+TEST_F(CrashSafety, FullDiskIsOneLineAndLeavesNothing) {
+    const std::string scene = (dir / "scene/scene.json").string();
+    struct Case {
+        std::vector<std::string> args;
+        std::vector<std::string> outputs;
+    };
+    const std::vector<Case> cases = {
+        {{"synth", "--size-m", "256", "--gsd", "0.5", "--block-city", "2", "--out", (dir / "full-synth").string()},
+         {"full-synth/scene.json"}},
+        {{"prepare", scene, "--cache", (dir / "full-cache").string()}, {}},
+        {{"segment", scene, "--cache", (dir / "cache").string(), "--out", (dir / "full-mask.tif").string()},
+         {"full-mask.tif"}},
+        {{"atlas", "build", (dir / "scene/city/city.obj").string(), "--obj-local", "--atlas-size", "256", "--out",
+          (dir / "full.atlas").string()},
+         {"full.atlas"}},
+        {{"render", scene, "--size", "1280x960", "--cache", (dir / "cache").string(), "--out",
+          (dir / "full.png").string()},
+         {"full.png"}},
+    };
+    // The segment and render cases need the pyramids prepared (their own writes are what fills the disk).
+    ASSERT_EQ(runCli({"prepare", scene, "--cache", (dir / "cache").string()}).exitCode, 0);
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.args.front());
+        const int rc = waitFor(spawn(c.args, dir / "log.txt", 32 * 1024));
+        const std::string log = readBytes(dir / "log.txt");
+        EXPECT_EQ(rc, 1) << log;
+        // One line: the error (progress bars and notes go to stdout, here the same file: look at the last line).
+        const std::string last = log.substr(log.rfind('\n', log.size() - 2) + 1);
+        EXPECT_NE(last.find("seasonview " + c.args.front()), std::string::npos) << log;
+        for (const auto& o : c.outputs) EXPECT_FALSE(fs::exists(dir / o)) << o << " left after a failed write";
+    }
+    // No pyramid of the full-disk prepare is accepted: a later prepare without the limit builds them all.
+    CliResult again = runCli({"prepare", scene, "--cache", (dir / "full-cache").string()});
+    EXPECT_EQ(again.exitCode, 0) << again.err;
+    EXPECT_EQ(again.out.find("up to date"), std::string::npos) << again.out;
+    for (const auto& [name, bytes] : snapshot(dir.path()))
+        EXPECT_FALSE(isTemporary(name)) << name << " left behind by a failed write";
+}
