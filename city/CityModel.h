@@ -63,10 +63,11 @@ struct CityLoadOptions {
 };
 
 /// Limits on a city model, checked before its polygons are triangulated and stored: polygons per file (a
-/// country's LoD2 buildings are ~10^7), vertices per polygon (ear clipping is quadratic or worse; real walls and roofs
-/// have tens). A file past them is refused with the limit named.
+/// country's LoD2 buildings are ~10^7), vertices per OBJ face (tinyobjloader counts them in a byte, so a longer face
+/// would be read as another; real walls and roofs have tens; CityGML polygons are tessellated by libcitygml). A file
+/// past them is refused with the limit named.
 inline constexpr std::size_t kMaxCityPolygons = std::size_t(1) << 25;
-inline constexpr std::size_t kMaxPolygonVertices = 1024;
+inline constexpr std::size_t kMaxPolygonVertices = 255;
 
 /// Loads CityGML (.gml, .xml, .citygml) or OBJ (.obj, with its .mtl). CityGML: every Building (and its parts) at the
 /// highest LoD it has, textures of the theme "rgbTexture" or the first one; geographic CRSs are read in EPSG axis

@@ -68,13 +68,16 @@ Result<CityModel> loadObj(const std::string& path, const CityLoadOptions& option
     std::size_t faces = 0;
     for (const auto& shape : shapes) {
         faces += shape.mesh.num_face_vertices.size();
+        // tinyobjloader stores each face's vertex count in a byte: a face of more lost its count, and the counts
+        // no longer add up to the indices.
+        std::size_t counted = 0;
+        for (const unsigned char n : shape.mesh.num_face_vertices) counted += n;
+        if (counted != shape.mesh.indices.size())
+            return fileError(path, "a face of more than " + std::to_string(kMaxPolygonVertices) +
+                                       " vertices, over the limit of " + std::to_string(kMaxPolygonVertices));
         std::size_t first = 0;
         for (std::size_t f = 0; f < shape.mesh.num_face_vertices.size(); first += shape.mesh.num_face_vertices[f], ++f) {
             const std::size_t n = shape.mesh.num_face_vertices[f];
-            if (n > kMaxPolygonVertices)
-                return fileError(path, "a face of " + std::to_string(n) + " vertices, over the limit of " +
-                                           std::to_string(kMaxPolygonVertices));
-            if (first + n > shape.mesh.indices.size()) return fileError(path, "faces refer to missing vertex indices");
             for (std::size_t k = 0; k < n; ++k) {
                 const auto& idx = shape.mesh.indices[first + k];
                 if (idx.vertex_index < 0 || std::size_t(idx.vertex_index) >= vertexCount)

@@ -229,3 +229,13 @@ TEST_F(CliFixture, RealSentinelPair) {
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_TRUE(std::filesystem::exists(dir / "saclay.png"));
 }
+
+TEST_F(CliFixture, SizeBeyondTheGlLimitIsRefusedWithTheLimit) {
+    // 65536 is over every GL implementation's largest framebuffer (llvmpipe 16384, NVIDIA 32768).
+    auto args = pair();
+    args.insert(args.begin(), "render");
+    args.insert(args.end(), {"--size", "65536x16", "--cache", (dir / "cache").string(), "--out", (dir / "out.png").string()});
+    expectOneLineError(args, "--size 65536x16: larger than");
+    const CliResult r = runCli(args);
+    EXPECT_NE(r.err.find("pixels a side: GL_MAX_RENDERBUFFER_SIZE"), std::string::npos) << r.err;
+}

@@ -1,0 +1,135 @@
+// Declared sizes past the limits are refused before anything is allocated for them, the limit named: raster sides,
+// bands, tile counts, whole-image reads, polygons per face.
+#include "CityModel.h"
+#include "GdalSupport.h"
+#include "Raster.h"
+#include "TestUtil.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+using namespace seasonview;
+using namespace seasonview::test;
+
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A sparse tiled GeoTIFF of width×height×bands bytes (only its header and tile index on disk).
+void sparseTiff(const fs::path& p, int width, int height, int bands) {
+    gdal::init();
+    GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
+    const char* options[] = {"TILED=YES", "SPARSE_OK=TRUE", "BIGTIFF=YES", nullptr};
+    GDALDataset* ds = gtiff->Create(p.c_str(), width, height, bands, GDT_Byte, const_cast<char**>(options));
+    ASSERT_NE(ds, nullptr);
+    GDALClose(ds);
+}
+
+/// A classic TIFF header alone: width×height in tileSize² tiles whose index lies past the end of the file (GDAL reads
+/// the index lazily, so the header opens).
+void headerOnlyTiff(const fs::path& p, std::uint32_t width, std::uint32_t height, std::uint32_t tileSize) {
+    const std::uint32_t tiles = ((width + tileSize - 1) / tileSize) * ((height + tileSize - 1) / tileSize);
+    struct Entry {
+        std::uint16_t tag, type;
+        std::uint32_t count, value;
+    };
+    const Entry entries[] = {{256, 4, 1, width}, {257, 4, 1, height}, {258, 3, 1, 8},        {259, 3, 1, 1},
+                             {262, 3, 1, 1},     {277, 3, 1, 1},      {284, 3, 1, 1},        {322, 4, 1, tileSize},
+                             {323, 4, 1, tileSize}, {324, 4, tiles, 4096}, {325, 4, tiles, 4096}};
+    std::string b = "II";
+    auto put = [&](auto v) { b.append(reinterpret_cast<const char*>(&v), sizeof v); };
+    put(std::uint16_t(42));
+    put(std::uint32_t(8));
+    put(std::uint16_t(std::size(entries)));
+    for (const Entry& e : entries) {
+        put(e.tag);
+        put(e.type);
+        put(e.count);
+        if (e.type == 3 && e.count == 1) {
+            put(std::uint16_t(e.value));
+            put(std::uint16_t(0));
+        } else {
+            put(e.value);
+        }
+    }
+    put(std::uint32_t(0));
+    std::ofstream(p, std::ios::binary) << b;
+}
+
+} // namespace
+
+TEST(ResourceLimitsTest, RasterSidesOverTheLimitAreRefused) {
+    TempDir dir("limits-side");
+    sparseTiff(dir / "wide.tif", int(gdal::kMaxRasterSide) + 1, 16, 3);
+    auto r = readRasterInfo(dir / "wide.tif");
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.message().find("wide.tif: declared size 1048577x16 is over the limit of 1048576 pixels a side"),
+              std::string::npos)
+        << r.message();
+    sparseTiff(dir / "edge.tif", int(gdal::kMaxRasterSide), 16, 3); // at the limit: fine
+    EXPECT_TRUE(readRasterInfo(dir / "edge.tif").ok());
+}
+
+TEST(ResourceLimitsTest, TileCountsOverTheLimitAreRefused) {
+    TempDir dir("limits-tiles");
+    // 2^20 x 2^20 in 128² tiles: 2^26 tiles, whose offsets alone would take 512 MiB.
+    headerOnlyTiff(dir / "tiles.tif", 1u << 20, 1u << 20, 128);
+    auto r = readRasterInfo(dir / "tiles.tif");
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.message().find("declares 67108864 tiles or strips of 128x128, over the limit of 16777216"),
+              std::string::npos)
+        << r.message();
+}
+
+TEST(ResourceLimitsTest, WholeImageReadsOverTheLimitAreRefusedBeforeAllocating) {
+    TempDir dir("limits-whole");
+    // 40000² RGB: 4.5 GiB held whole. Streaming readers take it; a whole-image read (a truth mask) does not.
+    sparseTiff(dir / "big.tif", 40000, 40000, 3);
+    EXPECT_TRUE(readRasterInfo(dir / "big.tif").ok());
+    auto r = readImageU8(dir / "big.tif", 3);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.message().find("40000x40000 pixels are too many to hold whole (4577 MiB; the limit is 4096 MiB)"),
+              std::string::npos)
+        << r.message();
+}
+
+TEST(ResourceLimitsTest, BandsOverTheLimitAreRefused) {
+    TempDir dir("limits-bands");
+    writeTestImage(dir / "one.tif", 8, 8, testGeoref(1.0));
+    std::ofstream vrt(dir / "bands.vrt");
+    vrt << "<VRTDataset rasterXSize=\"8\" rasterYSize=\"8\">\n";
+    for (int b = 1; b <= 300; ++b)
+        vrt << "<VRTRasterBand dataType=\"Byte\" band=\"" << b << "\"><SimpleSource><SourceFilename relativeToVRT=\"1\">"
+            << "one.tif</SourceFilename><SourceBand>1</SourceBand></SimpleSource></VRTRasterBand>\n";
+    vrt << "</VRTDataset>\n";
+    vrt.close();
+    auto r = readRasterInfo(dir / "bands.vrt");
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.message().find("declares 300 bands, over the limit of 256"), std::string::npos) << r.message();
+}
+
+TEST(ResourceLimitsTest, ObjFacesOverTheLimitOrNamingMissingVerticesAreRefused) {
+    TempDir dir("limits-obj");
+    city::CityLoadOptions local;
+    local.localFrame = true;
+    {
+        std::ofstream f(dir / "ring.obj");
+        const int n = int(city::kMaxPolygonVertices) + 1;
+        for (int i = 0; i < n; ++i)
+            f << "v " << 10.0 * std::cos(6.283185 * i / n) << " 0 " << 10.0 * std::sin(6.283185 * i / n) << "\n";
+        f << "f";
+        for (int i = 1; i <= n; ++i) f << " " << i;
+        f << "\n";
+    }
+    auto r = city::loadCityModel((dir / "ring.obj").string(), local);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.message().find("a face of more than 255 vertices, over the limit of 255"), std::string::npos)
+        << r.message();
+
+    std::ofstream(dir / "missing.obj") << "v 0 0 0\nv 1 0 0\nv 1 0 1\nf 1 2 9\n";
+    auto m = city::loadCityModel((dir / "missing.obj").string(), local);
+    ASSERT_FALSE(m.ok());
+    EXPECT_NE(m.message().find("a face refers to vertex 9, which does not exist (3 vertices)"), std::string::npos)
+        << m.message();
+}
