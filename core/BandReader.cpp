@@ -144,7 +144,8 @@ struct RawTiff {
     std::vector<std::unique_ptr<libdeflate_decompressor, DecompressorDeleter>> inflaters; // per thread (deflate)
     std::vector<std::unique_ptr<ZSTD_DCtx, DecompressorDeleter>> zstdContexts;            // per thread (zstd)
     std::vector<std::unique_ptr<JpegDecoder>> jpegDecoders;                              // per thread (JPEG)
-    std::string failure; // what libjpeg said of the last block that did not decode
+    std::string failure; // what libjpeg said of the last block that did not decode, or why it could not be read
+    std::uint64_t fileBytes = 0; // the file's size: no block may claim bytes past it
     ~RawTiff() {
         if (tif) TIFFClose(tif);
     }
@@ -158,6 +159,8 @@ struct RawTiff {
         // alarming to users and to memory accounting although the kernel could drop them.
         r->tif = tiff::open(path, "rm", &r->error);
         if (!r->tif) return nullptr;
+        std::error_code ec;
+        r->fileBytes = std::filesystem::file_size(path, ec);
         TIFF* t = r->tif;
         std::uint32_t w = 0, h = 0;
         std::uint16_t compression = 0, planar = PLANARCONFIG_CONTIG, bits = 0, format = SAMPLEFORMAT_UINT,
@@ -261,6 +264,14 @@ struct RawTiff {
                 const std::uint32_t strile = std::uint32_t(tiled ? by * across + i : by);
                 if (!tiled && by >= stripsDown) return false;
                 const std::uint64_t size = TIFFGetStrileByteCount(tif, strile);
+                // A damaged index may claim gigabytes: checked against the file before anything is allocated.
+                const std::uint64_t offset = size == 0 ? 0 : TIFFGetStrileOffset(tif, strile);
+                if (size > fileBytes || offset > fileBytes - size) {
+                    failure = std::string(tiled ? "tile " : "strip ") + std::to_string(strile) + ": " +
+                              std::to_string(size) + " bytes at offset " + std::to_string(offset) +
+                              " run past the end of the file (" + std::to_string(fileBytes) + " bytes)";
+                    return false;
+                }
                 std::vector<std::uint8_t>& c = compressed[size_t(i)];
                 c.resize(size_t(size));
                 if (size == 0) continue; // a sparse block: zeros, as libtiff reads it

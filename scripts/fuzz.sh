@@ -104,18 +104,20 @@ run_one() {
   mkdir -p "$corpus" "$findings" "$OUT/logs"
   local maxlen=65536
   case "$t" in atlas_tree|pyramid_tile|raster|citygml) maxlen=1048576 ;; esac
-  ( cd "$findings" && ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1 \
+  # GDAL's block cache and ASan's quarantine kept small: RSS then measures the loaders, and -rss_limit_mb catches
+  # what they hold; one allocation over 4 GiB is a finding of its own (-malloc_limit_mb).
+  ( cd "$findings" && GDAL_CACHEMAX=64 ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1:quarantine_size_mb=64 \
       LSAN_OPTIONS="suppressions=$ROOT/tests/sanitizers/lsan.supp:print_suppressions=0" \
       SEASONVIEW_FUZZ_TMP=/dev/shm "$B/fuzz/fuzz_$t" "$corpus" "$S/$t" -max_total_time="$SECONDS_EACH" \
-      -timeout=20 -rss_limit_mb=4096 -max_len="$maxlen" -print_final_stats=1 \
+      -timeout=20 -rss_limit_mb=8192 -malloc_limit_mb=4096 -max_len="$maxlen" -print_final_stats=1 \
       -artifact_prefix="$findings/" > "$log" 2>&1 ) || true
   local execs crashes hangs
   execs=$(grep -Eo 'stat::number_of_executed_units: *[0-9]+' "$log" | awk '{s+=$2} END {print s+0}')
   [ "$execs" = 0 ] && execs=$(grep -Eo '#[0-9]+' "$log" | tail -1 | tr -d '#')
-  crashes=$(find "$findings" -name 'crash-*' -o -name 'leak-*' | wc -l)
+  crashes=$(find "$findings" -name 'crash-*' -o -name 'leak-*' -o -name 'oom-*' | wc -l)
   hangs=$(find "$findings" -name 'timeout-*' | wc -l)
   printf '%s\t%s\t%s\t%s\t%s\n' "$t" "$SECONDS_EACH" "${execs:-0}" "$crashes" "$hangs" >> "$OUT/summary.tsv.new"
-  echo "fuzz_$t: ${SECONDS_EACH}s, ${execs:-0} executions, $crashes crashes/leaks, $hangs hangs"
+  echo "fuzz_$t: ${SECONDS_EACH}s, ${execs:-0} executions, $crashes crashes/leaks/OOMs, $hangs hangs"
 }
 running=0
 for t in "${TARGETS[@]}"; do

@@ -121,3 +121,20 @@ TEST(IntegrityTest, FilesCutShortAreErrorsNamingTheFile) {
         }
     }
 }
+
+// fuzz_raster: a tile whose byte count claims 3.7 GB made the own decoder allocate that much before reading; a block
+// that runs past the end of the file is refused first, naming it.
+TEST(IntegrityTest, BlockIndexPastTheEndOfTheFileIsRefusedBeforeAllocating) {
+    const std::filesystem::path file =
+        std::filesystem::path(SEASONVIEW_SOURCE_DIR) / "tests/fuzz/regressions/raster/oom-first-run.tif";
+    auto r = BandReader::open(file, 64);
+    ASSERT_TRUE(r.ok()) << r.message();
+    std::vector<std::uint8_t> band(size_t(r->width()) * size_t(r->bandRows()) * 4);
+    Status st = Ok{};
+    for (int y = 0; y < r->height() && st.ok(); y += r->bandRows())
+        st = r->read(y, std::min(r->height(), y + r->bandRows()), 1, SampleType::U8, band.data());
+    ASSERT_FALSE(st.ok());
+    EXPECT_NE(st.message().find("oom-first-run.tif: truncated or corrupt image data"), std::string::npos)
+        << st.message();
+    EXPECT_NE(st.message().find("run past the end of the file"), std::string::npos) << st.message();
+}
