@@ -59,7 +59,7 @@ public:
             return {};
         }
         std::vector<T> v(n);
-        std::memcpy(v.data(), &m_b[m_pos], n * sizeof(T));
+        if (n > 0) std::memcpy(v.data(), &m_b[m_pos], n * sizeof(T)); // an empty vector's data() may be null
         m_pos += n * sizeof(T);
         return v;
     }
@@ -226,7 +226,9 @@ Result<AtlasTreeFile> AtlasTreeFile::open(const std::string& path) {
         const std::uint64_t tris = tree.vertices.size() / 3;
         if (tree.nodes.empty() || tree.triangleTexture.size() != tris) return fileError(path, "corrupt atlas tree index");
         for (const auto& n : tree.nodes) {
-            if (std::uint64_t(n.first) + n.count > tris || n.atlasOffset + n.atlasBytes > indexOffset)
+            // Written so that no sum can wrap: a damaged index may hold any 64-bit value.
+            if (std::uint64_t(n.first) + n.count > tris || n.atlasBytes > indexOffset ||
+                n.atlasOffset > indexOffset - n.atlasBytes)
                 return fileError(path, "corrupt atlas tree index");
             for (int c : n.children)
                 if (c >= int(tree.nodes.size())) return fileError(path, "corrupt atlas tree index");
@@ -234,7 +236,9 @@ Result<AtlasTreeFile> AtlasTreeFile::open(const std::string& path) {
         for (auto t : tree.triangleTexture)
             if (t >= f.textures.size()) return fileError(path, "corrupt atlas tree index");
     }
-    if (i.atlasSize < 4 || (i.atlasSize & (i.atlasSize - 1)) != 0) return fileError(path, "corrupt atlas tree index");
+    // Atlases are decoded whole (atlasSize² RGBA): a size past what `atlas build` writes is damage.
+    if (i.atlasSize < 4 || i.atlasSize > 16384 || (i.atlasSize & (i.atlasSize - 1)) != 0)
+        return fileError(path, "corrupt atlas tree index");
     return f;
 }
 

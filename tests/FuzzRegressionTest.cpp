@@ -5,6 +5,7 @@
 #include "FuzzSupport.h"
 #include "TestUtil.h"
 
+#include "AtlasTree.h"
 #include "Commands.h"
 #include "ImagePyramid.h"
 
@@ -59,4 +60,15 @@ TEST(FuzzRegressionTest, LevelFileWithForeignTilesIsRefusedByItsHeader) {
     const fs::path file = fs::path(SEASONVIEW_SOURCE_DIR) / "tests/fuzz/regressions/pyramid_tile/oiio-abort-tile-over-cache.tif";
     const std::string why = checkLevelFile(file, fs::file_size(file), 64530, 18707, 256, TexelFormat::Rgba8);
     EXPECT_NE(why, "");
+}
+
+// fuzz_atlas_tree: a node whose atlas byte count wrapped the index's bounds check around 2^64 passed it, and reading
+// its blob threw std::length_error; an empty vector in the index was copied from a null pointer.
+TEST(FuzzRegressionTest, AtlasTreeIndexWithImpossibleExtentsIsCorrupt) {
+    const fs::path dir = fs::path(SEASONVIEW_SOURCE_DIR) / "tests/fuzz/regressions/atlas_tree";
+    auto wrapped = city::AtlasTreeFile::open((dir / "length-error-huge-blob.atlas").string());
+    ASSERT_FALSE(wrapped.ok());
+    EXPECT_NE(wrapped.message().find("corrupt atlas tree index"), std::string::npos) << wrapped.message();
+    auto empty = city::AtlasTreeFile::open((dir / "ubsan-memcpy-of-empty-vector.atlas").string());
+    EXPECT_TRUE(empty.ok()) << empty.message(); // a valid tree with an empty table
 }
