@@ -1,4 +1,5 @@
 #include "TextureSource.h"
+#include "Raster.h"
 
 #include "AtlasCodec.h"
 #include "ParallelIndices.h"
@@ -61,8 +62,14 @@ Result<SourceTexture> readSourceTexture(const CityTexture& texture) {
     if (!in) return fileError(texture.path, "cannot open texture: " + firstLine(OIIO::geterror()));
     const OIIO::ImageSpec spec = in->spec();
     if (spec.width <= 0 || spec.height <= 0 || spec.nchannels < 1) return fileError(texture.path, "empty texture");
-    std::vector<std::uint8_t> px(std::size_t(spec.width) * std::size_t(spec.height) * std::size_t(spec.nchannels));
-    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::UINT8, px.data()))
+    const std::uint64_t bytes = std::uint64_t(spec.width) * std::uint64_t(spec.height) * std::uint64_t(spec.nchannels);
+    if (bytes > kMaxWholeImageBytes)
+        return fileError(texture.path, "texture of " + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
+                                           " is over the limit of " + std::to_string(kMaxWholeImageBytes >> 20) + " MiB");
+    std::vector<std::uint8_t> px(bytes);
+    // A decoder's warning is lost data too (a JPEG cut short decodes as grey after "Premature end of JPEG file",
+    // which OpenImageIO records as an error but still calls a success).
+    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::UINT8, px.data()) || in->has_error())
         return fileError(texture.path, "cannot read texture: " + firstLine(in->geterror()));
     SourceTexture t;
     t.channels = spec.nchannels >= 4 ? 4 : 3;

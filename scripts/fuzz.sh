@@ -101,6 +101,7 @@ OUT="$B/fuzz"
 : > "$OUT/summary.tsv.new"
 run_one() {
   local t="$1" corpus="$OUT/corpus/$1" findings="$OUT/findings/$1" log="$OUT/logs/$1.log"
+  rm -rf "$findings" # this run's findings only (earlier ones live on in tests/fuzz/regressions)
   mkdir -p "$corpus" "$findings" "$OUT/logs"
   local maxlen=65536 started=$SECONDS
   case "$t" in atlas_tree|pyramid_tile|raster|citygml) maxlen=1048576 ;; esac

@@ -167,3 +167,20 @@ TEST(IntegrityCliTest, RealTruncatedLeafOnIsRefusedByRenderSegmentAndPrepare) {
     // The cuts an interrupted copy leaves: the first 5,000 and 1,000,000 bytes.
     refuseTruncatedLeafOn(s / "leafon_2017-08-29.tif", s / "leafoff_2016-03-15.tif", {5000, 1000000});
 }
+
+TEST(IntegrityCliTest, FacadeTextureCutShortStopsTheAtlasBuild) {
+    TempDir dir("integrity-facade");
+    CliResult synth = runCli({"synth", "--size-m", "256", "--gsd", "0.5", "--block-city", "2", "--facade-size", "64",
+                              "--out", (dir / "s").string()});
+    ASSERT_EQ(synth.exitCode, 0) << synth.err;
+    const fs::path facade = dir / "s/city/facades/b0.jpg";
+    ASSERT_TRUE(fs::exists(facade));
+    // Half a JPEG decodes as grey after a warning: it must not be packed into an atlas as if it were the photo.
+    fs::resize_file(facade, fs::file_size(facade) / 2);
+    CliResult r = runCli({"atlas", "build", (dir / "s/city/city.obj").string(), "--obj-local", "--atlas-size", "64",
+                          "--out", (dir / "city.atlas").string()});
+    EXPECT_EQ(r.exitCode, 1) << r.out << r.err;
+    EXPECT_NE(r.err.find("b0.jpg: cannot read texture"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "city.atlas"));
+}
