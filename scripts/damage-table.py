@@ -96,6 +96,9 @@ CASES = {
                     lambda o: [f"{o}/leafon.tif"], f"{W}/path.json"),
     "OBJ city model": (f"{S}/city/city.obj", lambda f, o: ["atlas", "build", f, "--obj-local", "--atlas-size", "64",
                                                            "--border", "2", "--out", o], lambda o: [o], f"{S}/trees.csv"),
+    "JPEG facade texture": (f"{S}/city/facades/b0.jpg", lambda f, o: ["atlas", "build", f"{S}/city/city.obj", "--obj-local",
+                                                                      "--atlas-size", "64", "--border", "2", "--out", o],
+                            lambda o: [o], f"{S}/truth_deciduous.png"),
     "atlas tree": (f"{W}/city.atlas", lambda f, o: ["render", f"{S}/scene.json", "--city", "atlas", "--city-tree", f, "--size", "96x64",
                                                     "--cache", f"{W}/cache", "--out", o], lambda o: [o], f"{S}/dem.tif"),
     "camera path JSON": (f"{W}/path.json", lambda f, o: ["bench", f"{S}/scene.json", "--path", f, "--frames", "2",
@@ -131,6 +134,8 @@ for kind, (intact, command, outputs, foreign) in CASES.items():
             path = f"{S}/city/damaged_{i}.obj"
         if kind == "scene JSON":  # beside the files it names
             path = f"{S}/damaged_{i}.json"
+        if kind == "JPEG facade texture":  # in place: the model names it (restored below)
+            path = intact
         with open(path, "wb") as f:
             f.write(blob)
         out = f"{W}/out_{i}_{first}{oext}"
@@ -152,6 +157,9 @@ for kind, (intact, command, outputs, foreign) in CASES.items():
             bad.append(f"{kind}, {how} ({i}): exit {rc}, {len(lines)} lines, output {got is not None}, stderr: {err.strip()[:300]}")
         counts.setdefault(how, {}).setdefault(outcome, 0)
         counts[how][outcome] += 1
+        if path == intact:
+            with open(intact, "wb") as f:
+                f.write(data)
         for o in glob.glob(f"{W}/out_*"):  # everything the run wrote, compared or not
             if os.path.isdir(o):
                 shutil.rmtree(o, ignore_errors=True)
