@@ -123,18 +123,37 @@ TEST(IntegrityTest, FilesCutShortAreErrorsNamingTheFile) {
 }
 
 // fuzz_raster: a tile whose byte count claims 3.7 GB made the own decoder allocate that much before reading; a block
-// that runs past the end of the file is refused first, naming it.
+// that runs past the end of the file is refused first, naming it. The finding's shape, rebuilt from a test image: its
+// one tile's byte count in the TIFF directory overwritten.
 TEST(IntegrityTest, BlockIndexPastTheEndOfTheFileIsRefusedBeforeAllocating) {
-    const std::filesystem::path file =
-        std::filesystem::path(SEASONVIEW_SOURCE_DIR) / "tests/fuzz/regressions/raster/oom-first-run.tif";
+    TempDir dir("integrity-index");
+    const std::filesystem::path file = dir / "claims.tif";
+    writeTestImage(file, 40, 40, testGeoref(1.0), false, 3);
+    std::string bytes = readBytes(file);
+    auto u16 = [&](size_t at) { return std::uint16_t(std::uint8_t(bytes[at]) | std::uint8_t(bytes[at + 1]) << 8); };
+    auto u32 = [&](size_t at) { return std::uint32_t(u16(at)) | std::uint32_t(u16(at + 2)) << 16; };
+    ASSERT_EQ(bytes.substr(0, 4), std::string("II*\0", 4)) << "a classic little-endian TIFF";
+    const size_t ifd = u32(4);
+    bool patched = false;
+    for (size_t i = 0; i < u16(ifd); ++i) {
+        const size_t entry = ifd + 2 + 12 * i;
+        if (u16(entry) == TIFFTAG_TILEBYTECOUNTS && u16(entry + 2) == TIFF_LONG && u32(entry + 4) == 1) {
+            const std::uint32_t claim = 3705461980u;
+            for (int b = 0; b < 4; ++b) bytes[entry + 8 + size_t(b)] = char((claim >> (8 * b)) & 0xff);
+            patched = true;
+        }
+    }
+    ASSERT_TRUE(patched) << "one tile, its byte count a LONG in the directory";
+    std::ofstream(file, std::ios::binary | std::ios::trunc) << bytes;
+
     auto r = BandReader::open(file, 64);
     ASSERT_TRUE(r.ok()) << r.message();
     std::vector<std::uint8_t> band(size_t(r->width()) * size_t(r->bandRows()) * 4);
     Status st = Ok{};
     for (int y = 0; y < r->height() && st.ok(); y += r->bandRows())
-        st = r->read(y, std::min(r->height(), y + r->bandRows()), 1, SampleType::U8, band.data());
+        st = r->read(y, std::min(r->height(), y + r->bandRows()), 3, SampleType::U8, band.data());
     ASSERT_FALSE(st.ok());
-    EXPECT_NE(st.message().find("oom-first-run.tif: truncated or corrupt image data"), std::string::npos)
-        << st.message();
+    EXPECT_NE(st.message().find("claims.tif: truncated or corrupt image data"), std::string::npos) << st.message();
+    EXPECT_NE(st.message().find("tile 0: 3705461980 bytes at offset"), std::string::npos) << st.message();
     EXPECT_NE(st.message().find("run past the end of the file"), std::string::npos) << st.message();
 }
