@@ -224,18 +224,27 @@ Result<CityWriteReport> writeSynthCity(const std::filesystem::path& dir, const s
             }
             const auto px = facadeTexture(b, std::uint32_t(k), S, photos.empty() ? nullptr : &resized);
             const auto path = dir / "facades" / ("b" + std::to_string(k) + ".jpg");
-            auto out = OIIO::ImageOutput::create(path.string());
+            // Written under a temporary name and renamed: a killed synth leaves no facade cut short.
+            const auto tmp = temporaryPathFor(path);
+            auto out = OIIO::ImageOutput::create(tmp.string());
             OIIO::ImageSpec spec(S, S, 3, OIIO::TypeDesc::UINT8);
             spec.attribute("Compression", "jpeg:90");
-            if (!out || !out->open(path.string(), spec) || !out->write_image(OIIO::TypeDesc::UINT8, px.data()) || !out->close()) {
+            std::error_code renameError;
+            const bool written =
+                out && out->open(tmp.string(), spec) && out->write_image(OIIO::TypeDesc::UINT8, px.data()) && out->close();
+            if (written) std::filesystem::rename(tmp, path, renameError);
+            if (!written || renameError) {
+                discardTemporary(tmp);
                 std::lock_guard fl(failureMutex);
-                failure = fileError(path.string(), "cannot write facade texture");
+                failure = fileError(path.string(), written ? "cannot rename into place: " + renameError.message()
+                                                           : std::string("cannot write facade texture"));
                 return;
             }
             bytes += std::uint64_t(std::filesystem::file_size(path, ec));
         }
     });
     if (failure) return *failure;
+    removeStaleTemporaries(dir / "facades"); // what an earlier, killed synth left (one sweep, not one per facade)
     report.textures = inside.size();
     report.textureBytes = bytes;
 
