@@ -86,10 +86,16 @@ GeometryFrameStats CanopyRendererGL::renderView(const Camera& camera, const Clip
 
 Result<std::unique_ptr<CanopyRendererGL>> CanopyRendererGL::create() {
     auto r = std::unique_ptr<CanopyRendererGL>(new CanopyRendererGL());
-    auto p = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag", {"CANOPY_LAYER"});
-    if (!p) return p.error();
-    r->m_program = std::move(*p);
-    auto m = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag", {"CANOPY_LAYER", "CANOPY_MARCH"});
+    // NORMALS is a compile-time constant (shaders/terrain_geometry.vert): the rasterised layers with and without
+    // shading; the march always needs the terrain's normals (the local plane its rays are intersected over).
+    for (int normals : {0, 1}) {
+        auto p = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag",
+                                          {"CANOPY_LAYER", "NORMALS " + std::to_string(normals)});
+        if (!p) return p.error();
+        r->m_layerPrograms[normals] = std::move(*p);
+    }
+    auto m = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag",
+                                      {"CANOPY_LAYER", "CANOPY_MARCH", "NORMALS 1"});
     if (!m) return m.error();
     r->m_marchProgram = std::move(*m);
     return r;
@@ -106,7 +112,8 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
     const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
     const bool march = pass == CanopyPass::Marched;
     if (march && s.mode != CanopyDrawMode::March) return {};
-    const gl::ShaderProgram& program = march ? m_marchProgram : m_program;
+    const float shade = std::clamp(s.shading, 0.0f, 1.0f);
+    const gl::ShaderProgram& program = march ? m_marchProgram : m_layerPrograms[shade > 0.0f ? 1 : 0];
     terrain.bindTerrain(program, viewProj);
     canopy.bind(program, kCanopyUnit);
     program.set("uCanopyHeight", float(s.treeHeight));
@@ -114,10 +121,7 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
     program.set("uCanopyDark", std::clamp(s.darkest, 0.0f, 1.0f));
     program.set("uLayerShift", s.shift);
     program.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
-    const float shade = std::clamp(s.shading, 0.0f, 1.0f);
     program.set("uShade", shade);
-    // March: the terrain's normals give the local plane the rays are intersected over.
-    program.set("uNormals", shade > 0.0f || march ? 1 : 0);
     program.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
     program.set("uFirstLayer", first);
     program.set("uEye", glm::vec3(camera.position));

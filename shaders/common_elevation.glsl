@@ -57,14 +57,13 @@ float triangulatedAt(vec2 s) {
     if (uHasElevation == 0) return 0.0;
     ivec2 i0 = ivec2(floor(s));
     vec2 f = s - vec2(i0);
-    float h00, h10, h01, h11;
-    if (f.x + f.y <= 1.0) {
-        if (elevTexel(0, i0, h00) && elevTexel(0, i0 + ivec2(1, 0), h10) && elevTexel(0, i0 + ivec2(0, 1), h01))
-            return h00 + f.x * (h10 - h00) + f.y * (h01 - h00);
-    } else if (elevTexel(0, i0 + ivec2(1, 1), h11) && elevTexel(0, i0 + ivec2(1, 0), h10) &&
-               elevTexel(0, i0 + ivec2(0, 1), h01)) {
-        return h11 + (1.0 - f.x) * (h01 - h11) + (1.0 - f.y) * (h10 - h11);
-    }
+    // The triangle holding s: the lower one from sample i0, else the upper one from i0 + (1, 1); one set of fetches
+    // for both (no branch: llvmpipe would run both sides).
+    bool lower = f.x + f.y <= 1.0;
+    ivec2 ia = lower ? i0 : i0 + ivec2(1);
+    vec2 fa = lower ? f : 1.0 - f;
+    float ha, h10, h01;
+    if (elevTexel(0, ia, ha) && elevTexel(0, i0 + ivec2(1, 0), h10) && elevTexel(0, i0 + ivec2(0, 1), h01))
+        return lower ? ha + fa.x * (h10 - ha) + fa.y * (h01 - ha) : ha + fa.x * (h01 - ha) + fa.y * (h10 - ha);
     return elevationAt(1, s);
 }
-

@@ -8,8 +8,16 @@ uniform sampler2DArray uClip0;
 uniform sampler2DArray uClip1;
 uniform sampler2D uCoarse0;
 uniform sampler2D uCoarse1;
-uniform int uView;       // ImageryView: 0 leafon, 1 leafoff, 2 blend, 3 swipe, 4 lod, 5 wireframe, 6 levels, 7 relief,
-                         // 8 canopy (ground: uCanopyGround[1] under the canopy, uCanopyGround[0] elsewhere)
+// VIEW (defined by the imagery programs, one per view): ImageryView 0 leafon, 1 leafoff, 2 blend, 3 swipe, 4 lod,
+// 5 wireframe, 6 levels, 7 relief, 8 canopy (ground: uCanopyGround[1] under the canopy, uCanopyGround[0] elsewhere).
+// A compile-time constant so that each program holds only its view's code: llvmpipe executes every side of a
+// branch on a uniform under a mask, and the views' code together cost 2-3x one view (docs/performance.md).
+#if !defined(LEVEL_STATS) && !defined(CANOPY_LAYER)
+#ifndef VIEW
+#error "terrain_clipmap.frag: VIEW must be defined (the ImageryView's number)"
+#endif
+const int uView = VIEW;
+#endif
 uniform int uCanopyGround[2]; // season (0 leaf-on, 1 leaf-off) of the ground away from / under the canopy
 uniform int uHasCanopy;
 uniform float uCanopyBase;    // > 0: stacked layers are drawn, and the ground draws their lowest one (layer 0, on the
@@ -118,8 +126,7 @@ void main() {
     if (uShade > 0.0) lc *= mix(1.0, 0.25 + 0.75 * max(dot(normalize(vNormal), uSunDir), 0.0), uShade);
     fragColor = vec4(lc, 1.0);
     return;
-#endif
-#ifdef LEVEL_STATS
+#elif defined(LEVEL_STATS)
     sampleClipmap(uClip0, uCoarse0, p, f, used);
     float needed = clamp(floor(max(f.lambdaIso, 0.0)), 0.0, 254.0);
     fragColor = vec4(needed / 255.0, float(min(used, 254)) / 255.0, 0.0, 1.0);

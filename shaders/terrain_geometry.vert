@@ -23,7 +23,13 @@ uniform vec2 uLookupMin, uLookupSize; // lattice point i of K at uLookupMin + uL
 uniform float uLookupTexels;          // K
 uniform mat2 uLookupSlope;            // d(image uv) / d(t) over the whole lattice: extrapolates past its edge
 
-uniform int uNormals;        // 0: skip the normals (no view needs them)
+// NORMALS 0 or 1 (defined by every program): 0 skips the normals (no view needs them). A compile-time constant, not
+// a uniform: llvmpipe runs both sides of a branch on a uniform under an execution mask, so a uniform that switches
+// work off saves nothing there (docs/performance.md).
+#ifndef NORMALS
+#error "terrain_geometry.vert: NORMALS must be defined (0 or 1)"
+#endif
+const int uNormals = NORMALS;
 
 #ifdef CANOPY_LAYER
 // Stacked canopy layers (Ropinski et al. 2007 §4.2, foliage/CanopyRendererGL.h): layer j is lifted to
@@ -46,22 +52,6 @@ out vec2 vImageUv;
 out vec3 vNormal;
 out vec3 vLocal;
 flat out int vLevel;
-
-// The surface of geometry level `level` at s as its own grid interpolates it along cell edges: exact at its
-// vertices, linear between neighbouring vertices on a grid line. DEM levels: bilinear between that level's
-// samples. Levels finer than the DEM: their vertices' triangulated heights, bilinear between them.
-float levelSurface(int level, vec2 s) {
-    if (level >= 0) return elevationAt(level, s);
-    float c = exp2(float(level));
-    vec2 q = s / c;
-    vec2 i0 = floor(q);
-    vec2 f = q - i0;
-    float h00 = triangulatedAt(i0 * c);
-    float h10 = f.x > 0.0 ? triangulatedAt((i0 + vec2(1.0, 0.0)) * c) : h00;
-    float h01 = f.y > 0.0 ? triangulatedAt((i0 + vec2(0.0, 1.0)) * c) : h00;
-    float h11 = f.x > 0.0 && f.y > 0.0 ? triangulatedAt((i0 + vec2(1.0)) * c) : h00;
-    return mix(mix(h00, h10, f.x), mix(h01, h11, f.x), f.y);
-}
 
 // Unnormalised normal (local frame, z up) from central differences `step` samples apart at level `level`.
 vec3 normalAt(int level, vec2 s, float step) {
@@ -91,6 +81,9 @@ void main() {
     vec2 d = abs(s - uLevelCentre) / uCell;
     vec2 a = clamp((d - (uHalfCells - uTransitionWidth - 1.0)) / uTransitionWidth, 0.0, 1.0);
     float alpha = uBlendToCoarser != 0 ? max(a.x, a.y) : 0.0;
+    // Levels finer than the DEM take the DEM's triangulated surface, which is linear along every grid line of such
+    // a level (the cells' diagonals cross those lines only at vertices): a coarser level's edge is that surface
+    // between two vertices computed alike, so these levels need no blend to meet it, the DEM's level 0 included.
     float z = uLevel >= 0 ? elevationAt(uLevel, s) : triangulatedAt(s);
     // Normals from differences at least one DEM sample apart: finer steps would only show the bilinear facets.
     vec3 n = uNormals != 0 ? normalAt(uLevel, s, max(uCell, 1.0)) : vec3(0.0, 0.0, 1.0);
@@ -98,7 +91,7 @@ void main() {
         // At alpha 1 exactly the coarser level's height, bit for bit: mix() may round (z + (c - z) * 1 != c), and
         // the outer edge's vertices must land where the coarser level's own vertices do or a pixel centre on the
         // shared edge falls between the two.
-        const float coarse = levelSurface(uLevel + 1, s);
+        const float coarse = uLevel >= 0 ? elevationAt(uLevel + 1, s) : z;
         z = alpha >= 1.0 ? coarse : mix(z, coarse, alpha);
         if (uNormals != 0) n = mix(n, normalAt(uLevel + 1, s, max(2.0 * uCell, 1.0)), alpha);
     }

@@ -3,6 +3,9 @@
 #include "ReferenceRendererGL.h" // kBackgroundColor
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
 
 #include <glm/geometric.hpp>
 
@@ -42,16 +45,36 @@ Result<std::unique_ptr<ClipmapTerrainRendererGL>> ClipmapTerrainRendererGL::crea
     const Scene& scene, const ClipmapGL& clipmap, const ImagePyramid* elevation, const GeometryClipmapOptions& options) {
     assert(clipmap.layers() >= 2 && "ClipmapTerrainRendererGL::create(): needs leaf-on and leaf-off layers");
     auto r = std::unique_ptr<ClipmapTerrainRendererGL>(new ClipmapTerrainRendererGL(clipmap));
-    auto p = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag");
-    if (!p) return p.error();
-    r->m_program = std::move(*p);
-    auto s = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag", {"LEVEL_STATS"});
+    // The leaf-on view's program now (a shader that does not compile fails here), the others when first drawn.
+    if (auto p = r->buildProgram(ImageryView::LeafOn, false); !p) return p.error();
+    auto s = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag", {"LEVEL_STATS", "NORMALS 0"});
     if (!s) return s.error();
     r->m_statsProgram = std::move(*s);
     auto g = GeometryClipmapGL::create(scene, elevationGrid(scene), elevation, options);
     if (!g) return g.error();
     r->m_geometry = std::move(*g);
     return r;
+}
+
+Result<const gl::ShaderProgram*> ClipmapTerrainRendererGL::buildProgram(ImageryView view, bool normals) const {
+    const auto key = std::make_pair(int(view), normals);
+    auto it = m_programs.find(key);
+    if (it != m_programs.end()) return &it->second;
+    auto p = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag",
+                                      {"VIEW " + std::to_string(int(view)), normals ? "NORMALS 1" : "NORMALS 0"});
+    if (!p) return p.error();
+    return &m_programs.emplace(key, std::move(*p)).first->second;
+}
+
+const gl::ShaderProgram& ClipmapTerrainRendererGL::program(ImageryView view, bool normals) const {
+    auto p = buildProgram(view, normals);
+    if (!p) {
+        // The same source compiled in create() with other constants: a failure here is a bug in the shaders
+        // (ClipmapTerrainGLTest.EveryViewVariantCompiles builds each), not bad input.
+        std::fprintf(stderr, "seasonview: internal error: %s\n", p.error().message.c_str());
+        std::abort();
+    }
+    return **p;
 }
 
 ClipmapFrameStats ClipmapTerrainRendererGL::updateGeometry(const Camera& camera, int viewportHeight) {
@@ -94,23 +117,22 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
         m_last.drawCalls = 0;
         return m_last;
     }
-    m_program.set("uView", int(s.view));
-    m_program.set("uBlend", std::clamp(s.blend, 0.0f, 1.0f));
-    m_program.set("uSwipeX", std::clamp(s.swipe, 0.0f, 1.0f) * float(target.width()));
-    m_program.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
     const float shade = std::clamp(s.shading, 0.0f, 1.0f);
-    m_program.set("uShade", shade);
-    m_program.set("uNormals", shade > 0.0f || s.view == ImageryView::Relief ? 1 : 0);
-    m_program.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75)))); // from the north-west, high
-    m_program.set("uWirePass", 0);
-    m_program.set("uCanopyGround[0]", std::clamp(s.groundElsewhere, 0, 1));
-    m_program.set("uCanopyGround[1]", std::clamp(s.groundUnderCanopy, 0, 1));
-    m_program.set("uCanopyBase", std::clamp(s.canopyBase, 0.0f, 1.0f));
-    m_program.set("uNoDataColour", kNoDataColor);
+    const gl::ShaderProgram& prog = program(s.view, shade > 0.0f || s.view == ImageryView::Relief);
+    prog.set("uBlend", std::clamp(s.blend, 0.0f, 1.0f));
+    prog.set("uSwipeX", std::clamp(s.swipe, 0.0f, 1.0f) * float(target.width()));
+    prog.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
+    prog.set("uShade", shade);
+    prog.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75)))); // from the north-west, high
+    prog.set("uWirePass", 0);
+    prog.set("uCanopyGround[0]", std::clamp(s.groundElsewhere, 0, 1));
+    prog.set("uCanopyGround[1]", std::clamp(s.groundUnderCanopy, 0, 1));
+    prog.set("uCanopyBase", std::clamp(s.canopyBase, 0.0f, 1.0f));
+    prog.set("uNoDataColour", kNoDataColor);
     for (int i = 0; i < 8; ++i)
-        m_program.set(("uLevelColors[" + std::to_string(i) + "]").c_str(),
+        prog.set(("uLevelColors[" + std::to_string(i) + "]").c_str(),
                       glm::vec3(kLevelColors[i][0], kLevelColors[i][1], kLevelColors[i][2]));
-    GeometryFrameStats st = draw(m_program, camera, target);
+    GeometryFrameStats st = draw(prog, camera, target);
     if (s.view == ImageryView::Wireframe) {
         // The triangle edges over the filled terrain: drawn again as lines, pulled towards the viewer (reversed
         // Z: larger depth is nearer) so they win the depth test against their own faces.
@@ -118,9 +140,9 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
         glEnable(GL_POLYGON_OFFSET_LINE);
         glPolygonOffset(1.0f, 1.0f);
         glDepthFunc(GL_GEQUAL);
-        m_program.set("uWirePass", 1);
-        draw(m_program, camera, target);
-        m_program.set("uWirePass", 0);
+        prog.set("uWirePass", 1);
+        draw(prog, camera, target);
+        prog.set("uWirePass", 0);
         glDepthFunc(GL_GREATER);
         glDisable(GL_POLYGON_OFFSET_LINE);
         glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
@@ -134,7 +156,6 @@ FrameLevelStats ClipmapTerrainRendererGL::measureLevels(const Camera& camera, co
     beginTerrainPass(0, 0, 0, 0);
     // Isotropic: the statistics compare levels with the footprint's isotropic level, like the CPU estimate.
     m_statsProgram.set("uClipAniso", 1.0f);
-    m_statsProgram.set("uNormals", 0);
     draw(m_statsProgram, camera, scratch);
     const std::vector<std::uint8_t> px = scratch.readRgba();
     FrameLevelStats st;

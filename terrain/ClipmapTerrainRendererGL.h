@@ -11,6 +11,7 @@
 #include "gl/RenderTarget.h"
 #include "gl/ShaderProgram.h"
 
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -105,7 +106,13 @@ private:
     const CanopySource* m_canopy = nullptr;
     std::unique_ptr<GeometryClipmapGL> m_geometry;
     mutable GeometryFrameStats m_last;
-    gl::ShaderProgram m_program, m_statsProgram;
+    /// The imagery program of `view`, with or without the terrain's normals: VIEW and NORMALS are compile-time
+    /// constants (shaders/terrain_clipmap.frag says why), so each combination is its own program, built when first
+    /// drawn.
+    Result<const gl::ShaderProgram*> buildProgram(ImageryView view, bool normals) const;
+    const gl::ShaderProgram& program(ImageryView view, bool normals) const;
+    mutable std::map<std::pair<int, bool>, gl::ShaderProgram> m_programs;
+    gl::ShaderProgram m_statsProgram;
 };
 
 } // namespace seasonview

@@ -13,6 +13,7 @@
 
 #include <cmath>
 #include <functional>
+#include <map>
 #include <optional>
 #include <tuple>
 
@@ -112,12 +113,12 @@ int countSky(const std::vector<float>& depth) {
 // seen from above it can show the background only above its silhouette: any background pixel below terrain is a
 // crack. The lower half of the (120 degree) view looks down at up to 60 degrees, so rays through a crack go under
 // the surface and reach the background.
-int cracksOnSpikyDem(bool stitch) {
+int cracksOnSpikyDem(bool stitch, int demSamples = 512) {
     TempDir dir("terrain-spiky");
     // Every DEM sample a random 0..6 m on bumps of 4 m period: neighbouring samples differ by metres, so every
     // coarser level's edge disagrees with its finer neighbour's odd vertices unless the levels are stitched.
-    auto scene = demScene(dir.path(), 512, [](double x, double y) {
-        const std::uint32_t k = std::uint32_t(x * 512) * 73856093u ^ std::uint32_t(y * 512) * 19349663u;
+    auto scene = demScene(dir.path(), demSamples, [demSamples](double x, double y) {
+        const std::uint32_t k = std::uint32_t(x * demSamples) * 73856093u ^ std::uint32_t(y * demSamples) * 19349663u;
         const double bumps = 3.0 * std::sin(x * 512.0 * M_PI / 2.0) * std::sin(y * 512.0 * M_PI / 2.5);
         return float(bumps + double((k * 2654435761u >> 8) % 600u) / 100.0);
     });
@@ -155,6 +156,13 @@ TEST(TerrainClipmapGLTest, SpikyDemShowsNoCracksFromALowGrazingView) {
     // GeometryClipmapLayoutTest.StitchedOuterEdgeIsTheCoarserLevelsEdge. 360 views in 5 degree steps at 15, 40, 100,
     // 120 and 140 m showed none either.)
     EXPECT_EQ(cracksOnSpikyDem(true), 0);
+}
+
+// A DEM 4x coarser than the imagery: the finest levels lie below the DEM's resolution, on its triangulated surface,
+// and blend only where their coarser level is the DEM's own level 0.
+TEST(TerrainClipmapGLTest, LevelsFinerThanTheDemShowNoCracks) {
+    ASSERT_TRUE(headlessContext());
+    EXPECT_EQ(cracksOnSpikyDem(true, 128), 0);
 }
 
 // The same views with the levels left unstitched (no transition blending, odd outer-edge vertices left where they
@@ -289,4 +297,53 @@ TEST(TerrainClipmapGLTest, GoldenWireframeAndLevels) {
         compareWithGolden(name, rgbOf(target.readRgba()), w, h, 255, 2.0);
     }
     EXPECT_EQ(gl::drainErrors(), "");
+}
+
+// Each view is its own program (VIEW and NORMALS are compile-time constants, shaders/terrain_clipmap.frag): every
+// one compiles and draws, with and without shading, and the swipe view is the leaf-on view left of the divider and
+// the leaf-off view right of it, pixel for pixel.
+TEST(TerrainClipmapGLTest, EveryViewProgramDraws) {
+    ASSERT_TRUE(headlessContext());
+    TempDir dir("terrain-views");
+    auto scene = demScene(dir.path(), 128, [](double x, double y) { return float(30.0 * std::sin(x * 6.0) * std::cos(y * 4.0)); });
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    Terrain t = makeTerrain(*scene, dir / "cache", 63);
+    const int w = 160, h = 120;
+    gl::RenderTarget target(w, h);
+    const Camera cam = app::obliqueCamera(*scene, 20.0, -40.0, 0.5);
+    std::map<std::pair<int, bool>, std::vector<std::uint8_t>> images;
+    for (ImageryView view : {ImageryView::LeafOn, ImageryView::LeafOff, ImageryView::Blend, ImageryView::Swipe,
+                             ImageryView::Lod, ImageryView::Wireframe, ImageryView::Levels, ImageryView::Relief,
+                             ImageryView::Canopy})
+        for (bool shaded : {false, true}) {
+            ImagerySettings s;
+            s.view = view;
+            s.shading = shaded ? 0.7f : 0.0f;
+            draw(*scene, t, cam, s, target);
+            const auto depth = target.readDepth();
+            EXPECT_GT(std::count_if(depth.begin(), depth.end(), [](float d) { return d > 0.0f; }), w * h / 2)
+                << imageryViewName(view) << (shaded ? " shaded" : "");
+            images[{int(view), shaded}] = rgbOf(target.readRgba());
+        }
+    EXPECT_EQ(gl::drainErrors(), "");
+    auto differ = [&](ImageryView a, ImageryView b, bool shaded) {
+        return images.at({int(a), shaded}) != images.at({int(b), shaded});
+    };
+    EXPECT_TRUE(differ(ImageryView::LeafOn, ImageryView::LeafOff, false));
+    EXPECT_TRUE(differ(ImageryView::LeafOn, ImageryView::Relief, false));
+    EXPECT_NE(images.at({int(ImageryView::LeafOn), false}), images.at({int(ImageryView::LeafOn), true}));
+    const auto& on = images.at({int(ImageryView::LeafOn), false});
+    const auto& off = images.at({int(ImageryView::LeafOff), false});
+    const auto& swipe = images.at({int(ImageryView::Swipe), false});
+    int mismatched = 0;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            if (std::abs(x + 0.5 - 0.5 * w) < 2.0) continue; // the divider
+            const auto& expected = x < w / 2 ? on : off;
+            for (int c = 0; c < 3; ++c) {
+                const size_t i = (size_t(y) * size_t(w) + size_t(x)) * 3 + size_t(c);
+                mismatched += swipe[i] != expected[i] ? 1 : 0;
+            }
+        }
+    EXPECT_EQ(mismatched, 0);
 }
