@@ -17,6 +17,11 @@ uniform sampler2D uCoarse1;
 #error "terrain_clipmap.frag: VIEW must be defined (the ImageryView's number)"
 #endif
 const int uView = VIEW;
+#if VIEW == 3 && !defined(SWIPE_SEASON)
+#error "terrain_clipmap.frag: the swipe view's programs define SWIPE_SEASON (0 left, leaf-on; 1 right, leaf-off)"
+#elif !defined(SWIPE_SEASON)
+#define SWIPE_SEASON 0 // not read: only the swipe view's code uses it
+#endif
 #endif
 uniform int uCanopyGround[2]; // season (0 leaf-on, 1 leaf-off) of the ground away from / under the canopy
 uniform int uHasCanopy;
@@ -146,10 +151,12 @@ void main() {
         c = mix(seasonColour(0, p, f, used), seasonColour(1, p, f, u1), uBlend);
     } else if (uView == 3) {
         // Split screen: leaf-on left of uSwipeX, leaf-off right, a 2-pixel white divider.
+        // Drawn in two passes, each scissored to its side: SWIPE_SEASON is this pass's season (a constant, so only
+        // its sampling is compiled in).
         if (abs(gl_FragCoord.x - uSwipeX) < 1.0) {
             c = vec3(1.0);
         } else {
-            c = seasonColour(gl_FragCoord.x < uSwipeX ? 0 : 1, p, f, used);
+            c = seasonColour(SWIPE_SEASON, p, f, used);
         }
     } else if (uView == 8) {
         // The ground of the canopy view: leaf-off under the crowns (the trees stand on it as layers), leaf-on

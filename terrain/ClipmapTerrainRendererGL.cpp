@@ -3,6 +3,8 @@
 #include "ReferenceRendererGL.h" // kBackgroundColor
 
 #include <algorithm>
+#include <cmath>
+#include <tuple>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -56,18 +58,20 @@ Result<std::unique_ptr<ClipmapTerrainRendererGL>> ClipmapTerrainRendererGL::crea
     return r;
 }
 
-Result<const gl::ShaderProgram*> ClipmapTerrainRendererGL::buildProgram(ImageryView view, bool normals) const {
-    const auto key = std::make_pair(int(view), normals);
+Result<const gl::ShaderProgram*> ClipmapTerrainRendererGL::buildProgram(ImageryView view, bool normals,
+                                                                        int swipeSeason) const {
+    const auto key = std::make_tuple(int(view), normals, swipeSeason);
     auto it = m_programs.find(key);
     if (it != m_programs.end()) return &it->second;
-    auto p = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag",
-                                      {"VIEW " + std::to_string(int(view)), normals ? "NORMALS 1" : "NORMALS 0"});
+    std::vector<std::string> defines = {"VIEW " + std::to_string(int(view)), normals ? "NORMALS 1" : "NORMALS 0"};
+    if (view == ImageryView::Swipe) defines.push_back("SWIPE_SEASON " + std::to_string(swipeSeason));
+    auto p = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag", defines);
     if (!p) return p.error();
     return &m_programs.emplace(key, std::move(*p)).first->second;
 }
 
-const gl::ShaderProgram& ClipmapTerrainRendererGL::program(ImageryView view, bool normals) const {
-    auto p = buildProgram(view, normals);
+const gl::ShaderProgram& ClipmapTerrainRendererGL::program(ImageryView view, bool normals, int swipeSeason) const {
+    auto p = buildProgram(view, normals, swipeSeason);
     if (!p) {
         // The same source compiled in create() with other constants: a failure here is a bug in the shaders
         // (ClipmapTerrainGLTest.EveryViewVariantCompiles builds each), not bad input.
@@ -99,12 +103,16 @@ void ClipmapTerrainRendererGL::bindTerrain(const gl::ShaderProgram& program, con
 }
 
 GeometryFrameStats ClipmapTerrainRendererGL::draw(const gl::ShaderProgram& program, const Camera& camera,
-                                                  const gl::RenderTarget& target) const {
+                                                  const gl::RenderTarget& target, glm::dvec2 ndcX) const {
     const double aspect = double(target.width()) / double(target.height());
     const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
     bindTerrain(program, viewProj);
     program.use();
-    m_last = m_geometry->draw(program, viewProj);
+    // Pieces are culled against the part of the frustum drawn: NDC x in ndcX, stretched to [-1, 1].
+    glm::dmat4 narrow(1.0);
+    narrow[0][0] = 2.0 / (ndcX.y - ndcX.x);
+    narrow[3][0] = -(ndcX.x + ndcX.y) / (ndcX.y - ndcX.x);
+    m_last = m_geometry->draw(program, narrow * viewProj);
     return m_last;
 }
 
@@ -118,20 +126,50 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
         return m_last;
     }
     const float shade = std::clamp(s.shading, 0.0f, 1.0f);
-    const gl::ShaderProgram& prog = program(s.view, shade > 0.0f || s.view == ImageryView::Relief);
-    prog.set("uBlend", std::clamp(s.blend, 0.0f, 1.0f));
-    prog.set("uSwipeX", std::clamp(s.swipe, 0.0f, 1.0f) * float(target.width()));
-    prog.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
-    prog.set("uShade", shade);
-    prog.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75)))); // from the north-west, high
-    prog.set("uWirePass", 0);
-    prog.set("uCanopyGround[0]", std::clamp(s.groundElsewhere, 0, 1));
-    prog.set("uCanopyGround[1]", std::clamp(s.groundUnderCanopy, 0, 1));
-    prog.set("uCanopyBase", std::clamp(s.canopyBase, 0.0f, 1.0f));
-    prog.set("uNoDataColour", kNoDataColor);
-    for (int i = 0; i < 8; ++i)
-        prog.set(("uLevelColors[" + std::to_string(i) + "]").c_str(),
-                      glm::vec3(kLevelColors[i][0], kLevelColors[i][1], kLevelColors[i][2]));
+    const bool normals = shade > 0.0f || s.view == ImageryView::Relief;
+    const float swipeX = std::clamp(s.swipe, 0.0f, 1.0f) * float(target.width());
+    auto setUniforms = [&](const gl::ShaderProgram& prog) {
+        prog.set("uBlend", std::clamp(s.blend, 0.0f, 1.0f));
+        prog.set("uSwipeX", swipeX);
+        prog.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
+        prog.set("uShade", shade);
+        prog.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75)))); // from the north-west, high
+        prog.set("uWirePass", 0);
+        prog.set("uCanopyGround[0]", std::clamp(s.groundElsewhere, 0, 1));
+        prog.set("uCanopyGround[1]", std::clamp(s.groundUnderCanopy, 0, 1));
+        prog.set("uCanopyBase", std::clamp(s.canopyBase, 0.0f, 1.0f));
+        prog.set("uNoDataColour", kNoDataColor);
+        for (int i = 0; i < 8; ++i)
+            prog.set(("uLevelColors[" + std::to_string(i) + "]").c_str(),
+                     glm::vec3(kLevelColors[i][0], kLevelColors[i][1], kLevelColors[i][2]));
+    };
+    if (s.view == ImageryView::Swipe) {
+        // Two passes, each scissored to its side and culled against its part of the frustum: a program per side
+        // samples one season (its fragments would otherwise run both seasons' sampling under a mask). The pixels
+        // are those of one pass that picks the season per pixel: the same fragments, the same colours.
+        GeometryFrameStats st;
+        const int split = int(std::ceil(double(swipeX) - 0.5)); // pixel x < split: centre left of swipeX
+        glEnable(GL_SCISSOR_TEST);
+        for (int season : {0, 1}) {
+            const int x0 = season == 0 ? 0 : split, x1 = season == 0 ? split : target.width();
+            if (x1 <= x0) continue;
+            const gl::ShaderProgram& prog = program(s.view, normals, season);
+            setUniforms(prog);
+            glScissor(x0, 0, x1 - x0, target.height());
+            const double w = double(target.width());
+            const GeometryFrameStats side =
+                draw(prog, camera, target, {2.0 * double(x0) / w - 1.0, 2.0 * double(x1) / w - 1.0});
+            st.triangles += side.triangles;
+            st.drawCalls += side.drawCalls;
+            st.piecesCulled += side.piecesCulled;
+            st.levelsDrawn = std::max(st.levelsDrawn, side.levelsDrawn);
+        }
+        glDisable(GL_SCISSOR_TEST);
+        m_last = st;
+        return st;
+    }
+    const gl::ShaderProgram& prog = program(s.view, normals);
+    setUniforms(prog);
     GeometryFrameStats st = draw(prog, camera, target);
     if (s.view == ImageryView::Wireframe) {
         // The triangle edges over the filled terrain: drawn again as lines, pulled towards the viewer (reversed

@@ -15,6 +15,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace seasonview {
@@ -100,7 +101,9 @@ public:
 
 private:
     ClipmapTerrainRendererGL(const ClipmapGL& clipmap) : m_clipmap(clipmap) {}
-    GeometryFrameStats draw(const gl::ShaderProgram& program, const Camera& camera, const gl::RenderTarget& target) const;
+    /// Draws the terrain with `program`, culling pieces outside NDC x in `ndcX` (the part of the frame drawn).
+    GeometryFrameStats draw(const gl::ShaderProgram& program, const Camera& camera, const gl::RenderTarget& target,
+                            glm::dvec2 ndcX = {-1.0, 1.0}) const;
 
     const ClipmapGL& m_clipmap;
     const CanopySource* m_canopy = nullptr;
@@ -108,10 +111,10 @@ private:
     mutable GeometryFrameStats m_last;
     /// The imagery program of `view`, with or without the terrain's normals: VIEW and NORMALS are compile-time
     /// constants (shaders/terrain_clipmap.frag says why), so each combination is its own program, built when first
-    /// drawn.
-    Result<const gl::ShaderProgram*> buildProgram(ImageryView view, bool normals) const;
-    const gl::ShaderProgram& program(ImageryView view, bool normals) const;
-    mutable std::map<std::pair<int, bool>, gl::ShaderProgram> m_programs;
+    /// drawn. The swipe view has one program per side (`swipeSeason` 0 left, leaf-on; 1 right, leaf-off).
+    Result<const gl::ShaderProgram*> buildProgram(ImageryView view, bool normals, int swipeSeason = 0) const;
+    const gl::ShaderProgram& program(ImageryView view, bool normals, int swipeSeason = 0) const;
+    mutable std::map<std::tuple<int, bool, int>, gl::ShaderProgram> m_programs;
     gl::ShaderProgram m_statsProgram;
 };
 
