@@ -64,6 +64,7 @@ struct Mode {
     city::AtlasUpload cityUpload = city::AtlasUpload::Auto;
     bool cityOcclusion = true;
     bool drawTerrain = true;      // terrain=off: the city drawn alone (the imagery clipmap still streams for roofs)
+    TerrainShading terrainShading = TerrainShading::Deferred;
     std::unique_ptr<city::CityRendererGL> city;
     std::unique_ptr<ClipmapGL> clipmap;
     std::unique_ptr<CanopyClipmapGL> canopy;
@@ -170,6 +171,9 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
         if (a.terrain != "on" && a.terrain != "off")
             return Error{"--terrain '" + a.terrain + "': expected on|off"};
         m.drawTerrain = a.terrain == "on";
+        auto shading = parseTerrainShading(a.terrainShading);
+        if (!shading) return Error{"--terrain-shading '" + a.terrainShading + "': expected forward|deferred"};
+        m.terrainShading = *shading;
         return m;
     };
     // The city alone: nothing else may need the terrain pass.
@@ -200,12 +204,13 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     const std::string key = a.compare.substr(0, eq);
     if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso" && key != "canopy" &&
                                     key != "canopy-draw" && key != "segmentation" && key != "scene" && key != "city" &&
-                                    key != "city-upload" && key != "city-occlusion" && key != "terrain"))
+                                    key != "city-upload" && key != "city-occlusion" && key != "terrain" &&
+                                    key != "terrain-shading"))
         return Error{"--compare '" + a.compare +
                      "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
                      "canopy-draw=layers,march, segmentation=upload,perframe, scene=terrain,full or "
-                     "city=atlas,original,flat,off, city-upload=compressed,decoded,auto, city-occlusion=off,on or "
-                     "terrain=on,off"};
+                     "city=atlas,original,flat,off, city-upload=compressed,decoded,auto, city-occlusion=off,on, "
+                     "terrain=on,off or terrain-shading=forward,deferred"};
     std::stringstream list(a.compare.substr(eq + 1));
     std::string v;
     while (std::getline(list, v, ',')) {
@@ -269,6 +274,10 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
             if (v != "on" && v != "off") return Error{"--compare: city-occlusion '" + v + "' (expected on|off)"};
             if (!m->cityMode) m->cityMode = city::CityMode::Atlas;
             m->cityOcclusion = v == "on";
+        } else if (key == "terrain-shading") {
+            auto t = parseTerrainShading(v);
+            if (!t) return Error{"--compare: terrain-shading '" + v + "' (expected forward|deferred)"};
+            m->terrainShading = *t;
         } else if (key == "terrain") {
             // The city (--city, default atlas) over the terrain and alone.
             if (v != "on" && v != "off") return Error{"--compare: terrain '" + v + "' (expected on|off)"};
@@ -493,6 +502,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
         }
         imagery.anisotropy = m.anisotropy;
         ImagerySettings im = imagery;
+        im.path = m.terrainShading;
         if (m.clipmap && !m.canopy && im.view == ImageryView::Canopy)
             im.view = ImageryView::LeafOn; // canopy=off: the terrain alone
         if (m.canopy)

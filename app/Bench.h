@@ -32,6 +32,7 @@ struct BenchSettings {
     // The scene's city model: off | atlas | original | flat, its tree (empty: built into the cache), capacity, τ.
     std::string city = "off", cityTree, cityUpload = "auto", cityOcclusion = "on";
     std::string terrain = "on"; // off: the terrain is not drawn, only the city (its roofs still read the imagery)
+    std::string terrainShading = "deferred"; // forward|deferred (ImagerySettings::path)
     double cityCapacityMb = 256.0, cityTpp = 1.0;
 };
 

@@ -33,8 +33,9 @@ Runner addBenchCommand(CLI::App& app) {
                         "rasterised each vs intersected per pixel), \"segmentation=upload,perframe\" (canopy "
                         "layer derived when blocks arrive vs re-derived every frame), \"scene=terrain,full\" (the "
                         "relief alone vs both seasons, canopy layers and trunks), \"city=atlas,original,flat,off\", "
-                        "\"city-upload=compressed,decoded\", \"city-occlusion=off,on\" or \"terrain=on,off\" "
-                        "(with a city: the city over the terrain vs alone)");
+                        "\"city-upload=compressed,decoded\", \"city-occlusion=off,on\", \"terrain=on,off\" "
+                        "(with a city: the city over the terrain vs alone) or \"terrain-shading=forward,deferred\" "
+                        "(the terrain's fragments shaded as rasterised vs once per pixel from a G-buffer)");
     cmd->add_option("--canopy-layers", a->b.canopyLayers, "canopy view: stacked layers 1..32 or off")
         ->capture_default_str();
     cmd->add_option("--method", a->b.method, "canopy view: pixel|neighborhood|equalized|default")->capture_default_str();
@@ -74,6 +75,11 @@ Runner addBenchCommand(CLI::App& app) {
     cmd->add_option("--city-occlusion", a->b.cityOcclusion,
                     "City, atlas mode: skip nodes hidden behind what is drawn (occlusion queries on node boxes)")
         ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
+    cmd->add_option("--terrain-shading", a->b.terrainShading,
+                    "How the terrain's fragments are shaded: deferred (a geometry pass, then each pixel once) or "
+                    "forward (as rasterised); the same pixels")
+        ->check(CLI::IsMember({"forward", "deferred"}))
         ->capture_default_str();
     cmd->add_option("--terrain", a->b.terrain,
                     "on: the terrain drawn; off: only the city (its facades and roofs), as the atlas-tree paper timed it")

@@ -21,6 +21,7 @@ struct RenderArgs {
     CityArgs city;
     std::string cityAccuracy;
     std::string terrain = "on";
+    std::string terrainShading = "deferred";
     int k = kSegDefaultK;
 };
 } // namespace
@@ -90,6 +91,11 @@ Runner addRenderCommand(CLI::App& app) {
     args->city.addTo(*cmd);
     cmd->add_option("--city-accuracy", args->cityAccuracy,
                     "With --city: write the city's PSNR against its original textures (same view) to this JSON");
+    cmd->add_option("--terrain-shading", args->terrainShading,
+                    "How the terrain's fragments are shaded: deferred (a geometry pass, then each pixel once) or "
+                    "forward (as rasterised); the same pixels")
+        ->check(CLI::IsMember({"forward", "deferred"}))
+        ->capture_default_str();
     cmd->add_option("--terrain", args->terrain, "on: the terrain drawn; off: only the city (needs --city)")
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
@@ -141,6 +147,7 @@ Runner addRenderCommand(CLI::App& app) {
         if (settings.city) settings.city->anisotropy = args->aniso;
         if (settings.city && settings.renderer == RendererKind::Reference) return fail("--city needs --renderer clipmap");
         imagery.terrain = args->terrain != "off";
+        imagery.path = *parseTerrainShading(args->terrainShading); // checked by CLI::IsMember
         if (!imagery.terrain) {
             if (!settings.city) return fail("--terrain off draws only the city: give --city atlas|original|flat");
             if (*view == ImageryView::Canopy) return fail("--terrain off: the canopy is drawn with the terrain, not without");

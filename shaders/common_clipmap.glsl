@@ -43,8 +43,8 @@ struct ClipFootprint {
 
 uniform float uClipAniso;   // maximum anisotropy (probes per pixel); 1 = off
 
-ClipFootprint clipmapFootprint(vec2 p) {
-    vec2 dx = dFdx(p), dy = dFdy(p);
+// The footprint from the screen-space derivatives dx = dFdx(p), dy = dFdy(p) (the deferred resolve stores them).
+ClipFootprint clipmapFootprintOf(vec2 dx, vec2 dy) {
     // Eigen-decomposition of J Jᵀ, J = [dx dy]: the footprint ellipse's squared semi-axes and the major direction.
     float a = dx.x * dx.x + dy.x * dy.x, b = dx.x * dx.y + dy.x * dy.y, c = dx.y * dx.y + dy.y * dy.y;
     float h = 0.5 * (a + c), d = sqrt(max(h * h - (a * c - b * b), 0.0));
@@ -68,6 +68,8 @@ ClipFootprint clipmapFootprint(vec2 p) {
     f.lambdaIso = iso > 1e-8 ? log2(min(iso, 1e30)) : log2(1e-8);
     return f;
 }
+
+ClipFootprint clipmapFootprint(vec2 p) { return clipmapFootprintOf(dFdx(p), dFdy(p)); }
 
 // The mean of the footprint's probes at one level; false if any probe's block is not valid.
 bool clipLevelProbes(sampler2DArray clip, int level, vec2 p, ClipFootprint f, out vec4 colour) {

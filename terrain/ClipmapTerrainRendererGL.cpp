@@ -6,6 +6,7 @@
 #include <cmath>
 #include <tuple>
 #include <cstdio>
+#include <cassert>
 #include <cstdlib>
 #include <string>
 
@@ -21,6 +22,14 @@ constexpr ImageryView kViews[] = {ImageryView::LeafOn, ImageryView::LeafOff, Ima
                                   ImageryView::Lod,    ImageryView::Wireframe, ImageryView::Levels, ImageryView::Relief,
                                   ImageryView::Canopy};
 } // namespace
+
+const char* terrainShadingName(TerrainShading t) { return t == TerrainShading::Forward ? "forward" : "deferred"; }
+
+std::optional<TerrainShading> parseTerrainShading(const std::string& name) {
+    if (name == "forward") return TerrainShading::Forward;
+    if (name == "deferred") return TerrainShading::Deferred;
+    return std::nullopt;
+}
 
 const char* imageryViewName(ImageryView v) {
     switch (v) {
@@ -47,8 +56,12 @@ Result<std::unique_ptr<ClipmapTerrainRendererGL>> ClipmapTerrainRendererGL::crea
     const Scene& scene, const ClipmapGL& clipmap, const ImagePyramid* elevation, const GeometryClipmapOptions& options) {
     assert(clipmap.layers() >= 2 && "ClipmapTerrainRendererGL::create(): needs leaf-on and leaf-off layers");
     auto r = std::unique_ptr<ClipmapTerrainRendererGL>(new ClipmapTerrainRendererGL(clipmap));
-    // The leaf-on view's program now (a shader that does not compile fails here), the others when first drawn.
-    if (auto p = r->buildProgram(ImageryView::LeafOn, false); !p) return p.error();
+    // The leaf-on view's programs now (a shader that does not compile fails here), the others when first drawn.
+    if (auto p = r->buildProgram("terrain_geometry.vert", "terrain_clipmap.frag", {"VIEW 0", "NORMALS 0"}); !p)
+        return p.error();
+    if (auto p = r->buildProgram("terrain_geometry.vert", "terrain_clipmap.frag", {"GBUFFER", "NORMALS 0"}); !p)
+        return p.error();
+    if (auto p = r->buildProgram("terrain_resolve.vert", "terrain_resolve.frag", {"VIEW 0"}); !p) return p.error();
     auto s = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag", {"LEVEL_STATS", "NORMALS 0"});
     if (!s) return s.error();
     r->m_statsProgram = std::move(*s);
@@ -58,27 +71,57 @@ Result<std::unique_ptr<ClipmapTerrainRendererGL>> ClipmapTerrainRendererGL::crea
     return r;
 }
 
-Result<const gl::ShaderProgram*> ClipmapTerrainRendererGL::buildProgram(ImageryView view, bool normals,
-                                                                        int swipeSeason) const {
-    const auto key = std::make_tuple(int(view), normals, swipeSeason);
+Result<const gl::ShaderProgram*> ClipmapTerrainRendererGL::buildProgram(const char* vertex, const char* fragment,
+                                                                        const std::vector<std::string>& defines) const {
+    std::string key = std::string(vertex) + "|" + fragment;
+    for (const std::string& d : defines) key += "|" + d;
     auto it = m_programs.find(key);
     if (it != m_programs.end()) return &it->second;
-    std::vector<std::string> defines = {"VIEW " + std::to_string(int(view)), normals ? "NORMALS 1" : "NORMALS 0"};
-    if (view == ImageryView::Swipe) defines.push_back("SWIPE_SEASON " + std::to_string(swipeSeason));
-    auto p = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag", defines);
+    auto p = gl::ShaderProgram::build(vertex, fragment, defines);
     if (!p) return p.error();
     return &m_programs.emplace(key, std::move(*p)).first->second;
 }
 
-const gl::ShaderProgram& ClipmapTerrainRendererGL::program(ImageryView view, bool normals, int swipeSeason) const {
-    auto p = buildProgram(view, normals, swipeSeason);
+const gl::ShaderProgram& ClipmapTerrainRendererGL::program(const char* vertex, const char* fragment,
+                                                           const std::vector<std::string>& defines) const {
+    auto p = buildProgram(vertex, fragment, defines);
     if (!p) {
-        // The same source compiled in create() with other constants: a failure here is a bug in the shaders
-        // (ClipmapTerrainGLTest.EveryViewVariantCompiles builds each), not bad input.
+        // The same sources compiled in create() with other constants: a failure here is a bug in the shaders
+        // (TerrainClipmapGLTest.EveryViewProgramDraws builds each), not bad input.
         std::fprintf(stderr, "seasonview: internal error: %s\n", p.error().message.c_str());
         std::abort();
     }
     return **p;
+}
+
+std::vector<std::string> ClipmapTerrainRendererGL::viewDefines(ImageryView view, int swipeSeason) {
+    std::vector<std::string> d = {"VIEW " + std::to_string(int(view))};
+    if (view == ImageryView::Swipe) d.push_back("SWIPE_SEASON " + std::to_string(swipeSeason));
+    return d;
+}
+
+void ClipmapTerrainRendererGL::ensureGBuffer(const gl::RenderTarget& target) const {
+    if (m_gbuffer && m_gbufferSize == glm::ivec2(target.width(), target.height()) &&
+        m_gbufferDepth == target.depthRenderbuffer())
+        return;
+    m_gPosition = gl::Texture::create(GL_TEXTURE_2D);
+    m_gFootprint = gl::Texture::create(GL_TEXTURE_2D);
+    for (const gl::Texture* t : {&m_gPosition, &m_gFootprint}) {
+        glTextureStorage2D(t->id(), 1, GL_RGBA32F, target.width(), target.height());
+        glTextureParameteri(t->id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        glTextureParameteri(t->id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    }
+    m_gbuffer = gl::Framebuffer::create();
+    glNamedFramebufferTexture(m_gbuffer.id(), GL_COLOR_ATTACHMENT0, m_gPosition.id(), 0);
+    glNamedFramebufferTexture(m_gbuffer.id(), GL_COLOR_ATTACHMENT1, m_gFootprint.id(), 0);
+    glNamedFramebufferRenderbuffer(m_gbuffer.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, target.depthRenderbuffer());
+    const GLenum buffers[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+    glNamedFramebufferDrawBuffers(m_gbuffer.id(), 2, buffers);
+    assert(glCheckNamedFramebufferStatus(m_gbuffer.id(), GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE &&
+           "ClipmapTerrainRendererGL: incomplete G-buffer");
+    m_gbufferSize = {target.width(), target.height()};
+    m_gbufferDepth = target.depthRenderbuffer();
+    if (!m_emptyVao) m_emptyVao = gl::VertexArray::create();
 }
 
 ClipmapFrameStats ClipmapTerrainRendererGL::updateGeometry(const Camera& camera, int viewportHeight) {
@@ -143,6 +186,51 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
             prog.set(("uLevelColors[" + std::to_string(i) + "]").c_str(),
                      glm::vec3(kLevelColors[i][0], kLevelColors[i][1], kLevelColors[i][2]));
     };
+    if (s.path == TerrainShading::Deferred && s.view != ImageryView::Wireframe && s.view != ImageryView::Levels) {
+        // Deferred (the inspection views wireframe and levels stay forward: they colour by the geometry level).
+        // The geometry pass records each pixel's level-0 position, derivatives and normal (and the depth, into the
+        // target's own depth buffer, for the passes that follow); the resolve shades every pixel it left once.
+        ensureGBuffer(target);
+        glBindFramebuffer(GL_FRAMEBUFFER, m_gbuffer.id());
+        glViewport(0, 0, target.width(), target.height());
+        const float noTerrain[4] = {-1.0f, -1.0f, 0.0f, 0.0f};
+        glClearNamedFramebufferfv(m_gbuffer.id(), GL_COLOR, 0, noTerrain);
+        const gl::ShaderProgram& geometryPass = program(
+            "terrain_geometry.vert", "terrain_clipmap.frag", {"GBUFFER", normals ? "NORMALS 1" : "NORMALS 0"});
+        GeometryFrameStats st = draw(geometryPass, camera, target);
+        target.bind();
+        glDisable(GL_DEPTH_TEST);
+        glBindVertexArray(m_emptyVao.id());
+        const double aspect = double(target.width()) / double(target.height());
+        const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
+        // The swipe view in two scissored resolves, each sampling its season only (one that picked the season per
+        // pixel would run both seasons' sampling under a mask).
+        const int split = int(std::ceil(double(swipeX) - 0.5)); // pixel x < split: centre left of swipeX
+        const bool swipe = s.view == ImageryView::Swipe;
+        if (swipe) glEnable(GL_SCISSOR_TEST);
+        for (int season = 0; season < (swipe ? 2 : 1); ++season) {
+            const int x0 = season == 0 ? 0 : split, x1 = season == 0 && swipe ? split : target.width();
+            if (x1 <= x0) continue;
+            const gl::ShaderProgram& resolve =
+                program("terrain_resolve.vert", "terrain_resolve.frag", viewDefines(s.view, season));
+            setUniforms(resolve);
+            bindTerrain(resolve, viewProj);
+            glBindTextureUnit(kGBufferUnit, m_gPosition.id());
+            glBindTextureUnit(kGBufferUnit + 1, m_gFootprint.id());
+            resolve.set("uGPosition", kGBufferUnit);
+            resolve.set("uGFootprint", kGBufferUnit + 1);
+            resolve.use();
+            if (swipe) glScissor(x0, 0, x1 - x0, target.height());
+            glDrawArrays(GL_TRIANGLES, 0, 3);
+            ++st.drawCalls;
+        }
+        glDisable(GL_SCISSOR_TEST);
+        glBindTextureUnit(kGBufferUnit, 0); // the G-buffer is drawn into next frame
+        glBindTextureUnit(kGBufferUnit + 1, 0);
+        glEnable(GL_DEPTH_TEST);
+        m_last = st;
+        return st;
+    }
     if (s.view == ImageryView::Swipe) {
         // Two passes, each scissored to its side and culled against its part of the frustum: a program per side
         // samples one season (its fragments would otherwise run both seasons' sampling under a mask). The pixels
@@ -153,7 +241,9 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
         for (int season : {0, 1}) {
             const int x0 = season == 0 ? 0 : split, x1 = season == 0 ? split : target.width();
             if (x1 <= x0) continue;
-            const gl::ShaderProgram& prog = program(s.view, normals, season);
+            std::vector<std::string> defines = viewDefines(s.view, season);
+            defines.push_back(normals ? "NORMALS 1" : "NORMALS 0");
+            const gl::ShaderProgram& prog = program("terrain_geometry.vert", "terrain_clipmap.frag", defines);
             setUniforms(prog);
             glScissor(x0, 0, x1 - x0, target.height());
             const double w = double(target.width());
@@ -168,7 +258,9 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
         m_last = st;
         return st;
     }
-    const gl::ShaderProgram& prog = program(s.view, normals);
+    std::vector<std::string> defines = viewDefines(s.view, 0);
+    defines.push_back(normals ? "NORMALS 1" : "NORMALS 0");
+    const gl::ShaderProgram& prog = program("terrain_geometry.vert", "terrain_clipmap.frag", defines);
     setUniforms(prog);
     GeometryFrameStats st = draw(prog, camera, target);
     if (s.view == ImageryView::Wireframe) {

@@ -28,6 +28,10 @@ enum class ImageryView { LeafOn, LeafOff, Blend, Swipe, Lod, Wireframe, Levels, 
 std::optional<ImageryView> parseImageryView(const std::string& name);
 const char* imageryViewName(ImageryView v);
 
+enum class TerrainShading { Forward, Deferred };
+std::optional<TerrainShading> parseTerrainShading(const std::string& name);
+const char* terrainShadingName(TerrainShading t);
+
 struct ImagerySettings {
     ImageryView view = ImageryView::LeafOn;
     float blend = 0.5f; // blend: 0 = leaf-on, 1 = leaf-off
@@ -43,6 +47,11 @@ struct ImagerySettings {
     float canopyBase = 0.0f;
     // false: draw over what the target holds (colour and depth), e.g. canopy drawn first to hide the ground under it.
     bool clear = true;
+    // How the terrain's fragments are shaded: Deferred (a geometry pass records position, derivatives and normal,
+    // a full-screen pass shades each pixel once) or Forward (shaded as rasterised, every 4x4 block a small triangle
+    // touches: several times per pixel where triangles are small). The same pixels either way; wireframe and levels
+    // are always forward.
+    TerrainShading path = TerrainShading::Deferred;
     // false: the pass only clears (when `clear`) and draws nothing, so what follows (the city) is drawn alone, as
     // Buchholz & Döllner 2005 §6 timed the facades without terrain.
     bool terrain = true;
@@ -55,8 +64,10 @@ public:
     virtual ~CanopySource() = default;
     virtual void bind(const gl::ShaderProgram& program, int firstUnit) const = 0;
 };
-/// Texture units of the terrain passes: imagery clipmap 0.., elevation and lookup 8..12, canopy 13..15.
+/// Texture units of the terrain passes: imagery clipmap 0.., elevation and lookup 8..12, canopy 13..15, G-buffer
+/// 16..17.
 inline constexpr int kCanopyUnit = 13;
+inline constexpr int kGBufferUnit = 16; // the deferred resolve's G-buffer: 16 and 17
 inline constexpr float kMaxAnisotropy = 16.0f;
 
 /// The colours of `--view lod`, level 0 first (paper Fig. 2: red, green, blue, ...).
@@ -109,12 +120,22 @@ private:
     const CanopySource* m_canopy = nullptr;
     std::unique_ptr<GeometryClipmapGL> m_geometry;
     mutable GeometryFrameStats m_last;
-    /// The imagery program of `view`, with or without the terrain's normals: VIEW and NORMALS are compile-time
-    /// constants (shaders/terrain_clipmap.frag says why), so each combination is its own program, built when first
-    /// drawn. The swipe view has one program per side (`swipeSeason` 0 left, leaf-on; 1 right, leaf-off).
-    Result<const gl::ShaderProgram*> buildProgram(ImageryView view, bool normals, int swipeSeason = 0) const;
-    const gl::ShaderProgram& program(ImageryView view, bool normals, int swipeSeason = 0) const;
-    mutable std::map<std::tuple<int, bool, int>, gl::ShaderProgram> m_programs;
+    /// Programs of terrain_geometry.vert + terrain_clipmap.frag (and of the deferred resolve) with the given defines,
+    /// each built when first drawn: VIEW, SWIPE_SEASON and NORMALS are compile-time constants
+    /// (shaders/common_view.glsl says why), so every view is its own program.
+    Result<const gl::ShaderProgram*> buildProgram(const char* vertex, const char* fragment,
+                                                  const std::vector<std::string>& defines) const;
+    const gl::ShaderProgram& program(const char* vertex, const char* fragment,
+                                     const std::vector<std::string>& defines) const;
+    static std::vector<std::string> viewDefines(ImageryView view, int swipeSeason);
+    /// The deferred pass's G-buffer at the target's size, sharing its depth buffer.
+    void ensureGBuffer(const gl::RenderTarget& target) const;
+    mutable std::map<std::string, gl::ShaderProgram> m_programs;
+    mutable gl::Framebuffer m_gbuffer;
+    mutable gl::Texture m_gPosition, m_gFootprint; // RGBA32F: (p, dFdx p), (dFdy p, normal xy)
+    mutable glm::ivec2 m_gbufferSize{0};
+    mutable GLuint m_gbufferDepth = 0;
+    mutable gl::VertexArray m_emptyVao;
     gl::ShaderProgram m_statsProgram;
 };
 

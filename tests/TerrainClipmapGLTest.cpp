@@ -299,9 +299,10 @@ TEST(TerrainClipmapGLTest, GoldenWireframeAndLevels) {
     EXPECT_EQ(gl::drainErrors(), "");
 }
 
-// Each view is its own program (VIEW and NORMALS are compile-time constants, shaders/terrain_clipmap.frag): every
-// one compiles and draws, with and without shading, and the swipe view is the leaf-on view left of the divider and
-// the leaf-off view right of it, pixel for pixel.
+// Each view is its own program (VIEW and NORMALS are compile-time constants, shaders/common_view.glsl): every one
+// compiles and draws, with and without shading, forward and deferred, both the same pixels (unshaded: bit for bit;
+// shaded, the resolve rebuilds the normal's z from x and y: within one level); and the swipe view is the leaf-on
+// view left of the divider and the leaf-off view right of it, pixel for pixel.
 TEST(TerrainClipmapGLTest, EveryViewProgramDraws) {
     ASSERT_TRUE(headlessContext());
     TempDir dir("terrain-views");
@@ -319,11 +320,21 @@ TEST(TerrainClipmapGLTest, EveryViewProgramDraws) {
             ImagerySettings s;
             s.view = view;
             s.shading = shaded ? 0.7f : 0.0f;
+            s.path = TerrainShading::Forward;
+            draw(*scene, t, cam, s, target);
+            const auto forwardDepth = target.readDepth();
+            const auto forward = rgbOf(target.readRgba());
+            s.path = TerrainShading::Deferred;
             draw(*scene, t, cam, s, target);
             const auto depth = target.readDepth();
-            EXPECT_GT(std::count_if(depth.begin(), depth.end(), [](float d) { return d > 0.0f; }), w * h / 2)
-                << imageryViewName(view) << (shaded ? " shaded" : "");
+            const std::string name = std::string(imageryViewName(view)) + (shaded ? " shaded" : "");
+            EXPECT_GT(std::count_if(depth.begin(), depth.end(), [](float d) { return d > 0.0f; }), w * h / 2) << name;
+            EXPECT_EQ(depth, forwardDepth) << name;
             images[{int(view), shaded}] = rgbOf(target.readRgba());
+            const auto& deferred = images[{int(view), shaded}];
+            int maxDiff = 0;
+            for (size_t i = 0; i < forward.size(); ++i) maxDiff = std::max(maxDiff, std::abs(int(forward[i]) - int(deferred[i])));
+            EXPECT_LE(maxDiff, shaded || view == ImageryView::Relief ? 1 : 0) << name;
         }
     EXPECT_EQ(gl::drainErrors(), "");
     auto differ = [&](ImageryView a, ImageryView b, bool shaded) {

@@ -22,6 +22,8 @@ public:
     /// Copies the colour buffer to the default framebuffer of a window of the given size.
     void blitToDefault(int windowWidth, int windowHeight) const;
     GLuint framebuffer() const { return m_fbo.id(); }
+    /// The depth buffer (DEPTH_COMPONENT32F), for passes that draw into other colour buffers with the same depth.
+    GLuint depthRenderbuffer() const { return m_depth.id(); }
 
 private:
     int m_width, m_height;
