@@ -20,6 +20,7 @@ bool elevBlockValid(int level, ivec2 t) {
 
 // Height of level `level`'s sample t (clamped into the level). False when its block is not resident yet.
 bool elevTexel(int level, ivec2 t, out float h) {
+    h = 0.0; // defined when not resident: callers may weight it by 0
     t = clamp(t, ivec2(0), ivec2(uElevLevelSize[level]) - 1);
     if (level >= uElevClipLevels) {
         h = texelFetch(uElevCoarse0, ivec3(t, level - uElevClipLevels), 0).r;
@@ -50,20 +51,29 @@ float elevationAt(int level, vec2 s) {
     return 0.0;
 }
 
-// Height of the DEM's triangulated surface at sample coordinates s (each level-0 cell split along its north-east to
-// south-west diagonal, the surface of the reference mesh and of the elevation grid's resampling): the heights of
-// levels finer than the DEM. Bilinear from a coarser level while level 0 is not resident there.
-float triangulatedAt(vec2 s) {
+// The surface a geometry clipmap level's vertices take at sample coordinates s (level-0 samples): for a DEM level
+// (level >= 0), whose vertices lie on its samples, that sample's height; for a level finer than the DEM (level < 0),
+// the DEM's triangulated surface (each level-0 cell split along its north-east to south-west diagonal, the surface of
+// the reference mesh and of the elevation grid's resampling). Both as one triangle of level max(level, 0): its corner
+// ia and the neighbours i0 + (1, 0), i0 + (0, 1), weighted by fa (0 at a sample, so exactly the sample's height).
+// One fetch pattern for both kinds: llvmpipe runs both sides of a branch under a mask. Bilinear from the next
+// coarser resident level where a texel with a weight is not resident.
+float surfaceAt(int level, vec2 s) {
     if (uHasElevation == 0) return 0.0;
-    ivec2 i0 = ivec2(floor(s));
-    vec2 f = s - vec2(i0);
-    // The triangle holding s: the lower one from sample i0, else the upper one from i0 + (1, 1); one set of fetches
-    // for both (no branch: llvmpipe would run both sides).
+    int l = clamp(level, 0, uElevLevels - 1);
+    vec2 q = s / exp2(float(l));
+    ivec2 i0 = ivec2(floor(q));
+    vec2 f = q - vec2(i0);
     bool lower = f.x + f.y <= 1.0;
     ivec2 ia = lower ? i0 : i0 + ivec2(1);
     vec2 fa = lower ? f : 1.0 - f;
     float ha, h10, h01;
-    if (elevTexel(0, ia, ha) && elevTexel(0, i0 + ivec2(1, 0), h10) && elevTexel(0, i0 + ivec2(0, 1), h01))
+    bool okA = elevTexel(l, ia, ha);
+    bool ok10 = elevTexel(l, i0 + ivec2(1, 0), h10);
+    bool ok01 = elevTexel(l, i0 + ivec2(0, 1), h01);
+    // The texel on x's side weights fa.x in the lower triangle and fa.y in the upper one.
+    float wx = lower ? fa.x : fa.y, wy = lower ? fa.y : fa.x;
+    if (okA && (wx == 0.0 || ok10) && (wy == 0.0 || ok01))
         return lower ? ha + fa.x * (h10 - ha) + fa.y * (h01 - ha) : ha + fa.x * (h01 - ha) + fa.y * (h10 - ha);
-    return elevationAt(1, s);
+    return elevationAt(l + 1, s);
 }

@@ -39,6 +39,11 @@ uniform vec3 uNoDataColour; // where neither season has data (imagery/clipmap te
 // black. The other season is fetched only where s lacks data.
 vec3 seasonColour(int s, vec2 p, ClipFootprint f, out int used) {
     vec4 a = s == 0 ? sampleClipmap(uClip0, uCoarse0, p, f, used) : sampleClipmap(uClip1, uCoarse1, p, f, used);
+#ifdef SEASONS_COMPLETE
+    // Both seasons are read as they are, on the working grid, with no pixel marked nodata (ImageryLayer::direct):
+    // no other season to fall back on, and llvmpipe would run that sampling under a mask for every pixel.
+    return a.rgb;
+#endif
     if (a.a >= 0.999) return a.rgb;
     int other;
     vec4 b = s == 0 ? sampleClipmap(uClip1, uCoarse1, p, f, other) : sampleClipmap(uClip0, uCoarse0, p, f, other);

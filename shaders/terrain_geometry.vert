@@ -84,7 +84,7 @@ void main() {
     // Levels finer than the DEM take the DEM's triangulated surface, which is linear along every grid line of such
     // a level (the cells' diagonals cross those lines only at vertices): a coarser level's edge is that surface
     // between two vertices computed alike, so these levels need no blend to meet it, the DEM's level 0 included.
-    float z = uLevel >= 0 ? elevationAt(uLevel, s) : triangulatedAt(s);
+    float z = surfaceAt(uLevel, s);
     // Normals from differences at least one DEM sample apart: finer steps would only show the bilinear facets.
     vec3 n = uNormals != 0 ? normalAt(uLevel, s, max(uCell, 1.0)) : vec3(0.0, 0.0, 1.0);
     if (alpha > 0.0) {

@@ -56,6 +56,7 @@ Result<std::unique_ptr<ClipmapTerrainRendererGL>> ClipmapTerrainRendererGL::crea
     const Scene& scene, const ClipmapGL& clipmap, const ImagePyramid* elevation, const GeometryClipmapOptions& options) {
     assert(clipmap.layers() >= 2 && "ClipmapTerrainRendererGL::create(): needs leaf-on and leaf-off layers");
     auto r = std::unique_ptr<ClipmapTerrainRendererGL>(new ClipmapTerrainRendererGL(clipmap));
+    r->m_seasonsComplete = scene.leafon.direct && scene.leafoff.direct;
     // The leaf-on view's programs now (a shader that does not compile fails here), the others when first drawn.
     if (auto p = r->buildProgram("terrain_geometry.vert", "terrain_clipmap.frag", {"VIEW 0", "NORMALS 0"}); !p)
         return p.error();
@@ -94,8 +95,9 @@ const gl::ShaderProgram& ClipmapTerrainRendererGL::program(const char* vertex, c
     return **p;
 }
 
-std::vector<std::string> ClipmapTerrainRendererGL::viewDefines(ImageryView view, int swipeSeason) {
+std::vector<std::string> ClipmapTerrainRendererGL::viewDefines(ImageryView view, int swipeSeason) const {
     std::vector<std::string> d = {"VIEW " + std::to_string(int(view))};
+    if (m_seasonsComplete) d.push_back("SEASONS_COMPLETE");
     if (view == ImageryView::Swipe) d.push_back("SWIPE_SEASON " + std::to_string(swipeSeason));
     return d;
 }

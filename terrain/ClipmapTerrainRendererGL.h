@@ -127,7 +127,8 @@ private:
                                                   const std::vector<std::string>& defines) const;
     const gl::ShaderProgram& program(const char* vertex, const char* fragment,
                                      const std::vector<std::string>& defines) const;
-    static std::vector<std::string> viewDefines(ImageryView view, int swipeSeason);
+    std::vector<std::string> viewDefines(ImageryView view, int swipeSeason) const;
+    bool m_seasonsComplete = false; // both seasons read as they are, no nodata: no fallback to the other season
     /// The deferred pass's G-buffer at the target's size, sharing its depth buffer.
     void ensureGBuffer(const gl::RenderTarget& target) const;
     mutable std::map<std::string, gl::ShaderProgram> m_programs;
