@@ -34,9 +34,13 @@ Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL
     top = std::clamp(top | 1, k, kSegMaxK);
     c->m_topK = top;
 
-    auto p = gl::ShaderProgram::buildCompute("canopy_derive.comp");
-    if (!p) return p.error();
-    c->m_program = std::move(*p);
+    for (int coarse : {0, 1}) { // the method and the pass are compile-time constants (shaders/canopy_derive.comp)
+        auto p = gl::ShaderProgram::buildCompute(
+            "canopy_derive.comp", {"COARSE_PASS " + std::to_string(coarse),
+                                   "METHOD " + std::to_string(int(options.params.method))});
+        if (!p) return p.error();
+        c->m_programs[coarse] = std::move(*p);
+    }
 
     const int clipLevels = L.clipLevels();
     const int slots = source.schedule().slotsPerSide();
@@ -214,22 +218,21 @@ void CanopyClipmapGL::derive(int level, bool coarse, const std::vector<glm::ivec
     const ClipmapLayout& L = m_source.schedule().layout();
     const int slots = m_source.schedule().slotsPerSide();
     ++m_generation;
-    m_source.bind(m_program, 0);
-    m_program.set("uLevel", level);
-    m_program.set("uCoarsePass", coarse ? 1 : 0);
-    m_program.set("uBlockSize", L.block);
-    m_program.set("uMethod", int(m_options.params.method));
-    m_program.set("uDropThreshold", m_stats.dropThreshold);
-    m_program.set("uLayers", m_options.layers);
+    const gl::ShaderProgram& program = m_programs[coarse ? 1 : 0];
+    m_source.bind(program, 0);
+    program.set("uLevel", level);
+    program.set("uBlockSize", L.block);
+    program.set("uDropThreshold", m_stats.dropThreshold);
+    program.set("uLayers", m_options.layers);
     for (int i = 0; i < m_options.layers; ++i)
-        m_program.set(("uLayerK[" + std::to_string(i) + "]").c_str(),
+        program.set(("uLayerK[" + std::to_string(i) + "]").c_str(),
                       m_options.params.method == SegmentationMethod::Pixel ? 1 : layerK(i, level));
     glBindImageTexture(0, m_clip.id(), 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_R8UI);
     glBindImageTexture(1, m_coarse.id(), 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R8UI);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_blocks.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_luts.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, m_cellMaxBuffer.id());
-    m_program.use();
+    program.use();
     for (size_t first = 0; first < blocks.size(); first += kMaxDispatchBlocks) {
         const size_t n = std::min(blocks.size() - first, size_t(kMaxDispatchBlocks));
         std::vector<glm::ivec4> list(n);

@@ -89,7 +89,7 @@ private:
     CanopyOptions m_options;
     SegmentationStats m_stats;
     int m_topK = 0;
-    gl::ShaderProgram m_program;
+    gl::ShaderProgram m_programs[2]; // canopy_derive.comp: the clip levels, the coarse base
     gl::Texture m_clip, m_coarse, m_tagTexture;
     gl::Buffer m_blocks, m_luts;
     // Cell maxima: GPU buffer (clip levels' slots, then the coarse base's blocks), a persistently mapped copy

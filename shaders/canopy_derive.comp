@@ -42,9 +42,15 @@ layout(std430, binding = 2) writeonly buffer CellMax { uint cellMax[]; };
 shared uint sCellMax[(TILE / CELL) * (TILE / CELL)];
 
 uniform int uLevel;        // the level derived; uCoarsePass: the coarse base
-uniform int uCoarsePass;   // 1: read the coarse textures' base, write uCanopyCoarseOut
+// COARSE_PASS (0 or 1: read the coarse textures' base, write uCanopyCoarseOut) and METHOD (SegmentationMethod: 0
+// pixel, 1 neighborhood, 2 equalized, 3 default) are compile-time constants, one program each: llvmpipe runs both
+// sides of a branch on a uniform under a mask, so every method's and both passes' fetches ran for each texel.
+#if !defined(COARSE_PASS) || !defined(METHOD)
+#error "canopy_derive.comp: COARSE_PASS and METHOD must be defined"
+#endif
+const int uCoarsePass = COARSE_PASS;
+const int uMethod = METHOD;
 uniform int uBlockSize;
-uniform int uMethod;       // SegmentationMethod: 0 pixel, 1 neighborhood, 2 equalized, 3 default
 uniform int uDropThreshold;
 uniform int uLayers;
 uniform int uLayerK[32];   // k of each layer at this level, odd, non-decreasing
