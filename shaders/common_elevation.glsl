@@ -56,24 +56,27 @@ float elevationAt(int level, vec2 s) {
 // the DEM's triangulated surface (each level-0 cell split along its north-east to south-west diagonal, the surface of
 // the reference mesh and of the elevation grid's resampling). Both as one triangle of level max(level, 0): its corner
 // ia and the neighbours i0 + (1, 0), i0 + (0, 1), weighted by fa (0 at a sample, so exactly the sample's height).
-// One fetch pattern for both kinds: llvmpipe runs both sides of a branch under a mask. Bilinear from the next
-// coarser resident level where a texel with a weight is not resident.
+// One fetch pattern for both kinds: llvmpipe runs both sides of a branch under a mask. Where a texel with a weight is
+// not resident, the same triangle at the next coarser resident level.
 float surfaceAt(int level, vec2 s) {
     if (uHasElevation == 0) return 0.0;
-    int l = clamp(level, 0, uElevLevels - 1);
-    vec2 q = s / exp2(float(l));
-    ivec2 i0 = ivec2(floor(q));
-    vec2 f = q - vec2(i0);
-    bool lower = f.x + f.y <= 1.0;
-    ivec2 ia = lower ? i0 : i0 + ivec2(1);
-    vec2 fa = lower ? f : 1.0 - f;
-    float ha, h10, h01;
-    bool okA = elevTexel(l, ia, ha);
-    bool ok10 = elevTexel(l, i0 + ivec2(1, 0), h10);
-    bool ok01 = elevTexel(l, i0 + ivec2(0, 1), h01);
-    // The texel on x's side weights fa.x in the lower triangle and fa.y in the upper one.
-    float wx = lower ? fa.x : fa.y, wy = lower ? fa.y : fa.x;
-    if (okA && (wx == 0.0 || ok10) && (wy == 0.0 || ok01))
-        return lower ? ha + fa.x * (h10 - ha) + fa.y * (h01 - ha) : ha + fa.x * (h01 - ha) + fa.y * (h10 - ha);
-    return elevationAt(l + 1, s);
+    // A loop, not a fallback call after the first try: llvmpipe leaves a loop once no lane is left in it, where it
+    // would run the code after an `if` for every lane.
+    for (int l = clamp(level, 0, uElevLevels - 1); l < uElevLevels; ++l) {
+        vec2 q = s / exp2(float(l));
+        ivec2 i0 = ivec2(floor(q));
+        vec2 f = q - vec2(i0);
+        bool lower = f.x + f.y <= 1.0;
+        ivec2 ia = lower ? i0 : i0 + ivec2(1);
+        vec2 fa = lower ? f : 1.0 - f;
+        float ha, h10, h01;
+        bool okA = elevTexel(l, ia, ha);
+        bool ok10 = elevTexel(l, i0 + ivec2(1, 0), h10);
+        bool ok01 = elevTexel(l, i0 + ivec2(0, 1), h01);
+        // The texel on x's side weights fa.x in the lower triangle and fa.y in the upper one.
+        float wx = lower ? fa.x : fa.y, wy = lower ? fa.y : fa.x;
+        if (okA && (wx == 0.0 || ok10) && (wy == 0.0 || ok01))
+            return lower ? ha + fa.x * (h10 - ha) + fa.y * (h01 - ha) : ha + fa.x * (h01 - ha) + fa.y * (h10 - ha);
+    }
+    return 0.0;
 }

@@ -55,8 +55,8 @@ flat out int vLevel;
 
 // Unnormalised normal (local frame, z up) from central differences `step` samples apart at level `level`.
 vec3 normalAt(int level, vec2 s, float step) {
-    float hx = elevationAt(level, s + vec2(step, 0.0)) - elevationAt(level, s - vec2(step, 0.0));
-    float hy = elevationAt(level, s - vec2(0.0, step)) - elevationAt(level, s + vec2(0.0, step)); // j runs south
+    float hx = surfaceAt(level, s + vec2(step, 0.0)) - surfaceAt(level, s - vec2(step, 0.0));
+    float hy = surfaceAt(level, s - vec2(0.0, step)) - surfaceAt(level, s + vec2(0.0, step)); // j runs south
     return vec3(-hx, -hy, 2.0 * step * uGridSpacing);
 }
 
@@ -91,7 +91,8 @@ void main() {
         // At alpha 1 exactly the coarser level's height, bit for bit: mix() may round (z + (c - z) * 1 != c), and
         // the outer edge's vertices must land where the coarser level's own vertices do or a pixel centre on the
         // shared edge falls between the two.
-        const float coarse = uLevel >= 0 ? elevationAt(uLevel + 1, s) : z;
+        // (For a level finer than the DEM, surfaceAt(uLevel + 1) is the triangulated surface again: z itself.)
+        const float coarse = surfaceAt(uLevel + 1, s);
         z = alpha >= 1.0 ? coarse : mix(z, coarse, alpha);
         if (uNormals != 0) n = mix(n, normalAt(uLevel + 1, s, max(2.0 * uCell, 1.0)), alpha);
     }
