@@ -161,6 +161,72 @@ GeometryFrameStats ClipmapTerrainRendererGL::draw(const gl::ShaderProgram& progr
     return m_last;
 }
 
+void ClipmapTerrainRendererGL::setViewUniforms(const gl::ShaderProgram& prog, const ImagerySettings& s,
+                                               float swipeX) const {
+    const float shade = std::clamp(s.shading, 0.0f, 1.0f);
+    prog.set("uBlend", std::clamp(s.blend, 0.0f, 1.0f));
+    prog.set("uSwipeX", swipeX);
+    prog.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
+    prog.set("uShade", shade);
+    prog.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75)))); // from the north-west, high
+    prog.set("uWirePass", 0);
+    prog.set("uCanopyGround[0]", std::clamp(s.groundElsewhere, 0, 1));
+    prog.set("uCanopyGround[1]", std::clamp(s.groundUnderCanopy, 0, 1));
+    prog.set("uCanopyBase", std::clamp(s.canopyBase, 0.0f, 1.0f));
+    prog.set("uNoDataColour", kNoDataColor);
+    for (int i = 0; i < 8; ++i)
+        prog.set(("uLevelColors[" + std::to_string(i) + "]").c_str(),
+                 glm::vec3(kLevelColors[i][0], kLevelColors[i][1], kLevelColors[i][2]));
+}
+
+GeometryFrameStats ClipmapTerrainRendererGL::renderDeferred(const Camera& camera, const ImagerySettings& s,
+                                                            const gl::RenderTarget& target, bool normals,
+                                                            float swipeX) const {
+    // Deferred (the inspection views wireframe and levels stay forward: they colour by the geometry level).
+    // The geometry pass records each pixel's level-0 position, derivatives and normal (and the depth, into the
+    // target's own depth buffer, for the passes that follow); the resolve shades every pixel it left once.
+    ensureGBuffer(target);
+    glBindFramebuffer(GL_FRAMEBUFFER, m_gbuffer.id());
+    glViewport(0, 0, target.width(), target.height());
+    const float noTerrain[4] = {-1.0f, -1.0f, 0.0f, 0.0f};
+    glClearNamedFramebufferfv(m_gbuffer.id(), GL_COLOR, 0, noTerrain);
+    const gl::ShaderProgram& geometryPass = program(
+        "terrain_geometry.vert", "terrain_clipmap.frag", {"GBUFFER", normals ? "NORMALS 1" : "NORMALS 0"});
+    GeometryFrameStats st = draw(geometryPass, camera, target);
+    target.bind();
+    glDisable(GL_DEPTH_TEST);
+    glBindVertexArray(m_emptyVao.id());
+    const double aspect = double(target.width()) / double(target.height());
+    const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
+    // The swipe view in two scissored resolves, each sampling its season only (one that picked the season per
+    // pixel would run both seasons' sampling under a mask).
+    const int split = int(std::ceil(double(swipeX) - 0.5)); // pixel x < split: centre left of swipeX
+    const bool swipe = s.view == ImageryView::Swipe;
+    if (swipe) glEnable(GL_SCISSOR_TEST);
+    for (int season = 0; season < (swipe ? 2 : 1); ++season) {
+        const int x0 = season == 0 ? 0 : split, x1 = season == 0 && swipe ? split : target.width();
+        if (x1 <= x0) continue;
+        const gl::ShaderProgram& resolve =
+            program("terrain_resolve.vert", "terrain_resolve.frag", viewDefines(s.view, season));
+        setViewUniforms(resolve, s, swipeX);
+        bindTerrain(resolve, viewProj);
+        glBindTextureUnit(kGBufferUnit, m_gPosition.id());
+        glBindTextureUnit(kGBufferUnit + 1, m_gFootprint.id());
+        resolve.set("uGPosition", kGBufferUnit);
+        resolve.set("uGFootprint", kGBufferUnit + 1);
+        resolve.use();
+        if (swipe) glScissor(x0, 0, x1 - x0, target.height());
+        glDrawArrays(GL_TRIANGLES, 0, 3);
+        ++st.drawCalls;
+    }
+    glDisable(GL_SCISSOR_TEST);
+    glBindTextureUnit(kGBufferUnit, 0); // the G-buffer is drawn into next frame
+    glBindTextureUnit(kGBufferUnit + 1, 0);
+    glEnable(GL_DEPTH_TEST);
+    m_last = st;
+    return st;
+}
+
 GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const ImagerySettings& s,
                                                     const gl::RenderTarget& target) const {
     target.bind();
@@ -173,66 +239,8 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
     const float shade = std::clamp(s.shading, 0.0f, 1.0f);
     const bool normals = shade > 0.0f || s.view == ImageryView::Relief;
     const float swipeX = std::clamp(s.swipe, 0.0f, 1.0f) * float(target.width());
-    auto setUniforms = [&](const gl::ShaderProgram& prog) {
-        prog.set("uBlend", std::clamp(s.blend, 0.0f, 1.0f));
-        prog.set("uSwipeX", swipeX);
-        prog.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
-        prog.set("uShade", shade);
-        prog.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75)))); // from the north-west, high
-        prog.set("uWirePass", 0);
-        prog.set("uCanopyGround[0]", std::clamp(s.groundElsewhere, 0, 1));
-        prog.set("uCanopyGround[1]", std::clamp(s.groundUnderCanopy, 0, 1));
-        prog.set("uCanopyBase", std::clamp(s.canopyBase, 0.0f, 1.0f));
-        prog.set("uNoDataColour", kNoDataColor);
-        for (int i = 0; i < 8; ++i)
-            prog.set(("uLevelColors[" + std::to_string(i) + "]").c_str(),
-                     glm::vec3(kLevelColors[i][0], kLevelColors[i][1], kLevelColors[i][2]));
-    };
-    if (s.path == TerrainShading::Deferred && s.view != ImageryView::Wireframe && s.view != ImageryView::Levels) {
-        // Deferred (the inspection views wireframe and levels stay forward: they colour by the geometry level).
-        // The geometry pass records each pixel's level-0 position, derivatives and normal (and the depth, into the
-        // target's own depth buffer, for the passes that follow); the resolve shades every pixel it left once.
-        ensureGBuffer(target);
-        glBindFramebuffer(GL_FRAMEBUFFER, m_gbuffer.id());
-        glViewport(0, 0, target.width(), target.height());
-        const float noTerrain[4] = {-1.0f, -1.0f, 0.0f, 0.0f};
-        glClearNamedFramebufferfv(m_gbuffer.id(), GL_COLOR, 0, noTerrain);
-        const gl::ShaderProgram& geometryPass = program(
-            "terrain_geometry.vert", "terrain_clipmap.frag", {"GBUFFER", normals ? "NORMALS 1" : "NORMALS 0"});
-        GeometryFrameStats st = draw(geometryPass, camera, target);
-        target.bind();
-        glDisable(GL_DEPTH_TEST);
-        glBindVertexArray(m_emptyVao.id());
-        const double aspect = double(target.width()) / double(target.height());
-        const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
-        // The swipe view in two scissored resolves, each sampling its season only (one that picked the season per
-        // pixel would run both seasons' sampling under a mask).
-        const int split = int(std::ceil(double(swipeX) - 0.5)); // pixel x < split: centre left of swipeX
-        const bool swipe = s.view == ImageryView::Swipe;
-        if (swipe) glEnable(GL_SCISSOR_TEST);
-        for (int season = 0; season < (swipe ? 2 : 1); ++season) {
-            const int x0 = season == 0 ? 0 : split, x1 = season == 0 && swipe ? split : target.width();
-            if (x1 <= x0) continue;
-            const gl::ShaderProgram& resolve =
-                program("terrain_resolve.vert", "terrain_resolve.frag", viewDefines(s.view, season));
-            setUniforms(resolve);
-            bindTerrain(resolve, viewProj);
-            glBindTextureUnit(kGBufferUnit, m_gPosition.id());
-            glBindTextureUnit(kGBufferUnit + 1, m_gFootprint.id());
-            resolve.set("uGPosition", kGBufferUnit);
-            resolve.set("uGFootprint", kGBufferUnit + 1);
-            resolve.use();
-            if (swipe) glScissor(x0, 0, x1 - x0, target.height());
-            glDrawArrays(GL_TRIANGLES, 0, 3);
-            ++st.drawCalls;
-        }
-        glDisable(GL_SCISSOR_TEST);
-        glBindTextureUnit(kGBufferUnit, 0); // the G-buffer is drawn into next frame
-        glBindTextureUnit(kGBufferUnit + 1, 0);
-        glEnable(GL_DEPTH_TEST);
-        m_last = st;
-        return st;
-    }
+    if (s.path == TerrainShading::Deferred && s.view != ImageryView::Wireframe && s.view != ImageryView::Levels)
+        return renderDeferred(camera, s, target, normals, swipeX);
     if (s.view == ImageryView::Swipe) {
         // Two passes, each scissored to its side and culled against its part of the frustum: a program per side
         // samples one season (its fragments would otherwise run both seasons' sampling under a mask). The pixels
@@ -246,7 +254,7 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
             std::vector<std::string> defines = viewDefines(s.view, season);
             defines.push_back(normals ? "NORMALS 1" : "NORMALS 0");
             const gl::ShaderProgram& prog = program("terrain_geometry.vert", "terrain_clipmap.frag", defines);
-            setUniforms(prog);
+            setViewUniforms(prog, s, swipeX);
             glScissor(x0, 0, x1 - x0, target.height());
             const double w = double(target.width());
             const GeometryFrameStats side =
@@ -263,7 +271,7 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
     std::vector<std::string> defines = viewDefines(s.view, 0);
     defines.push_back(normals ? "NORMALS 1" : "NORMALS 0");
     const gl::ShaderProgram& prog = program("terrain_geometry.vert", "terrain_clipmap.frag", defines);
-    setUniforms(prog);
+    setViewUniforms(prog, s, swipeX);
     GeometryFrameStats st = draw(prog, camera, target);
     if (s.view == ImageryView::Wireframe) {
         // The triangle edges over the filled terrain: drawn again as lines, pulled towards the viewer (reversed

@@ -112,6 +112,11 @@ public:
 
 private:
     ClipmapTerrainRendererGL(const ClipmapGL& clipmap) : m_clipmap(clipmap) {}
+    /// The uniforms of a view's programs (forward and resolve) from the settings.
+    void setViewUniforms(const gl::ShaderProgram& prog, const ImagerySettings& s, float swipeX) const;
+    /// render() with deferred shading: the geometry pass into the G-buffer, then the resolve (per swipe side).
+    GeometryFrameStats renderDeferred(const Camera& camera, const ImagerySettings& s, const gl::RenderTarget& target,
+                                      bool normals, float swipeX) const;
     /// Draws the terrain with `program`, culling pieces outside NDC x in `ndcX` (the part of the frame drawn).
     GeometryFrameStats draw(const gl::ShaderProgram& program, const Camera& camera, const gl::RenderTarget& target,
                             glm::dvec2 ndcX = {-1.0, 1.0}) const;
