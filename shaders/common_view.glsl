@@ -76,10 +76,9 @@ vec3 viewColour(vec2 p, ClipFootprint f, vec3 n, int level, out int used) {
         // The ground of the canopy view: leaf-off under the crowns (the trees stand on it as layers), leaf-on
         // elsewhere; both configurable.
         bool under = uHasCanopy != 0 && canopyAt(p, int(floor(max(f.lambdaIso, 0.0)))) > 0;
-        if (under && uCanopyBase > 0.0)
-            c = uCanopyBase * seasonColour(0, p, f, used);
-        else
-            c = seasonColour(uCanopyGround[under ? 1 : 0], p, f, used);
+        // One seasonColour call: the season is per-pixel data here, so each call samples both seasons (a mask).
+        bool base = under && uCanopyBase > 0.0;
+        c = (base ? uCanopyBase : 1.0) * seasonColour(base ? 0 : uCanopyGround[under ? 1 : 0], p, f, used);
     } else if (uView == 4 || uView == 6) {
         // Level colours over the imagery's brightness: the imagery level used (lod, Ropinski 2007 Fig. 2) or
         // the geometry level drawn (levels).
