@@ -183,6 +183,13 @@ void ClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit, const std:
     program.set(name("CoarseSize").c_str(), glm::vec2(m_coarseSize));
 }
 
+std::vector<std::string> ClipmapGL::layoutDefines(const std::string& prefix) const {
+    const ClipmapLayout& L = m_schedule.layout();
+    return {prefix + "BLOCK_SIZE " + std::to_string(L.block),
+            prefix + "SLOTS_PER_SIDE " + std::to_string(m_schedule.slotsPerSide()),
+            prefix + "SIZE " + std::to_string(L.size)};
+}
+
 std::int64_t ClipmapGL::residentBytes() const {
     const ClipmapLayout& L = m_schedule.layout();
     const std::int64_t arrayLayers = std::max({1, L.clipLevels(), m_options.minClipLevels});

@@ -71,6 +71,10 @@ public:
     /// replaced by it (uElevClip0, uElevClipTags, uElevLevel0Size, ...), so two clipmaps can feed one program.
     /// Units used: 2 × layers + 1.
     void bind(const gl::ShaderProgram& program, int firstUnit = 0, const std::string& prefix = "u") const;
+    /// The layout bind() sets as uniforms that shaders divide by, as preprocessor definitions for a program built for
+    /// this clipmap: PREFIX + BLOCK_SIZE, SLOTS_PER_SIDE and SIZE (shaders/common_clip_layout.glsl; llvmpipe divides
+    /// by a constant with a multiply and a shift, by a uniform lane by lane).
+    std::vector<std::string> layoutDefines(const std::string& prefix = "CLIP_") const;
     /// Rgba8 pyramids: RGBA8 levels, a mipmapped coarse 2D texture. R32F (elevation): R32F levels read with
     /// texelFetch, and the coarse pyramid's exact levels as the layers of a 2D array texture (level k at layer
     /// k - clip levels, stored from texel 0,0), since mipmaps would round sizes down where the pyramid rounds up.

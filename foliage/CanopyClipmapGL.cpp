@@ -34,10 +34,12 @@ Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL
     top = std::clamp(top | 1, k, kSegMaxK);
     c->m_topK = top;
 
-    for (int coarse : {0, 1}) { // the method and the pass are compile-time constants (shaders/canopy_derive.comp)
-        auto p = gl::ShaderProgram::buildCompute(
-            "canopy_derive.comp", {"COARSE_PASS " + std::to_string(coarse),
-                                   "METHOD " + std::to_string(int(options.params.method))});
+    for (int coarse : {0, 1}) {
+        // The method, the pass and the imagery clipmap's layout are compile-time constants (shaders/canopy_derive.comp).
+        std::vector<std::string> defines = source.layoutDefines("CLIP_");
+        defines.push_back("COARSE_PASS " + std::to_string(coarse));
+        defines.push_back("METHOD " + std::to_string(int(options.params.method)));
+        auto p = gl::ShaderProgram::buildCompute("canopy_derive.comp", defines);
         if (!p) return p.error();
         c->m_programs[coarse] = std::move(*p);
     }

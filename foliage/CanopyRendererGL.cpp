@@ -85,20 +85,8 @@ GeometryFrameStats CanopyRendererGL::renderView(const Camera& camera, const Clip
 }
 
 Result<std::unique_ptr<CanopyRendererGL>> CanopyRendererGL::create() {
-    auto r = std::unique_ptr<CanopyRendererGL>(new CanopyRendererGL());
-    // NORMALS is a compile-time constant (shaders/terrain_geometry.vert): the rasterised layers with and without
-    // shading; the march always needs the terrain's normals (the local plane its rays are intersected over).
-    for (int normals : {0, 1}) {
-        auto p = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag",
-                                          {"CANOPY_LAYER", "NORMALS " + std::to_string(normals)});
-        if (!p) return p.error();
-        r->m_layerPrograms[normals] = std::move(*p);
-    }
-    auto m = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag",
-                                      {"CANOPY_LAYER", "CANOPY_MARCH", "NORMALS 1"});
-    if (!m) return m.error();
-    r->m_marchProgram = std::move(*m);
-    return r;
+    // The programs are the terrain renderer's (ClipmapTerrainRendererGL::program): built for its clipmaps' layouts.
+    return std::unique_ptr<CanopyRendererGL>(new CanopyRendererGL());
 }
 
 GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapTerrainRendererGL& terrain,
@@ -113,7 +101,12 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
     const bool march = pass == CanopyPass::Marched;
     if (march && s.mode != CanopyDrawMode::March) return {};
     const float shade = std::clamp(s.shading, 0.0f, 1.0f);
-    const gl::ShaderProgram& program = march ? m_marchProgram : m_layerPrograms[shade > 0.0f ? 1 : 0];
+    // NORMALS is a compile-time constant (shaders/terrain_geometry.vert): the rasterised layers with and without
+    // shading; the march always needs the terrain's normals (the local plane its rays are intersected over).
+    const gl::ShaderProgram& program =
+        march ? terrain.program("terrain_geometry.vert", "terrain_clipmap.frag", {"CANOPY_LAYER", "CANOPY_MARCH", "NORMALS 1"})
+              : terrain.program("terrain_geometry.vert", "terrain_clipmap.frag",
+                                {"CANOPY_LAYER", std::string("NORMALS ") + (shade > 0.0f ? "1" : "0")});
     terrain.bindTerrain(program, viewProj);
     canopy.bind(program, kCanopyUnit);
     program.set("uCanopyHeight", float(s.treeHeight));

@@ -97,7 +97,6 @@ public:
 
 private:
     CanopyRendererGL() = default;
-    gl::ShaderProgram m_layerPrograms[2], m_marchProgram; // layers without / with normals; the march
 };
 
 } // namespace seasonview

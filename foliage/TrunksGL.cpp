@@ -20,12 +20,13 @@ Result<std::unique_ptr<TrunksGL>> TrunksGL::create(const Scene& scene, const Cli
                                                    const CanopyClipmapGL& canopy, const TrunkOptions& options) {
     auto t = std::unique_ptr<TrunksGL>(new TrunksGL(imagery, canopy));
     t->m_options = options;
-    auto f = gl::ShaderProgram::buildCompute("trunk_find.comp");
-    if (!f) return f.error();
-    t->m_find = std::move(*f);
-    auto d = gl::ShaderProgram::build("trunk.vert", "trunk.frag");
-    if (!d) return d.error();
-    t->m_draw = std::move(*d);
+    for (int pass : {0, 1, 2}) { // the pass is a compile-time constant (shaders/trunk_find.comp)
+        std::vector<std::string> defines = imagery.layoutDefines("CLIP_");
+        defines.push_back("PASS " + std::to_string(pass));
+        auto f = gl::ShaderProgram::buildCompute("trunk_find.comp", defines);
+        if (!f) return f.error();
+        t->m_find[pass] = std::move(*f);
+    }
     t->m_vao = gl::VertexArray::create();
     t->m_buffer = gl::Buffer::create();
     glNamedBufferStorage(t->m_buffer.id(), kHeader + GLsizeiptr(options.capacity) * 16, nullptr,
@@ -77,22 +78,21 @@ int TrunksGL::find() {
     m_framesSinceSearch = 0;
     const std::uint32_t zero = 0;
     glNamedBufferSubData(m_buffer.id(), 4, 4, &zero);
-    m_imagery.bind(m_find, 0, "u");
-    m_canopy.bind(m_find, kCanopyUnit);
     const TexelRect& w = m_imagery.schedule().window(m_level);
-    m_find.set("uLevel", m_level);
-    glProgramUniform2i(m_find.id(), m_find.location("uWindow0"), w.x0, w.y0);
-    glProgramUniform2i(m_find.id(), m_find.location("uWindow1"), w.x1, w.y1);
-    m_find.set("uMinRadius", m_minRadius);
-    m_find.set("uMaxRadius", m_maxRadius);
-    m_find.set("uCapacity", m_options.capacity);
-    m_find.use();
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_buffer.id());
     glBindImageTexture(0, m_distance.id(), 0, GL_FALSE, 0, GL_READ_WRITE, GL_R32F);
     glBindImageTexture(1, m_column.id(), 0, GL_FALSE, 0, GL_READ_WRITE, GL_RG32F);
     const GLuint groups = GLuint((L.size + 15) / 16);
-    for (int pass : {0, 1, 2}) {
-        m_find.set("uPass", pass);
+    for (const gl::ShaderProgram& find : m_find) {
+        m_imagery.bind(find, 0, "u");
+        m_canopy.bind(find, kCanopyUnit);
+        find.set("uLevel", m_level);
+        glProgramUniform2i(find.id(), find.location("uWindow0"), w.x0, w.y0);
+        glProgramUniform2i(find.id(), find.location("uWindow1"), w.x1, w.y1);
+        find.set("uMinRadius", m_minRadius);
+        find.set("uMaxRadius", m_maxRadius);
+        find.set("uCapacity", m_options.capacity);
+        find.use();
         glDispatchCompute(groups, groups, 1);
         glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT |
                         GL_BUFFER_UPDATE_BARRIER_BIT);
@@ -109,18 +109,20 @@ GeometryFrameStats TrunksGL::draw(const Camera& camera, const ClipmapTerrainRend
     target.bind();
     const double aspect = double(target.width()) / double(target.height());
     const glm::mat4 viewProj(camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix());
-    terrain.geometry().bind(m_draw, 8);
-    m_draw.set("uViewProj", viewProj);
+    // The terrain renderer's build of the program: its elevation clipmap's layout as constants.
+    const gl::ShaderProgram& program = terrain.program("trunk.vert", "trunk.frag", {});
+    terrain.geometry().bind(program, 8);
+    program.set("uViewProj", viewProj);
     const glm::mat3 m(m_imageToLocal);
-    glProgramUniformMatrix3fv(m_draw.id(), m_draw.location("uImageToLocal"), 1, GL_FALSE, glm::value_ptr(m));
-    m_draw.set("uMetresPerPixel", float(m_metresPerPixel));
-    m_draw.set("uTrunkHeight", float(trunkHeight));
-    m_draw.set("uRadiusFraction", m_options.radiusFraction);
-    m_draw.set("uMinRadius", 0.12f);
-    m_draw.set("uMaxRadius", 0.5f);
-    m_draw.set("uCapacity", m_options.capacity);
-    m_draw.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
-    m_draw.use();
+    glProgramUniformMatrix3fv(program.id(), program.location("uImageToLocal"), 1, GL_FALSE, glm::value_ptr(m));
+    program.set("uMetresPerPixel", float(m_metresPerPixel));
+    program.set("uTrunkHeight", float(trunkHeight));
+    program.set("uRadiusFraction", m_options.radiusFraction);
+    program.set("uMinRadius", 0.12f);
+    program.set("uMaxRadius", 0.5f);
+    program.set("uCapacity", m_options.capacity);
+    program.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
+    program.use();
     glBindVertexArray(m_vao.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_buffer.id());
     glBindBuffer(GL_DRAW_INDIRECT_BUFFER, m_buffer.id());

@@ -63,7 +63,7 @@ private:
     const ClipmapGL& m_imagery;
     const CanopyClipmapGL& m_canopy;
     TrunkOptions m_options;
-    gl::ShaderProgram m_find, m_draw;
+    gl::ShaderProgram m_find[3]; // trunk_find.comp's passes 0, 1, 2
     gl::Buffer m_buffer;
     gl::VertexArray m_vao;
     glm::dmat3 m_imageToLocal{1.0};

@@ -8,6 +8,7 @@
 // memory with a halo of kSegMaxK / 2 (vote) + kSegTextureHalo (default's texture) texels. Texels outside the level's
 // image are the nearest edge texel, exactly as on the CPU.
 #include "foliage_rule.glsl"
+#include "common_clip_layout.glsl" // the imagery clipmap's layout
 
 layout(local_size_x = 16, local_size_y = 16) in;
 
@@ -22,9 +23,6 @@ uniform sampler2DArray uClip0; // leaf-on, leaf-off toroidal levels
 uniform sampler2DArray uClip1;
 uniform sampler2D uCoarse0;    // the resident coarse pyramid's base (level uClipLevels)
 uniform sampler2D uCoarse1;
-uniform float uClipSize;
-uniform vec2 uLevel0Size;
-uniform vec2 uCoarseSize;
 
 layout(r8ui, binding = 0) uniform writeonly uimage2DArray uCanopyClipOut;
 layout(r8ui, binding = 1) uniform writeonly uimage2D uCanopyCoarseOut;
@@ -50,7 +48,6 @@ uniform int uLevel;        // the level derived; uCoarsePass: the coarse base
 #endif
 const int uCoarsePass = COARSE_PASS;
 const int uMethod = METHOD;
-uniform int uBlockSize;
 uniform int uDropThreshold;
 uniform int uLayers;
 uniform int uLayerK[32];   // k of each layer at this level, odd, non-decreasing
@@ -69,14 +66,14 @@ ivec3 fetch8(int season, ivec2 t) {
     if (uCoarsePass != 0) {
         c = season == 0 ? texelFetch(uCoarse0, t, 0) : texelFetch(uCoarse1, t, 0);
     } else {
-        ivec3 q = ivec3(t % int(uClipSize), uLevel);
+        ivec3 q = ivec3(clipTexelOf(t), uLevel);
         c = season == 0 ? texelFetch(uClip0, q, 0) : texelFetch(uClip1, q, 0);
     }
     // Premultiplied: a texel partly without data (coarser levels at a data edge) holds the mean colour of its covered
     // part times its coverage. Texels with all their data are exactly as stored.
     ivec3 v = ivec3(round(c.rgb * 255.0));
     int a = int(round(c.a * 255.0));
-    v = ivec3(svUnpremultiply(v.r, a), svUnpremultiply(v.g, a), svUnpremultiply(v.b, a));
+    v = svUnpremultiply3(v, a);
     if (uMethod == 2) {
         int o = season * 768;
         v = ivec3(luts[o + v.r], luts[o + 256 + v.g], luts[o + 512 + v.b]);
@@ -91,7 +88,7 @@ bool hasData(ivec2 t) {
         a = texelFetch(uCoarse0, t, 0).a;
         b = texelFetch(uCoarse1, t, 0).a;
     } else {
-        ivec3 q = ivec3(t % int(uClipSize), uLevel);
+        ivec3 q = ivec3(clipTexelOf(t), uLevel);
         a = texelFetch(uClip0, q, 0).a;
         b = texelFetch(uClip1, q, 0).a;
     }
@@ -216,7 +213,7 @@ void main() {
         if (uCoarsePass != 0) {
             imageStore(uCanopyCoarseOut, g, uvec4(uint(top)));
         } else {
-            imageStore(uCanopyClipOut, ivec3(g % int(uClipSize), uLevel), uvec4(uint(top)));
+            imageStore(uCanopyClipOut, ivec3(clipTexelOf(g), uLevel), uvec4(uint(top)));
         }
     }
     // 5. The tile's cell maxima: one uint per row of its TILE / CELL (= 4) cells.

@@ -2,18 +2,12 @@
 // y south). Toroidal level l holds texel q = p / 2^l at (q mod N): texture coordinate q / N with GL_REPEAT. A
 // block's data is valid only when the tag stored for its slot is the block's own tag; otherwise the next coarser
 // level is used, down to the resident coarse pyramid, so nothing missing or stale is ever drawn.
-uniform isampler2DArray uClipTags;
-uniform int uClipLevels;    // toroidal levels; pyramid level uClipLevels is the coarse texture's base
-uniform float uClipSize;    // N
-uniform int uBlockSize;
-uniform int uSlotsPerSide;
-uniform vec2 uLevel0Size;   // image pixels
-uniform vec2 uCoarseSize;   // texels of the coarse texture's base
+#include "common_clip_layout.glsl"
 
 bool clipBlockValid(int level, vec2 q) {
     ivec2 b = ivec2(floor(q / float(uBlockSize)));
     if (b.x < 0 || b.y < 0) return false;
-    ivec2 slot = b % uSlotsPerSide;
+    ivec2 slot = clipSlotOf(b);
     return texelFetch(uClipTags, ivec3(slot, level), 0).r == (b.x | (b.y << 16));
 }
 

@@ -1,6 +1,8 @@
 // The elevation clipmap (terrain/GeometryClipmapGL.h binds it): heights at level-0 sample coordinates of the
 // elevation grid (i east, j south), from the finest resident level, as the geometry clipmap's vertices and the
 // trunks standing on the terrain fetch them.
+#include "common_intdiv.glsl"
+
 uniform int uHasElevation;
 uniform sampler2DArray uElevClip0;
 uniform sampler2DArray uElevCoarse0; // the resident levels, exact, one layer each
@@ -12,9 +14,22 @@ uniform int uElevSlotsPerSide;
 uniform int uElevLevels;
 uniform vec2 uElevLevelSize[24];
 
+// For a sample t >= 0 of a level: its block, its block's slot and where the N×N level stores it. Built for one
+// elevation clipmap (GeometryClipmapGL::layoutDefines), its layout is compile-time constants: llvmpipe divides by a
+// constant with a multiply and a shift, by a uniform lane by lane (common_intdiv.glsl).
+#ifdef ELEV_CLIP_BLOCK_SIZE
+ivec2 elevBlockOf(ivec2 t) { return ivec2(uvec2(t) / uint(ELEV_CLIP_BLOCK_SIZE)); }
+ivec2 elevSlotOf(ivec2 b) { return ivec2(uvec2(b) % uint(ELEV_CLIP_SLOTS_PER_SIDE)); }
+ivec2 elevTexelOf(ivec2 t) { return ivec2(uvec2(t) % uint(ELEV_CLIP_SIZE)); }
+#else
+ivec2 elevBlockOf(ivec2 t) { return svDiv(t, uElevBlockSize); }
+ivec2 elevSlotOf(ivec2 b) { return svMod(b, uElevSlotsPerSide); }
+ivec2 elevTexelOf(ivec2 t) { return svMod(t, int(uElevClipSize)); }
+#endif
+
 bool elevBlockValid(int level, ivec2 t) {
-    ivec2 b = t / uElevBlockSize;
-    ivec2 slot = b % uElevSlotsPerSide;
+    ivec2 b = elevBlockOf(t);
+    ivec2 slot = elevSlotOf(b);
     return texelFetch(uElevClipTags, ivec3(slot, level), 0).r == (b.x | (b.y << 16));
 }
 
@@ -27,8 +42,7 @@ bool elevTexel(int level, ivec2 t, out float h) {
         return true;
     }
     if (!elevBlockValid(level, t)) return false;
-    int n = int(uElevClipSize);
-    h = texelFetch(uElevClip0, ivec3(t % n, level), 0).r;
+    h = texelFetch(uElevClip0, ivec3(elevTexelOf(t), level), 0).r;
     return true;
 }
 

@@ -7,18 +7,17 @@
 // at least uMinRadius, each the largest within 0.75 × its distance (ties: the first in row order), and appends them
 // to the trunk buffer, whose head is a DrawArraysIndirectCommand: the draw takes them without a readback.
 
-// The imagery clipmap's layout (ClipmapGL::bind; common_clipmap.glsl itself needs derivatives).
-uniform int uClipLevels;
-uniform float uClipSize;
-uniform int uBlockSize;
-uniform int uSlotsPerSide;
-uniform vec2 uLevel0Size;
-uniform vec2 uCoarseSize;
+// The imagery clipmap's layout (ClipmapGL::bind, its layoutDefines(); common_clipmap.glsl itself needs derivatives).
 #include "common_canopy.glsl"
 
 layout(local_size_x = 16, local_size_y = 16) in;
 
-uniform int uPass;        // 0: distances along columns, 1: along rows (the distance), 2: maxima
+// PASS (0: distances along columns, 1: along rows (the distance), 2: maxima) is a compile-time constant, one program
+// each: llvmpipe runs both sides of a branch on a uniform under a mask, so every pass paid for all three.
+#ifndef PASS
+#error "trunk_find.comp: PASS must be defined"
+#endif
+const int uPass = PASS;
 uniform int uLevel;       // the clip level searched
 uniform ivec2 uWindow0;   // its window's first texel (level texels)
 uniform ivec2 uWindow1;   // one past its last
@@ -39,23 +38,28 @@ layout(std430, binding = 0) buffer Trunks {
 
 bool inWindow(ivec2 q) { return all(greaterThanEqual(q, uWindow0)) && all(lessThan(q, uWindow1)); }
 
-// -1: unknown (outside the window or not derived), else the canopy value.
+// Where the N×N level stores window texel q (q mod N; the window may start left of or above the image).
+ivec2 gWindow0Mod; // uWindow0 mod N, >= 0
+ivec2 stored(ivec2 q) { return clipTexelOf(q - uWindow0 + gWindow0Mod); }
+
+// -1: unknown (outside the window or the level's image, or not derived), else the canopy value.
 int valueAt(ivec2 q) {
-    if (!inWindow(q) || !canopyBlockValid(uLevel, q)) return -1;
-    return int(texelFetch(uCanopyClip, ivec3(q % int(uClipSize), uLevel), 0).r);
+    if (!inWindow(q) || any(lessThan(q, ivec2(0))) || !canopyBlockValid(uLevel, q)) return -1;
+    return int(texelFetch(uCanopyClip, ivec3(stored(q), uLevel), 0).r);
 }
 
 float distanceAt(ivec2 q) {
     if (!inWindow(q)) return -1.0;
-    return imageLoad(uDistance, q % int(uClipSize)).r;
+    return imageLoad(uDistance, stored(q)).r;
 }
 
 void main() {
     ivec2 t = ivec2(gl_GlobalInvocationID.xy);
     int n = int(uClipSize);
     if (t.x >= n || t.y >= n) return;
+    gWindow0Mod = (uWindow0 % n + n) % n;
     // The level texel stored at t: the one of the window congruent to t modulo N.
-    ivec2 q = uWindow0 + ((t - uWindow0 % n + n) % n);
+    ivec2 q = uWindow0 + clipTexelOf(t - gWindow0Mod + n);
     if (uPass == 0) {
         // Along the column: the nearest texel outside the canopy up or down (0 on one), and the nearest unknown one
         // met before it (farther unknowns cannot come nearer than that outside texel), both clamped past uMaxRadius.
@@ -103,7 +107,7 @@ void main() {
                         unknown2 = min(unknown2, float(dx * dx));
                         continue;
                     }
-                    vec2 w = imageLoad(uColumn, o % n).rg;
+                    vec2 w = imageLoad(uColumn, stored(o)).rg;
                     if (w.r < 0.0) {
                         unknown2 = min(unknown2, float(dx * dx));
                         continue;

@@ -57,18 +57,19 @@ Result<std::unique_ptr<ClipmapTerrainRendererGL>> ClipmapTerrainRendererGL::crea
     assert(clipmap.layers() >= 2 && "ClipmapTerrainRendererGL::create(): needs leaf-on and leaf-off layers");
     auto r = std::unique_ptr<ClipmapTerrainRendererGL>(new ClipmapTerrainRendererGL(clipmap));
     r->m_seasonsComplete = scene.leafon.direct && scene.leafoff.direct;
+    auto g = GeometryClipmapGL::create(scene, elevationGrid(scene), elevation, options);
+    if (!g) return g.error();
+    r->m_geometry = std::move(*g);
+    r->m_layoutDefines = clipmap.layoutDefines("CLIP_");
+    for (const std::string& d : r->m_geometry->layoutDefines()) r->m_layoutDefines.push_back(d);
     // The leaf-on view's programs now (a shader that does not compile fails here), the others when first drawn.
     if (auto p = r->buildProgram("terrain_geometry.vert", "terrain_clipmap.frag", {"VIEW 0", "NORMALS 0"}); !p)
         return p.error();
     if (auto p = r->buildProgram("terrain_geometry.vert", "terrain_clipmap.frag", {"GBUFFER", "NORMALS 0"}); !p)
         return p.error();
     if (auto p = r->buildProgram("terrain_resolve.vert", "terrain_resolve.frag", {"VIEW 0"}); !p) return p.error();
-    auto s = gl::ShaderProgram::build("terrain_geometry.vert", "terrain_clipmap.frag", {"LEVEL_STATS", "NORMALS 0"});
-    if (!s) return s.error();
-    r->m_statsProgram = std::move(*s);
-    auto g = GeometryClipmapGL::create(scene, elevationGrid(scene), elevation, options);
-    if (!g) return g.error();
-    r->m_geometry = std::move(*g);
+    if (auto p = r->buildProgram("terrain_geometry.vert", "terrain_clipmap.frag", {"LEVEL_STATS", "NORMALS 0"}); !p)
+        return p.error();
     return r;
 }
 
@@ -78,7 +79,9 @@ Result<const gl::ShaderProgram*> ClipmapTerrainRendererGL::buildProgram(const ch
     for (const std::string& d : defines) key += "|" + d;
     auto it = m_programs.find(key);
     if (it != m_programs.end()) return &it->second;
-    auto p = gl::ShaderProgram::build(vertex, fragment, defines);
+    std::vector<std::string> all = defines;
+    all.insert(all.end(), m_layoutDefines.begin(), m_layoutDefines.end());
+    auto p = gl::ShaderProgram::build(vertex, fragment, all);
     if (!p) return p.error();
     return &m_programs.emplace(key, std::move(*p)).first->second;
 }
@@ -295,8 +298,9 @@ FrameLevelStats ClipmapTerrainRendererGL::measureLevels(const Camera& camera, co
     scratch.bind();
     beginTerrainPass(0, 0, 0, 0);
     // Isotropic: the statistics compare levels with the footprint's isotropic level, like the CPU estimate.
-    m_statsProgram.set("uClipAniso", 1.0f);
-    draw(m_statsProgram, camera, scratch);
+    const gl::ShaderProgram& stats = program("terrain_geometry.vert", "terrain_clipmap.frag", {"LEVEL_STATS", "NORMALS 0"});
+    stats.set("uClipAniso", 1.0f);
+    draw(stats, camera, scratch);
     const std::vector<std::uint8_t> px = scratch.readRgba();
     FrameLevelStats st;
     std::vector<std::int64_t> hist;

@@ -106,6 +106,13 @@ public:
     /// uViewProj: for other passes over the same geometry (the canopy layers).
     void bindTerrain(const gl::ShaderProgram& program, const glm::dmat4& viewProj) const;
 
+    /// A program of `vertex` + `fragment` with `defines` and the layouts of this renderer's clipmaps (imagery and
+    /// elevation, layoutDefines()), built when first asked for and kept: for the passes over this terrain's geometry
+    /// and clipmaps (the canopy layers, the trunks). A shader that does not compile is a bug here (the same sources
+    /// compiled in create()): it aborts.
+    const gl::ShaderProgram& program(const char* vertex, const char* fragment,
+                                     const std::vector<std::string>& defines) const;
+
     /// Triangles drawn by the last frame (after culling).
     std::int64_t triangles() const { return m_last.triangles; }
     const GeometryClipmapGL& geometry() const { return *m_geometry; }
@@ -130,8 +137,7 @@ private:
     /// (shaders/common_view.glsl says why), so every view is its own program.
     Result<const gl::ShaderProgram*> buildProgram(const char* vertex, const char* fragment,
                                                   const std::vector<std::string>& defines) const;
-    const gl::ShaderProgram& program(const char* vertex, const char* fragment,
-                                     const std::vector<std::string>& defines) const;
+    std::vector<std::string> m_layoutDefines; // the clipmaps' layouts as compile-time constants
     std::vector<std::string> viewDefines(ImageryView view, int swipeSeason) const;
     bool m_seasonsComplete = false; // both seasons read as they are, no nodata: no fallback to the other season
     /// The deferred pass's G-buffer at the target's size, sharing its depth buffer.
@@ -142,7 +148,6 @@ private:
     mutable glm::ivec2 m_gbufferSize{0};
     mutable GLuint m_gbufferDepth = 0;
     mutable gl::VertexArray m_emptyVao;
-    gl::ShaderProgram m_statsProgram;
 };
 
 } // namespace seasonview

@@ -74,6 +74,11 @@ public:
     /// Binds the elevation clipmap (units firstUnit .. firstUnit + 3) and the local->image lookup
     /// (firstUnit + 4) and sets the uniforms of terrain_geometry.vert.
     void bind(const gl::ShaderProgram& program, int firstUnit) const;
+    /// The elevation clipmap's layout as ELEV_CLIP_* definitions for programs that fetch heights
+    /// (shaders/common_elevation.glsl); none for a flat scene.
+    std::vector<std::string> layoutDefines() const {
+        return m_elevation ? m_elevation->layoutDefines("ELEV_CLIP_") : std::vector<std::string>{};
+    }
     /// Draws the pieces inside the frustum with `program` (bound by the caller, bind() called).
     GeometryFrameStats draw(const gl::ShaderProgram& program, const glm::dmat4& viewProj) const;
 
