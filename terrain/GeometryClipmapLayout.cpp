@@ -1,5 +1,7 @@
 #include "GeometryClipmapLayout.h"
 
+#include <algorithm>
+
 #include <cassert>
 #include <cstddef>
 
@@ -65,13 +67,18 @@ std::vector<std::uint32_t> pieceTriangles(int cellsX, int cellsY) {
     std::vector<std::uint32_t> idx;
     idx.reserve(std::size_t(cellsX) * std::size_t(cellsY) * 6);
     const int w = cellsX + 1;
-    for (int y = 0; y < cellsY; ++y)
-        for (int x = 0; x < cellsX; ++x) {
-            const auto a = std::uint32_t(y * w + x), b = a + 1, c = a + std::uint32_t(w), d = c + 1;
-            // Diagonals alternate so the mesh is symmetric (no directional bias in relief).
-            if ((x + y) % 2 == 0) idx.insert(idx.end(), {a, b, d, a, d, c});
-            else idx.insert(idx.end(), {a, b, c, b, d, c});
-        }
+    // In columns of kStrip cells, row by row within each: llvmpipe shades the vertices of each run of 1024 indices
+    // once (Mesa's draw module, vsplit), so a run should span few vertices: a 13-cell column's 13 rows of 14 × 14
+    // vertices rather than 2.7 rows of a 63-cell piece's 64-vertex rows.
+    constexpr int kStrip = 13;
+    for (int x0 = 0; x0 < cellsX; x0 += kStrip)
+        for (int y = 0; y < cellsY; ++y)
+            for (int x = x0; x < std::min(x0 + kStrip, cellsX); ++x) {
+                const auto a = std::uint32_t(y * w + x), b = a + 1, c = a + std::uint32_t(w), d = c + 1;
+                // Diagonals alternate so the mesh is symmetric (no directional bias in relief).
+                if ((x + y) % 2 == 0) idx.insert(idx.end(), {a, b, d, a, d, c});
+                else idx.insert(idx.end(), {a, b, c, b, d, c});
+            }
     return idx;
 }
 
