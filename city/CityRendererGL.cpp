@@ -705,10 +705,8 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
         if (terrain) terrain->bindTerrain(m_roofProgram, v.viewProj);
         else {
             // Nothing to sample, but samplers of two types on one unit (the defaults: all on unit 0) fail the draw.
-            m_roofProgram.set("uClip0", 12);
-            m_roofProgram.set("uClip1", 13);
-            m_roofProgram.set("uCoarse0", 14);
-            m_roofProgram.set("uCoarse1", 15);
+            m_roofProgram.set("uClip", 12);
+            m_roofProgram.set("uCoarse", 13);
             m_roofProgram.set("uClipTags", 11);
             m_roofProgram.set("uLocalToImage", 10);
         }

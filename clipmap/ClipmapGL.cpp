@@ -60,48 +60,51 @@ Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyra
     c->m_coarseSize = L.levelSizes[size_t(clipLevels)];
     c->m_coarseLevels = heights ? int(L.levelSizes.size()) - clipLevels
                                 : 1 + int(std::floor(std::log2(double(std::max(c->m_coarseSize.x, c->m_coarseSize.y)))));
-    for (const ImagePyramid& p : layers) {
-        gl::Texture clip = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
-        glTextureStorage3D(clip.id(), 1, heights ? GL_R32F : GL_RGBA8, options.size, options.size, arrayLayers);
-        const GLfloat zero[4] = {0, 0, 0, 0};
-        glClearTexImage(clip.id(), 0, heights ? GL_RED : GL_RGBA, GL_FLOAT, zero);
-        // GL_REPEAT does the toroidal modulo for texture coordinates q / N, bilinear taps included.
-        glTextureParameteri(clip.id(), GL_TEXTURE_WRAP_S, GL_REPEAT);
-        glTextureParameteri(clip.id(), GL_TEXTURE_WRAP_T, GL_REPEAT);
-        glTextureParameteri(clip.id(), GL_TEXTURE_MIN_FILTER, heights ? GL_NEAREST : GL_LINEAR);
-        glTextureParameteri(clip.id(), GL_TEXTURE_MAG_FILTER, heights ? GL_NEAREST : GL_LINEAR);
-        c->m_clip.push_back(std::move(clip));
-        glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    // Every layer in one array texture, layer-major (layer i's level l at array layer i · arrayLayers + l), so a
+    // shader choosing a layer per pixel (the season) indexes one sampler instead of sampling every layer's.
+    const int n = int(layers.size());
+    c->m_layers = n;
+    c->m_layerStride = arrayLayers;
+    c->m_clip = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
+    glTextureStorage3D(c->m_clip.id(), 1, heights ? GL_R32F : GL_RGBA8, options.size, options.size, n * arrayLayers);
+    const GLfloat zero[4] = {0, 0, 0, 0};
+    glClearTexImage(c->m_clip.id(), 0, heights ? GL_RED : GL_RGBA, GL_FLOAT, zero);
+    // GL_REPEAT does the toroidal modulo for texture coordinates q / N, bilinear taps included.
+    glTextureParameteri(c->m_clip.id(), GL_TEXTURE_WRAP_S, GL_REPEAT);
+    glTextureParameteri(c->m_clip.id(), GL_TEXTURE_WRAP_T, GL_REPEAT);
+    glTextureParameteri(c->m_clip.id(), GL_TEXTURE_MIN_FILTER, heights ? GL_NEAREST : GL_LINEAR);
+    glTextureParameteri(c->m_clip.id(), GL_TEXTURE_MAG_FILTER, heights ? GL_NEAREST : GL_LINEAR);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
 
-        if (heights) {
-            // The resident levels, exact, one array layer each.
-            gl::Texture coarse = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
-            glTextureStorage3D(coarse.id(), 1, GL_R32F, c->m_coarseSize.x, c->m_coarseSize.y, c->m_coarseLevels);
+    c->m_coarse = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
+    if (heights) {
+        // The resident levels, exact, one array layer each (layer i's level clipLevels + k at i · coarse levels + k).
+        glTextureStorage3D(c->m_coarse.id(), 1, GL_R32F, c->m_coarseSize.x, c->m_coarseSize.y, n * c->m_coarseLevels);
+        for (int i = 0; i < n; ++i)
             for (int k = 0; k < c->m_coarseLevels; ++k) {
-                auto level = readImageF32(p.levels[size_t(clipLevels + k)].file, 1);
+                auto level = readImageF32(layers[size_t(i)].levels[size_t(clipLevels + k)].file, 1);
                 if (!level) return level.error();
-                glTextureSubImage3D(coarse.id(), 0, 0, 0, k, level->width, level->height, 1, GL_RED, GL_FLOAT,
-                                    level->pixels.data());
+                glTextureSubImage3D(c->m_coarse.id(), 0, 0, 0, i * c->m_coarseLevels + k, level->width, level->height,
+                                    1, GL_RED, GL_FLOAT, level->pixels.data());
             }
-            glTextureParameteri(coarse.id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-            glTextureParameteri(coarse.id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-            c->m_coarse.push_back(std::move(coarse));
-            continue;
+        glTextureParameteri(c->m_coarse.id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        glTextureParameteri(c->m_coarse.id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    } else {
+        // The resident coarse pyramid: the first level that fits, mipmapped down to 1×1, one array layer per layer.
+        glTextureStorage3D(c->m_coarse.id(), c->m_coarseLevels, GL_RGBA8, c->m_coarseSize.x, c->m_coarseSize.y, n);
+        for (int i = 0; i < n; ++i) {
+            const PyramidLevel& lv = layers[size_t(i)].levels[size_t(clipLevels)];
+            auto base = readImageU8(lv.file, 4);
+            if (!base) return base.error();
+            if (base->channels != 4) return fileError(lv.file.string(), "is not RGBA");
+            glTextureSubImage3D(c->m_coarse.id(), 0, 0, 0, i, base->width, base->height, 1, GL_RGBA, GL_UNSIGNED_BYTE,
+                                base->pixels.data());
         }
-        // The resident coarse pyramid: the first level that fits, mipmapped down to 1×1.
-        auto base = readImageU8(p.levels[size_t(clipLevels)].file, 4);
-        if (!base) return base.error();
-        if (base->channels != 4) return fileError(p.levels[size_t(clipLevels)].file.string(), "is not RGBA");
-        const std::vector<std::uint8_t>& rgba = base->pixels;
-        gl::Texture coarse = gl::Texture::create(GL_TEXTURE_2D);
-        glTextureStorage2D(coarse.id(), c->m_coarseLevels, GL_RGBA8, base->width, base->height);
-        glTextureSubImage2D(coarse.id(), 0, 0, 0, base->width, base->height, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
-        glGenerateTextureMipmap(coarse.id());
-        glTextureParameteri(coarse.id(), GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-        glTextureParameteri(coarse.id(), GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-        glTextureParameteri(coarse.id(), GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
-        glTextureParameteri(coarse.id(), GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-        c->m_coarse.push_back(std::move(coarse));
+        glGenerateTextureMipmap(c->m_coarse.id());
+        glTextureParameteri(c->m_coarse.id(), GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+        glTextureParameteri(c->m_coarse.id(), GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+        glTextureParameteri(c->m_coarse.id(), GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+        glTextureParameteri(c->m_coarse.id(), GL_TEXTURE_MAG_FILTER, GL_LINEAR);
     }
     c->m_loader = std::make_unique<BlockLoader>(*c->m_source, c->m_schedule);
     return c;
@@ -121,15 +124,16 @@ int ClipmapGL::uploadReady(std::int64_t budget, ClipmapFrameStats& stats) {
         // A block of an older window (the view moved on while it loaded) would evict a wanted one: drop it.
         if (intersect(m_schedule.window(blk.key.level), blk.texels) != blk.texels) continue;
         const int dx = wrapTexel(blk.key.bx, slots) * b, dy = wrapTexel(blk.key.by, slots) * b;
-        for (size_t layer = 0; layer < m_clip.size(); ++layer) {
-            glTextureSubImage3D(m_clip[layer].id(), 0, dx, dy, blk.key.level, blk.texels.width(), blk.texels.height(), 1,
+        for (int layer = 0; layer < m_layers; ++layer) {
+            glTextureSubImage3D(m_clip.id(), 0, dx, dy, layer * m_layerStride + blk.key.level, blk.texels.width(),
+                                blk.texels.height(), 1,
                                 m_format == TexelFormat::R32F ? GL_RED : GL_RGBA,
-                                m_format == TexelFormat::R32F ? GL_FLOAT : GL_UNSIGNED_BYTE, blk.layers[layer].data());
+                                m_format == TexelFormat::R32F ? GL_FLOAT : GL_UNSIGNED_BYTE, blk.layers[size_t(layer)].data());
             m_totalUploaded += std::int64_t(blk.texels.width()) * blk.texels.height(); // counted at the call
         }
         m_schedule.markStored(blk.key);
         touched[size_t(blk.key.level)] = 1;
-        stats.texelsUploaded += blk.texels.area() * std::int64_t(m_clip.size());
+        stats.texelsUploaded += blk.texels.area() * std::int64_t(m_layers);
         ++stats.blocksUploaded;
         ++uploaded;
     }
@@ -165,15 +169,13 @@ ClipmapFrameStats ClipmapGL::completeSynchronously() {
 
 void ClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit, const std::string& prefix) const {
     auto name = [&](const std::string& n) { return prefix + n; };
-    const int n = int(m_clip.size());
-    for (int i = 0; i < n; ++i) {
-        glBindTextureUnit(GLuint(firstUnit + i), m_clip[size_t(i)].id());
-        glBindTextureUnit(GLuint(firstUnit + n + i), m_coarse[size_t(i)].id());
-        program.set(name("Clip" + std::to_string(i)).c_str(), firstUnit + i);
-        program.set(name("Coarse" + std::to_string(i)).c_str(), firstUnit + n + i);
-    }
-    glBindTextureUnit(GLuint(firstUnit + 2 * n), m_tags.id());
-    program.set(name("ClipTags").c_str(), firstUnit + 2 * n);
+    glBindTextureUnit(GLuint(firstUnit), m_clip.id());
+    glBindTextureUnit(GLuint(firstUnit + 1), m_coarse.id());
+    glBindTextureUnit(GLuint(firstUnit + 2), m_tags.id());
+    program.set(name("Clip").c_str(), firstUnit);
+    program.set(name("Coarse").c_str(), firstUnit + 1);
+    program.set(name("ClipTags").c_str(), firstUnit + 2);
+    program.set(name("ClipLayerStride").c_str(), m_layerStride);
     const ClipmapLayout& L = m_schedule.layout();
     program.set(name("ClipLevels").c_str(), L.clipLevels());
     program.set(name("ClipSize").c_str(), float(L.size));
@@ -198,7 +200,7 @@ std::int64_t ClipmapGL::residentBytes() const {
                                     ? std::int64_t(m_coarseSize.x) * m_coarseSize.y * 4 * m_coarseLevels
                                     : std::int64_t(m_coarseSize.x) * m_coarseSize.y * 4 * 4 / 3;
     const std::int64_t tags = std::int64_t(m_schedule.slotsPerSide()) * m_schedule.slotsPerSide() * 4 * arrayLayers;
-    return std::int64_t(m_clip.size()) * (clip + coarse) + tags;
+    return std::int64_t(m_layers) * (clip + coarse) + tags;
 }
 
 } // namespace seasonview

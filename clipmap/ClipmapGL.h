@@ -65,23 +65,25 @@ public:
     };
     const std::optional<ReadError>& readError() const { return m_readError; }
 
-    /// Binds layer textures to units firstUnit + layer (sampler2DArray), their coarse textures to units after
-    /// those, the tag texture after that, and sets the clipmap uniforms of common_clipmap.glsl. Layer sampler
-    /// names: uClip0, uClip1, ..., uCoarse0, uCoarse1, ... With a `prefix` ("uElev") every name's leading "u" is
-    /// replaced by it (uElevClip0, uElevClipTags, uElevLevel0Size, ...), so two clipmaps can feed one program.
-    /// Units used: 2 × layers + 1.
+    /// Binds the toroidal levels of every layer (uClip, a sampler2DArray: layer i's level l at array layer
+    /// i · uClipLayerStride + l) to unit firstUnit, the coarse pyramids (uCoarse, a sampler2DArray: Rgba8, layer i
+    /// mipmapped at array layer i; R32F below) to firstUnit + 1, the tag texture (uClipTags) to firstUnit + 2, and
+    /// sets the clipmap uniforms of common_clip_layout.glsl. With a `prefix` ("uElev") every name's leading "u" is
+    /// replaced by it (uElevClip, uElevClipTags, uElevLevel0Size, ...), so two clipmaps can feed one program.
+    /// Units used: 3.
     void bind(const gl::ShaderProgram& program, int firstUnit = 0, const std::string& prefix = "u") const;
     /// The layout bind() sets as uniforms that shaders divide by, as preprocessor definitions for a program built for
     /// this clipmap: PREFIX + BLOCK_SIZE, SLOTS_PER_SIDE and SIZE (shaders/common_clip_layout.glsl; llvmpipe divides
     /// by a constant with a multiply and a shift, by a uniform lane by lane).
     std::vector<std::string> layoutDefines(const std::string& prefix = "CLIP_") const;
-    /// Rgba8 pyramids: RGBA8 levels, a mipmapped coarse 2D texture. R32F (elevation): R32F levels read with
-    /// texelFetch, and the coarse pyramid's exact levels as the layers of a 2D array texture (level k at layer
-    /// k - clip levels, stored from texel 0,0), since mipmaps would round sizes down where the pyramid rounds up.
+    /// Rgba8 pyramids: RGBA8 levels, a mipmapped coarse texture per layer. R32F (elevation): R32F levels read with
+    /// texelFetch, and the coarse pyramid's exact levels as array layers (layer i's level clip levels + k at
+    /// i · (levels - clip levels) + k, stored from texel 0,0), since mipmaps would round sizes down where the
+    /// pyramid rounds up.
     TexelFormat format() const { return m_format; }
 
     const ClipmapSchedule& schedule() const { return m_schedule; }
-    int layers() const { return int(m_clip.size()); }
+    int layers() const { return m_layers; }
     /// GPU bytes of all clipmap textures (toroidal levels, coarse pyramids with mips, tags).
     std::int64_t residentBytes() const;
     std::int64_t loaderCacheBytes() const { return m_source->cacheBytes(); }
@@ -98,7 +100,8 @@ private:
     ClipmapSchedule m_schedule;
     std::unique_ptr<BlockSource> m_source;
     std::unique_ptr<BlockLoader> m_loader;
-    std::vector<gl::Texture> m_clip, m_coarse;
+    gl::Texture m_clip, m_coarse; // every layer's levels in one array texture each (bind())
+    int m_layers = 0, m_layerStride = 1; // layers; array layers per layer in m_clip
     gl::Texture m_tags;
     std::optional<ReadError> m_readError;
     TexelFormat m_format = TexelFormat::Rgba8;

@@ -19,10 +19,9 @@ const int IN = TILE + 2 * HALO;                      // 52: fetched texels
 const int SM = IN - 2;                               // 50: 3×3 sums of brightness
 const int BITS = TILE + 2 * VOTE_HALO;               // 46: per-texel votes
 
-uniform sampler2DArray uClip0; // leaf-on, leaf-off toroidal levels
-uniform sampler2DArray uClip1;
-uniform sampler2D uCoarse0;    // the resident coarse pyramid's base (level uClipLevels)
-uniform sampler2D uCoarse1;
+uniform sampler2DArray uClip;   // leaf-on, leaf-off toroidal levels: season s's level l at s · uClipLayerStride + l
+uniform sampler2DArray uCoarse; // the resident coarse pyramids (level uClipLevels): season s at array layer s
+uniform int uClipLayerStride;
 
 layout(r8ui, binding = 0) uniform writeonly uimage2DArray uCanopyClipOut;
 layout(r8ui, binding = 1) uniform writeonly uimage2D uCanopyCoarseOut;
@@ -64,10 +63,9 @@ ivec2 levelSize() {
 ivec3 fetch8(int season, ivec2 t) {
     vec4 c;
     if (uCoarsePass != 0) {
-        c = season == 0 ? texelFetch(uCoarse0, t, 0) : texelFetch(uCoarse1, t, 0);
+        c = texelFetch(uCoarse, ivec3(t, season), 0);
     } else {
-        ivec3 q = ivec3(clipTexelOf(t), uLevel);
-        c = season == 0 ? texelFetch(uClip0, q, 0) : texelFetch(uClip1, q, 0);
+        c = texelFetch(uClip, ivec3(clipTexelOf(t), season * uClipLayerStride + uLevel), 0);
     }
     // Premultiplied: a texel partly without data (coarser levels at a data edge) holds the mean colour of its covered
     // part times its coverage. Texels with all their data are exactly as stored.
@@ -85,12 +83,12 @@ ivec3 fetch8(int season, ivec2 t) {
 bool hasData(ivec2 t) {
     float a, b;
     if (uCoarsePass != 0) {
-        a = texelFetch(uCoarse0, t, 0).a;
-        b = texelFetch(uCoarse1, t, 0).a;
+        a = texelFetch(uCoarse, ivec3(t, 0), 0).a;
+        b = texelFetch(uCoarse, ivec3(t, 1), 0).a;
     } else {
-        ivec3 q = ivec3(clipTexelOf(t), uLevel);
-        a = texelFetch(uClip0, q, 0).a;
-        b = texelFetch(uClip1, q, 0).a;
+        ivec2 q = clipTexelOf(t);
+        a = texelFetch(uClip, ivec3(q, uLevel), 0).a;
+        b = texelFetch(uClip, ivec3(q, uClipLayerStride + uLevel), 0).a;
     }
     return int(round(a * 255.0)) >= SV_SEG_MIN_ALPHA && int(round(b * 255.0)) >= SV_SEG_MIN_ALPHA;
 }

@@ -5,10 +5,6 @@
 // position), PLAIN (untextured: one colour). Walls are shaded from their face normal.
 #ifdef ROOF
 #include "common_clipmap.glsl"
-uniform sampler2DArray uClip0;
-uniform sampler2DArray uClip1;
-uniform sampler2D uCoarse0;
-uniform sampler2D uCoarse1;
 uniform int uSeason;    // 0 leaf-on, 1 leaf-off
 uniform float uBlend;   // >= 0: leaf-on mixed with leaf-off by this much (the terrain's blend view)
 uniform float uSwipeX;  // >= 0, pixels: leaf-on left of it, leaf-off right, a 2-pixel white divider (swipe view)
@@ -55,8 +51,8 @@ void main() {
         ClipFootprint f = clipmapFootprint(p);
         int used, used1;
         // Premultiplied imagery: where the season shown has no data, the other one, then the roof's plain colour.
-        vec4 on = sampleClipmap(uClip0, uCoarse0, p, f, used);
-        vec4 off = sampleClipmap(uClip1, uCoarse1, p, f, used1);
+        vec4 on = sampleClipmap(0, p, f, used);
+        vec4 off = sampleClipmap(1, p, f, used1);
         vec3 onFilled = on.rgb + (1.0 - on.a) * (off.rgb + (1.0 - off.a) * uPlainColour);
         vec3 offFilled = off.rgb + (1.0 - off.a) * (on.rgb + (1.0 - on.a) * uPlainColour);
         if (uSwipeX >= 0.0 && abs(gl_FragCoord.x - uSwipeX) < 1.0)

@@ -4,6 +4,12 @@
 // level is used, down to the resident coarse pyramid, so nothing missing or stale is ever drawn.
 #include "common_clip_layout.glsl"
 
+// Every layer's toroidal levels in one array (layer i's level l at array layer i · uClipLayerStride + l) and the
+// layers' coarse pyramids (array layer i, mipmapped): a pixel choosing its layer (the season) indexes one sampler.
+uniform sampler2DArray uClip;
+uniform sampler2DArray uCoarse;
+uniform int uClipLayerStride;
+
 bool clipBlockValid(int level, vec2 q) {
     ivec2 b = ivec2(floor(q / float(uBlockSize)));
     if (b.x < 0 || b.y < 0) return false;
@@ -11,16 +17,16 @@ bool clipBlockValid(int level, vec2 q) {
     return texelFetch(uClipTags, ivec3(slot, level), 0).r == (b.x | (b.y << 16));
 }
 
-vec4 clipLevelSample(sampler2DArray clip, int level, vec2 p) {
+vec4 clipLevelSample(int layer, int level, vec2 p) {
     float s = exp2(float(level));
     // Stay half a texel inside the level's image: the texel past the edge belongs to another block's slot.
     vec2 q = clamp(p / s, vec2(0.5), ceil(uLevel0Size / s) - 0.5);
-    return textureLod(clip, vec3(q / uClipSize, float(level)), 0.0);
+    return textureLod(uClip, vec3(q / uClipSize, float(layer * uClipLayerStride + level)), 0.0);
 }
 
-vec4 coarseSample(sampler2D coarse, vec2 p, float level) {
+vec4 coarseSample(int layer, vec2 p, float level) {
     vec2 uv = p / (exp2(float(uClipLevels)) * uCoarseSize);
-    return textureLod(coarse, uv, max(level - float(uClipLevels), 0.0));
+    return textureLod(uCoarse, vec3(uv, float(layer)), max(level - float(uClipLevels), 0.0));
 }
 
 // A pixel's footprint in level-0 texels: the ellipse spanned by the screen-space derivatives (Heckbert 1989).
@@ -66,40 +72,41 @@ ClipFootprint clipmapFootprintOf(vec2 dx, vec2 dy) {
 ClipFootprint clipmapFootprint(vec2 p) { return clipmapFootprintOf(dFdx(p), dFdy(p)); }
 
 // The mean of the footprint's probes at one level; false if any probe's block is not valid.
-bool clipLevelProbes(sampler2DArray clip, int level, vec2 p, ClipFootprint f, out vec4 colour) {
+bool clipLevelProbes(int layer, int level, vec2 p, ClipFootprint f, out vec4 colour) {
     float s = exp2(float(level));
     colour = vec4(0.0);
     for (int i = 0; i < f.probes; ++i) {
         vec2 pi = clamp(p + f.axis * ((float(i) + 0.5) / float(f.probes) - 0.5), vec2(0.0), uLevel0Size);
         if (!clipBlockValid(level, pi / s)) return false;
-        colour += clipLevelSample(clip, level, pi);
+        colour += clipLevelSample(layer, level, pi);
     }
     colour /= float(f.probes);
     return true;
 }
 
-vec4 coarseProbes(sampler2D coarse, vec2 p, float level, ClipFootprint f) {
+vec4 coarseProbes(int layer, vec2 p, float level, ClipFootprint f) {
     vec4 colour = vec4(0.0);
     for (int i = 0; i < f.probes; ++i)
-        colour += coarseSample(coarse, p + f.axis * ((float(i) + 0.5) / float(f.probes) - 0.5), level);
+        colour += coarseSample(layer, p + f.axis * ((float(i) + 0.5) / float(f.probes) - 0.5), level);
     return colour / float(f.probes);
 }
 
 // The finest valid level at p, no finer than the level the footprint asks for; trilinear between it and the next
-// level. `usedLevel` receives the level actually used (uClipLevels or more: the coarse pyramid).
-vec4 sampleClipmap(sampler2DArray clip, sampler2D coarse, vec2 p, ClipFootprint f, out int usedLevel) {
+// level, of layer `layer` (0 leaf-on, 1 leaf-off). `usedLevel` receives the level actually used (uClipLevels or more:
+// the coarse pyramid).
+vec4 sampleClipmap(int layer, vec2 p, ClipFootprint f, out int usedLevel) {
     float lambda = f.lambda > 0.0 ? min(f.lambda, 64.0) : 0.0; // bounded: l0 below starts a loop
     int l0 = int(floor(lambda));
     float t = lambda - float(l0);
     vec4 a, b;
     for (int l = l0; l < uClipLevels; ++l) {
-        if (!clipLevelProbes(clip, l, p, f, a)) continue;
+        if (!clipLevelProbes(layer, l, p, f, a)) continue;
         usedLevel = l;
         if (l != l0 || t <= 0.0) return a;
         int n = l + 1;
-        if (n >= uClipLevels || !clipLevelProbes(clip, n, p, f, b)) b = coarseProbes(coarse, p, float(n), f);
+        if (n >= uClipLevels || !clipLevelProbes(layer, n, p, f, b)) b = coarseProbes(layer, p, float(n), f);
         return mix(a, b, t);
     }
     usedLevel = max(l0, uClipLevels);
-    return coarseProbes(coarse, p, max(lambda, float(uClipLevels)), f);
+    return coarseProbes(layer, p, max(lambda, float(uClipLevels)), f);
 }

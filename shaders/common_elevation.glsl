@@ -4,8 +4,8 @@
 #include "common_intdiv.glsl"
 
 uniform int uHasElevation;
-uniform sampler2DArray uElevClip0;
-uniform sampler2DArray uElevCoarse0; // the resident levels, exact, one layer each
+uniform sampler2DArray uElevClip;
+uniform sampler2DArray uElevCoarse; // the resident levels, exact, one layer each
 uniform isampler2DArray uElevClipTags;
 uniform int uElevClipLevels;
 uniform float uElevClipSize;
@@ -38,11 +38,11 @@ bool elevTexel(int level, ivec2 t, out float h) {
     h = 0.0; // defined when not resident: callers may weight it by 0
     t = clamp(t, ivec2(0), ivec2(uElevLevelSize[level]) - 1);
     if (level >= uElevClipLevels) {
-        h = texelFetch(uElevCoarse0, ivec3(t, level - uElevClipLevels), 0).r;
+        h = texelFetch(uElevCoarse, ivec3(t, level - uElevClipLevels), 0).r;
         return true;
     }
     if (!elevBlockValid(level, t)) return false;
-    h = texelFetch(uElevClip0, ivec3(elevTexelOf(t), level), 0).r;
+    h = texelFetch(uElevClip, ivec3(elevTexelOf(t), level), 0).r;
     return true;
 }
 

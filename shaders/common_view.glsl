@@ -1,10 +1,6 @@
 // The colour of one terrain pixel in view VIEW, from its level-0 position p, footprint f and unit normal n: the
 // forward pass (terrain_clipmap.frag) and the deferred resolve (terrain_resolve.frag) share it, so both draw the
 // same pixels. Include after common_clipmap.glsl and common_canopy.glsl.
-uniform sampler2DArray uClip0;
-uniform sampler2DArray uClip1;
-uniform sampler2D uCoarse0;
-uniform sampler2D uCoarse1;
 // VIEW (defined by the imagery programs, one per view): ImageryView 0 leafon, 1 leafoff, 2 blend, 3 swipe, 4 lod,
 // 5 wireframe, 6 levels, 7 relief, 8 canopy (ground: uCanopyGround[1] under the canopy, uCanopyGround[0] elsewhere).
 // A compile-time constant so that each program holds only its view's code: llvmpipe executes every side of a
@@ -38,7 +34,7 @@ uniform vec3 uNoDataColour; // where neither season has data (imagery/clipmap te
 // Season s (0 leaf-on, 1 leaf-off) where it has data, the other season where it has none, then uNoDataColour: never
 // black. The other season is fetched only where s lacks data.
 vec3 seasonColour(int s, vec2 p, ClipFootprint f, out int used) {
-    vec4 a = s == 0 ? sampleClipmap(uClip0, uCoarse0, p, f, used) : sampleClipmap(uClip1, uCoarse1, p, f, used);
+    vec4 a = sampleClipmap(s, p, f, used);
 #ifdef SEASONS_COMPLETE
     // Both seasons are read as they are, on the working grid, with no pixel marked nodata (ImageryLayer::direct):
     // no other season to fall back on, and llvmpipe would run that sampling under a mask for every pixel.
@@ -46,7 +42,7 @@ vec3 seasonColour(int s, vec2 p, ClipFootprint f, out int used) {
 #endif
     if (a.a >= 0.999) return a.rgb;
     int other;
-    vec4 b = s == 0 ? sampleClipmap(uClip1, uCoarse1, p, f, other) : sampleClipmap(uClip0, uCoarse0, p, f, other);
+    vec4 b = sampleClipmap(1 - s, p, f, other);
     return a.rgb + (1.0 - a.a) * (b.rgb + (1.0 - b.a) * uNoDataColour);
 }
 
@@ -76,7 +72,8 @@ vec3 viewColour(vec2 p, ClipFootprint f, vec3 n, int level, out int used) {
         // The ground of the canopy view: leaf-off under the crowns (the trees stand on it as layers), leaf-on
         // elsewhere; both configurable.
         bool under = uHasCanopy != 0 && canopyAt(p, int(floor(max(f.lambdaIso, 0.0)))) > 0;
-        // One seasonColour call: the season is per-pixel data here, so each call samples both seasons (a mask).
+        // One seasonColour call: the season is per-pixel data here, a layer index into the one array both seasons
+        // share (common_clipmap.glsl), so only the season shown is sampled.
         bool base = under && uCanopyBase > 0.0;
         c = (base ? uCanopyBase : 1.0) * seasonColour(base ? 0 : uCanopyGround[under ? 1 : 0], p, f, used);
     } else if (uView == 4 || uView == 6) {

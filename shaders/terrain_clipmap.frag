@@ -74,7 +74,7 @@ void main() {
             }
         }
         if (hit < 0) discard;
-        vec3 lc = sampleClipmap(uClip0, uCoarse0, pAt, fm, used).rgb;
+        vec3 lc = sampleClipmap(0, pAt, fm, used).rgb;
         lc *= mix(uCanopyDark, 1.0, float(hit) / float(max(uCanopyLayers - 1, 1)));
         if (uShade > 0.0) lc *= mix(1.0, 0.25 + 0.75 * max(dot(n, uSunDir), 0.0), uShade);
         vec4 clip = uViewProj * vec4(at, 1.0);
@@ -93,13 +93,13 @@ void main() {
 #endif
     ClipFootprint f = clipmapFootprint(p);
 #ifdef CANOPY_LAYER
-    vec3 lc = sampleClipmap(uClip0, uCoarse0, p, f, used).rgb;
+    vec3 lc = sampleClipmap(0, p, f, used).rgb;
     lc *= mix(uCanopyDark, 1.0, float(vLayer) / float(max(uCanopyLayers - 1, 1)));
     if (uShade > 0.0) lc *= mix(1.0, 0.25 + 0.75 * max(dot(normalize(vNormal), uSunDir), 0.0), uShade);
     fragColor = vec4(lc, 1.0);
     return;
 #elif defined(LEVEL_STATS)
-    sampleClipmap(uClip0, uCoarse0, p, f, used);
+    sampleClipmap(0, p, f, used);
     float needed = clamp(floor(max(f.lambdaIso, 0.0)), 0.0, 254.0);
     fragColor = vec4(needed / 255.0, float(min(used, 254)) / 255.0, 0.0, 1.0);
 #elif defined(GBUFFER)
