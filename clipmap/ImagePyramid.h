@@ -8,7 +8,7 @@
 // corrupt.
 #include "Result.h"
 #include "Scene.h"
-#include "SyntheticScene.h" // ProgressFn
+#include "Progress.h"
 
 #include <cstdint>
 #include <filesystem>

@@ -6,7 +6,7 @@
 // imagery again, and `seasonview segment` can skip its histogram pass.
 #include "ImagePyramid.h"
 #include "SegmentationStats.h"
-#include "SyntheticScene.h" // ProgressFn
+#include "Progress.h"
 
 #include <filesystem>
 #include <optional>

@@ -10,7 +10,7 @@
 #include "Scene.h"
 #include "Segmentation.h"
 #include "SegmentationMetrics.h"
-#include "SyntheticScene.h" // ProgressFn
+#include "Progress.h"
 
 #include <array>
 #include <filesystem>

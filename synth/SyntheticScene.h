@@ -1,5 +1,6 @@
 #pragma once
 // Deterministic synthetic two-season landscape with ground truth (`seasonview synth`).
+#include "Progress.h"
 #include "Raster.h"
 #include "Result.h"
 
@@ -58,9 +59,6 @@ struct SynthReport {
     double seconds = 0.0;              // wall time of the whole generation
     std::string crs;                   // e.g. "EPSG:32632 (UTM 32N)"
 };
-
-/// Progress callback: fraction done in [0,1] and a short stage name.
-using ProgressFn = std::function<void(double fraction, const char* stage)>;
 
 /// Generates the scene into `outDir` (created if needed): leafon.tif, leafoff.tif (8-bit RGB tiled UTM GeoTIFFs,
 /// BigTIFF past 2 GiB), dem.tif (float32 UTM GeoTIFF), truth_deciduous.png, truth_conifer.png (8-bit, 255 = class,
