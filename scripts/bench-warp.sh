@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The warp's throughput and memory (docs/results.md, "prepare" rows): one synthetic season pair delivered three ways and
+# The warp's throughput and memory (docs/benchmarks.md, "prepare" rows): one synthetic season pair delivered three ways and
 # prepared (pyramids of both seasons and the pair statistics, cache emptied each time):
 #   grid    the seasons as one GeoTIFF each, already on the working grid (no warp: the direct path);
 #   mosaic  each season as 4 tiles in Web Mercator, warped by `seasonview prepare` onto the original UTM grid;

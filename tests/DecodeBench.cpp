@@ -2,7 +2,7 @@
 // NUM_THREADS=ALL_CPUS, the same bands of 1024 rows), on a synthetic 4096² season written three ways (Zstandard,
 // deflate, JPEG-in-TIFF YCbCr), as `seasonview synth --compression` writes them. Not a test: run by hand,
 //   build/tests/seasonview_decode_bench [--benchmark_repetitions=3]
-// docs/results.md quotes its MP/s. Fixtures go to $TMPDIR/seasonview-decode-bench (made once).
+// docs/benchmarks.md quotes its MP/s. Fixtures go to $TMPDIR/seasonview-decode-bench (made once).
 #include "BandReader.h"
 #include "SyntheticScene.h"
 
