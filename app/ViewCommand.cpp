@@ -1,5 +1,5 @@
 // `seasonview view`: the interactive viewer. A GLFW window (also under Xvfb) showing the scene through the same
-// renderers as `render` and `bench`, a Dear ImGui panel with the settings, a HUD, navigation (core/CameraControl.h:
+// renderers as `render` and `bench`, a Dear ImGui panel with the settings, a HUD, navigation (core/camera/CameraControl.h:
 // map, fly, orbit), screenshots, camera bookmarks, and recording the flown camera as a bench path. `--script`,
 // `--screenshot-at` and `--quit-at` run it without a person (ViewerScript.h); with any of them the clock advances by
 // a fixed step per frame (`--fixed-dt`), so what a script does does not depend on how fast the machine draws.

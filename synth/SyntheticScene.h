@@ -63,7 +63,7 @@ struct SynthReport {
 /// Generates the scene into `outDir` (created if needed): leafon.tif, leafoff.tif (8-bit RGB tiled UTM GeoTIFFs,
 /// BigTIFF past 2 GiB), dem.tif (float32 UTM GeoTIFF), truth_deciduous.png, truth_conifer.png (8-bit, 255 = class,
 /// on the imagery grid; tiled 8-bit GeoTIFFs truth_deciduous.tif, truth_conifer.tif above pngMasksUpTo pixels),
-/// trees.csv, the buildings as city/city.obj + city.mtl + city/facades/*.jpg (core/SynthCity.h) and scene.json
+/// trees.csv, the buildings as city/city.obj + city.mtl + city/facades/*.jpg (synth/SynthCity.h) and scene.json
 /// (written last, naming the files). Same options -> byte-identical files, whatever
 /// `threads` and `bandRows`. The imagery is generated and written in bands of rows, so memory does not grow with
 /// the height; the layout (a list of objects) and the DEM are whole. Files appear atomically.

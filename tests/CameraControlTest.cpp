@@ -1,4 +1,4 @@
-// The viewer's camera controllers (core/CameraControl.h) without a window: ground picking, never below the terrain,
+// The viewer's camera controllers (core/camera/CameraControl.h) without a window: ground picking, never below the terrain,
 // fly speed scaled with the height, the orbit's pivot kept in the centre, map panning and zooming that keep the
 // ground point under the cursor, and the easing.
 #include "CameraControl.h"

@@ -1,7 +1,7 @@
 #pragma once
 // OpenGL 4.5 core contexts: headless through EGL, windowed through GLFW. Renderers draw into their own
 // framebuffer objects either way, so the same code path serves both.
-#include "../Result.h"
+#include "Result.h"
 
 #include <memory>
 #include <string>

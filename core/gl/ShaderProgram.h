@@ -1,7 +1,7 @@
 #pragma once
 // Programs built from the embedded shader files of shaders/. Variants are `#define` lines prepended to one source
 // (filament/magnum style); `#include "file.glsl"` lines are expanded from the embedded set.
-#include "../Result.h"
+#include "Result.h"
 #include "GlObjects.h"
 
 #include <glm/mat2x2.hpp>
