@@ -20,6 +20,7 @@
 #include <optional>
 #include <sstream>
 #include <thread>
+#include <tuple>
 #include <algorithm>
 
 namespace seasonview::app {
@@ -165,7 +166,263 @@ std::string htmlEscape(const std::string& s) {
     return r;
 }
 
+// One still of the demo's page.
+struct DemoStill {
+    const char* file;
+    const char* caption;
+    Camera camera;
+    ImageryView view;
+};
+
+// Generates the scene into `sceneDir` unless a complete one with the same options is there; false when cached.
+Result<bool> ensureDemoScene(const SynthOptions& synth, const std::filesystem::path& sceneDir, double& synthSeconds) {
+    if (cachedSceneMatches(sceneDir, synth)) return false;
+    std::printf("generating the synthetic scene (%.0f m at %.2f m/px, seed %llu) ...\n", synth.sizeM, synth.gsd,
+                static_cast<unsigned long long>(synth.seed));
+    std::fflush(stdout);
+    auto report = generateSyntheticScene(synth, sceneDir, terminalProgress("synth"));
+    if (!report) return report.error();
+    synthSeconds = report->seconds;
+    return true;
+}
+
+// The stills of the page: both seasons from above, the swipe, the imagery and geometry levels, low and oblique views,
+// the canopy with trunks.
+std::vector<DemoStill> demoStills(const Scene& scene, double aspect) {
+    const Camera top = overviewCamera(scene, aspect);
+    const Camera oblique = obliqueCamera(scene, 30.0, -35.0, 0.3);
+    const Camera low = obliqueCamera(scene, 210.0, -12.0, 0.22);
+    const Camera near = obliqueCamera(scene, 30.0, -30.0, 0.05);
+    return {
+        {"leafon_top.png", "Leaf-on (summer), straight down", top, ImageryView::LeafOn},
+        {"leafoff_top.png", "Leaf-off (winter), straight down", top, ImageryView::LeafOff},
+        {"swipe_oblique.png", "Swipe: leaf-on left, leaf-off right, oblique 3D view (35 deg down)", oblique,
+         ImageryView::Swipe},
+        {"lod_oblique.png", "Clipmap levels used (level 0 red, 1 green, 2 blue, coarse pyramid yellow...)", oblique,
+         ImageryView::Lod},
+        {"leafoff_oblique.png", "Leaf-off, oblique 3D view (35 deg down)", oblique, ImageryView::LeafOff},
+        {"leafon_low.png", "Leaf-on, low view towards the horizon (12 deg down)", low, ImageryView::LeafOn},
+        {"terrain_levels.png", "Terrain geometry clipmap levels (one colour per level: red finest, then green, "
+                               "blue, yellow, ...)", oblique, ImageryView::Levels},
+        {"terrain_wireframe.png", "Terrain geometry clipmap triangles, low view", low, ImageryView::Wireframe},
+        {"canopy_trunks.png", "Deciduous treetops found by comparing the seasons (default method, on the GPU), "
+                              "standing as 16 stacked layers over the leaf-off ground, trunks at the crown centres "
+                              "(30 deg down, 145 m away)", near, ImageryView::Canopy},
+    };
+}
+
+// The city still: the scene's buildings through their texture-atlas tree (built into the cache on first use), seen
+// obliquely from 30° down over the leaf holding the most triangles. The demo's scene is always synth's, whose OBJ is
+// in the scene's frame, so the tree's bounds are scene coordinates. Nothing when the tree has no textured leaf.
+struct DemoCity {
+    std::optional<DemoStill> still;
+    std::string note;
+    double seconds = 0.0;
+};
+
+Result<DemoCity> renderCityStill(const Scene& scene, const RenderSettings& settings, const std::filesystem::path& out,
+                                 int w, int h) {
+    using clock = std::chrono::steady_clock;
+    const auto tc = clock::now();
+    DemoCity city;
+    auto tree = prepareCityTree(scene, settings.cacheDir, "");
+    if (!tree) return tree.error();
+    auto file = city::AtlasTreeFile::open(tree->string());
+    if (!file) return file.error();
+    const city::AtlasNode* best = nullptr;
+    std::size_t nodes = 0;
+    for (const auto& t : file->trees)
+        for (const auto& n : t.nodes) {
+            ++nodes;
+            if (n.leaf() && (!best || n.count > best->count)) best = &n;
+        }
+    if (best && best->count > 0) {
+        const glm::dvec3 c = 0.5 * (glm::dvec3(best->boundsMin) + glm::dvec3(best->boundsMax));
+        const double r = std::max(20.0, glm::length(glm::dvec3(best->boundsMax) - glm::dvec3(best->boundsMin)));
+        Camera cam;
+        cam.yawDeg = 30.0;
+        cam.pitchDeg = -30.0;
+        cam.position = c - 2.4 * r * cam.forward();
+        city.still = DemoStill{"city_atlas.png",
+                               "Buildings of the scene (synth's facades, unique per building) through the "
+                               "multiresolution texture-atlas tree, roofs from the leaf-on imagery clipmap",
+                               cam, ImageryView::LeafOn};
+        RenderSettings cs = settings;
+        city::CitySettings cset;
+        cset.mode = city::CityMode::Atlas;
+        cs.city = cset;
+        cs.cityTree = *tree;
+        ImagerySettings im;
+        im.view = ImageryView::LeafOn;
+        auto ci = renderStills(scene, w, h, {{cam, im, out / city.still->file, {}, {}, {}}}, cs);
+        if (!ci) return ci.error();
+        char note[160];
+        std::snprintf(note, sizeof note, "%zu atlas nodes in %s", nodes, tree->filename().c_str());
+        city.note = note;
+    }
+    city.seconds = std::chrono::duration<double>(clock::now() - tc).count();
+    return city;
+}
+
+// A short interleaved benchmark of the three level-centre placements along a flyover.
+BenchSettings demoBenchSettings(int frames, const std::filesystem::path& cacheDir) {
+    BenchSettings bs;
+    bs.path = "flyover";
+    bs.width = 640;
+    bs.height = 360;
+    bs.frames = frames;
+    bs.warmup = 2;
+    bs.clipSize = 1024;
+    bs.compare = "centers=concentric,offset,footprint";
+    bs.cacheDir = cacheDir;
+    return bs;
+}
+
+// The printed summary's table of the offline segmentation.
+std::string segmentationTable(const std::vector<SegmentRow>& segmentation) {
+    std::ostringstream table;
+    for (const SegmentRow& row : segmentation) {
+        const SegmentReport& r = row.report;
+        char line[256];
+        std::snprintf(line, sizeof line, "    %-13s k %d  precision %.3f  recall %.3f  F1 %.3f  IoU %.3f  centres P %.3f R %.3f  %.0f MP/s\n",
+                      std::string(segmentationMethodName(row.method)).c_str(), row.k,
+                      r.confusion ? r.confusion->precision() : 0.0, r.confusion ? r.confusion->recall() : 0.0,
+                      r.confusion ? r.confusion->f1() : 0.0, r.confusion ? r.confusion->iou() : 0.0,
+                      r.centres ? r.centres->precision() : 0.0, r.centres ? r.centres->recall() : 0.0,
+                      r.segmentSeconds > 0.0 ? double(r.width) * r.height / 1e6 / r.segmentSeconds : 0.0);
+        table << line;
+    }
+    return table.str();
+}
+
+// Everything the page and the printed summary report.
+struct DemoRun {
+    std::filesystem::path out, sceneDir;
+    int width = 0, height = 0;
+    bool cached = false;
+    double synthSeconds = 0.0, renderSeconds = 0.0, segmentSeconds = 0.0;
+    std::vector<DemoStill> stills;
+    DemoCity city;
+    std::optional<BenchResult> bench;
+    BenchSettings benchSettings;
+    std::vector<SegmentRow> segmentation;
+    gl::ContextInfo device;
+};
+
+// The page's benchmark section.
+void writeBenchHtml(std::ostringstream& html, const BenchResult& bench, const BenchSettings& bs) {
+    html << "<h2>Benchmark</h2>\n<p>Flyover, " << bs.frames << " frames of " << bs.width << "&times;" << bs.height
+         << ", clipmap levels of " << bs.clipSize << "&sup2;, the three level-centre placements run interleaved on "
+         << htmlEscape(bench.device) << " (<a href=\"bench/summary.json\">summary.json</a>, "
+         << "<a href=\"bench/frames.csv\">frames.csv</a>). Ratios, not absolute times, are comparable across "
+            "machines.</p>\n<table><tr><th>centers</th><th>median frame ms</th><th>ratio</th><th>mean coverage</th>"
+            "<th>uploaded &divide; geometric minimum</th></tr>\n";
+    for (const BenchModeResult& m : bench.modes) {
+        char cells[256];
+        std::snprintf(cells, sizeof cells, "<td>%.1f</td><td>%.3f</td><td>%.4f</td><td>%.3f</td>", m.medianFrameMs,
+                      m.ratioToFirst, m.coverageMean, m.uploadOverMinimum);
+        html << "<tr><td>" << htmlEscape(m.mode) << "</td>" << cells << "</tr>\n";
+    }
+    html << "</table>\n<figure><img src=\"bench/plot.png\" alt=\"frame time and coverage\"></figure>\n";
+}
+
+// The page's offline segmentation section.
+void writeSegmentationHtml(std::ostringstream& html, const std::vector<SegmentRow>& segmentation) {
+    const SegmentReport& any = segmentation.front().report;
+    html << "<h2>Offline segmentation</h2>\n<p>Deciduous treetops found on the CPU by comparing the seasons ("
+            "<code>seasonview segment</code>, the rule the canopy layers use on the GPU), each method on the "
+         << any.width << "&times;" << any.height
+         << " pair, scored per pixel against the generator's truth mask and per crown against its tree list "
+            "(a detected crown centre counts when it lies within a true crown's radius). Throughput: the rule "
+            "alone, on " << std::max(1u, std::thread::hardware_concurrency())
+         << " threads (<a href=\"segment/metrics.json\">metrics.json</a>).</p>\n<table><tr><th>method</th><th>k</th>"
+            "<th>precision</th><th>recall</th><th>F1</th><th>IoU</th><th>centres precision</th>"
+            "<th>centres recall</th><th>MP/s</th></tr>\n";
+    for (const SegmentRow& sr : segmentation) {
+        const SegmentReport& r = sr.report;
+        char cells[512];
+        std::snprintf(cells, sizeof cells,
+                      "<td>%d</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td>"
+                      "<td>%.0f</td>",
+                      sr.k, r.confusion ? r.confusion->precision() : 0.0,
+                      r.confusion ? r.confusion->recall() : 0.0, r.confusion ? r.confusion->f1() : 0.0,
+                      r.confusion ? r.confusion->iou() : 0.0, r.centres ? r.centres->precision() : 0.0,
+                      r.centres ? r.centres->recall() : 0.0,
+                      r.segmentSeconds > 0.0 ? double(r.width) * r.height / 1e6 / r.segmentSeconds : 0.0);
+        html << "<tr><td>" << segmentationMethodName(sr.method) << "</td>" << cells << "</tr>\n";
+    }
+    html << "</table>\n<figure><img src=\"segment/overlay.png\" alt=\"default method vs truth\"><figcaption>"
+            "<code>default</code> against the truth, whole scene: <span style=\"color:#c9a800\">yellow</span> "
+            "true positive, <span style=\"color:#d000a0\">magenta</span> false positive, "
+            "<span style=\"color:#0090f0\">blue</span> false negative</figcaption></figure>"
+            "<figure><img src=\"segment/overlay_crop.png\" alt=\"default method vs truth, centre\"><figcaption>"
+            "The same at full resolution, the scene's centre</figcaption></figure>\n";
+}
+
+// index.html: the run's facts, the stills, the benchmark and the segmentation.
+std::string demoPage(const DemoRun& run, const Scene& scene) {
+    std::ostringstream html;
+    html << "<!doctype html><html><head><meta charset=\"utf-8\"><title>seasonview demo</title><style>"
+            "body{font-family:sans-serif;margin:2em;max-width:1400px}figure{display:inline-block;margin:0 1em 1em 0}"
+            "img{max-width:640px;border:1px solid #888}table{border-collapse:collapse}"
+            "td,th{border:1px solid #aaa;padding:3px 8px;text-align:left}</style></head><body>\n"
+            "<h1>seasonview demo</h1>\n<p>Synthetic two-season scene generated by <code>seasonview synth</code>, "
+            "rendered headless through the streamed texture clipmaps (level centres: footprint placement).</p>\n<table>\n";
+    auto row = [&](const std::string& k, const std::string& v) {
+        html << "<tr><th>" << htmlEscape(k) << "</th><td>" << htmlEscape(v) << "</td></tr>\n";
+    };
+    char buf[256];
+    row("scene", (run.sceneDir / "scene.json").string());
+    std::snprintf(buf, sizeof buf, "%dx%d px per season, %.2f m/px, %s", scene.leafon.info.width,
+                  scene.leafon.info.height, scene.gsd, scene.frame.crs().name().c_str());
+    row("imagery", buf);
+    row("device", run.device.platform + ": " + run.device.renderer + " (" + run.device.version + ")");
+    std::snprintf(buf, sizeof buf, "%s", run.cached ? "cached" : "");
+    if (!run.cached) std::snprintf(buf, sizeof buf, "%.1f s", run.synthSeconds);
+    row("scene generation", buf);
+    std::snprintf(buf, sizeof buf, "%.2f s for %zu stills of %dx%d (includes texture upload)", run.renderSeconds,
+                  run.stills.size(), run.width, run.height);
+    row("rendering", buf);
+    if (run.city.still) {
+        std::snprintf(buf, sizeof buf, "%.1f s (atlas tree, cached after the first run; the still)", run.city.seconds);
+        row("city", buf);
+    }
+    html << "</table>\n";
+    std::vector<DemoStill> shown = run.stills;
+    if (run.city.still) shown.push_back(*run.city.still);
+    for (const DemoStill& s : shown)
+        html << "<figure><img src=\"" << s.file << "\" alt=\"" << s.caption << "\"><figcaption>" << s.caption
+             << " &mdash; camera <code>" << s.camera.toString() << "</code></figcaption></figure>\n";
+    if (run.bench) writeBenchHtml(html, *run.bench, run.benchSettings);
+    if (!run.segmentation.empty()) writeSegmentationHtml(html, run.segmentation);
+    html << "<h2>Ground truth</h2>\n<figure><img src=\"scene/truth_deciduous.png\"><figcaption>Deciduous crowns"
+            "</figcaption></figure><figure><img src=\"scene/truth_conifer.png\"><figcaption>Conifers</figcaption>"
+            "</figure>\n</body></html>\n";
+    return html.str();
+}
+
+// What the command prints when done.
+void printDemoSummary(const DemoRun& run, const Scene& scene, double total) {
+    const std::filesystem::path& out = run.out;
+    std::printf("seasonview demo: %s\n", (out / "index.html").c_str());
+    std::printf("  scene     %s (%dx%d px, %s)\n", run.cached ? "cached" : "generated", scene.leafon.info.width,
+                scene.leafon.info.height, scene.frame.crs().name().c_str());
+    for (const DemoStill& s : run.stills) std::printf("  still     %s\n", (out / s.file).c_str());
+    if (run.city.still)
+        std::printf("  city      %s (%s, %.1f s)\n", (out / run.city.still->file).c_str(), run.city.note.c_str(),
+                    run.city.seconds);
+    std::printf("  device    %s: %s\n", run.device.platform.c_str(), run.device.renderer.c_str());
+    if (run.bench)
+        std::printf("  bench     %s/bench (%s)\n%s", out.c_str(), run.bench->device.c_str(), run.bench->table.c_str());
+    if (!run.segmentation.empty())
+        std::printf("  segment   %s/segment (offline, against the truth)\n%s", out.c_str(),
+                    segmentationTable(run.segmentation).c_str());
+    std::printf("  time      %.1f s total (synth %.1f s, render %.1f s, segmentation %.1f s)\n", total,
+                run.synthSeconds, run.renderSeconds, run.segmentSeconds);
+}
+
 } // namespace
+
 
 Runner addDemoCommand(CLI::App& app) {
     auto args = std::make_shared<DemoArgs>();
@@ -201,258 +458,70 @@ Runner addDemoCommand(CLI::App& app) {
         const auto t0 = clock::now();
         auto size = parseSize(args->size);
         if (!size) return fail(size.message());
-        const auto [w, h] = *size;
-        const std::filesystem::path out = args->out;
-        const std::filesystem::path sceneDir = out / "scene";
+        DemoRun run;
+        std::tie(run.width, run.height) = *size;
+        run.out = args->out;
+        run.sceneDir = run.out / "scene";
         std::error_code ec;
-        std::filesystem::create_directories(out, ec);
-        if (ec) return fail(out.string() + ": cannot create folder (" + ec.message() + ")");
+        std::filesystem::create_directories(run.out, ec);
+        if (ec) return fail(run.out.string() + ": cannot create folder (" + ec.message() + ")");
 
-        double synthSeconds = 0.0;
-        bool cached = cachedSceneMatches(sceneDir, args->synth);
-        if (!cached) {
-            std::printf("generating the synthetic scene (%.0f m at %.2f m/px, seed %llu) ...\n", args->synth.sizeM,
-                        args->synth.gsd, static_cast<unsigned long long>(args->synth.seed));
-            std::fflush(stdout);
-            auto report = generateSyntheticScene(args->synth, sceneDir, terminalProgress("synth"));
-            if (!report) return fail(report.message());
-            synthSeconds = report->seconds;
-        }
+        auto generated = ensureDemoScene(args->synth, run.sceneDir, run.synthSeconds);
+        if (!generated) return fail(generated.message());
+        run.cached = !*generated;
         SceneArgs sa;
-        sa.manifest = (sceneDir / "scene.json").string();
+        sa.manifest = (run.sceneDir / "scene.json").string();
         sa.cache = args->cache;
         auto scene = sa.load();
         if (!scene) return fail(scene.message());
         printSceneNotes(*scene);
 
-        struct Still {
-            const char* file;
-            const char* caption;
-            Camera camera;
-            ImageryView view;
-        };
-        const double aspect = double(w) / double(h);
-        const Camera top = overviewCamera(*scene, aspect);
-        const Camera oblique = obliqueCamera(*scene, 30.0, -35.0, 0.3);
-        const Camera low = obliqueCamera(*scene, 210.0, -12.0, 0.22);
-        const Camera near = obliqueCamera(*scene, 30.0, -30.0, 0.05);
-        const std::vector<Still> stills = {
-            {"leafon_top.png", "Leaf-on (summer), straight down", top, ImageryView::LeafOn},
-            {"leafoff_top.png", "Leaf-off (winter), straight down", top, ImageryView::LeafOff},
-            {"swipe_oblique.png", "Swipe: leaf-on left, leaf-off right, oblique 3D view (35 deg down)", oblique,
-             ImageryView::Swipe},
-            {"lod_oblique.png", "Clipmap levels used (level 0 red, 1 green, 2 blue, coarse pyramid yellow...)", oblique,
-             ImageryView::Lod},
-            {"leafoff_oblique.png", "Leaf-off, oblique 3D view (35 deg down)", oblique, ImageryView::LeafOff},
-            {"leafon_low.png", "Leaf-on, low view towards the horizon (12 deg down)", low, ImageryView::LeafOn},
-            {"terrain_levels.png", "Terrain geometry clipmap levels (one colour per level: red finest, then green, "
-                                   "blue, yellow, ...)", oblique, ImageryView::Levels},
-            {"terrain_wireframe.png", "Terrain geometry clipmap triangles, low view", low, ImageryView::Wireframe},
-            {"canopy_trunks.png", "Deciduous treetops found by comparing the seasons (default method, on the GPU), "
-                                  "standing as 16 stacked layers over the leaf-off ground, trunks at the crown centres "
-                                  "(30 deg down, 145 m away)", near, ImageryView::Canopy},
-        };
+        run.stills = demoStills(*scene, double(run.width) / double(run.height));
         std::vector<StillRequest> requests;
-        for (const Still& s : stills) {
+        for (const DemoStill& s : run.stills) {
             ImagerySettings im;
             im.view = s.view;
-            requests.push_back({s.camera, im, out / s.file, {}, {}, {}});
+            requests.push_back({s.camera, im, run.out / s.file, {}, {}, {}});
         }
         RenderSettings settings;
         settings.windowed = args->window;
         settings.cacheDir = args->cache.empty() ? defaultCacheDir() : std::filesystem::path(args->cache);
         const auto tr = clock::now();
-        auto info = renderStills(*scene, w, h, requests, settings);
+        auto info = renderStills(*scene, run.width, run.height, requests, settings);
         if (!info) return fail(info.message());
-        const double renderSeconds = std::chrono::duration<double>(clock::now() - tr).count();
+        run.device = *info;
+        run.renderSeconds = std::chrono::duration<double>(clock::now() - tr).count();
 
-        // The scene's buildings through their texture-atlas tree (built into the cache on first use), seen
-        // obliquely from 30° down over the leaf holding the most triangles. The demo's scene is always synth's,
-        // whose OBJ is in the scene's frame, so the tree's bounds are scene coordinates.
-        std::optional<Still> cityStill;
-        double citySeconds = 0.0;
-        std::string cityNote;
         if (!args->noCity && !scene->sources.buildings.empty()) {
-            const auto tc = clock::now();
-            auto tree = prepareCityTree(*scene, settings.cacheDir, "");
-            if (!tree) return fail(tree.message());
-            auto file = city::AtlasTreeFile::open(tree->string());
-            if (!file) return fail(file.message());
-            const city::AtlasNode* best = nullptr;
-            std::size_t nodes = 0;
-            for (const auto& t : file->trees)
-                for (const auto& n : t.nodes) {
-                    ++nodes;
-                    if (n.leaf() && (!best || n.count > best->count)) best = &n;
-                }
-            if (best && best->count > 0) {
-                const glm::dvec3 c = 0.5 * (glm::dvec3(best->boundsMin) + glm::dvec3(best->boundsMax));
-                const double r = std::max(20.0, glm::length(glm::dvec3(best->boundsMax) - glm::dvec3(best->boundsMin)));
-                Camera cam;
-                cam.yawDeg = 30.0;
-                cam.pitchDeg = -30.0;
-                cam.position = c - 2.4 * r * cam.forward();
-                cityStill = Still{"city_atlas.png",
-                                  "Buildings of the scene (synth's facades, unique per building) through the "
-                                  "multiresolution texture-atlas tree, roofs from the leaf-on imagery clipmap",
-                                  cam, ImageryView::LeafOn};
-                RenderSettings cs = settings;
-                city::CitySettings cset;
-                cset.mode = city::CityMode::Atlas;
-                cs.city = cset;
-                cs.cityTree = *tree;
-                ImagerySettings im;
-                im.view = ImageryView::LeafOn;
-                auto ci = renderStills(*scene, w, h, {{cam, im, out / cityStill->file, {}, {}, {}}}, cs);
-                if (!ci) return fail(ci.message());
-                char note[160];
-                std::snprintf(note, sizeof note, "%zu atlas nodes in %s", nodes, tree->filename().c_str());
-                cityNote = note;
-            }
-            citySeconds = std::chrono::duration<double>(clock::now() - tc).count();
+            auto city = renderCityStill(*scene, settings, run.out, run.width, run.height);
+            if (!city) return fail(city.message());
+            run.city = std::move(*city);
         }
 
-        // A short interleaved benchmark of the three level-centre placements along a flyover.
-        std::optional<BenchResult> bench;
-        BenchSettings bs;
         if (args->benchFrames >= 2) {
-            bs.path = "flyover";
-            bs.width = 640;
-            bs.height = 360;
-            bs.frames = args->benchFrames;
-            bs.warmup = 2;
-            bs.clipSize = 1024;
-            bs.compare = "centers=concentric,offset,footprint";
-            bs.cacheDir = settings.cacheDir;
-            std::printf("benchmarking a flyover (%d frames, 3 placements interleaved) ...\n", bs.frames);
+            run.benchSettings = demoBenchSettings(args->benchFrames, settings.cacheDir);
+            std::printf("benchmarking a flyover (%d frames, 3 placements interleaved) ...\n", run.benchSettings.frames);
             std::fflush(stdout);
-            auto r = runBench(*scene, bs, out / "bench");
+            auto r = runBench(*scene, run.benchSettings, run.out / "bench");
             if (!r) return fail(r.message());
-            bench = std::move(*r);
+            run.bench = std::move(*r);
         }
 
         // The offline segmentation against the generator's truth (a scene without truth has nothing to score).
-        std::vector<SegmentRow> segmentation;
-        double segmentSeconds = 0.0;
         if (!scene->sources.truthDeciduous.empty()) {
             std::printf("segmenting the scene offline with each method (CPU, k %d) ...\n", kSegDefaultK);
             std::fflush(stdout);
             const auto ts = clock::now();
-            auto rows = segmentDemo(*scene, out / "segment");
+            auto rows = segmentDemo(*scene, run.out / "segment");
             if (!rows) return fail(rows.message());
-            segmentation = std::move(*rows);
-            segmentSeconds = std::chrono::duration<double>(clock::now() - ts).count();
-        }
-        std::ostringstream segTable; // the printed summary's table
-        for (const SegmentRow& row : segmentation) {
-            const SegmentReport& r = row.report;
-            char line[256];
-            std::snprintf(line, sizeof line, "    %-13s k %d  precision %.3f  recall %.3f  F1 %.3f  IoU %.3f  centres P %.3f R %.3f  %.0f MP/s\n",
-                          std::string(segmentationMethodName(row.method)).c_str(), row.k,
-                          r.confusion ? r.confusion->precision() : 0.0, r.confusion ? r.confusion->recall() : 0.0,
-                          r.confusion ? r.confusion->f1() : 0.0, r.confusion ? r.confusion->iou() : 0.0,
-                          r.centres ? r.centres->precision() : 0.0, r.centres ? r.centres->recall() : 0.0,
-                          r.segmentSeconds > 0.0 ? double(r.width) * r.height / 1e6 / r.segmentSeconds : 0.0);
-            segTable << line;
+            run.segmentation = std::move(*rows);
+            run.segmentSeconds = std::chrono::duration<double>(clock::now() - ts).count();
         }
 
-        std::ostringstream html;
-        html << "<!doctype html><html><head><meta charset=\"utf-8\"><title>seasonview demo</title><style>"
-                "body{font-family:sans-serif;margin:2em;max-width:1400px}figure{display:inline-block;margin:0 1em 1em 0}"
-                "img{max-width:640px;border:1px solid #888}table{border-collapse:collapse}"
-                "td,th{border:1px solid #aaa;padding:3px 8px;text-align:left}</style></head><body>\n"
-                "<h1>seasonview demo</h1>\n<p>Synthetic two-season scene generated by <code>seasonview synth</code>, "
-                "rendered headless through the streamed texture clipmaps (level centres: footprint placement).</p>\n<table>\n";
-        auto row = [&](const std::string& k, const std::string& v) {
-            html << "<tr><th>" << htmlEscape(k) << "</th><td>" << htmlEscape(v) << "</td></tr>\n";
-        };
-        char buf[256];
-        row("scene", (sceneDir / "scene.json").string());
-        std::snprintf(buf, sizeof buf, "%dx%d px per season, %.2f m/px, %s", scene->leafon.info.width,
-                      scene->leafon.info.height, scene->gsd, scene->frame.crs().name().c_str());
-        row("imagery", buf);
-        row("device", info->platform + ": " + info->renderer + " (" + info->version + ")");
-        std::snprintf(buf, sizeof buf, "%s", cached ? "cached" : "");
-        if (!cached) std::snprintf(buf, sizeof buf, "%.1f s", synthSeconds);
-        row("scene generation", buf);
-        std::snprintf(buf, sizeof buf, "%.2f s for %zu stills of %dx%d (includes texture upload)", renderSeconds,
-                      stills.size(), w, h);
-        row("rendering", buf);
-        if (cityStill) {
-            std::snprintf(buf, sizeof buf, "%.1f s (atlas tree, cached after the first run; the still)", citySeconds);
-            row("city", buf);
-        }
-        html << "</table>\n";
-        std::vector<Still> shown = stills;
-        if (cityStill) shown.push_back(*cityStill);
-        for (const Still& s : shown)
-            html << "<figure><img src=\"" << s.file << "\" alt=\"" << s.caption << "\"><figcaption>" << s.caption
-                 << " &mdash; camera <code>" << s.camera.toString() << "</code></figcaption></figure>\n";
-        if (bench) {
-            html << "<h2>Benchmark</h2>\n<p>Flyover, " << bs.frames << " frames of " << bs.width << "&times;" << bs.height
-                 << ", clipmap levels of " << bs.clipSize << "&sup2;, the three level-centre placements run interleaved on "
-                 << htmlEscape(bench->device) << " (<a href=\"bench/summary.json\">summary.json</a>, "
-                 << "<a href=\"bench/frames.csv\">frames.csv</a>). Ratios, not absolute times, are comparable across "
-                    "machines.</p>\n<table><tr><th>centers</th><th>median frame ms</th><th>ratio</th><th>mean coverage</th>"
-                    "<th>uploaded &divide; geometric minimum</th></tr>\n";
-            for (const BenchModeResult& m : bench->modes) {
-                char cells[256];
-                std::snprintf(cells, sizeof cells, "<td>%.1f</td><td>%.3f</td><td>%.4f</td><td>%.3f</td>",
-                              m.medianFrameMs, m.ratioToFirst, m.coverageMean, m.uploadOverMinimum);
-                html << "<tr><td>" << htmlEscape(m.mode) << "</td>" << cells << "</tr>\n";
-            }
-            html << "</table>\n<figure><img src=\"bench/plot.png\" alt=\"frame time and coverage\"></figure>\n";
-        }
-        if (!segmentation.empty()) {
-            const SegmentReport& any = segmentation.front().report;
-            html << "<h2>Offline segmentation</h2>\n<p>Deciduous treetops found on the CPU by comparing the seasons ("
-                    "<code>seasonview segment</code>, the rule the canopy layers use on the GPU), each method on the "
-                 << any.width << "&times;" << any.height
-                 << " pair, scored per pixel against the generator's truth mask and per crown against its tree list "
-                    "(a detected crown centre counts when it lies within a true crown's radius). Throughput: the rule "
-                    "alone, on " << std::max(1u, std::thread::hardware_concurrency())
-                 << " threads (<a href=\"segment/metrics.json\">metrics.json</a>).</p>\n<table><tr><th>method</th><th>k</th>"
-                    "<th>precision</th><th>recall</th><th>F1</th><th>IoU</th><th>centres precision</th>"
-                    "<th>centres recall</th><th>MP/s</th></tr>\n";
-            for (const SegmentRow& sr : segmentation) {
-                const SegmentReport& r = sr.report;
-                char cells[512];
-                std::snprintf(cells, sizeof cells,
-                              "<td>%d</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td>"
-                              "<td>%.0f</td>",
-                              sr.k, r.confusion ? r.confusion->precision() : 0.0,
-                              r.confusion ? r.confusion->recall() : 0.0, r.confusion ? r.confusion->f1() : 0.0,
-                              r.confusion ? r.confusion->iou() : 0.0, r.centres ? r.centres->precision() : 0.0,
-                              r.centres ? r.centres->recall() : 0.0,
-                              r.segmentSeconds > 0.0 ? double(r.width) * r.height / 1e6 / r.segmentSeconds : 0.0);
-                html << "<tr><td>" << segmentationMethodName(sr.method) << "</td>" << cells << "</tr>\n";
-            }
-            html << "</table>\n<figure><img src=\"segment/overlay.png\" alt=\"default method vs truth\"><figcaption>"
-                    "<code>default</code> against the truth, whole scene: <span style=\"color:#c9a800\">yellow</span> "
-                    "true positive, <span style=\"color:#d000a0\">magenta</span> false positive, "
-                    "<span style=\"color:#0090f0\">blue</span> false negative</figcaption></figure>"
-                    "<figure><img src=\"segment/overlay_crop.png\" alt=\"default method vs truth, centre\"><figcaption>"
-                    "The same at full resolution, the scene's centre</figcaption></figure>\n";
-        }
-        html << "<h2>Ground truth</h2>\n<figure><img src=\"scene/truth_deciduous.png\"><figcaption>Deciduous crowns"
-                "</figcaption></figure><figure><img src=\"scene/truth_conifer.png\"><figcaption>Conifers</figcaption>"
-                "</figure>\n</body></html>\n";
         std::string err;
-        if (!writeTextAtomic(out / "index.html", html.str(), err)) return fail((out / "index.html").string() + ": " + err);
-
-        const double total = std::chrono::duration<double>(clock::now() - t0).count();
-        std::printf("seasonview demo: %s\n", (out / "index.html").c_str());
-        std::printf("  scene     %s (%dx%d px, %s)\n", cached ? "cached" : "generated", scene->leafon.info.width,
-                    scene->leafon.info.height, scene->frame.crs().name().c_str());
-        for (const Still& s : stills) std::printf("  still     %s\n", (out / s.file).c_str());
-        if (cityStill)
-            std::printf("  city      %s (%s, %.1f s)\n", (out / cityStill->file).c_str(), cityNote.c_str(), citySeconds);
-        std::printf("  device    %s: %s\n", info->platform.c_str(), info->renderer.c_str());
-        if (bench) std::printf("  bench     %s/bench (%s)\n%s", out.c_str(), bench->device.c_str(), bench->table.c_str());
-        if (!segmentation.empty())
-            std::printf("  segment   %s/segment (offline, against the truth)\n%s", out.c_str(), segTable.str().c_str());
-        std::printf("  time      %.1f s total (synth %.1f s, render %.1f s, segmentation %.1f s)\n", total, synthSeconds,
-                    renderSeconds, segmentSeconds);
+        if (!writeTextAtomic(run.out / "index.html", demoPage(run, *scene), err))
+            return fail((run.out / "index.html").string() + ": " + err);
+        printDemoSummary(run, *scene, std::chrono::duration<double>(clock::now() - t0).count());
         return 0;
     };
 }
