@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <future>
 #include <memory>
 #include <span>
@@ -480,6 +481,142 @@ const char* statsSourceName(StatsSource source) {
     return "?";
 }
 
+namespace {
+
+using ReaderPair = std::pair<RowReader, RowReader>;
+
+// The pair's statistics (equalized, default): given, from the pair held whole in `window` (which then never slides),
+// or from a first streamed pass, after which `pair` is opened again (the readers only go forward). Sets the report's
+// stats, statsSource, heldInMemory, inputPasses and the seconds spent.
+Status pairStatistics(const SegmentJob& job, int w, int h, int preferredRows, bool fromLevelZero,
+                      const std::function<Result<ReaderPair>()>& openPair, ReaderPair& pair, PairWindow& window,
+                      SegmentReport& report) {
+    const SegmentationParams& params = job.params;
+    const bool colour = params.method == SegmentationMethod::Equalized;
+    const bool drop = params.method == SegmentationMethod::Default;
+    const std::uint64_t pairBytes = 2 * std::uint64_t(w) * std::uint64_t(h) * 3;
+    if (!needsHistograms(params.method)) {
+        report.statsSource = StatsSource::None;
+    } else if (job.histograms) {
+        report.statsSource = StatsSource::Given;
+        report.stats = statsFromHistograms(*job.histograms, params.method);
+    } else if (pairBytes <= job.memoryBudget) {
+        // Decoded once and held: the window grows to the whole image and never slides.
+        report.statsSource = StatsSource::HeldPair;
+        report.heldInMemory = true;
+        window.on.reserve(pairBytes / 2);
+        window.off.reserve(pairBytes / 2);
+        if (fromLevelZero) window.valid.reserve(pairBytes / 6);
+        SegmentationHistograms hist;
+        const size_t rowBytes = size_t(w) * 3;
+        for (int y0 = 0; y0 < h; y0 += preferredRows) {
+            const int y1 = std::min(h, y0 + preferredRows);
+            auto t = Clock::now();
+            if (auto st = window.slide(pair.first, pair.second, 0, y1); !st) return st;
+            report.readSeconds += secondsSince(t);
+            t = Clock::now(); // each band's histograms while its rows are still in cache
+            RgbRows rows{window.on.data() + size_t(y0) * rowBytes, window.off.data() + size_t(y0) * rowBytes, w, h, y0,
+                         y1 - y0};
+            rows.valid = window.validRows(y0);
+            hist.merge(rowHistograms(rows, colour, drop));
+            report.segmentSeconds += secondsSince(t);
+            if (job.progress) job.progress(0.5 * y1 / h, "reading");
+        }
+        report.stats = statsFromHistograms(hist, params.method);
+    } else {
+        // Too large to hold: a first pass over both files for the histograms, band by band.
+        report.statsSource = StatsSource::HistogramPass;
+        report.inputPasses = 2;
+        SegmentationHistograms hist;
+        std::vector<std::uint8_t> on, off, valid;
+        for (int y0 = 0; y0 < h; y0 += job.bandRows) {
+            const int y1 = std::min(h, y0 + job.bandRows);
+            on.resize(size_t(y1 - y0) * size_t(w) * 3);
+            off.resize(on.size());
+            valid.resize(fromLevelZero ? size_t(y1 - y0) * size_t(w) : 0);
+            auto t = Clock::now();
+            if (auto st = readPair(pair.first, pair.second, y0, y1, on.data(), off.data(),
+                                   fromLevelZero ? valid.data() : nullptr);
+                !st)
+                return st;
+            report.readSeconds += secondsSince(t);
+            t = Clock::now();
+            RgbRows rows{on.data(), off.data(), w, h, y0, y1 - y0};
+            rows.valid = fromLevelZero ? valid.data() : nullptr;
+            hist.merge(rowHistograms(rows, colour, drop));
+            report.segmentSeconds += secondsSince(t);
+            if (job.progress) job.progress(0.3 * y1 / h, "histograms");
+        }
+        report.stats = statsFromHistograms(hist, params.method);
+        auto again = openPair(); // the readers only go forward
+        if (!again) return again.error();
+        pair = std::move(*again);
+    }
+    return Ok{};
+}
+
+// The crowns found, as `path` asks (GeoJSON, or CSV with the CRS of its easting/northing columns in a .prj beside it,
+// as GIS tools read it); nothing when `path` is empty.
+Status writeCrownTable(const Scene& scene, const std::filesystem::path& path, const std::vector<CrownDetection>& crowns,
+                       const std::vector<CrownPoint>& local, const std::string& csv) {
+    if (path.empty()) return Ok{};
+    std::string err;
+    if (isGeoJson(path)) {
+        if (!writeTextAtomic(path, crownGeoJson(scene, crowns, local), err)) return fileError(path.string(), err);
+        return Ok{};
+    }
+    if (!writeTextAtomic(path, csv, err)) return fileError(path.string(), err);
+    const std::filesystem::path prj = std::filesystem::path(path).replace_extension(".prj");
+    if (!writeTextAtomic(prj, scene.grid.georef.crs.esriWkt() + "\n", err)) return fileError(prj.string(), err);
+    return Ok{};
+}
+
+// A band's overlay (drawOverlay) with the pixels where a season has no data (`valid` 0) as a grey checkerboard, as
+// image editors show transparency. `n` pixels of rows from y0, `w` wide.
+void drawOverlayBand(const std::uint8_t* onRgb, const std::uint8_t* mask, const std::uint8_t* truth,
+                     const std::uint8_t* valid, int w, int y0, size_t n, std::uint8_t* out) {
+    drawOverlay(onRgb, mask, truth, n, out);
+    if (!valid) return;
+    for (size_t i = 0; i < n; ++i)
+        if (!valid[i]) {
+            const size_t x = i % size_t(w), y = size_t(y0) + i / size_t(w);
+            const std::uint8_t v = ((x / 8 + y / 8) % 2) ? 96 : 160;
+            out[3 * i] = out[3 * i + 1] = out[3 * i + 2] = v;
+        }
+}
+
+// Crown detection over the mask as its bands arrive (CrownCentres.h): the crowns lag the mask by their halo and wait
+// for at least four halos of rows (each call transforms its rows plus a halo on both sides); the last band flushes
+// them all.
+class CrownStream {
+public:
+    CrownStream(int width, int height, const CrownParams& params, int haloRows)
+        : m_width(width), m_height(height), m_params(params), m_halo(haloRows) {}
+    /// The mask rows of the next band, ending at row y1.
+    void add(const std::vector<std::uint8_t>& rows, int y1) {
+        m_mask.insert(m_mask.end(), rows.begin(), rows.end());
+        m_last = y1;
+        const int done = y1 == m_height ? m_height : std::max(m_done, y1 - m_halo);
+        if (done != m_height && done - m_done < 4 * m_halo) return;
+        detectCrownRows(m_mask.data(), m_width, m_height, m_first, m_last - m_first, m_done, done - m_done, m_params,
+                        crowns);
+        m_done = done;
+        const int keepFrom = std::max(m_first, m_done - m_halo);
+        m_mask.erase(m_mask.begin(), m_mask.begin() + std::ptrdiff_t(keepFrom - m_first) * m_width);
+        m_first = keepFrom;
+    }
+    std::vector<CrownDetection> crowns;
+
+private:
+    int m_width, m_height;
+    CrownParams m_params;
+    int m_halo;
+    std::vector<std::uint8_t> m_mask; // mask rows [m_first, m_last) for the search
+    int m_first = 0, m_last = 0, m_done = 0;
+};
+
+} // namespace
+
 Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
     const auto start = Clock::now();
     const SegmentationParams& params = job.params;
@@ -539,78 +676,18 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
     auto pair = openPair();
     if (!pair) return pair.error();
 
-    // The pair's statistics (equalized, default): given, from the pair held whole, or from a first streamed pass.
-    const bool colour = params.method == SegmentationMethod::Equalized;
-    const bool drop = params.method == SegmentationMethod::Default;
-    const std::uint64_t pairBytes = 2 * std::uint64_t(w) * std::uint64_t(h) * 3;
     PairWindow window;
     window.width = w;
     window.withValid = fromLevelZero;
-    if (!needsHistograms(params.method)) {
-        report.statsSource = StatsSource::None;
-    } else if (job.histograms) {
-        report.statsSource = StatsSource::Given;
-        report.stats = statsFromHistograms(*job.histograms, params.method);
-    } else if (pairBytes <= job.memoryBudget) {
-        // Decoded once and held: the window grows to the whole image and never slides.
-        report.statsSource = StatsSource::HeldPair;
-        report.heldInMemory = true;
-        window.on.reserve(pairBytes / 2);
-        window.off.reserve(pairBytes / 2);
-        if (fromLevelZero) window.valid.reserve(pairBytes / 6);
-        SegmentationHistograms hist;
-        const size_t rowBytes = size_t(w) * 3;
-        for (int y0 = 0; y0 < h; y0 += preferredRows) {
-            const int y1 = std::min(h, y0 + preferredRows);
-            auto t = Clock::now();
-            if (auto st = window.slide(pair->first, pair->second, 0, y1); !st) return st.error();
-            report.readSeconds += secondsSince(t);
-            t = Clock::now(); // each band's histograms while its rows are still in cache
-            RgbRows rows{window.on.data() + size_t(y0) * rowBytes, window.off.data() + size_t(y0) * rowBytes, w, h, y0,
-                         y1 - y0};
-            rows.valid = window.validRows(y0);
-            hist.merge(rowHistograms(rows, colour, drop));
-            report.segmentSeconds += secondsSince(t);
-            progress(0.5 * y1 / h, "reading");
-        }
-        report.stats = statsFromHistograms(hist, params.method);
-    } else {
-        // Too large to hold: a first pass over both files for the histograms, band by band.
-        report.statsSource = StatsSource::HistogramPass;
-        report.inputPasses = 2;
-        SegmentationHistograms hist;
-        std::vector<std::uint8_t> on, off, valid;
-        for (int y0 = 0; y0 < h; y0 += bandRows) {
-            const int y1 = std::min(h, y0 + bandRows);
-            on.resize(size_t(y1 - y0) * size_t(w) * 3);
-            off.resize(on.size());
-            valid.resize(fromLevelZero ? size_t(y1 - y0) * size_t(w) : 0);
-            auto t = Clock::now();
-            if (auto st = readPair(pair->first, pair->second, y0, y1, on.data(), off.data(),
-                                   fromLevelZero ? valid.data() : nullptr);
-                !st)
-                return st.error();
-            report.readSeconds += secondsSince(t);
-            t = Clock::now();
-            RgbRows rows{on.data(), off.data(), w, h, y0, y1 - y0};
-            rows.valid = fromLevelZero ? valid.data() : nullptr;
-            hist.merge(rowHistograms(rows, colour, drop));
-            report.segmentSeconds += secondsSince(t);
-            progress(0.3 * y1 / h, "histograms");
-        }
-        report.stats = statsFromHistograms(hist, params.method);
-        auto again = openPair(); // the readers only go forward
-        if (!again) return again.error();
-        pair = std::move(again);
-    }
+    if (auto st = pairStatistics(job, w, h, preferredRows, fromLevelZero, openPair, *pair, window, report); !st)
+        return st.error();
     const double done0 = report.heldInMemory ? 0.5 : report.inputPasses == 2 ? 0.3 : 0.0;
 
     // Bands of output rows with their halo. The mask and overlay of a band are encoded on a writer thread while the
     // next band is segmented (two buffers of each, taking turns).
     std::vector<std::uint8_t> mask[2], encoded[2], overlay[2], truth, truthCovered, scored;
-    std::vector<std::uint8_t> crownMask; // mask rows [crownFirst, crownLast) for the crown search
-    int crownFirst = 0, crownLast = 0, crownDone = 0;
-    std::vector<CrownDetection> crowns;
+    CrownStream crownStream(w, h, crownParams, crownHaloRows);
+    const std::vector<CrownDetection>& crowns = crownStream.crowns;
     Confusion confusion;
     std::uint64_t nodataPixels = 0;
     double writerSeconds = 0.0; // the writer thread's own time
@@ -671,15 +748,8 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
         if (overlayOut) {
             t = Clock::now();
             o.resize(n * 3);
-            drawOverlay(window.on.data() + size_t(y0 - window.first) * size_t(w) * 3, m.data(),
-                        withTruth ? truth.data() : nullptr, n, o.data());
-            if (valid) // no data: a grey checkerboard, as image editors show transparency
-                for (size_t i = 0; i < n; ++i)
-                    if (!valid[i]) {
-                        const size_t x = i % size_t(w), y = size_t(y0) + i / size_t(w);
-                        const std::uint8_t v = ((x / 8 + y / 8) % 2) ? 96 : 160;
-                        o[3 * i] = o[3 * i + 1] = o[3 * i + 2] = v;
-                    }
+            drawOverlayBand(window.on.data() + size_t(y0 - window.first) * size_t(w) * 3, m.data(),
+                            withTruth ? truth.data() : nullptr, valid, w, y0, n, o.data());
             report.writeSeconds += secondsSince(t);
         }
         // The writer of the previous band must be done before this band's turn (and its buffers are free again).
@@ -694,20 +764,8 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
         });
 
         if (withCrowns) {
-            // Crowns lag the mask by their halo, and wait for at least four halos of rows (each call transforms its
-            // rows plus a halo on both sides); the last band flushes them all.
             t = Clock::now();
-            crownMask.insert(crownMask.end(), m.begin(), m.end());
-            crownLast = y1;
-            const int done = y1 == h ? h : std::max(crownDone, y1 - crownHaloRows);
-            if (done == h || done - crownDone >= 4 * crownHaloRows) {
-                detectCrownRows(crownMask.data(), w, h, crownFirst, crownLast - crownFirst, crownDone,
-                                done - crownDone, crownParams, crowns);
-                crownDone = done;
-                const int keepFrom = std::max(crownFirst, crownDone - crownHaloRows);
-                crownMask.erase(crownMask.begin(), crownMask.begin() + std::ptrdiff_t(keepFrom - crownFirst) * w);
-                crownFirst = keepFrom;
-            }
+            crownStream.add(m, y1);
             report.crownSeconds += secondsSince(t);
         }
         progress(done0 + (1.0 - done0) * y1 / h, "segmenting");
@@ -720,18 +778,7 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
         if (auto st = overlayOut->finish(); !st) return st.error();
     std::vector<CrownPoint> local;
     const std::string csv = crownCsv(scene, crowns, local);
-    if (!job.trees.empty()) {
-        std::string err;
-        if (isGeoJson(job.trees)) {
-            if (!writeTextAtomic(job.trees, crownGeoJson(scene, crowns, local), err))
-                return fileError(job.trees.string(), err);
-        } else {
-            if (!writeTextAtomic(job.trees, csv, err)) return fileError(job.trees.string(), err);
-            // The CRS of the easting/northing columns, as GIS tools read it from a .prj next to the table.
-            const std::filesystem::path prj = std::filesystem::path(job.trees).replace_extension(".prj");
-            if (!writeTextAtomic(prj, scene.grid.georef.crs.esriWkt() + "\n", err)) return fileError(prj.string(), err);
-        }
-    }
+    if (auto st = writeCrownTable(scene, job.trees, crowns, local, csv); !st) return st.error();
     report.writeSeconds += writerSeconds + secondsSince(t);
     if (withTruth) report.confusion = confusion;
     report.nodataPixels = nodataPixels;
