@@ -50,6 +50,195 @@ Result<city::CityModel> loadCityForCli(const std::string& path, const std::strin
     return city::loadCityModel(path, options);
 }
 
+namespace {
+
+int fail(const std::string& m) {
+    std::fprintf(stderr, "seasonview atlas: %s\n", m.c_str());
+    return 1;
+}
+
+// atlas compare A B: the atlases of two trees of one model, size, decode time and PSNR of B against A.
+int atlasCompare(const AtlasArgs* a) {
+    auto fa = city::AtlasTreeFile::open(a->treeA);
+    if (!fa) return fail(fa.error().message);
+    auto fb = city::AtlasTreeFile::open(a->treeB);
+    if (!fb) return fail(fb.error().message);
+    if (fa->trees.size() != fb->trees.size() || fa->info.atlasSize != fb->info.atlasSize)
+        return fail(a->treeB + ": not a tree of the same model and atlas size as " + a->treeA);
+    struct Side {
+        std::uint64_t bytes = 0;
+        double decodeMs = 0.0;
+    } sa, sb;
+    double sq = 0.0;
+    std::uint64_t samples = 0, atlases = 0;
+    for (std::size_t t = 0; t < fa->trees.size(); ++t) {
+        if (fa->trees[t].nodes.size() != fb->trees[t].nodes.size())
+            return fail(a->treeB + ": a different tree structure than " + a->treeA);
+        for (std::size_t n = 0; n < fa->trees[t].nodes.size(); ++n) {
+            if (fa->trees[t].nodes[n].atlasBytes == 0) continue;
+            std::vector<std::uint8_t> img[2];
+            int k = 0;
+            for (auto* f : {&*fa, &*fb}) {
+                Side& side = k == 0 ? sa : sb;
+                auto blob = f->readAtlasBlob(int(t), int(n));
+                if (!blob) return fail(blob.error().message);
+                side.bytes += blob->size();
+                // Decode time: what the upload needs (deflate: inflate every level; BC: nothing unless
+                // the GL lacks S3TC, so the CPU decode is measured as the worst case).
+                const auto t0 = std::chrono::steady_clock::now();
+                img[k] = city::decodeAtlasRgba(f->info.format, f->trees[t].alpha, *blob, f->info.atlasSize);
+                side.decodeMs += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+                if (img[k].empty()) return fail(f->path + ": corrupt atlas of node " + std::to_string(n));
+                ++k;
+            }
+            for (std::size_t i = 0; i < img[0].size(); i += 4)
+                for (std::size_t c = 0; c < 3; ++c) {
+                    const double d = double(img[0][i + c]) - double(img[1][i + c]);
+                    sq += d * d;
+                    ++samples;
+                }
+            ++atlases;
+        }
+    }
+    const double mse = samples ? sq / double(samples) : 0.0;
+    const double psnr = mse > 0.0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 99.0;
+    std::printf("%llu atlases: A (%s) %.1f MB, decode %.2f ms/atlas; B (%s) %.1f MB, decode %.2f ms/atlas; "
+                "B/A size %.3f; PSNR of B against A %.2f dB\n",
+                (unsigned long long)atlases, city::atlasFormatName(fa->info.format), double(sa.bytes) / 1e6,
+                atlases ? sa.decodeMs / double(atlases) : 0.0, city::atlasFormatName(fb->info.format),
+                double(sb.bytes) / 1e6, atlases ? sb.decodeMs / double(atlases) : 0.0,
+                sa.bytes ? double(sb.bytes) / double(sa.bytes) : 0.0, psnr);
+    return 0;
+}
+
+// atlas info TREE: the tree's parameters, nodes and sizes; --atlas-png writes a node's atlas.
+int atlasInfo(const AtlasArgs* a) {
+    auto f = city::AtlasTreeFile::open(a->tree);
+    if (!f) return fail(f.error().message);
+    const auto& i = f->info;
+    std::printf("%s: atlas %d² (%s), border %d, dmin %.2f m for %d px at %.0f° (τ %.2f), %zu textures, source %s\n",
+                a->tree.c_str(), i.atlasSize, city::atlasFormatName(i.format), i.border, i.dmin, i.screenWidth,
+                i.fovXDeg, i.tpp, f->textures.size(), i.source.c_str());
+    for (const auto& t : f->trees) {
+        int depth = 0;
+        std::size_t leaves = 0;
+        std::uint64_t bytes = 0;
+        for (const auto& n : t.nodes) {
+            depth = std::max(depth, n.level);
+            leaves += n.leaf();
+            bytes += n.atlasBytes;
+        }
+        std::printf("  %s tree: %zu nodes (%zu leaves, depth %d), %zu triangles, root minDistance %.1f m, "
+                    "atlases %.1f MB\n",
+                    t.alpha ? "RGBA" : "RGB", t.nodes.size(), leaves, depth, t.vertices.size() / 3,
+                    double(t.nodes[0].minDistance), double(bytes) / 1e6);
+    }
+    std::printf("  plain triangles (roofs from imagery, untextured): %zu\n", f->plain.surface.size());
+    for (const auto& spec : a->atlasPng) {
+        const auto colon = spec.find(':');
+        int node = -1;
+        try {
+            node = colon == std::string::npos ? -1 : std::stoi(spec.substr(0, colon));
+        } catch (...) {
+        }
+        if (node < 0 || f->trees.empty() || node >= int(f->trees[0].nodes.size()))
+            return fail("--atlas-png: expected NODE:FILE.png with NODE < " +
+                        std::to_string(f->trees.empty() ? 0 : f->trees[0].nodes.size()) + ", got '" + spec + "'");
+        auto rgba = f->readAtlasRgba(0, node);
+        if (!rgba) return fail(rgba.error().message);
+        const int n = f->info.atlasSize;
+        std::vector<std::uint8_t> rgb(std::size_t(n) * std::size_t(n) * 3);
+        for (int y = 0; y < n; ++y) // rows are bottom-up in the tree, top-down in the PNG
+            for (int x = 0; x < n; ++x)
+                for (int c = 0; c < 3; ++c)
+                    rgb[(std::size_t(n - 1 - y) * std::size_t(n) + std::size_t(x)) * 3 + std::size_t(c)] =
+                        (*rgba)[(std::size_t(y) * std::size_t(n) + std::size_t(x)) * 4 + std::size_t(c)];
+        const std::string file = spec.substr(colon + 1);
+        if (auto st = writeImageAtomic(file, rgb.data(), n, n, 3); !st) return fail(st.message());
+        std::printf("  node %d (level %d, minDistance %.1f m, %u triangles) -> %s\n", node,
+                    f->trees[0].nodes[std::size_t(node)].level, double(f->trees[0].nodes[std::size_t(node)].minDistance),
+                    f->trees[0].nodes[std::size_t(node)].count, file.c_str());
+    }
+    return 0;
+}
+
+// atlas build INPUT --out TREE: loads the model and builds its texture-atlas tree (buildAtlasTree).
+int atlasBuild(const AtlasArgs* a) {
+    const auto t0 = std::chrono::steady_clock::now();
+    auto model = loadCityForCli(a->input, a->crs, a->objLocal, a->objUp);
+    if (!model) return fail(model.error().message);
+    for (const auto& w : model->warnings) std::fprintf(stderr, "seasonview atlas: warning: %s\n", w.c_str());
+    const double loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::printf("%s: %zu buildings, %zu triangles (%zu textured), %zu textures, read in %.1f s\n", a->input.c_str(),
+                model->buildingIds.size(), model->triangles.size(), model->texturedTriangles(),
+                model->textures.size(), loadSeconds);
+    std::fflush(stdout);
+
+    city::AtlasBuildSettings s;
+    s.atlasSize = a->atlasSize;
+    if (a->dmin != "auto") {
+        try {
+            s.dmin = std::stod(a->dmin);
+        } catch (...) {
+            return fail("--dmin: expected metres or 'auto', got '" + a->dmin + "'");
+        }
+        if (!(s.dmin > 0.0)) return fail("--dmin must be positive");
+    }
+    if (!(a->tpp > 0.0)) return fail("--tpp must be positive");
+    s.tpp = a->tpp;
+    s.border = a->border;
+    s.screenWidth = a->screenWidth;
+    s.fovXDeg = a->fovX;
+    s.format = a->format == "deflate" ? city::AtlasFormat::Deflate : city::AtlasFormat::Bc;
+    s.roofsFromImagery = a->roofs == "imagery";
+    s.packer = *city::parseAtlasPacker(a->packer);
+    s.cacheBytes = std::uint64_t(std::max(16.0, a->cacheMb) * 1048576.0);
+    s.progress = terminalProgress("atlas tree");
+    auto r = city::buildAtlasTree(*model, s, a->out);
+    if (!r) return fail(r.error().message);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::printf("%s: %zu nodes (%zu leaves, %zu empty, depth %d), %zu tree triangles (%zu critical at dmin %.2f m, "
+                "dmin now %.2f m, %zu split), %zu plain, mean leaf fill %.1f %%, atlases %.1f MB, file %.1f MB, "
+                "%llu texture reads, %.1f s, peak RSS %.2f GB\n",
+                a->out.c_str(), r->nodes, r->leaves, r->emptyLeaves, r->depth, r->treeTriangles, r->criticalAtDmin,
+                r->dminInitial, r->dmin, r->criticalSplit, r->plainTriangles, 100.0 * r->meanLeafFill,
+                double(r->atlasBytes) / 1e6, double(r->fileBytes) / 1e6, (unsigned long long)r->textureReads,
+                seconds, peakRssGb());
+    if (!a->report.empty()) {
+        nlohmann::json j = {{"input", a->input},
+                            {"buildings", model->buildingIds.size()},
+                            {"triangles", model->triangles.size()},
+                            {"textures", model->textures.size()},
+                            {"tree_triangles", r->treeTriangles},
+                            {"plain_triangles", r->plainTriangles},
+                            {"critical_at_dmin", r->criticalAtDmin},
+                            {"critical_split", r->criticalSplit},
+                            {"dmin_initial_m", r->dminInitial},
+                            {"dmin_m", r->dmin},
+                            {"nodes", r->nodes},
+                            {"leaves", r->leaves},
+                            {"empty_leaves", r->emptyLeaves},
+                            {"depth", r->depth},
+                            {"mean_leaf_fill", r->meanLeafFill},
+                            {"atlas_bytes", r->atlasBytes},
+                            {"file_bytes", r->fileBytes},
+                            {"texture_reads", r->textureReads},
+                            {"peak_texture_cache_bytes", r->peakCacheBytes},
+                            {"seconds", seconds},
+                            {"peak_rss_gb", peakRssGb()},
+                            {"format", city::atlasFormatName(s.format)},
+                            {"atlas_size", s.atlasSize},
+                            {"border", s.border},
+                            {"tpp", s.tpp},
+                            {"packer", city::atlasPackerName(s.packer)}};
+        std::string err;
+        if (!writeTextAtomic(a->report, j.dump(2) + "\n", err)) return fail(a->report + ": " + err);
+    }
+    return 0;
+}
+
+} // namespace
+
 Runner addAtlasCommand(CLI::App& app) {
     auto a = std::make_shared<AtlasArgs>();
     CLI::App* cmd = app.add_subcommand("atlas", "Multiresolution texture-atlas trees of city models (build, info)");
@@ -95,183 +284,10 @@ Runner addAtlasCommand(CLI::App& app) {
         ->expected(1, 64);
 
     return [a, build, info, compare]() -> int {
-        auto fail = [](const std::string& m) {
-            std::fprintf(stderr, "seasonview atlas: %s\n", m.c_str());
-            return 1;
-        };
-        if (compare->parsed()) {
-            auto fa = city::AtlasTreeFile::open(a->treeA);
-            if (!fa) return fail(fa.error().message);
-            auto fb = city::AtlasTreeFile::open(a->treeB);
-            if (!fb) return fail(fb.error().message);
-            if (fa->trees.size() != fb->trees.size() || fa->info.atlasSize != fb->info.atlasSize)
-                return fail(a->treeB + ": not a tree of the same model and atlas size as " + a->treeA);
-            struct Side {
-                std::uint64_t bytes = 0;
-                double decodeMs = 0.0;
-            } sa, sb;
-            double sq = 0.0;
-            std::uint64_t samples = 0, atlases = 0;
-            for (std::size_t t = 0; t < fa->trees.size(); ++t) {
-                if (fa->trees[t].nodes.size() != fb->trees[t].nodes.size())
-                    return fail(a->treeB + ": a different tree structure than " + a->treeA);
-                for (std::size_t n = 0; n < fa->trees[t].nodes.size(); ++n) {
-                    if (fa->trees[t].nodes[n].atlasBytes == 0) continue;
-                    std::vector<std::uint8_t> img[2];
-                    int k = 0;
-                    for (auto* f : {&*fa, &*fb}) {
-                        Side& side = k == 0 ? sa : sb;
-                        auto blob = f->readAtlasBlob(int(t), int(n));
-                        if (!blob) return fail(blob.error().message);
-                        side.bytes += blob->size();
-                        // Decode time: what the upload needs (deflate: inflate every level; BC: nothing unless
-                        // the GL lacks S3TC, so the CPU decode is measured as the worst case).
-                        const auto t0 = std::chrono::steady_clock::now();
-                        img[k] = city::decodeAtlasRgba(f->info.format, f->trees[t].alpha, *blob, f->info.atlasSize);
-                        side.decodeMs += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-                        if (img[k].empty()) return fail(f->path + ": corrupt atlas of node " + std::to_string(n));
-                        ++k;
-                    }
-                    for (std::size_t i = 0; i < img[0].size(); i += 4)
-                        for (std::size_t c = 0; c < 3; ++c) {
-                            const double d = double(img[0][i + c]) - double(img[1][i + c]);
-                            sq += d * d;
-                            ++samples;
-                        }
-                    ++atlases;
-                }
-            }
-            const double mse = samples ? sq / double(samples) : 0.0;
-            const double psnr = mse > 0.0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 99.0;
-            std::printf("%llu atlases: A (%s) %.1f MB, decode %.2f ms/atlas; B (%s) %.1f MB, decode %.2f ms/atlas; "
-                        "B/A size %.3f; PSNR of B against A %.2f dB\n",
-                        (unsigned long long)atlases, city::atlasFormatName(fa->info.format), double(sa.bytes) / 1e6,
-                        atlases ? sa.decodeMs / double(atlases) : 0.0, city::atlasFormatName(fb->info.format),
-                        double(sb.bytes) / 1e6, atlases ? sb.decodeMs / double(atlases) : 0.0,
-                        sa.bytes ? double(sb.bytes) / double(sa.bytes) : 0.0, psnr);
-            return 0;
-        }
-        if (info->parsed()) {
-            auto f = city::AtlasTreeFile::open(a->tree);
-            if (!f) return fail(f.error().message);
-            const auto& i = f->info;
-            std::printf("%s: atlas %d² (%s), border %d, dmin %.2f m for %d px at %.0f° (τ %.2f), %zu textures, source %s\n",
-                        a->tree.c_str(), i.atlasSize, city::atlasFormatName(i.format), i.border, i.dmin, i.screenWidth,
-                        i.fovXDeg, i.tpp, f->textures.size(), i.source.c_str());
-            for (const auto& t : f->trees) {
-                int depth = 0;
-                std::size_t leaves = 0;
-                std::uint64_t bytes = 0;
-                for (const auto& n : t.nodes) {
-                    depth = std::max(depth, n.level);
-                    leaves += n.leaf();
-                    bytes += n.atlasBytes;
-                }
-                std::printf("  %s tree: %zu nodes (%zu leaves, depth %d), %zu triangles, root minDistance %.1f m, "
-                            "atlases %.1f MB\n",
-                            t.alpha ? "RGBA" : "RGB", t.nodes.size(), leaves, depth, t.vertices.size() / 3,
-                            double(t.nodes[0].minDistance), double(bytes) / 1e6);
-            }
-            std::printf("  plain triangles (roofs from imagery, untextured): %zu\n", f->plain.surface.size());
-            for (const auto& spec : a->atlasPng) {
-                const auto colon = spec.find(':');
-                int node = -1;
-                try {
-                    node = colon == std::string::npos ? -1 : std::stoi(spec.substr(0, colon));
-                } catch (...) {
-                }
-                if (node < 0 || f->trees.empty() || node >= int(f->trees[0].nodes.size()))
-                    return fail("--atlas-png: expected NODE:FILE.png with NODE < " +
-                                std::to_string(f->trees.empty() ? 0 : f->trees[0].nodes.size()) + ", got '" + spec + "'");
-                auto rgba = f->readAtlasRgba(0, node);
-                if (!rgba) return fail(rgba.error().message);
-                const int n = f->info.atlasSize;
-                std::vector<std::uint8_t> rgb(std::size_t(n) * std::size_t(n) * 3);
-                for (int y = 0; y < n; ++y) // rows are bottom-up in the tree, top-down in the PNG
-                    for (int x = 0; x < n; ++x)
-                        for (int c = 0; c < 3; ++c)
-                            rgb[(std::size_t(n - 1 - y) * std::size_t(n) + std::size_t(x)) * 3 + std::size_t(c)] =
-                                (*rgba)[(std::size_t(y) * std::size_t(n) + std::size_t(x)) * 4 + std::size_t(c)];
-                const std::string file = spec.substr(colon + 1);
-                if (auto st = writeImageAtomic(file, rgb.data(), n, n, 3); !st) return fail(st.message());
-                std::printf("  node %d (level %d, minDistance %.1f m, %u triangles) -> %s\n", node,
-                            f->trees[0].nodes[std::size_t(node)].level, double(f->trees[0].nodes[std::size_t(node)].minDistance),
-                            f->trees[0].nodes[std::size_t(node)].count, file.c_str());
-            }
-            return 0;
-        }
         (void)build;
-        const auto t0 = std::chrono::steady_clock::now();
-        auto model = loadCityForCli(a->input, a->crs, a->objLocal, a->objUp);
-        if (!model) return fail(model.error().message);
-        for (const auto& w : model->warnings) std::fprintf(stderr, "seasonview atlas: warning: %s\n", w.c_str());
-        const double loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        std::printf("%s: %zu buildings, %zu triangles (%zu textured), %zu textures, read in %.1f s\n", a->input.c_str(),
-                    model->buildingIds.size(), model->triangles.size(), model->texturedTriangles(),
-                    model->textures.size(), loadSeconds);
-        std::fflush(stdout);
-
-        city::AtlasBuildSettings s;
-        s.atlasSize = a->atlasSize;
-        if (a->dmin != "auto") {
-            try {
-                s.dmin = std::stod(a->dmin);
-            } catch (...) {
-                return fail("--dmin: expected metres or 'auto', got '" + a->dmin + "'");
-            }
-            if (!(s.dmin > 0.0)) return fail("--dmin must be positive");
-        }
-        if (!(a->tpp > 0.0)) return fail("--tpp must be positive");
-        s.tpp = a->tpp;
-        s.border = a->border;
-        s.screenWidth = a->screenWidth;
-        s.fovXDeg = a->fovX;
-        s.format = a->format == "deflate" ? city::AtlasFormat::Deflate : city::AtlasFormat::Bc;
-        s.roofsFromImagery = a->roofs == "imagery";
-        s.packer = *city::parseAtlasPacker(a->packer);
-        s.cacheBytes = std::uint64_t(std::max(16.0, a->cacheMb) * 1048576.0);
-        s.progress = terminalProgress("atlas tree");
-        auto r = city::buildAtlasTree(*model, s, a->out);
-        if (!r) return fail(r.error().message);
-        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        std::printf("%s: %zu nodes (%zu leaves, %zu empty, depth %d), %zu tree triangles (%zu critical at dmin %.2f m, "
-                    "dmin now %.2f m, %zu split), %zu plain, mean leaf fill %.1f %%, atlases %.1f MB, file %.1f MB, "
-                    "%llu texture reads, %.1f s, peak RSS %.2f GB\n",
-                    a->out.c_str(), r->nodes, r->leaves, r->emptyLeaves, r->depth, r->treeTriangles, r->criticalAtDmin,
-                    r->dminInitial, r->dmin, r->criticalSplit, r->plainTriangles, 100.0 * r->meanLeafFill,
-                    double(r->atlasBytes) / 1e6, double(r->fileBytes) / 1e6, (unsigned long long)r->textureReads,
-                    seconds, peakRssGb());
-        if (!a->report.empty()) {
-            nlohmann::json j = {{"input", a->input},
-                                {"buildings", model->buildingIds.size()},
-                                {"triangles", model->triangles.size()},
-                                {"textures", model->textures.size()},
-                                {"tree_triangles", r->treeTriangles},
-                                {"plain_triangles", r->plainTriangles},
-                                {"critical_at_dmin", r->criticalAtDmin},
-                                {"critical_split", r->criticalSplit},
-                                {"dmin_initial_m", r->dminInitial},
-                                {"dmin_m", r->dmin},
-                                {"nodes", r->nodes},
-                                {"leaves", r->leaves},
-                                {"empty_leaves", r->emptyLeaves},
-                                {"depth", r->depth},
-                                {"mean_leaf_fill", r->meanLeafFill},
-                                {"atlas_bytes", r->atlasBytes},
-                                {"file_bytes", r->fileBytes},
-                                {"texture_reads", r->textureReads},
-                                {"peak_texture_cache_bytes", r->peakCacheBytes},
-                                {"seconds", seconds},
-                                {"peak_rss_gb", peakRssGb()},
-                                {"format", city::atlasFormatName(s.format)},
-                                {"atlas_size", s.atlasSize},
-                                {"border", s.border},
-                                {"tpp", s.tpp},
-                                {"packer", city::atlasPackerName(s.packer)}};
-            std::string err;
-            if (!writeTextAtomic(a->report, j.dump(2) + "\n", err)) return fail(a->report + ": " + err);
-        }
-        return 0;
+        if (compare->parsed()) return atlasCompare(a.get());
+        if (info->parsed()) return atlasInfo(a.get());
+        return atlasBuild(a.get());
     };
 }
 

@@ -462,6 +462,11 @@ TEST(CityCliTest, AtlasBuildAndInfo) {
     fails(runCli({"atlas", "build", (s.dir / "s/city/city.obj").string(), "--obj-local", "--out",
                   (s.dir / "x.svat").string(), "--border", "0"}),
           "--border");
+    // compare: a tree against itself is exact; against the tree of another structure, one line naming it.
+    const CliResult same = runCli({"atlas", "compare", tree, tree});
+    ASSERT_EQ(same.exitCode, 0) << same.err;
+    EXPECT_NE(same.out.find("B/A size 1.000; PSNR of B against A 99.00 dB"), std::string::npos) << same.out;
+    fails(runCli({"atlas", "compare", tree, coarse}), coarse);
 }
 
 TEST(CityCliTest, BadInput) {
