@@ -358,17 +358,12 @@ struct Builder {
 
 } // namespace
 
-Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuildSettings& s, const std::string& outPath) {
-    AtlasBuildReport report;
-    auto progress = [&](double f, const char* stage) {
-        if (s.progress) s.progress(f, stage);
-    };
-    if (s.atlasSize < 64 || s.atlasSize > 16384 || (s.atlasSize & (s.atlasSize - 1)) != 0)
-        return Error{"--atlas-size must be a power of two from 64 to 16384 (got " + std::to_string(s.atlasSize) + ")"};
+namespace {
 
-    // Which triangles go where: textured ones into the RGB or RGBA tree (thesis §4.2), roofs (when the terrain's
-    // imagery textures them, §4.8.2) and untextured ones into the plain list.
-    AtlasTreeFile file;
+// Which triangles go where: textured ones into the RGB or RGBA tree (thesis §4.2), roofs (when the terrain's imagery
+// textures them, §4.8.2) and untextured ones into the file's plain list.
+Result<std::array<TreeInput, 2>> sortTriangles(const CityModel& model, const AtlasBuildSettings& s, AtlasTreeFile& file,
+                                               AtlasBuildReport& report) {
     std::array<TreeInput, 2> inputs;
     inputs[1].alpha = true;
     for (std::size_t i = 0; i < model.triangles.size(); ++i) {
@@ -395,12 +390,19 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
     report.plainTriangles = file.plain.surface.size();
     report.inputTreeTriangles = inputs[0].tris.size() + inputs[1].tris.size();
     if (report.inputTreeTriangles == 0) return fileError(model.source, "no textured triangles to build a tree from");
+    return inputs;
+}
 
-    // dmin: given, or D/72 (the thesis's Berlin test) with D the bounding-box diagonal.
+// Texels per metre of distance an atlas needs at distance d (§4.5.2).
+double fprojAt(const AtlasBuildSettings& s, double d) { return projectionFactor(d, s.fovXDeg, s.screenWidth) / s.tpp; }
+
+// dmin: given, or D/72 (the thesis's Berlin test) with D the bounding-box diagonal; enlarged when more than the
+// allowed fraction of triangles is critical (§4.5.3).
+double chooseDmin(const CityModel& model, const AtlasBuildSettings& s, const std::array<TreeInput, 2>& inputs,
+                  AtlasBuildReport& report) {
     const glm::dvec3 diag = model.boundsMax() - model.boundsMin();
     double dmin = s.dmin > 0.0 ? s.dmin : glm::length(diag) / 72.0;
     report.dminInitial = dmin;
-    auto fprojAt = [&](double d) { return projectionFactor(d, s.fovXDeg, s.screenWidth) / s.tpp; };
 
     // Critical triangles (§4.5.3): if more than c are critical, enlarge dmin so that c are; split the rest.
     {
@@ -410,8 +412,8 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
                 // Critical: too large for an atlas at dmin even capped at the original's size. Enlarging dmin helps
                 // by the uncapped size's factor (the capped one is then the uncapped one).
                 const glm::dvec2 cap = capOf(model.textures[std::size_t(t.texture)]);
-                const bool critical = !fits(requiredAtlasArea({&t}, fprojAt(dmin), s.border, cap), s.atlasSize);
-                growth.push_back(critical ? growthToFit(requiredAtlasArea({&t}, fprojAt(dmin), s.border), s.atlasSize, s.border) : 1.0);
+                const bool critical = !fits(requiredAtlasArea({&t}, fprojAt(s, dmin), s.border, cap), s.atlasSize);
+                growth.push_back(critical ? growthToFit(requiredAtlasArea({&t}, fprojAt(s, dmin), s.border), s.atlasSize, s.border) : 1.0);
             }
         report.criticalAtDmin = std::size_t(std::count_if(growth.begin(), growth.end(), [](double g) { return g > 1.0; }));
         const double fraction = double(report.criticalAtDmin) / double(growth.size());
@@ -424,7 +426,12 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
         }
     }
     report.dmin = dmin;
-    const double fproj = fprojAt(dmin);
+    return dmin;
+}
+
+// The triangles still critical at the final dmin are split until each fits an atlas (§4.5.3).
+Status splitCritical(const CityModel& model, const AtlasBuildSettings& s, double fproj, std::array<TreeInput, 2>& inputs,
+                     AtlasBuildReport& report) {
     for (auto& input : inputs) {
         std::vector<TexturedTriangle> done;
         std::vector<std::uint32_t> doneBuilding;
@@ -446,6 +453,201 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
         input.tris = std::move(done);
         input.building = std::move(doneBuilding);
     }
+    return Ok{};
+}
+
+// The atlases of one tree bottom-up (post-order), each written to the file as soon as it is made; a node's level-0
+// image is kept until its parent has used it, so at most 4 per level of the current path are in memory.
+struct AtlasMaker {
+    const AtlasBuildSettings& s;
+    Builder& b;
+    AtlasTreeData& tree;
+    AtlasTreeFile& file;
+    TextureCache& cache;
+    std::ofstream& os;
+    std::uint64_t& offset;
+    AtlasBuildReport& report;
+    const std::function<void(double, const char*)>& progress;
+    double dmin;
+    int threads;
+    std::size_t totalTris;
+    std::size_t& trisDone;
+    std::vector<std::vector<std::uint8_t>> images; // per node, until its parent has used it
+    std::vector<double> base; // per node: the distance from which its atlas suffices (its parent's minDistance)
+    std::optional<Error> failure;
+
+    void make(int ni) {
+        if (failure) return;
+        AtlasNode& n = tree.nodes[std::size_t(ni)];
+        const int A = s.atlasSize;
+        std::vector<std::uint8_t> img(std::size_t(A) * std::size_t(A) * 4, 0);
+        const bool empty = n.leaf() ? leaf(ni, img) : inner(ni, img);
+        if (failure) return;
+        // Bounds of the node's triangles.
+        glm::vec3 lo(INFINITY), hi(-INFINITY);
+        for (std::uint32_t t = n.first; t < n.first + n.count; ++t)
+            for (const auto& v : b.ordered[t].v) {
+                lo = glm::min(lo, glm::vec3(v));
+                hi = glm::max(hi, glm::vec3(v));
+            }
+        n.boundsMin = n.count ? lo : glm::vec3(0.0f);
+        n.boundsMax = n.count ? hi : glm::vec3(0.0f);
+        if (!empty) {
+            const auto blob = encodeAtlas(s.format, tree.alpha, img, A, threads);
+            n.atlasOffset = offset;
+            n.atlasBytes = blob.size();
+            os.write(reinterpret_cast<const char*>(blob.data()), std::streamsize(blob.size()));
+            offset += blob.size();
+            report.atlasBytes += blob.size();
+        }
+        images[std::size_t(ni)] = std::move(img);
+    }
+
+    // A leaf's atlas: its plan's areas sampled from the original textures (§4.5.2), its triangles' atlas and root
+    // atlas coordinates (§4.5.4). True when it holds nothing.
+    bool leaf(int ni, std::vector<std::uint8_t>& img) {
+        AtlasNode& n = tree.nodes[std::size_t(ni)];
+        const int A = s.atlasSize;
+        n.minDistance = float(dmin);
+        const LeafPlan& plan = b.plans.at(ni);
+        // Where an original capped the stored size, the leaf holds all the detail there is but less than
+        // a view at dmin could use: its ancestors' atlases (halved per level) suffice only from
+        // capFactor times further away than the thesis's doubling says.
+        double cap = 1.0;
+        for (const auto& a : plan.areas) cap = std::max(cap, a.capFactor);
+        base[std::size_t(ni)] = dmin * cap;
+        const bool empty = plan.areas.empty();
+        std::uint64_t texBytes = 0;
+        std::set<int> leafTextures;
+        std::vector<int> wanted;
+        for (const auto& a : plan.areas) wanted.push_back(a.texture);
+        if (auto st = cache.prefetch(wanted, threads); !st) {
+            failure = st.error();
+            return true;
+        }
+        std::vector<std::shared_ptr<const SourceTexture>> sources;
+        for (const auto& a : plan.areas) {
+            auto src = cache.get(a.texture);
+            if (!src) {
+                failure = src.error();
+                return true;
+            }
+            sources.push_back(*src);
+            file.textureSizes[std::size_t(a.texture)] = (*src)->sizes[0];
+            if (leafTextures.insert(a.texture).second) {
+                texBytes += (*src)->bytes();
+                n.textures.push_back(std::uint32_t(a.texture));
+            }
+        }
+        // Each atlas texel samples the source rectangle linearly; the footprint chooses the mip level. Areas
+        // do not overlap, so they are filled in parallel.
+        parallelIndices(int(plan.areas.size()), threads, [&](int ai, int) {
+            const AtlasArea& a = plan.areas[std::size_t(ai)];
+            const SourceTexture& st = *sources[std::size_t(ai)];
+            const glm::dvec2 span = a.srcMax - a.srcMin;
+            const double texelsPer = std::max(span.x * st.sizes[0].x / a.size.x, span.y * st.sizes[0].y / a.size.y);
+            for (int y = 0; y < a.size.y; ++y)
+                for (int x = 0; x < a.size.x; ++x) {
+                    const glm::dvec2 uv = a.srcMin + span * glm::dvec2((x + 0.5) / a.size.x, (y + 0.5) / a.size.y);
+                    const glm::vec4 c = st.sample(uv, texelsPer);
+                    const glm::ivec2 at(a.atlasTexel(glm::dvec2(x, y)));
+                    std::uint8_t* d = &img[(std::size_t(at.y) * std::size_t(A) + std::size_t(at.x)) * 4];
+                    for (int k = 0; k < 4; ++k) d[k] = std::uint8_t(std::clamp(c[k] + 0.5f, 0.0f, 255.0f));
+                }
+        });
+        // Empty atlas space continues the areas' edges (no black bleeding into coarse mips and wide
+        // anisotropic footprints at the areas' rims).
+        std::vector<std::uint8_t> covered(std::size_t(A) * std::size_t(A), 0);
+        for (const auto& a : plan.areas)
+            for (int y = 0; y < a.footprint().y; ++y)
+                std::fill_n(&covered[std::size_t(a.position.y + y) * std::size_t(A) + std::size_t(a.position.x)],
+                            std::size_t(a.footprint().x), std::uint8_t(1));
+        dilateRgba(img, A, covered);
+        n.textureBytes = texBytes;
+        // Atlas coordinates of the leaf's triangles, then the root atlas's (§4.5.4).
+        const auto& path = b.paths[std::size_t(ni)];
+        for (std::uint32_t t = n.first; t < n.first + n.count; ++t) {
+            const TexturedTriangle& tri = b.ordered[t];
+            const AtlasArea& a = plan.areas[b.orderedArea[t]];
+            for (int k = 0; k < 3; ++k) {
+                const glm::dvec2 local =
+                    a.atlasTexel((tri.t[std::size_t(k)] - a.srcMin) / (a.srcMax - a.srcMin) * glm::dvec2(a.size)) /
+                    double(A);
+                TreeVertex v;
+                v.position = glm::vec3(tri.v[std::size_t(k)]);
+                v.uv = glm::vec2(tri.t[std::size_t(k)]);
+                v.root = glm::vec2(rootAtlasCoord(local, path));
+                tree.vertices[std::size_t(t) * 3 + std::size_t(k)] = v;
+            }
+        }
+        trisDone += n.count;
+        progress(0.05 + 0.9 * double(trisDone) / double(totalTris), "atlases");
+        return empty;
+    }
+
+    // An inner node's atlas: its children's atlases halved into its quadrants (§4.5.1). True when it holds nothing.
+    bool inner(int ni, std::vector<std::uint8_t>& img) {
+        AtlasNode& n = tree.nodes[std::size_t(ni)];
+        const int A = s.atlasSize;
+        double md = 0.0;
+        bool any = false;
+        for (int q = 0; q < 4; ++q) {
+            const int c = n.children[std::size_t(q)];
+            make(c);
+            if (failure) return true;
+            const AtlasNode& cn = tree.nodes[std::size_t(c)];
+            if (cn.count > 0) {
+                md = std::max(md, base[std::size_t(c)]);
+                any = true;
+            }
+            // The child's atlas, halved, into quadrant q (0 bottom-left, 1 bottom-right, 2 top-left, 3 top-right).
+            const auto half = halveRgba(images[std::size_t(c)], A);
+            const int ox = (q % 2) * (A / 2), oy = (q / 2) * (A / 2);
+            for (int y = 0; y < A / 2; ++y)
+                std::copy_n(&half[std::size_t(y) * std::size_t(A / 2) * 4], std::size_t(A / 2) * 4,
+                            &img[(std::size_t(oy + y) * std::size_t(A) + std::size_t(ox)) * 4]);
+            images[std::size_t(c)].clear();
+            images[std::size_t(c)].shrink_to_fit();
+        }
+        // Quadrants of empty children continue their neighbours, as a leaf's empty space does.
+        std::vector<std::uint8_t> covered(std::size_t(A) * std::size_t(A), 0);
+        bool gaps = false;
+        for (int q = 0; q < 4; ++q) {
+            const int c = n.children[std::size_t(q)];
+            if (tree.nodes[std::size_t(c)].count == 0) {
+                gaps = true;
+                continue;
+            }
+            const int ox = (q % 2) * (A / 2), oy = (q / 2) * (A / 2);
+            for (int y = 0; y < A / 2; ++y)
+                std::fill_n(&covered[std::size_t(oy + y) * std::size_t(A) + std::size_t(ox)], std::size_t(A / 2),
+                            std::uint8_t(1));
+        }
+        if (gaps && any) dilateRgba(img, A, covered);
+        n.minDistance = float(2.0 * md); // §4.5.1: half the resolution is enough from twice the distance
+        base[std::size_t(ni)] = 2.0 * md;
+        return !any;
+    }
+};
+
+} // namespace
+
+Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuildSettings& s, const std::string& outPath) {
+    AtlasBuildReport report;
+    auto progress = [&](double f, const char* stage) {
+        if (s.progress) s.progress(f, stage);
+    };
+    if (s.atlasSize < 64 || s.atlasSize > 16384 || (s.atlasSize & (s.atlasSize - 1)) != 0)
+        return Error{"--atlas-size must be a power of two from 64 to 16384 (got " + std::to_string(s.atlasSize) + ")"};
+
+    AtlasTreeFile file;
+    auto sorted = sortTriangles(model, s, file, report);
+    if (!sorted) return sorted.error();
+    std::array<TreeInput, 2>& inputs = *sorted;
+
+    const double dmin = chooseDmin(model, s, inputs, report);
+    const double fproj = fprojAt(s, dmin);
+    if (auto st = splitCritical(model, s, fproj, inputs, report); !st) return st.error();
     report.treeTriangles = inputs[0].tris.size() + inputs[1].tris.size();
     progress(0.05, "tree structure");
 
@@ -481,158 +683,16 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
         fillSum += b.fillSum;
         fillCount += b.nonEmptyLeaves;
 
-        // Atlases bottom-up (post-order), each written as soon as it is made; a node's level-0 image is kept
-        // until its parent has used it, so at most 4 per level of the current path are in memory.
-        const int A = s.atlasSize;
-        std::vector<std::vector<std::uint8_t>> images(tree.nodes.size());
-        // Per node: the distance from which its atlas suffices, as its parent's minDistance derives from it.
-        std::vector<double> base(tree.nodes.size(), 0.0);
-        std::optional<Error> failure;
-        std::function<void(int)> make = [&](int ni) {
-            if (failure) return;
-            AtlasNode& n = tree.nodes[std::size_t(ni)];
-            std::vector<std::uint8_t> img(std::size_t(A) * std::size_t(A) * 4, 0);
-            bool empty = false;
-            if (n.leaf()) {
-                n.minDistance = float(dmin);
-                const LeafPlan& plan = b.plans.at(ni);
-                // Where an original capped the stored size, the leaf holds all the detail there is but less than
-                // a view at dmin could use: its ancestors' atlases (halved per level) suffice only from
-                // capFactor times further away than the thesis's doubling says.
-                double cap = 1.0;
-                for (const auto& a : plan.areas) cap = std::max(cap, a.capFactor);
-                base[std::size_t(ni)] = dmin * cap;
-                empty = plan.areas.empty();
-                std::uint64_t texBytes = 0;
-                std::set<int> leafTextures;
-                std::vector<int> wanted;
-                for (const auto& a : plan.areas) wanted.push_back(a.texture);
-                if (auto st = cache.prefetch(wanted, threads); !st) {
-                    failure = st.error();
-                    return;
-                }
-                std::vector<std::shared_ptr<const SourceTexture>> sources;
-                for (const auto& a : plan.areas) {
-                    auto src = cache.get(a.texture);
-                    if (!src) {
-                        failure = src.error();
-                        return;
-                    }
-                    sources.push_back(*src);
-                    file.textureSizes[std::size_t(a.texture)] = (*src)->sizes[0];
-                    if (leafTextures.insert(a.texture).second) {
-                        texBytes += (*src)->bytes();
-                        n.textures.push_back(std::uint32_t(a.texture));
-                    }
-                }
-                // Each atlas texel samples the source rectangle linearly; the footprint chooses the mip level. Areas
-                // do not overlap, so they are filled in parallel.
-                parallelIndices(int(plan.areas.size()), threads, [&](int ai, int) {
-                    const AtlasArea& a = plan.areas[std::size_t(ai)];
-                    const SourceTexture& st = *sources[std::size_t(ai)];
-                    const glm::dvec2 span = a.srcMax - a.srcMin;
-                    const double texelsPer = std::max(span.x * st.sizes[0].x / a.size.x, span.y * st.sizes[0].y / a.size.y);
-                    for (int y = 0; y < a.size.y; ++y)
-                        for (int x = 0; x < a.size.x; ++x) {
-                            const glm::dvec2 uv = a.srcMin + span * glm::dvec2((x + 0.5) / a.size.x, (y + 0.5) / a.size.y);
-                            const glm::vec4 c = st.sample(uv, texelsPer);
-                            const glm::ivec2 at(a.atlasTexel(glm::dvec2(x, y)));
-                            std::uint8_t* d = &img[(std::size_t(at.y) * std::size_t(A) + std::size_t(at.x)) * 4];
-                            for (int k = 0; k < 4; ++k) d[k] = std::uint8_t(std::clamp(c[k] + 0.5f, 0.0f, 255.0f));
-                        }
-                });
-                // Empty atlas space continues the areas' edges (no black bleeding into coarse mips and wide
-                // anisotropic footprints at the areas' rims).
-                std::vector<std::uint8_t> covered(std::size_t(A) * std::size_t(A), 0);
-                for (const auto& a : plan.areas)
-                    for (int y = 0; y < a.footprint().y; ++y)
-                        std::fill_n(&covered[std::size_t(a.position.y + y) * std::size_t(A) + std::size_t(a.position.x)],
-                                    std::size_t(a.footprint().x), std::uint8_t(1));
-                dilateRgba(img, A, covered);
-                n.textureBytes = texBytes;
-                // Atlas coordinates of the leaf's triangles, then the root atlas's (§4.5.4).
-                const auto& path = b.paths[std::size_t(ni)];
-                for (std::uint32_t t = n.first; t < n.first + n.count; ++t) {
-                    const TexturedTriangle& tri = b.ordered[t];
-                    const AtlasArea& a = plan.areas[b.orderedArea[t]];
-                    for (int k = 0; k < 3; ++k) {
-                        const glm::dvec2 local =
-                            a.atlasTexel((tri.t[std::size_t(k)] - a.srcMin) / (a.srcMax - a.srcMin) * glm::dvec2(a.size)) /
-                            double(A);
-                        TreeVertex v;
-                        v.position = glm::vec3(tri.v[std::size_t(k)]);
-                        v.uv = glm::vec2(tri.t[std::size_t(k)]);
-                        v.root = glm::vec2(rootAtlasCoord(local, path));
-                        tree.vertices[std::size_t(t) * 3 + std::size_t(k)] = v;
-                    }
-                }
-                trisDone += n.count;
-                progress(0.05 + 0.9 * double(trisDone) / double(totalTris), "atlases");
-            } else {
-                double md = 0.0;
-                bool any = false;
-                for (int q = 0; q < 4; ++q) {
-                    const int c = n.children[std::size_t(q)];
-                    make(c);
-                    if (failure) return;
-                    const AtlasNode& cn = tree.nodes[std::size_t(c)];
-                    if (cn.count > 0) {
-                        md = std::max(md, base[std::size_t(c)]);
-                        any = true;
-                    }
-                    // The child's atlas, halved, into quadrant q (0 bottom-left, 1 bottom-right, 2 top-left, 3 top-right).
-                    const auto half = halveRgba(images[std::size_t(c)], A);
-                    const int ox = (q % 2) * (A / 2), oy = (q / 2) * (A / 2);
-                    for (int y = 0; y < A / 2; ++y)
-                        std::copy_n(&half[std::size_t(y) * std::size_t(A / 2) * 4], std::size_t(A / 2) * 4,
-                                    &img[(std::size_t(oy + y) * std::size_t(A) + std::size_t(ox)) * 4]);
-                    images[std::size_t(c)].clear();
-                    images[std::size_t(c)].shrink_to_fit();
-                }
-                // Quadrants of empty children continue their neighbours, as a leaf's empty space does.
-                std::vector<std::uint8_t> covered(std::size_t(A) * std::size_t(A), 0);
-                bool gaps = false;
-                for (int q = 0; q < 4; ++q) {
-                    const int c = n.children[std::size_t(q)];
-                    if (tree.nodes[std::size_t(c)].count == 0) {
-                        gaps = true;
-                        continue;
-                    }
-                    const int ox = (q % 2) * (A / 2), oy = (q / 2) * (A / 2);
-                    for (int y = 0; y < A / 2; ++y)
-                        std::fill_n(&covered[std::size_t(oy + y) * std::size_t(A) + std::size_t(ox)], std::size_t(A / 2),
-                                    std::uint8_t(1));
-                }
-                if (gaps && any) dilateRgba(img, A, covered);
-                n.minDistance = float(2.0 * md); // §4.5.1: half the resolution is enough from twice the distance
-                base[std::size_t(ni)] = 2.0 * md;
-                empty = !any;
-            }
-            // Bounds of the node's triangles.
-            glm::vec3 lo(INFINITY), hi(-INFINITY);
-            for (std::uint32_t t = n.first; t < n.first + n.count; ++t)
-                for (const auto& v : b.ordered[t].v) {
-                    lo = glm::min(lo, glm::vec3(v));
-                    hi = glm::max(hi, glm::vec3(v));
-                }
-            n.boundsMin = n.count ? lo : glm::vec3(0.0f);
-            n.boundsMax = n.count ? hi : glm::vec3(0.0f);
-            if (!empty) {
-                const auto blob = encodeAtlas(s.format, input.alpha, img, A, threads);
-                n.atlasOffset = offset;
-                n.atlasBytes = blob.size();
-                os.write(reinterpret_cast<const char*>(blob.data()), std::streamsize(blob.size()));
-                offset += blob.size();
-                report.atlasBytes += blob.size();
-            }
-            images[std::size_t(ni)] = std::move(img);
-        };
         tree.vertices.resize(b.ordered.size() * 3);
-        make(0);
-        if (failure) {
+        AtlasMaker maker{s,         b,         tree,     file,     cache,
+                         os,        offset,    report,   progress, dmin,
+                         threads,   totalTris, trisDone, std::vector<std::vector<std::uint8_t>>(tree.nodes.size()),
+                         std::vector<double>(tree.nodes.size(), 0.0), std::nullopt};
+        maker.make(0);
+        if (maker.failure) {
             os.close();
             discardTemporary(tmp);
-            return *failure;
+            return *maker.failure;
         }
         for (std::size_t t = 0; t < b.ordered.size(); ++t) {
             tree.triangleTexture.push_back(std::uint32_t(b.ordered[t].texture));
