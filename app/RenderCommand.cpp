@@ -26,6 +26,62 @@ struct RenderArgs {
 };
 } // namespace
 
+namespace {
+
+// The render and imagery settings of the options, checked in the order the options are listed: the first problem
+// as one line naming its option.
+Status renderSettingsFrom(const RenderArgs& a, RenderSettings& settings, ImagerySettings& imagery) {
+    const auto view = parseImageryView(a.view);
+    if (!view) return Error{"--view '" + a.view + "': expected leafon|leafoff|blend|swipe|lod|wireframe|levels|relief|canopy"};
+    imagery.view = *view;
+    imagery.blend = a.blend;
+    imagery.swipe = a.swipe;
+    imagery.anisotropy = a.aniso;
+    imagery.shading = a.shade;
+    if (auto st = parseCanopyGround(a.groundUnder, a.groundElsewhere, imagery); !st)
+        return Error{st.message()};
+    if (a.gridSize < 31 || a.gridSize > 1023 || ((a.gridSize + 1) & a.gridSize) != 0)
+        return Error{"--grid-size " + std::to_string(a.gridSize) + ": expected 2^k - 1 in 31..1023"};
+    settings.geometry.n = a.gridSize;
+    settings.referenceAnisotropy = a.aniso;
+    if (a.renderer == "reference") settings.renderer = RendererKind::Reference;
+    else if (a.renderer != "clipmap") return Error{"--renderer '" + a.renderer + "': expected clipmap|reference"};
+    const auto centers = parsePlacement(a.centers);
+    if (!centers) return Error{"--centers '" + a.centers + "': expected " + placementNames()};
+    settings.centers = *centers;
+    if (a.clipSize < 256 || a.clipSize > 4096 || a.clipSize % 64 != 0)
+        return Error{"--clip-size " + std::to_string(a.clipSize) + ": expected 256..4096, a multiple of 64"};
+    settings.clipmap.size = a.clipSize;
+    settings.clipmap.minClipLevels = a.clipLevels;
+    settings.windowed = a.window;
+    if (auto c = parseCanopyArgs(a.canopyLayers, a.method, a.k); !c) return Error{c.message()};
+    else settings.canopy = *c;
+    if (auto st = parseTrunksArg(a.trunks, settings.canopy); !st) return Error{st.message()};
+    if (auto st = parseCanopyDrawArg(a.canopyDraw, settings.canopy); !st) return Error{st.message()};
+    settings.cacheDir = a.scene.cache.empty() ? defaultCacheDir() : std::filesystem::path(a.scene.cache);
+    if (settings.renderer == RendererKind::Reference && view != ImageryView::LeafOn && view != ImageryView::LeafOff)
+        return Error{"--view " + a.view + " needs --renderer clipmap"};
+    if (!a.stats.empty() && settings.renderer == RendererKind::Reference)
+        return Error{"--stats needs --renderer clipmap"};
+    if (!a.accuracy.empty() && settings.renderer == RendererKind::Reference)
+        return Error{"--accuracy needs --renderer clipmap"};
+    auto citySettings = a.city.settings();
+    if (!citySettings) return Error{citySettings.message()};
+    settings.city = *citySettings;
+    if (settings.city) settings.city->anisotropy = a.aniso;
+    if (settings.city && settings.renderer == RendererKind::Reference) return Error{"--city needs --renderer clipmap"};
+    imagery.terrain = a.terrain != "off";
+    imagery.path = *parseTerrainShading(a.terrainShading); // checked by CLI::IsMember
+    if (!imagery.terrain) {
+        if (!settings.city) return Error{"--terrain off draws only the city: give --city atlas|original|flat"};
+        if (*view == ImageryView::Canopy) return Error{"--terrain off: the canopy is drawn with the terrain, not without"};
+        if (!a.accuracy.empty()) return Error{"--terrain off: --accuracy compares the terrain, which is not drawn"};
+    }
+    return Ok{};
+}
+
+} // namespace
+
 Runner addRenderCommand(CLI::App& app) {
     auto args = std::make_shared<RenderArgs>();
     CLI::App* cmd = app.add_subcommand("render", "Render one still of a scene to PNG/TIFF (headless by default)");
@@ -107,52 +163,7 @@ Runner addRenderCommand(CLI::App& app) {
         };
         RenderSettings settings;
         ImagerySettings imagery;
-        const auto view = parseImageryView(args->view);
-        if (!view) return fail("--view '" + args->view + "': expected leafon|leafoff|blend|swipe|lod|wireframe|levels|relief|canopy");
-        imagery.view = *view;
-        imagery.blend = args->blend;
-        imagery.swipe = args->swipe;
-        imagery.anisotropy = args->aniso;
-        imagery.shading = args->shade;
-        if (auto st = parseCanopyGround(args->groundUnder, args->groundElsewhere, imagery); !st)
-            return fail(st.message());
-        if (args->gridSize < 31 || args->gridSize > 1023 || ((args->gridSize + 1) & args->gridSize) != 0)
-            return fail("--grid-size " + std::to_string(args->gridSize) + ": expected 2^k - 1 in 31..1023");
-        settings.geometry.n = args->gridSize;
-        settings.referenceAnisotropy = args->aniso;
-        if (args->renderer == "reference") settings.renderer = RendererKind::Reference;
-        else if (args->renderer != "clipmap") return fail("--renderer '" + args->renderer + "': expected clipmap|reference");
-        const auto centers = parsePlacement(args->centers);
-        if (!centers) return fail("--centers '" + args->centers + "': expected " + placementNames());
-        settings.centers = *centers;
-        if (args->clipSize < 256 || args->clipSize > 4096 || args->clipSize % 64 != 0)
-            return fail("--clip-size " + std::to_string(args->clipSize) + ": expected 256..4096, a multiple of 64");
-        settings.clipmap.size = args->clipSize;
-        settings.clipmap.minClipLevels = args->clipLevels;
-        settings.windowed = args->window;
-        if (auto c = parseCanopyArgs(args->canopyLayers, args->method, args->k); !c) return fail(c.message());
-        else settings.canopy = *c;
-        if (auto st = parseTrunksArg(args->trunks, settings.canopy); !st) return fail(st.message());
-        if (auto st = parseCanopyDrawArg(args->canopyDraw, settings.canopy); !st) return fail(st.message());
-        settings.cacheDir = args->scene.cache.empty() ? defaultCacheDir() : std::filesystem::path(args->scene.cache);
-        if (settings.renderer == RendererKind::Reference && view != ImageryView::LeafOn && view != ImageryView::LeafOff)
-            return fail("--view " + args->view + " needs --renderer clipmap");
-        if (!args->stats.empty() && settings.renderer == RendererKind::Reference)
-            return fail("--stats needs --renderer clipmap");
-        if (!args->accuracy.empty() && settings.renderer == RendererKind::Reference)
-            return fail("--accuracy needs --renderer clipmap");
-        auto citySettings = args->city.settings();
-        if (!citySettings) return fail(citySettings.message());
-        settings.city = *citySettings;
-        if (settings.city) settings.city->anisotropy = args->aniso;
-        if (settings.city && settings.renderer == RendererKind::Reference) return fail("--city needs --renderer clipmap");
-        imagery.terrain = args->terrain != "off";
-        imagery.path = *parseTerrainShading(args->terrainShading); // checked by CLI::IsMember
-        if (!imagery.terrain) {
-            if (!settings.city) return fail("--terrain off draws only the city: give --city atlas|original|flat");
-            if (*view == ImageryView::Canopy) return fail("--terrain off: the canopy is drawn with the terrain, not without");
-            if (!args->accuracy.empty()) return fail("--terrain off: --accuracy compares the terrain, which is not drawn");
-        }
+        if (auto st = renderSettingsFrom(*args, settings, imagery); !st) return fail(st.message());
         auto size = parseSize(args->size);
         if (!size) return fail(size.message());
         if (auto st = checkImageOutput(args->out); !st) return fail(st.message());
