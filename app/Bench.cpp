@@ -143,6 +143,86 @@ nlohmann::json cityFigures(const Mode& m) {
 }
 
 // "centers=concentric,offset,footprint" or "renderer=clipmap,reference" -> modes.
+// One value of --compare KEY=V1,V2,... applied to a mode made from the other options.
+Status applyCompareValue(const BenchSettings& a, const std::string& key, const std::string& v, Mode& m) {
+    if (key == "centers") {
+        auto c = parsePlacement(v);
+        if (!c)
+            return Error{"--compare: unknown centers '" + v + "' (expected " + placementNames() + ")"};
+        m.centers = *c;
+    } else if (key == "aniso") {
+        char* end = nullptr;
+        const float x = std::strtof(v.c_str(), &end);
+        if (v.empty() || *end != '\0' || !(x >= 1.0f && x <= kMaxAnisotropy))
+            return Error{"--compare: aniso '" + v + "' is not a number in 1..16"};
+        m.anisotropy = x;
+    } else if (key == "canopy") {
+        auto c = parseCanopyArgs(v, a.method, a.k);
+        if (!c)
+            return Error{"--compare: canopy '" + v + "' is not off or 1..32"};
+        m.canopyLayers = c->layers;
+    } else if (key == "canopy-draw") {
+        // The canopy view with --canopy-layers layers, drawn each way.
+        CanopyRenderSettings d;
+        if (auto st = parseCanopyDrawArg(v, d); !st)
+            return Error{"--compare: canopy-draw '" + v + "' (expected layers|march)"};
+        auto c = parseCanopyArgs(a.canopyLayers, a.method, a.k);
+        if (!c)
+            return Error{c.message()};
+        m.canopyLayers = std::max(1, c->layers);
+        m.canopyDraw = d.draw;
+    } else if (key == "scene") {
+        // terrain: the geometry clipmaps shaded, no imagery; full: both seasons (leaf-off under the crowns,
+        // leaf-on elsewhere), the stacked canopy layers (--canopy-layers, default 16) and the trunks.
+        if (v == "terrain") {
+            m.terrainOnly = true;
+            m.canopyLayers = 0;
+        } else if (v == "full") {
+            auto c = parseCanopyArgs(a.canopyLayers, a.method, a.k);
+            if (!c)
+                return Error{c.message()};
+            m.canopyLayers = std::max(1, c->layers);
+        } else
+            return Error{"--compare: scene '" + v + "' (expected terrain|full)"};
+    } else if (key == "city") {
+        if (v == "off") {
+            m.cityMode.reset();
+        } else {
+            m.cityMode = city::parseCityMode(v);
+            if (!m.cityMode) return Error{"--compare: city '" + v + "' (expected atlas|original|flat|off)"};
+        }
+    } else if (key == "city-upload") {
+        // The atlas city (or --city's mode) with its BC atlases uploaded each way.
+        auto u = city::parseAtlasUpload(v);
+        if (!u) return Error{"--compare: city-upload '" + v + "' (expected auto|compressed|decoded)"};
+        if (!m.cityMode) m.cityMode = city::CityMode::Atlas;
+        m.cityUpload = *u;
+    } else if (key == "city-occlusion") {
+        // The atlas city (or --city's mode) drawn with and without occlusion culling.
+        if (v != "on" && v != "off") return Error{"--compare: city-occlusion '" + v + "' (expected on|off)"};
+        if (!m.cityMode) m.cityMode = city::CityMode::Atlas;
+        m.cityOcclusion = v == "on";
+    } else if (key == "terrain-shading") {
+        auto t = parseTerrainShading(v);
+        if (!t) return Error{"--compare: terrain-shading '" + v + "' (expected forward|deferred)"};
+        m.terrainShading = *t;
+    } else if (key == "terrain") {
+        // The city (--city, default atlas) over the terrain and alone.
+        if (v != "on" && v != "off") return Error{"--compare: terrain '" + v + "' (expected on|off)"};
+        if (!m.cityMode) m.cityMode = city::CityMode::Atlas;
+        m.drawTerrain = v == "on";
+    } else if (key == "segmentation") {
+        if (v != "upload" && v != "perframe")
+            return Error{"--compare: segmentation '" + v + "' (expected upload|perframe)"};
+        m.perFrameSegmentation = v == "perframe";
+    } else if (v == "reference") {
+        m.renderer = RendererKind::Reference;
+    } else if (v != "clipmap") {
+        return Error{"--compare: unknown renderer '" + v + "' (expected clipmap|reference)"};
+    }
+    return Ok{};
+}
+
 Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     std::vector<Mode> modes;
     auto base = [&]() -> Result<Mode> {
@@ -217,81 +297,7 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
         auto m = base();
         if (!m)
             return m.error();
-        if (key == "centers") {
-            auto c = parsePlacement(v);
-            if (!c)
-                return Error{"--compare: unknown centers '" + v + "' (expected " + placementNames() + ")"};
-            m->centers = *c;
-        } else if (key == "aniso") {
-            char* end = nullptr;
-            const float x = std::strtof(v.c_str(), &end);
-            if (v.empty() || *end != '\0' || !(x >= 1.0f && x <= kMaxAnisotropy))
-                return Error{"--compare: aniso '" + v + "' is not a number in 1..16"};
-            m->anisotropy = x;
-        } else if (key == "canopy") {
-            auto c = parseCanopyArgs(v, a.method, a.k);
-            if (!c)
-                return Error{"--compare: canopy '" + v + "' is not off or 1..32"};
-            m->canopyLayers = c->layers;
-        } else if (key == "canopy-draw") {
-            // The canopy view with --canopy-layers layers, drawn each way.
-            CanopyRenderSettings d;
-            if (auto st = parseCanopyDrawArg(v, d); !st)
-                return Error{"--compare: canopy-draw '" + v + "' (expected layers|march)"};
-            auto c = parseCanopyArgs(a.canopyLayers, a.method, a.k);
-            if (!c)
-                return Error{c.message()};
-            m->canopyLayers = std::max(1, c->layers);
-            m->canopyDraw = d.draw;
-        } else if (key == "scene") {
-            // terrain: the geometry clipmaps shaded, no imagery; full: both seasons (leaf-off under the crowns,
-            // leaf-on elsewhere), the stacked canopy layers (--canopy-layers, default 16) and the trunks.
-            if (v == "terrain") {
-                m->terrainOnly = true;
-                m->canopyLayers = 0;
-            } else if (v == "full") {
-                auto c = parseCanopyArgs(a.canopyLayers, a.method, a.k);
-                if (!c)
-                    return Error{c.message()};
-                m->canopyLayers = std::max(1, c->layers);
-            } else
-                return Error{"--compare: scene '" + v + "' (expected terrain|full)"};
-        } else if (key == "city") {
-            if (v == "off") {
-                m->cityMode.reset();
-            } else {
-                m->cityMode = city::parseCityMode(v);
-                if (!m->cityMode) return Error{"--compare: city '" + v + "' (expected atlas|original|flat|off)"};
-            }
-        } else if (key == "city-upload") {
-            // The atlas city (or --city's mode) with its BC atlases uploaded each way.
-            auto u = city::parseAtlasUpload(v);
-            if (!u) return Error{"--compare: city-upload '" + v + "' (expected auto|compressed|decoded)"};
-            if (!m->cityMode) m->cityMode = city::CityMode::Atlas;
-            m->cityUpload = *u;
-        } else if (key == "city-occlusion") {
-            // The atlas city (or --city's mode) drawn with and without occlusion culling.
-            if (v != "on" && v != "off") return Error{"--compare: city-occlusion '" + v + "' (expected on|off)"};
-            if (!m->cityMode) m->cityMode = city::CityMode::Atlas;
-            m->cityOcclusion = v == "on";
-        } else if (key == "terrain-shading") {
-            auto t = parseTerrainShading(v);
-            if (!t) return Error{"--compare: terrain-shading '" + v + "' (expected forward|deferred)"};
-            m->terrainShading = *t;
-        } else if (key == "terrain") {
-            // The city (--city, default atlas) over the terrain and alone.
-            if (v != "on" && v != "off") return Error{"--compare: terrain '" + v + "' (expected on|off)"};
-            if (!m->cityMode) m->cityMode = city::CityMode::Atlas;
-            m->drawTerrain = v == "on";
-        } else if (key == "segmentation") {
-            if (v != "upload" && v != "perframe")
-                return Error{"--compare: segmentation '" + v + "' (expected upload|perframe)"};
-            m->perFrameSegmentation = v == "perframe";
-        } else if (v == "reference") {
-            m->renderer = RendererKind::Reference;
-        } else if (v != "clipmap") {
-            return Error{"--compare: unknown renderer '" + v + "' (expected clipmap|reference)"};
-        }
+        if (auto st = applyCompareValue(a, key, v, *m); !st) return st.error();
         m->label = key + "=" + v;
         modes.push_back(std::move(*m));
     }
