@@ -41,20 +41,9 @@ TEST(FoliageRuleGLTest, GlslRuleAgreesWithCpp) {
     gl::GlContext* ctx = test::headlessContext();
     ASSERT_TRUE(ctx);
     const std::string source = "#version 450 core\n" + gl::shaderSource("foliage_rule.glsl") + kMain;
-    gl::Shader shader = gl::Shader::create(GL_COMPUTE_SHADER);
-    const char* src = source.c_str();
-    glShaderSource(shader.id(), 1, &src, nullptr);
-    glCompileShader(shader.id());
-    GLint ok = 0;
-    glGetShaderiv(shader.id(), GL_COMPILE_STATUS, &ok);
-    char log[4096] = {};
-    glGetShaderInfoLog(shader.id(), sizeof log, nullptr, log);
-    ASSERT_TRUE(ok) << log;
-    gl::Program program = gl::Program::create();
-    glAttachShader(program.id(), shader.id());
-    glLinkProgram(program.id());
-    glGetProgramiv(program.id(), GL_LINK_STATUS, &ok);
-    ASSERT_TRUE(ok);
+    auto built = gl::ShaderProgram::buildComputeSource("foliage_rule test", source);
+    ASSERT_TRUE(built.ok()) << built.message();
+    gl::ShaderProgram program = std::move(*built);
 
     // Random colours, thresholds, votes; texture windows of random smoothed brightness, half of them scaled so that
     // the coefficient of variation lies right at the 0.03 threshold.

@@ -32,12 +32,8 @@ std::string expandIncludes(std::string_view source, int depth) {
     return out.str();
 }
 
-Result<Shader> compile(GLenum type, std::string_view name, const std::vector<std::string>& defines) {
-    std::string body = shaderSource(name);
-    if (body.empty()) return Error{"shader " + std::string(name) + ": not embedded"};
-    std::string text = "#version 450 core\n";
-    for (const auto& d : defines) text += "#define " + d + "\n";
-    text += "#line 1\n" + body;
+// Compiles the complete source `text`; the error names `label` and carries the compiler's log on one line.
+Result<Shader> compileText(GLenum type, std::string_view label, const std::string& text) {
     Shader s = Shader::create(type);
     const char* src = text.c_str();
     glShaderSource(s.id(), 1, &src, nullptr);
@@ -50,9 +46,24 @@ Result<Shader> compile(GLenum type, std::string_view name, const std::vector<std
         std::string l = log;
         for (char& c : l)
             if (c == '\n') c = ' ';
-        return Error{"shader " + std::string(name) + ": " + l};
+        return Error{"shader " + std::string(label) + ": " + l};
     }
     return s;
+}
+
+// The embedded shader `name` with its includes expanded, after the version line and `defines`.
+Result<std::string> composeSource(std::string_view name, const std::vector<std::string>& defines) {
+    std::string body = shaderSource(name);
+    if (body.empty()) return Error{"shader " + std::string(name) + ": not embedded"};
+    std::string text = "#version 450 core\n";
+    for (const auto& d : defines) text += "#define " + d + "\n";
+    return text + "#line 1\n" + body;
+}
+
+Result<Shader> compile(GLenum type, std::string_view name, const std::vector<std::string>& defines) {
+    auto text = composeSource(name, defines);
+    if (!text) return text.error();
+    return compileText(type, name, *text);
 }
 
 } // namespace
@@ -93,11 +104,17 @@ Result<ShaderProgram> ShaderProgram::build(std::string_view vertexName, std::str
 }
 
 Result<ShaderProgram> ShaderProgram::buildCompute(std::string_view computeName, const std::vector<std::string>& defines) {
-    auto cs = compile(GL_COMPUTE_SHADER, computeName, defines);
+    auto text = composeSource(computeName, defines);
+    if (!text) return text.error();
+    return buildComputeSource(computeName, *text);
+}
+
+Result<ShaderProgram> ShaderProgram::buildComputeSource(std::string_view label, const std::string& source) {
+    auto cs = compileText(GL_COMPUTE_SHADER, label, source);
     if (!cs) return cs.error();
     ShaderProgram p;
     p.m_program = Program::create();
-    if (auto st = linkProgram(p.id(), {&*cs}, std::string(computeName)); !st) return st.error();
+    if (auto st = linkProgram(p.id(), {&*cs}, std::string(label)); !st) return st.error();
     return p;
 }
 

@@ -26,6 +26,9 @@ public:
                                        const std::vector<std::string>& defines = {});
     /// Compiles and links a compute program from `computeName` (a .comp file in shaders/).
     static Result<ShaderProgram> buildCompute(std::string_view computeName, const std::vector<std::string>& defines = {});
+    /// The same from complete source text (`#version` line included; tests that run shader functions); errors name
+    /// `label`.
+    static Result<ShaderProgram> buildComputeSource(std::string_view label, const std::string& source);
 
     GLuint id() const { return m_program.id(); }
     void use() const { glUseProgram(m_program.id()); }
