@@ -178,24 +178,21 @@ std::uint32_t Layout::groundAtLayout(glm::vec2 q) const {
     return id;
 }
 
-Layout buildLayout(float halfExtent, std::uint64_t seed) {
-    Layout l;
-    l.halfExtent = halfExtent;
-    l.seed = seed;
-    l.warp = Warp(halfExtent, seed);
-    Rng rng(mixSeed(seed, 1));
+namespace {
 
-    // Villages are placed in a region of at least ~2.5 x 2.5 km so that small scenes see them with their real
-    // frequency (about one village per 3 km²) instead of always sitting in one.
+// Villages, placed in a region of at least ~2.5 x 2.5 km so that small scenes see them with their real frequency
+// (about one village per 3 km²) instead of always sitting in one.
+void placeVillages(Layout& l, Rng& rng, float halfExtent) {
     const float region = std::max(halfExtent, 1250.0f);
     const int villages = std::max(1, static_cast<int>(std::lround(4.0 * double(region) * double(region) / 3.0e6)));
     for (int i = 0; i < villages; ++i) {
         l.villages.push_back(glm::vec2(rng.uniformf(-0.85f, 0.85f), rng.uniformf(-0.85f, 0.85f)) * region);
         l.villageRadius.push_back(rng.uniformf(170.0f, 320.0f));
     }
+}
 
-    // River: a meander around a straight axis through the layout.
-    River& r = l.river;
+// The river: a meander around a straight axis through the layout.
+void placeRiver(River& r, Rng& rng, float halfExtent) {
     const float riverAngle = rng.uniformf(0.0f, kPi);
     r.axis = glm::vec2(std::cos(riverAngle), std::sin(riverAngle));
     r.origin = perpLeft(r.axis) * rng.uniformf(-0.4f, 0.4f) * std::max(halfExtent, 600.0f);
@@ -207,6 +204,51 @@ Layout buildLayout(float halfExtent, std::uint64_t seed) {
     r.phase2 = rng.uniformf(0.0f, 2.0f * kPi);
     r.halfWidth = rng.uniformf(5.5f, 8.5f);
     r.bankWidth = 3.5f;
+}
+
+// A leaf of the cut tree becomes a parcel with its ground record (crop, forest composition, lawn).
+void addParcel(Layout& l, Pending&& p, LandUse use, float area, glm::vec2 centroid, glm::vec2 grain, std::uint64_t seed,
+               Rng& rng) {
+    Parcel parcel;
+    parcel.poly = std::move(p.poly);
+    parcel.edgeCut = std::move(p.tags);
+    parcel.use = use;
+    parcel.area = area;
+    parcel.centroid = centroid;
+    parcel.grain = grain;
+    GroundRecord rec{Ground::Meadow, 0, centroid, parcel.grain, {}, seed32(seed, 500000 + l.parcels.size())};
+    const double u = rng.uniform();
+    switch (use) {
+    case LandUse::Farm:
+        rec.cls = u < 0.28 ? Ground::Meadow : u < 0.60 ? Ground::WinterCrop : u < 0.93 ? Ground::SummerCrop
+                                                                                      : Ground::Fallow;
+        rec.variant = static_cast<std::uint8_t>(rng.index(3));
+        break;
+    case LandUse::Forest: {
+        // Composition: 0 deciduous, 1 mixed, 2 conifer, 3 conifer plantation in rows.
+        rec.cls = Ground::ForestFloor;
+        rec.variant = static_cast<std::uint8_t>(u < 0.50 ? 0 : u < 0.80 ? 1 : u < 0.91 ? 2 : 3);
+        break;
+    }
+    case LandUse::Village: rec.cls = Ground::Lawn; break;
+    }
+    parcel.record = l.addRecord(rec);
+    l.nodeParcel[size_t(p.node)] = static_cast<std::int32_t>(l.parcels.size());
+    l.parcels.push_back(std::move(parcel));
+}
+
+} // namespace
+
+Layout buildLayout(float halfExtent, std::uint64_t seed) {
+    Layout l;
+    l.halfExtent = halfExtent;
+    l.seed = seed;
+    l.warp = Warp(halfExtent, seed);
+    Rng rng(mixSeed(seed, 1));
+
+    placeVillages(l, rng, halfExtent);
+
+    placeRiver(l.river, rng, halfExtent);
 
     l.waterRecord = l.addRecord({Ground::Water, 0, {}, {1.0f, 0.0f}, {}, seed32(seed, 31)});
     l.bankRecord = l.addRecord({Ground::Bank, 0, {}, {1.0f, 0.0f}, {}, seed32(seed, 32)});
@@ -307,32 +349,7 @@ Layout buildLayout(float halfExtent, std::uint64_t seed) {
             }
         }
 
-        Parcel parcel;
-        parcel.poly = std::move(p.poly);
-        parcel.edgeCut = std::move(p.tags);
-        parcel.use = use;
-        parcel.area = area;
-        parcel.centroid = centroid;
-        parcel.grain = lenU >= lenV ? p.grain : across;
-        GroundRecord rec{Ground::Meadow, 0, centroid, parcel.grain, {}, seed32(seed, 500000 + l.parcels.size())};
-        const double u = rng.uniform();
-        switch (use) {
-        case LandUse::Farm:
-            rec.cls = u < 0.28 ? Ground::Meadow : u < 0.60 ? Ground::WinterCrop : u < 0.93 ? Ground::SummerCrop
-                                                                                          : Ground::Fallow;
-            rec.variant = static_cast<std::uint8_t>(rng.index(3));
-            break;
-        case LandUse::Forest: {
-            // Composition: 0 deciduous, 1 mixed, 2 conifer, 3 conifer plantation in rows.
-            rec.cls = Ground::ForestFloor;
-            rec.variant = static_cast<std::uint8_t>(u < 0.50 ? 0 : u < 0.80 ? 1 : u < 0.91 ? 2 : 3);
-            break;
-        }
-        case LandUse::Village: rec.cls = Ground::Lawn; break;
-        }
-        parcel.record = l.addRecord(rec);
-        l.nodeParcel[size_t(p.node)] = static_cast<std::int32_t>(l.parcels.size());
-        l.parcels.push_back(std::move(parcel));
+        addParcel(l, std::move(p), use, area, centroid, lenU >= lenV ? p.grain : across, seed, rng);
     }
     return l;
 }
