@@ -615,6 +615,39 @@ private:
     int m_first = 0, m_last = 0, m_done = 0;
 };
 
+// What a segmentation reads and writes besides the pair, opened before any pixel work, inputs (the cheap checks)
+// first: the truth mask and the true trees when given, the mask file and the overlay when asked for.
+struct SegmentFilesOpen {
+    std::optional<TruthRows> truth;
+    std::optional<std::vector<CrownPoint>> trueTrees;
+    std::optional<OutputImage> mask; // always there once open
+    std::optional<OutputImage> overlay;
+};
+
+Result<SegmentFilesOpen> openSegmentFiles(const Scene& scene, const SegmentJob& job, int preferredRows) {
+    const int w = scene.grid.width, h = scene.grid.height;
+    SegmentFilesOpen f;
+    if (!job.truth.empty()) {
+        auto t = TruthRows::open(job.truth, scene.grid, preferredRows);
+        if (!t) return t.error();
+        f.truth = std::move(*t);
+    }
+    if (!job.truthTrees.empty()) {
+        auto t = readTrueTrees(job.truthTrees);
+        if (!t) return t.error();
+        f.trueTrees = std::move(*t);
+    }
+    auto mask = OutputImage::open(job.mask, w, h, 1, true, scene.grid.georef);
+    if (!mask) return mask.error();
+    f.mask = std::move(*mask);
+    if (!job.overlay.empty()) {
+        auto o = OutputImage::open(job.overlay, w, h, 3, false, scene.grid.georef);
+        if (!o) return o.error();
+        f.overlay = std::move(*o);
+    }
+    return f;
+}
+
 } // namespace
 
 Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
@@ -637,28 +670,14 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
     // Inputs first (cheap checks), then the outputs, before any pixel work.
     // The readers' bands: at least the halo, so that a window never needs more than the bands around it.
     const int preferredRows = std::max({256, bandRows, 2 * halo});
-    const bool withTruth = !job.truth.empty();
-    std::optional<TruthRows> truthReader;
-    if (withTruth) {
-        auto t = TruthRows::open(job.truth, scene.grid, preferredRows);
-        if (!t) return t.error();
-        truthReader = std::move(*t);
-    }
-    std::optional<std::vector<CrownPoint>> trueTrees;
-    if (!job.truthTrees.empty()) {
-        auto t = readTrueTrees(job.truthTrees);
-        if (!t) return t.error();
-        trueTrees = std::move(*t);
-    }
+    auto files = openSegmentFiles(scene, job, preferredRows);
+    if (!files) return files.error();
+    const bool withTruth = files->truth.has_value();
+    std::optional<TruthRows>& truthReader = files->truth;
+    const std::optional<std::vector<CrownPoint>>& trueTrees = files->trueTrees;
     const bool withCrowns = !job.trees.empty() || trueTrees.has_value();
-    auto maskOut = OutputImage::open(job.mask, w, h, 1, true, scene.grid.georef);
-    if (!maskOut) return maskOut.error();
-    std::optional<OutputImage> overlayOut;
-    if (!job.overlay.empty()) {
-        auto o = OutputImage::open(job.overlay, w, h, 3, false, scene.grid.georef);
-        if (!o) return o.error();
-        overlayOut = std::move(*o);
-    }
+    std::optional<OutputImage>& maskOut = files->mask;
+    std::optional<OutputImage>& overlayOut = files->overlay;
 
     const CrownParams crownParams = crownParamsForGsd(pixelMetres(scene));
     const int crownHaloRows = withCrowns ? crownHalo(crownParams) : 0;
