@@ -76,10 +76,10 @@ public:
     /// this clipmap: PREFIX + BLOCK_SIZE, SLOTS_PER_SIDE and SIZE (shaders/common_clip_layout.glsl; llvmpipe divides
     /// by a constant with a multiply and a shift, by a uniform lane by lane).
     std::vector<std::string> layoutDefines(const std::string& prefix = "CLIP_") const;
-    /// Rgba8 pyramids: RGBA8 levels, a mipmapped coarse texture per layer. R32F (elevation): R32F levels read with
-    /// texelFetch, and the coarse pyramid's exact levels as array layers (layer i's level clip levels + k at
-    /// i · (levels - clip levels) + k, stored from texel 0,0), since mipmaps would round sizes down where the
-    /// pyramid rounds up.
+    /// Rgba8 pyramids: RGBA8 levels, each layer's coarse pyramid mipmapped at its array layer. R32F (elevation):
+    /// R32F levels read with texelFetch, and the coarse pyramid's exact levels as array layers (layer i's level
+    /// clip levels + k at i · (levels - clip levels) + k, stored from texel 0,0), since mipmaps would round sizes
+    /// down where the pyramid rounds up.
     TexelFormat format() const { return m_format; }
 
     const ClipmapSchedule& schedule() const { return m_schedule; }

@@ -3,7 +3,7 @@
 // were a quarter of the terrain's frame, docs/performance.md). Here the quotient comes from a float division, within
 // one of the exact quotient (x and d are exact in float and the division errs by at most 2.5 ulp), and one integer
 // step corrects it. Programs built for one clipmap get its layout as compile-time constants instead
-// (common_clip_layout.glsl), where a division is a multiply and a shift. IntDivGLTest checks both against C++.
+// (common_clip_layout.glsl), where a division is a multiply and a shift. ShaderIntMathGLTest checks both against C++.
 #ifndef SV_COMMON_INTDIV
 #define SV_COMMON_INTDIV
 

@@ -19,7 +19,7 @@ const int SV_SEG_MIN_ALPHA = 128;
 int svUnpremultiply(int c, int a) { return a > 0 && a < 255 ? min(255, (c * 255 + a / 2) / a) : c; }
 // The same for the three components at once, in float: (n + 0.5) / a lies at least 0.5 / a from an integer, far more
 // than the division's error (2.5 ulp, below 0.01 / a for n < 2^16), so its floor is the integer quotient exactly
-// (FoliageRuleGLTest checks every c and a). llvmpipe has no vector integer division: it divides lane by lane, and a
+// (ShaderIntMathGLTest checks every c and a). llvmpipe has no vector integer division: it divides lane by lane, and a
 // select computes the quotient for every texel, so this is what canopy_derive.comp uses.
 ivec3 svUnpremultiply3(ivec3 c, int a) {
     vec3 q = floor((vec3(c * 255 + a / 2) + 0.5) / float(max(a, 1)));
