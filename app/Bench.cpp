@@ -157,7 +157,7 @@ Status applyCompareValue(const BenchSettings& a, const std::string& key, const s
             return Error{"--compare: aniso '" + v + "' is not a number in 1..16"};
         m.anisotropy = x;
     } else if (key == "canopy") {
-        auto c = parseCanopyArgs(v, a.method, a.k);
+        auto c = parseCanopyArgs(v, a.canopy.method, a.canopy.k);
         if (!c)
             return Error{"--compare: canopy '" + v + "' is not off or 1..32"};
         m.canopyLayers = c->layers;
@@ -166,7 +166,7 @@ Status applyCompareValue(const BenchSettings& a, const std::string& key, const s
         CanopyRenderSettings d;
         if (auto st = parseCanopyDrawArg(v, d); !st)
             return Error{"--compare: canopy-draw '" + v + "' (expected layers|march)"};
-        auto c = parseCanopyArgs(a.canopyLayers, a.method, a.k);
+        auto c = parseCanopyArgs(a.canopy.layers, a.canopy.method, a.canopy.k);
         if (!c)
             return Error{c.message()};
         m.canopyLayers = std::max(1, c->layers);
@@ -178,7 +178,7 @@ Status applyCompareValue(const BenchSettings& a, const std::string& key, const s
             m.terrainOnly = true;
             m.canopyLayers = 0;
         } else if (v == "full") {
-            auto c = parseCanopyArgs(a.canopyLayers, a.method, a.k);
+            auto c = parseCanopyArgs(a.canopy.layers, a.canopy.method, a.canopy.k);
             if (!c)
                 return Error{c.message()};
             m.canopyLayers = std::max(1, c->layers);
@@ -227,32 +227,32 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     std::vector<Mode> modes;
     auto base = [&]() -> Result<Mode> {
         Mode m;
-        if (a.renderer == "reference")
-            m.renderer = RendererKind::Reference;
-        else if (a.renderer != "clipmap")
-            return Error{"--renderer '" + a.renderer + "': expected clipmap|reference"};
-        auto c = parsePlacement(a.centers);
+        auto reference = a.clipmap.referenceRenderer();
+        if (!reference)
+            return reference.error();
+        m.renderer = *reference ? RendererKind::Reference : RendererKind::Clipmap;
+        auto c = a.clipmap.placement();
         if (!c)
-            return Error{"--centers '" + a.centers + "': expected " + placementNames()};
+            return c.error();
         m.centers = *c;
-        if (!(a.anisotropy >= 1.0f && a.anisotropy <= kMaxAnisotropy))
+        if (!(a.imagery.aniso >= 1.0f && a.imagery.aniso <= kMaxAnisotropy))
             return Error{"--aniso: expected 1..16"};
-        m.anisotropy = a.anisotropy;
-        if (a.city != "off") {
-            m.cityMode = city::parseCityMode(a.city);
-            if (!m.cityMode) return Error{"--city '" + a.city + "': expected atlas|original|flat|off"};
+        m.anisotropy = a.imagery.aniso;
+        if (a.city.mode != "off") {
+            m.cityMode = city::parseCityMode(a.city.mode);
+            if (!m.cityMode) return Error{"--city '" + a.city.mode + "': expected atlas|original|flat|off"};
         }
-        auto upload = city::parseAtlasUpload(a.cityUpload);
-        if (!upload) return Error{"--city-upload '" + a.cityUpload + "': expected auto|compressed|decoded"};
+        auto upload = city::parseAtlasUpload(a.city.upload);
+        if (!upload) return Error{"--city-upload '" + a.city.upload + "': expected auto|compressed|decoded"};
         m.cityUpload = *upload;
-        if (a.cityOcclusion != "on" && a.cityOcclusion != "off")
-            return Error{"--city-occlusion '" + a.cityOcclusion + "': expected on|off"};
-        m.cityOcclusion = a.cityOcclusion == "on";
-        if (a.terrain != "on" && a.terrain != "off")
-            return Error{"--terrain '" + a.terrain + "': expected on|off"};
-        m.drawTerrain = a.terrain == "on";
-        auto shading = parseTerrainShading(a.terrainShading);
-        if (!shading) return Error{"--terrain-shading '" + a.terrainShading + "': expected forward|deferred"};
+        if (a.city.occlusion != "on" && a.city.occlusion != "off")
+            return Error{"--city-occlusion '" + a.city.occlusion + "': expected on|off"};
+        m.cityOcclusion = a.city.occlusion == "on";
+        if (a.imagery.terrain != "on" && a.imagery.terrain != "off")
+            return Error{"--terrain '" + a.imagery.terrain + "': expected on|off"};
+        m.drawTerrain = a.imagery.terrain == "on";
+        auto shading = parseTerrainShading(a.imagery.terrainShading);
+        if (!shading) return Error{"--terrain-shading '" + a.imagery.terrainShading + "': expected forward|deferred"};
         m.terrainShading = *shading;
         return m;
     };
@@ -264,7 +264,7 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
                 return Error{"terrain off draws only the city: give --city atlas|original|flat (mode " + m.label + ")"};
             if (m.renderer == RendererKind::Reference)
                 return Error{"terrain off needs the clipmap renderer (mode " + m.label + ")"};
-            const bool canopyView = m.canopyLayers >= 0 ? m.canopyLayers > 0 : a.view == "canopy";
+            const bool canopyView = m.canopyLayers >= 0 ? m.canopyLayers > 0 : a.imagery.view == "canopy";
             if (canopyView)
                 return Error{"terrain off: the canopy is drawn with the terrain, not without (mode " + m.label + ")"};
         }
@@ -308,299 +308,301 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     return modes;
 }
 
-} // namespace
-
-Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& settings,
-                             const std::filesystem::path& outDir) {
-    const BenchSettings* a = &settings;
-    const Scene* scene = &sceneRef;
-    auto fail = [](const std::string& m) -> Result<BenchResult> { return Error{m}; };
-    const int w = a->width, h = a->height;
-    auto canopyArgs = parseCanopyArgs(a->canopyLayers, a->method, a->k);
-    if (!canopyArgs)
-        return fail(canopyArgs.message());
-    CanopyRenderSettings canopy = *canopyArgs;
-    if (auto st = parseTrunksArg(a->trunks, canopy); !st)
-        return fail(st.message());
-    if (auto st = parseCanopyDrawArg(a->canopyDraw, canopy); !st)
-        return fail(st.message());
-    auto view = parseImageryView(a->view);
-    if (!view)
-        return fail("--view '" + a->view + "': expected leafon|leafoff|blend|swipe|lod|wireframe|levels|relief|canopy");
-    if (a->clipSize < 256 || a->clipSize > 4096 || a->clipSize % 64 != 0)
-        return fail("--clip-size " + std::to_string(a->clipSize) + ": expected 256..4096, a multiple of 64");
-    if (a->gridSize < 31 || a->gridSize > 1023 || ((a->gridSize + 1) & a->gridSize) != 0)
-        return fail("--grid-size " + std::to_string(a->gridSize) + ": expected 2^k - 1 in 31..1023");
-    if (a->frames < 2)
-        return fail("--frames must be at least 2");
-    auto modes = parseModes(*a);
-    if (!modes)
-        return fail(modes.message());
-    const auto terrain = [&](double x, double y) { return scene->terrainHeight(x, y); };
-    PathScene ps{scene->localMin, scene->localMax, terrain};
-    std::error_code ec;
-    auto path =
-        std::filesystem::exists(a->path, ec) ? CameraPath::fromJson(a->path) : CameraPath::named(a->path, ps, a->seed);
-    if (!path)
-        return fail(path.message());
-    const std::filesystem::path out = outDir;
-    std::filesystem::create_directories(out, ec);
-    if (ec)
-        return fail(out.string() + ": cannot create folder (" + ec.message() + ")");
-    const std::filesystem::path cache = a->cacheDir.empty() ? defaultCacheDir() : a->cacheDir;
-
-    const bool anyClipmap =
-        std::any_of(modes->begin(), modes->end(), [](const Mode& m) { return m.renderer == RendererKind::Clipmap; });
-    std::vector<ImagePyramid> pyramids;
-    std::optional<ImagePyramid> elevation;
-    if (anyClipmap || scene->warped()) { // the reference reads warped seasons' level 0
-        auto p = preparePyramids(*scene, cache);
-        if (!p)
-            return fail(p.message());
-        pyramids = std::move(*p);
-        auto e = prepareElevation(*scene, cache);
-        if (!e)
-            return fail(e.message());
-        elevation = std::move(*e);
+// One benchmark run: the modes' renderers on one headless context, the warm-up, and the measured frames interleaved
+// over the path. The modes (owned by the caller) must die while the context lives.
+class BenchRun {
+public:
+    BenchRun(const Scene& scene, const BenchSettings& a, std::vector<Mode>& modes, const CanopyRenderSettings& canopy,
+             ImageryView view, std::filesystem::path cache)
+        : m_scene(scene), m_a(a), m_modes(modes), m_canopy(canopy), m_cache(std::move(cache)), m_w(a.width),
+          m_h(a.height), m_target(a.width, a.height), m_scratch(a.width, a.height),
+          m_timer(gl::Query::create(GL_TIME_ELAPSED)) {
+        m_imagery.view = view;
     }
-    auto ctx = gl::createHeadlessContext();
-    if (!ctx)
-        return fail(ctx.message());
-    if (auto st = gl::checkFramebufferSize((*ctx)->info(), settings.width, settings.height, "--size"); !st)
-        return fail(st.message());
-    // The modes' GL objects must die while the context lives (it was created after them).
-    struct ReleaseFirst {
-        std::vector<Mode>& modes;
-        ~ReleaseFirst() { modes.clear(); }
-    } releaseFirst{*modes};
-    const int glErrors = gl::debugErrorCount();
-    ClipmapOptions co;
-    co.size = a->clipSize;
-    co.uploadBudgetTexels = a->uploadBudget;
-    co.minClipLevels = std::clamp(a->clipLevels, 0, 16);
-    for (Mode& m : *modes) {
+
+    // Before the context: both seasons' pyramids and the elevation, when a mode streams them.
+    static Status prepareInputs(const Scene& scene, const std::vector<Mode>& modes, const std::filesystem::path& cache,
+                                std::vector<ImagePyramid>& pyramids, std::optional<ImagePyramid>& elevation);
+    // Every mode's renderers (reference, or clipmaps, terrain, canopy and trunks), then the city's.
+    Status createRenderers(const std::vector<ImagePyramid>& pyramids, const std::optional<ImagePyramid>& elevation);
+    // The warm-up at the path's start, a fully loaded view, then the measured frames; a damaged cache tile stops it.
+    Status run(const CameraPath& path);
+    double seconds() const { return m_seconds; }
+
+private:
+    Status createClipmapMode(Mode& m, const std::vector<ImagePyramid>& pyramids,
+                             const std::optional<ImagePyramid>& elevation);
+    Status createCanopy(Mode& m, const std::vector<ImagePyramid>& pyramids, int layers);
+    Status createCities();
+    void checkDamage(Mode& m);
+    void frame(Mode& m, const Camera& cam, int frame, bool record);
+    void stream(Mode& m, const Camera& cam, FrameRow& row, ClipmapFrameStats& cs, ClipmapFrameStats& es);
+    void draw(Mode& m, const Camera& cam, FrameRow& row);
+    void record(Mode& m, const Camera& cam, FrameRow& row, const ClipmapFrameStats& cs, const ClipmapFrameStats& es);
+
+    using Clock = std::chrono::steady_clock;
+    static double ms(Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
+
+    const Scene& m_scene;
+    const BenchSettings& m_a;
+    std::vector<Mode>& m_modes;
+    CanopyRenderSettings m_canopy;
+    std::filesystem::path m_cache;
+    int m_w, m_h;
+    gl::RenderTarget m_target, m_scratch;
+    gl::Query m_timer;
+    ImagerySettings m_imagery;
+    std::string m_damaged; // the first damaged cache tile's message
+    int m_recorded = 0;
+    double m_seconds = 0.0;
+};
+
+Status BenchRun::prepareInputs(const Scene& scene, const std::vector<Mode>& modes, const std::filesystem::path& cache,
+                               std::vector<ImagePyramid>& pyramids, std::optional<ImagePyramid>& elevation) {
+    const bool anyClipmap =
+        std::any_of(modes.begin(), modes.end(), [](const Mode& m) { return m.renderer == RendererKind::Clipmap; });
+    if (!anyClipmap && !scene.warped()) return Ok{}; // the reference reads warped seasons' level 0
+    auto p = preparePyramids(scene, cache);
+    if (!p) return p.error();
+    pyramids = std::move(*p);
+    auto e = prepareElevation(scene, cache);
+    if (!e) return e.error();
+    elevation = std::move(*e);
+    return Ok{};
+}
+
+Status BenchRun::createRenderers(const std::vector<ImagePyramid>& pyramids,
+                                 const std::optional<ImagePyramid>& elevation) {
+    for (Mode& m : m_modes) {
         if (m.renderer == RendererKind::Reference) {
             ReferenceOptions ro;
             ro.anisotropy = m.anisotropy;
-            ro.levelZero = levelZeroOf(*scene, pyramids);
-            auto r = ReferenceRendererGL::create(*scene, ro);
-            if (!r)
-                return fail(r.message());
+            ro.levelZero = levelZeroOf(m_scene, pyramids);
+            auto r = ReferenceRendererGL::create(m_scene, ro);
+            if (!r) return r.error();
             m.reference = std::move(*r);
-        } else {
-            auto c = ClipmapGL::create(pyramids, co);
-            if (!c)
-                return fail(c.message());
-            m.clipmap = std::move(*c);
-            GeometryClipmapOptions go;
-            go.n = a->gridSize;
-            auto r = ClipmapTerrainRendererGL::create(*scene, *m.clipmap, elevation ? &*elevation : nullptr, go);
-            if (!r)
-                return fail(r.message());
-            m.clipRenderer = std::move(*r);
-            // canopy=off in a comparison: no canopy at all (the leaf-on terrain); --canopy-layers off with --view
-            // canopy: the canopy's ground without layers.
-            const bool fromCompare = m.canopyLayers >= 0;
-            const int layers = fromCompare ? m.canopyLayers : (*view == ImageryView::Canopy ? canopy.layers : 0);
-            const bool wantCanopy = fromCompare ? layers > 0 : *view == ImageryView::Canopy;
-            m.canopyLayers = layers;
-            if (wantCanopy) {
-                auto hist = preparePairStats(*scene, pyramids, cache);
-                if (!hist)
-                    return fail(hist.message());
-                CanopyOptions opt;
-                opt.params = canopy.params;
-                opt.layers = std::max(1, layers);
-                auto cc = CanopyClipmapGL::create(*m.clipmap, statsFromHistograms(*hist, opt.params.method), opt);
-                if (!cc)
-                    return fail(cc.message());
-                m.canopy = std::move(*cc);
-                auto cr = CanopyRendererGL::create();
-                if (!cr)
-                    return fail(cr.message());
-                m.canopyRenderer = std::move(*cr);
-                m.clipRenderer->setCanopy(m.canopy.get());
-                if (canopy.trunks && layers > 0) {
-                    auto tr = TrunksGL::create(*scene, *m.clipmap, *m.canopy);
-                    if (!tr)
-                        return fail(tr.message());
-                    m.trunks = std::move(*tr);
-                }
-            }
-        }
+        } else if (auto st = createClipmapMode(m, pyramids, elevation); !st)
+            return st;
     }
-    // The city's tree, once for every mode that draws it.
+    if (auto st = createCities(); !st) return st;
+    if (auto st = m_a.canopy.applyGround(m_imagery); !st) return st;
+    for (Mode& m : m_modes)
+        if (m.city) m.city->settings().roofs = city::roofImageryFor(m_imagery);
+    return Ok{};
+}
+
+Status BenchRun::createClipmapMode(Mode& m, const std::vector<ImagePyramid>& pyramids,
+                                   const std::optional<ImagePyramid>& elevation) {
+    ClipmapOptions co;
+    co.size = m_a.clipmap.clipSize;
+    co.uploadBudgetTexels = m_a.uploadBudget;
+    co.minClipLevels = std::clamp(m_a.clipmap.clipLevels, 0, 16);
+    auto c = ClipmapGL::create(pyramids, co);
+    if (!c) return c.error();
+    m.clipmap = std::move(*c);
+    GeometryClipmapOptions go;
+    go.n = m_a.clipmap.gridSize;
+    auto r = ClipmapTerrainRendererGL::create(m_scene, *m.clipmap, elevation ? &*elevation : nullptr, go);
+    if (!r) return r.error();
+    m.clipRenderer = std::move(*r);
+    // canopy=off in a comparison: no canopy at all (the leaf-on terrain); --canopy-layers off with --view
+    // canopy: the canopy's ground without layers.
+    const bool fromCompare = m.canopyLayers >= 0;
+    const bool canopyView = m_imagery.view == ImageryView::Canopy;
+    const int layers = fromCompare ? m.canopyLayers : (canopyView ? m_canopy.layers : 0);
+    const bool wantCanopy = fromCompare ? layers > 0 : canopyView;
+    m.canopyLayers = layers;
+    return wantCanopy ? createCanopy(m, pyramids, layers) : Status(Ok{});
+}
+
+Status BenchRun::createCanopy(Mode& m, const std::vector<ImagePyramid>& pyramids, int layers) {
+    auto hist = preparePairStats(m_scene, pyramids, m_cache);
+    if (!hist) return hist.error();
+    CanopyOptions opt;
+    opt.params = m_canopy.params;
+    opt.layers = std::max(1, layers);
+    auto cc = CanopyClipmapGL::create(*m.clipmap, statsFromHistograms(*hist, opt.params.method), opt);
+    if (!cc) return cc.error();
+    m.canopy = std::move(*cc);
+    auto cr = CanopyRendererGL::create();
+    if (!cr) return cr.error();
+    m.canopyRenderer = std::move(*cr);
+    m.clipRenderer->setCanopy(m.canopy.get());
+    if (m_canopy.trunks && layers > 0) {
+        auto tr = TrunksGL::create(m_scene, *m.clipmap, *m.canopy);
+        if (!tr) return tr.error();
+        m.trunks = std::move(*tr);
+    }
+    return Ok{};
+}
+
+// The city's tree, once for every mode that draws it.
+Status BenchRun::createCities() {
     std::filesystem::path cityTree;
-    for (Mode& m : *modes) {
+    for (Mode& m : m_modes) {
         if (!m.cityMode || !m.clipRenderer) continue;
         if (cityTree.empty()) {
-            auto t = prepareCityTree(*scene, cache, a->cityTree);
-            if (!t)
-                return fail(t.message());
+            auto t = prepareCityTree(m_scene, m_cache, m_a.city.tree);
+            if (!t) return t.error();
             cityTree = *t;
         }
         city::CitySettings cs;
         cs.mode = *m.cityMode;
-        cs.capacityBytes = std::uint64_t(std::max(1.0, a->cityCapacityMb) * 1048576.0);
-        cs.tpp = a->cityTpp;
+        cs.capacityBytes = std::uint64_t(std::max(1.0, m_a.city.capacityMb) * 1048576.0);
+        cs.tpp = m_a.city.tpp;
         cs.anisotropy = m.anisotropy;
         cs.upload = m.cityUpload;
         cs.occlusion = m.cityOcclusion;
-        auto c = city::CityRendererGL::create(*scene, cityTree.string(), cs);
-        if (!c)
-            return fail(c.message());
+        auto c = city::CityRendererGL::create(m_scene, cityTree.string(), cs);
+        if (!c) return c.error();
         m.city = std::move(*c);
     }
-    gl::RenderTarget target(w, h), scratch(w, h);
-    gl::Query timer = gl::Query::create(GL_TIME_ELAPSED);
-    ImagerySettings imagery;
-    imagery.view = *view;
-    if (auto st = parseCanopyGround(a->groundUnder, a->groundElsewhere, imagery); !st)
-        return fail(st.message());
-    for (Mode& m : *modes)
-        if (m.city) m.city->settings().roofs = city::roofImageryFor(imagery);
-    using clock = std::chrono::steady_clock;
-    auto ms = [](clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
+    return Ok{};
+}
 
-    // A damaged cache tile is never drawn nor measured: the run stops (benchCommand rebuilds and runs again).
-    std::string damaged;
-    auto checkDamage = [&](Mode& m) {
-        if (!damaged.empty() || !m.clipmap) return;
-        if (const auto& e = m.clipmap->readError()) damaged = e->message;
-        else if (const auto g = m.clipRenderer->geometry().elevationReadError()) damaged = g->message;
-    };
-    auto damageError = [&] { return fail(damaged); }; // the command rebuilds the pyramid and runs again
-    int recorded = 0;
-    auto runFrame = [&](Mode& m, const Camera& cam, int frame, bool record) {
-        FrameRow row;
-        row.frame = frame;
-        row.camera = cam;
-        if (record && m.rows.empty() && m.clipmap) {
-            m.clipmapTotalAtStart = m.clipmap->totalTexelsUploaded();
-            m.elevationTotalAtStart = m.clipRenderer->geometry().totalTexelsUploaded();
-        }
-        const auto t0 = clock::now();
-        // GPU time from here: the frame's texture uploads are part of it.
-        glBeginQuery(GL_TIME_ELAPSED, timer.id());
-        ClipmapFrameStats cs, es;
-        if (m.clipmap) {
-            // scene=terrain draws the relief without imagery: its imagery clipmap does not stream (unless a city's
-            // roofs read it).
-            if (!m.terrainOnly || m.city) {
-                const ClipmapGeometry g = clipmapGeometry(*scene, m.clipmap->schedule().layout());
-                cs = m.clipmap->update(clipmapCentres(*scene, cam, w, h, m.centers, g));
-            }
-            es = m.clipRenderer->updateGeometry(cam, h);
-            // A damaged cache tile is never drawn nor measured: the run stops, the pyramid is rebuilt next time.
-            checkDamage(m);
-        }
-        if (m.canopy) {
-            // Upload-time derivation: only blocks newly resident; per-frame: everything resident, every frame.
-            CanopyFrameStats derived;
-            if (m.perFrameSegmentation)
-                derived = m.canopy->rederiveAll();
-            else
-                derived = m.canopy->update();
-            row.canopyBlocksDerived = derived.blocksDerived;
-            // Crown centres of the trunks: searched again when the searched level's derived blocks changed.
-            if (m.trunks)
-                row.trunkSearches = m.trunks->update() ? 1 : 0;
-        }
-        imagery.anisotropy = m.anisotropy;
-        ImagerySettings im = imagery;
-        im.path = m.terrainShading;
-        if (m.clipmap && !m.canopy && im.view == ImageryView::Canopy)
-            im.view = ImageryView::LeafOn; // canopy=off: the terrain alone
-        if (m.canopy)
-            im.view = ImageryView::Canopy;
-        if (m.terrainOnly)
-            im.view = ImageryView::Relief;
-        im.terrain = m.drawTerrain;
-        CanopyRenderSettings modeCanopy = canopy;
-        modeCanopy.trunks = m.trunks != nullptr;
-        if (m.canopyDraw)
-            modeCanopy.draw = *m.canopyDraw;
-        const CanopyDrawSettings cd = canopyDrawSettings(*scene, modeCanopy, im);
-        if (m.canopy && m.canopyLayers > 0 && cd.crownBase <= 0.0)
-            im.canopyBase = cd.darkest; // the ground draws layer 0 under the stacked ones
-        if (m.clipmap) {
-            const bool stacked = m.canopy && m.canopyLayers > 0;
-            const GeometryFrameStats drawn =
-                stacked ? m.canopyRenderer->renderView(cam, *m.clipRenderer, im, *m.canopy, cd, m.trunks.get(), target)
-                        : m.clipRenderer->render(cam, im, target);
-            row.drawCalls = drawn.drawCalls;
-            row.triangles = drawn.triangles;
-            if (m.city) {
-                const auto c0 = clock::now();
-                m.city->update(cam, w, h);
-                row.city = m.city->draw(cam, m.clipRenderer.get(), target);
-                row.cityCpuMs = ms(clock::now() - c0);
-                row.drawCalls += row.city.drawCalls;
-                row.triangles += row.city.triangles;
-            }
-        } else
-            m.reference->render(cam, imagery.view == ImageryView::LeafOff ? Season::LeafOff : Season::LeafOn, target);
-        glEndQuery(GL_TIME_ELAPSED);
-        const auto t1 = clock::now();
-        glFinish();
-        const auto t2 = clock::now();
-        GLuint64 ns = 0;
-        glGetQueryObjectui64v(timer.id(), GL_QUERY_RESULT, &ns);
-        if (!record)
-            return;
-        row.cpuMs = ms(t1 - t0);
-        row.frameMs = ms(t2 - t0);
-        row.gpuMs = double(ns) * 1e-6;
-        // The commands were issued after t0 and had finished at t2 (the previous frame ended with glFinish), so
-        // their GPU time cannot exceed t2 - t0. llvmpipe answers a process's very first time-elapsed query with
-        // hours: such a result is unknown ("nan" in frames.csv, left out of the summary), not a figure.
-        if (row.gpuMs > row.frameMs + 1.0)
-            row.gpuMs = NAN;
-        if (!m.clipmap)
-            row.triangles = m.reference->stats().triangles;
-        row.texelsUploaded = cs.texelsUploaded;
-        row.exposedTexels = cs.exposedTexels;
-        row.blocksMissing = cs.blocksMissing;
-        row.residentBytes = (m.clipmap ? m.clipmap->residentBytes() : 0) + (m.canopy ? m.canopy->residentBytes() : 0);
-        row.loaderCacheBytes =
-            m.clipmap ? m.clipmap->loaderCacheBytes() + m.clipRenderer->geometry().loaderCacheBytes() : 0;
-        row.elevationTexelsUploaded = es.texelsUploaded;
-        row.elevationResidentBytes = m.clipRenderer ? m.clipRenderer->geometry().residentBytes() : 0;
-        row.rssBytes = residentSetBytes();
-        heapBytes(row.heapInUseBytes, row.heapMappedBytes);
-        if (m.clipmap && a->coverageEvery > 0 && frame % a->coverageEvery == 0)
-            row.coverage = m.clipRenderer->measureLevels(cam, scratch).coverage;
-        if (record) row.runOrder = recorded++;
-        m.rows.push_back(row);
-    };
-    const auto start = clock::now();
-    for (int i = 0; i < a->warmup; ++i)
-        for (Mode& m : *modes)
-            runFrame(m, path->at(0.0, terrain), -1, false);
-    if (!damaged.empty()) return damageError();
+// A damaged cache tile is never drawn nor measured: the run stops (benchCommand rebuilds and runs again).
+void BenchRun::checkDamage(Mode& m) {
+    if (!m_damaged.empty() || !m.clipmap) return;
+    if (const auto& e = m.clipmap->readError()) m_damaged = e->message;
+    else if (const auto g = m.clipRenderer->geometry().elevationReadError()) m_damaged = g->message;
+}
+
+Status BenchRun::run(const CameraPath& path) {
+    const auto terrain = [&](double x, double y) { return m_scene.terrainHeight(x, y); };
+    const auto start = Clock::now();
+    for (int i = 0; i < m_a.warmup; ++i)
+        for (Mode& m : m_modes) frame(m, path.at(0.0, terrain), -1, false);
+    if (!m_damaged.empty()) return Error{m_damaged};
     // Measuring starts from a fully loaded view, so uploads compare with the texels the path's moves expose.
-    for (Mode& m : *modes)
+    for (Mode& m : m_modes)
         if (m.clipmap) {
             if (!m.terrainOnly || m.city) m.clipmap->completeSynchronously();
             m.clipRenderer->completeGeometry();
             if (m.city) {
-                m.city->complete(path->at(0.0, terrain), w, h);
+                m.city->complete(path.at(0.0, terrain), m_w, m_h);
                 m.city->resetOcclusion(); // the warm-up's answers came from a view with less resident
             }
             checkDamage(m);
         }
-    if (!damaged.empty()) return damageError();
-    for (int f = 0; f < a->frames; ++f) {
-        const Camera cam = path->at(double(f) / double(a->frames - 1), terrain);
-        for (Mode& m : *modes)
-            runFrame(m, cam, f, true); // interleaved: every mode sees the same load
-        if (!damaged.empty()) return damageError();
+    if (!m_damaged.empty()) return Error{m_damaged};
+    for (int f = 0; f < m_a.frames; ++f) {
+        const Camera cam = path.at(double(f) / double(m_a.frames - 1), terrain);
+        for (Mode& m : m_modes) frame(m, cam, f, true); // interleaved: every mode sees the same load
+        if (!m_damaged.empty()) return Error{m_damaged};
     }
-    const double seconds = ms(clock::now() - start) / 1000.0;
-    if (const std::string e = gl::drainErrors(); !e.empty() || gl::debugErrorCount() != glErrors)
-        return fail("OpenGL error during the benchmark " + e);
+    m_seconds = ms(Clock::now() - start) / 1000.0;
+    return Ok{};
+}
 
-    // frames.csv
+void BenchRun::frame(Mode& m, const Camera& cam, int frame, bool record) {
+    FrameRow row;
+    row.frame = frame;
+    row.camera = cam;
+    if (record && m.rows.empty() && m.clipmap) {
+        m.clipmapTotalAtStart = m.clipmap->totalTexelsUploaded();
+        m.elevationTotalAtStart = m.clipRenderer->geometry().totalTexelsUploaded();
+    }
+    const auto t0 = Clock::now();
+    // GPU time from here: the frame's texture uploads are part of it.
+    glBeginQuery(GL_TIME_ELAPSED, m_timer.id());
+    ClipmapFrameStats cs, es;
+    stream(m, cam, row, cs, es);
+    draw(m, cam, row);
+    glEndQuery(GL_TIME_ELAPSED);
+    const auto t1 = Clock::now();
+    glFinish();
+    const auto t2 = Clock::now();
+    GLuint64 ns = 0;
+    glGetQueryObjectui64v(m_timer.id(), GL_QUERY_RESULT, &ns);
+    if (!record) return;
+    row.cpuMs = ms(t1 - t0);
+    row.frameMs = ms(t2 - t0);
+    row.gpuMs = double(ns) * 1e-6;
+    // The commands were issued after t0 and had finished at t2 (the previous frame ended with glFinish), so
+    // their GPU time cannot exceed t2 - t0. llvmpipe answers a process's very first time-elapsed query with
+    // hours: such a result is unknown ("nan" in frames.csv, left out of the summary), not a figure.
+    if (row.gpuMs > row.frameMs + 1.0) row.gpuMs = NAN;
+    this->record(m, cam, row, cs, es);
+}
+
+// The frame's streaming: the imagery and elevation clipmaps' uploads, the canopy's derivation and trunk search.
+void BenchRun::stream(Mode& m, const Camera& cam, FrameRow& row, ClipmapFrameStats& cs, ClipmapFrameStats& es) {
+    if (m.clipmap) {
+        // scene=terrain draws the relief without imagery: its imagery clipmap does not stream (unless a city's
+        // roofs read it).
+        if (!m.terrainOnly || m.city) {
+            const ClipmapGeometry g = clipmapGeometry(m_scene, m.clipmap->schedule().layout());
+            cs = m.clipmap->update(clipmapCentres(m_scene, cam, m_w, m_h, m.centers, g));
+        }
+        es = m.clipRenderer->updateGeometry(cam, m_h);
+        // A damaged cache tile is never drawn nor measured: the run stops, the pyramid is rebuilt next time.
+        checkDamage(m);
+    }
+    if (m.canopy) {
+        // Upload-time derivation: only blocks newly resident; per-frame: everything resident, every frame.
+        const CanopyFrameStats derived = m.perFrameSegmentation ? m.canopy->rederiveAll() : m.canopy->update();
+        row.canopyBlocksDerived = derived.blocksDerived;
+        // Crown centres of the trunks: searched again when the searched level's derived blocks changed.
+        if (m.trunks) row.trunkSearches = m.trunks->update() ? 1 : 0;
+    }
+}
+
+// The frame's draws: the terrain (or the canopy view over it), then the city; or the reference renderer.
+void BenchRun::draw(Mode& m, const Camera& cam, FrameRow& row) {
+    m_imagery.anisotropy = m.anisotropy;
+    ImagerySettings im = m_imagery;
+    im.path = m.terrainShading;
+    if (m.clipmap && !m.canopy && im.view == ImageryView::Canopy) im.view = ImageryView::LeafOn; // canopy=off
+    if (m.canopy) im.view = ImageryView::Canopy;
+    if (m.terrainOnly) im.view = ImageryView::Relief;
+    im.terrain = m.drawTerrain;
+    CanopyRenderSettings modeCanopy = m_canopy;
+    modeCanopy.trunks = m.trunks != nullptr;
+    if (m.canopyDraw) modeCanopy.draw = *m.canopyDraw;
+    const CanopyDrawSettings cd = canopyDrawSettings(m_scene, modeCanopy, im);
+    if (m.canopy && m.canopyLayers > 0 && cd.crownBase <= 0.0)
+        im.canopyBase = cd.darkest; // the ground draws layer 0 under the stacked ones
+    if (!m.clipmap) {
+        m.reference->render(cam, m_imagery.view == ImageryView::LeafOff ? Season::LeafOff : Season::LeafOn, m_target);
+        return;
+    }
+    const bool stacked = m.canopy && m.canopyLayers > 0;
+    const GeometryFrameStats drawn =
+        stacked ? m.canopyRenderer->renderView(cam, *m.clipRenderer, im, *m.canopy, cd, m.trunks.get(), m_target)
+                : m.clipRenderer->render(cam, im, m_target);
+    row.drawCalls = drawn.drawCalls;
+    row.triangles = drawn.triangles;
+    if (m.city) {
+        const auto c0 = Clock::now();
+        m.city->update(cam, m_w, m_h);
+        row.city = m.city->draw(cam, m.clipRenderer.get(), m_target);
+        row.cityCpuMs = ms(Clock::now() - c0);
+        row.drawCalls += row.city.drawCalls;
+        row.triangles += row.city.triangles;
+    }
+}
+
+// A measured frame's counters (its times are in `row` already).
+void BenchRun::record(Mode& m, const Camera& cam, FrameRow& row, const ClipmapFrameStats& cs,
+                      const ClipmapFrameStats& es) {
+    if (!m.clipmap) row.triangles = m.reference->stats().triangles;
+    row.texelsUploaded = cs.texelsUploaded;
+    row.exposedTexels = cs.exposedTexels;
+    row.blocksMissing = cs.blocksMissing;
+    row.residentBytes = (m.clipmap ? m.clipmap->residentBytes() : 0) + (m.canopy ? m.canopy->residentBytes() : 0);
+    row.loaderCacheBytes = m.clipmap ? m.clipmap->loaderCacheBytes() + m.clipRenderer->geometry().loaderCacheBytes() : 0;
+    row.elevationTexelsUploaded = es.texelsUploaded;
+    row.elevationResidentBytes = m.clipRenderer ? m.clipRenderer->geometry().residentBytes() : 0;
+    row.rssBytes = residentSetBytes();
+    heapBytes(row.heapInUseBytes, row.heapMappedBytes);
+    if (m.clipmap && m_a.coverageEvery > 0 && row.frame % m_a.coverageEvery == 0)
+        row.coverage = m.clipRenderer->measureLevels(cam, m_scratch).coverage;
+    row.runOrder = m_recorded++;
+    m.rows.push_back(row);
+}
+
+// frames.csv: one row per measured frame of every mode.
+Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>& modes) {
     std::ostringstream csv;
     csv << "mode,frame,x,y,z,yaw,pitch,cpu_ms,gpu_ms,frame_ms,draw_calls,triangles,texels_uploaded,exposed_texels,"
            "blocks_missing,resident_texture_bytes,loader_cache_bytes,rss_bytes,coverage,city_atlas_nodes,"
@@ -608,7 +610,7 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
            "city_loader_queue,city_coarser_than_wanted,heap_in_use_bytes,heap_mapped_bytes,canopy_blocks_derived,"
            "trunk_searches,city_cpu_ms,city_occluded_nodes,city_occlusion_queries,city_occlusion_waits,"
            "elevation_texels_uploaded,elevation_resident_bytes,run_order,city_allocated_bytes,city_evicted_blocks\n";
-    for (const Mode& m : *modes)
+    for (const Mode& m : modes)
         for (const FrameRow& r : m.rows) {
             char line[512];
             std::snprintf(line, sizeof line,
@@ -629,49 +631,135 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
             csv << line;
         }
     std::string err;
-    if (!writeTextAtomic(out / "frames.csv", csv.str(), err))
-        return fail((out / "frames.csv").string() + ": " + err);
+    if (!writeTextAtomic(file, csv.str(), err)) return Error{file.string() + ": " + err};
+    return Ok{};
+}
 
-    // summary.json (+ compare.json)
-    nlohmann::json summary = {
-        {"device",
-         {{"platform", (*ctx)->info().platform},
-          {"renderer", (*ctx)->info().renderer},
-          {"version", (*ctx)->info().version}}},
-        {"scene", scene->sources.manifest.empty() ? scene->sources.leafon.describe() : scene->sources.manifest.string()},
-        {"image_size", {scene->leafon.info.width, scene->leafon.info.height}},
-        {"size", {w, h}},
-        {"path", a->path},
-        {"frames", a->frames},
-        {"warmup", a->warmup},
-        {"settings",
-         {{"clip_size", a->clipSize},
-          {"upload_budget_texels", a->uploadBudget},
-          {"view", a->view},
-          {"aniso", a->anisotropy},
-          {"clip_levels_min", a->clipLevels},
-          {"grid_size", a->gridSize},
-          {"coverage_every", a->coverageEvery},
-          {"canopy_layers", a->canopyLayers},
-          {"segmentation_method", a->method},
-          {"segmentation_k", a->k},
-          {"trunks", a->trunks},
-          {"canopy_draw", a->canopyDraw},
-          {"ground_under_canopy", a->groundUnder},
-          {"ground_elsewhere", a->groundElsewhere},
-          {"city_upload", a->cityUpload},
-          {"city_occlusion", a->cityOcclusion},
-          {"terrain", a->terrain},
-          {"renderer", a->renderer},
-          {"centers", a->centers},
-          {"seed", a->seed},
-          {"compare", a->compare},
-          {"city", a->city},
-          {"city_tree", a->cityTree},
-          {"city_capacity_mb", a->cityCapacityMb},
-          {"city_tpp", a->cityTpp},
-          {"tree_height_m", scene->sources.treeHeightM}}},
-        {"wall_seconds", seconds}};
+// summary.json's run description: the device, the scene, the path and every setting.
+nlohmann::json summaryHead(const gl::ContextInfo& device, const Scene& scene, const BenchSettings& a, double seconds) {
+    return {{"device", {{"platform", device.platform}, {"renderer", device.renderer}, {"version", device.version}}},
+            {"scene", scene.sources.manifest.empty() ? scene.sources.leafon.describe() : scene.sources.manifest.string()},
+            {"image_size", {scene.leafon.info.width, scene.leafon.info.height}},
+            {"size", {a.width, a.height}},
+            {"path", a.path},
+            {"frames", a.frames},
+            {"warmup", a.warmup},
+            {"settings",
+             {{"clip_size", a.clipmap.clipSize},
+              {"upload_budget_texels", a.uploadBudget},
+              {"view", a.imagery.view},
+              {"aniso", a.imagery.aniso},
+              {"clip_levels_min", a.clipmap.clipLevels},
+              {"grid_size", a.clipmap.gridSize},
+              {"coverage_every", a.coverageEvery},
+              {"canopy_layers", a.canopy.layers},
+              {"segmentation_method", a.canopy.method},
+              {"segmentation_k", a.canopy.k},
+              {"trunks", a.canopy.trunks},
+              {"canopy_draw", a.canopy.draw},
+              {"ground_under_canopy", a.canopy.groundUnder},
+              {"ground_elsewhere", a.canopy.groundElsewhere},
+              {"city_upload", a.city.upload},
+              {"city_occlusion", a.city.occlusion},
+              {"terrain", a.imagery.terrain},
+              {"renderer", a.clipmap.renderer},
+              {"centers", a.clipmap.centers},
+              {"seed", a.seed},
+              {"compare", a.compare},
+              {"city", a.city.mode},
+              {"city_tree", a.city.tree},
+              {"city_capacity_mb", a.city.capacityMb},
+              {"city_tpp", a.city.tpp},
+              {"tree_height_m", scene.sources.treeHeightM}}},
+            {"wall_seconds", seconds}};
+}
+
+nlohmann::json jsonNumber(double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); }
+
+// One mode's figures over its measured frames: summary.json's entry, and what the table, compare.json and the plot
+// show of it.
+struct ModeFigures {
+    nlohmann::json summary;
+    std::vector<double> frame, gpu, coverage, texels;
+    double median = NAN, coverageMean = NAN, uploadRatio = NAN;
+    std::int64_t uploaded = 0;
+};
+
+ModeFigures modeFigures(const Mode& m) {
+    ModeFigures f;
+    std::vector<double> cpu, rss, resident, drawCalls, triangles, loaderCache, elevTexels, elevResident;
+    std::int64_t exposed = 0, elevUploaded = 0;
+    int canopyBlocks = 0, trunkSearches = 0, covN = 0;
+    double covSum = 0.0;
+    for (const FrameRow& r : m.rows) {
+        drawCalls.push_back(double(r.drawCalls));
+        triangles.push_back(double(r.triangles));
+        loaderCache.push_back(double(r.loaderCacheBytes));
+        elevTexels.push_back(double(r.elevationTexelsUploaded));
+        elevResident.push_back(double(r.elevationResidentBytes));
+        elevUploaded += r.elevationTexelsUploaded;
+        cpu.push_back(r.cpuMs);
+        f.gpu.push_back(r.gpuMs);
+        f.frame.push_back(r.frameMs);
+        f.texels.push_back(double(r.texelsUploaded));
+        f.coverage.push_back(r.coverage);
+        rss.push_back(double(r.rssBytes));
+        resident.push_back(double(r.residentBytes));
+        f.uploaded += r.texelsUploaded;
+        exposed += r.exposedTexels;
+        canopyBlocks += r.canopyBlocksDerived;
+        trunkSearches += r.trunkSearches;
+        if (std::isfinite(r.coverage)) {
+            covSum += r.coverage;
+            ++covN;
+        }
+    }
+    const int layers = m.clipmap ? m.clipmap->layers() : 1;
+    f.uploadRatio = exposed > 0 ? double(f.uploaded) / double(layers) / double(exposed) : NAN;
+    f.coverageMean = covN ? covSum / covN : NAN;
+    f.median = percentile(f.frame, 50);
+    f.summary = {{"frame_ms", figure(f.frame)},
+                 {"cpu_ms", figure(cpu)},
+                 {"gpu_ms", figure(f.gpu)},
+                 {"texels_uploaded", figure(f.texels)},
+                 {"draw_calls", figure(drawCalls)},
+                 {"triangles", figure(triangles)},
+                 {"loader_cache_bytes", figure(loaderCache)},
+                 {"elevation_texels_uploaded", figure(elevTexels)},
+                 {"elevation_resident_bytes", figure(elevResident)},
+                 {"coverage", figure(f.coverage)},
+                 {"coverage_mean", jsonNumber(f.coverageMean)},
+                 {"rss_bytes", figure(rss)},
+                 {"resident_texture_bytes", figure(resident)},
+                 {"rss_bytes_start", m.rows.front().rssBytes},
+                 {"rss_bytes_end", m.rows.back().rssBytes},
+                 {"heap_in_use_bytes_start", m.rows.front().heapInUseBytes},
+                 {"heap_in_use_bytes_end", m.rows.back().heapInUseBytes},
+                 {"heap_mapped_bytes_end", m.rows.back().heapMappedBytes},
+                 {"resident_texture_bytes_start", m.rows.front().residentBytes},
+                 {"resident_texture_bytes_end", m.rows.back().residentBytes},
+                 {"worst_frame_over_median", jsonNumber(percentile(f.frame, 100) / f.median)},
+                 {"city", m.city ? cityFigures(m) : nlohmann::json(nullptr)},
+                 {"totals",
+                  {{"texels_uploaded", f.uploaded},
+                   {"exposed_texels_per_layer", exposed},
+                   {"upload_over_geometric_minimum", jsonNumber(f.uploadRatio)},
+                   {"triangles_per_frame", m.rows.front().triangles},
+                   // The clipmaps' own accounting over the recorded frames (the sums of frames.csv's columns must
+                   // equal these).
+                   {"clipmap_reported_texels_uploaded",
+                    m.clipmap ? m.clipmap->totalTexelsUploaded() - m.clipmapTotalAtStart : 0},
+                   {"elevation_texels_uploaded", elevUploaded},
+                   {"elevation_reported_texels_uploaded",
+                    m.clipRenderer ? m.clipRenderer->geometry().totalTexelsUploaded() - m.elevationTotalAtStart : 0},
+                   {"canopy_blocks_derived", canopyBlocks},
+                   {"trunk_searches", trunkSearches}}}};
+    return f;
+}
+
+// summary.json, compare.json (several modes) and plot.png; the printed table in the result.
+Status writeSummary(const std::filesystem::path& out, nlohmann::json summary, const std::vector<Mode>& modes,
+                    BenchResult& result) {
     nlohmann::json compare = nlohmann::json::array();
     double baseMedian = NAN;
     std::vector<PlotPanel> panels(3);
@@ -680,112 +768,83 @@ Result<BenchResult> runBench(const Scene& sceneRef, const BenchSettings& setting
     panels[1].yMin = 0.0;
     panels[1].yMax = 1.0;
     panels[2].title = "texels uploaded per frame";
-    BenchResult result;
-    result.device = (*ctx)->info().platform + ": " + (*ctx)->info().renderer;
-    result.seconds = seconds;
     char line[256];
     std::snprintf(line, sizeof line, "%-24s %12s %10s %10s %10s %12s %10s\n", "mode", "median ms", "p95 ms", "max ms",
                   "ratio", "coverage", "upload/min");
     result.table = line;
-    for (const Mode& m : *modes) {
-        std::vector<double> cpu, gpu, frame, texels, cov, rss, resident, drawCalls, triangles, loaderCache, elevTexels,
-            elevResident;
-        std::int64_t uploaded = 0, exposed = 0, elevUploaded = 0;
-        for (const FrameRow& r : m.rows) {
-            drawCalls.push_back(double(r.drawCalls));
-            triangles.push_back(double(r.triangles));
-            loaderCache.push_back(double(r.loaderCacheBytes));
-            elevTexels.push_back(double(r.elevationTexelsUploaded));
-            elevResident.push_back(double(r.elevationResidentBytes));
-            elevUploaded += r.elevationTexelsUploaded;
-            cpu.push_back(r.cpuMs);
-            gpu.push_back(r.gpuMs);
-            frame.push_back(r.frameMs);
-            texels.push_back(double(r.texelsUploaded));
-            cov.push_back(r.coverage);
-            rss.push_back(double(r.rssBytes));
-            resident.push_back(double(r.residentBytes));
-            uploaded += r.texelsUploaded;
-            exposed += r.exposedTexels;
-        }
-        const int layers = m.clipmap ? m.clipmap->layers() : 1;
-        const double uploadRatio = exposed > 0 ? double(uploaded) / double(layers) / double(exposed) : NAN;
-        double covMean = 0;
-        int covN = 0;
-        for (double c : cov)
-            if (std::isfinite(c)) {
-                covMean += c;
-                ++covN;
-            }
-        covMean = covN ? covMean / covN : NAN;
-        const double median = percentile(frame, 50);
-        if (!std::isfinite(baseMedian))
-            baseMedian = median;
-        auto num = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
-        int canopyBlocks = 0, trunkSearches = 0;
-        for (const FrameRow& r : m.rows) {
-            canopyBlocks += r.canopyBlocksDerived;
-            trunkSearches += r.trunkSearches;
-        }
-        summary["modes"][m.label] = {{"frame_ms", figure(frame)},
-                                     {"cpu_ms", figure(cpu)},
-                                     {"gpu_ms", figure(gpu)},
-                                     {"texels_uploaded", figure(texels)},
-                                     {"draw_calls", figure(drawCalls)},
-                                     {"triangles", figure(triangles)},
-                                     {"loader_cache_bytes", figure(loaderCache)},
-                                     {"elevation_texels_uploaded", figure(elevTexels)},
-                                     {"elevation_resident_bytes", figure(elevResident)},
-                                     {"coverage", figure(cov)},
-                                     {"coverage_mean", num(covMean)},
-                                     {"rss_bytes", figure(rss)},
-                                     {"resident_texture_bytes", figure(resident)},
-                                     {"rss_bytes_start", m.rows.front().rssBytes},
-                                     {"rss_bytes_end", m.rows.back().rssBytes},
-                                     {"heap_in_use_bytes_start", m.rows.front().heapInUseBytes},
-                                     {"heap_in_use_bytes_end", m.rows.back().heapInUseBytes},
-                                     {"heap_mapped_bytes_end", m.rows.back().heapMappedBytes},
-                                     {"resident_texture_bytes_start", m.rows.front().residentBytes},
-                                     {"resident_texture_bytes_end", m.rows.back().residentBytes},
-                                     {"worst_frame_over_median", num(percentile(frame, 100) / median)},
-                                     {"city", m.city ? cityFigures(m) : nlohmann::json(nullptr)},
-                                     {"totals",
-                                      {{"texels_uploaded", uploaded},
-                                       {"exposed_texels_per_layer", exposed},
-                                       {"upload_over_geometric_minimum", num(uploadRatio)},
-                                       {"triangles_per_frame", m.rows.front().triangles},
-                                       // The clipmaps' own accounting over the recorded frames (the sums of
-                                       // frames.csv's columns must equal these).
-                                       {"clipmap_reported_texels_uploaded",
-                                        m.clipmap ? m.clipmap->totalTexelsUploaded() - m.clipmapTotalAtStart : 0},
-                                       {"elevation_texels_uploaded", elevUploaded},
-                                       {"elevation_reported_texels_uploaded",
-                                        m.clipRenderer ? m.clipRenderer->geometry().totalTexelsUploaded() -
-                                                             m.elevationTotalAtStart
-                                                       : 0},
-                                       {"canopy_blocks_derived", canopyBlocks},
-                                       {"trunk_searches", trunkSearches}}}};
+    for (const Mode& m : modes) {
+        ModeFigures f = modeFigures(m);
+        if (!std::isfinite(baseMedian)) baseMedian = f.median;
+        summary["modes"][m.label] = std::move(f.summary);
         compare.push_back({{"mode", m.label},
-                           {"median_frame_ms", median},
-                           {"ratio_to_first", median / baseMedian},
-                           {"median_gpu_ms", num(percentile(gpu, 50))},
-                           {"coverage_mean", num(covMean)},
-                           {"texels_uploaded", uploaded}});
-        std::snprintf(line, sizeof line, "%-24s %12.2f %10.2f %10.2f %10.3f %12.4f %10.3f\n", m.label.c_str(), median,
-                      percentile(frame, 95), percentile(frame, 100), median / baseMedian, covMean, uploadRatio);
+                           {"median_frame_ms", f.median},
+                           {"ratio_to_first", f.median / baseMedian},
+                           {"median_gpu_ms", jsonNumber(percentile(f.gpu, 50))},
+                           {"coverage_mean", jsonNumber(f.coverageMean)},
+                           {"texels_uploaded", f.uploaded}});
+        std::snprintf(line, sizeof line, "%-24s %12.2f %10.2f %10.2f %10.3f %12.4f %10.3f\n", m.label.c_str(), f.median,
+                      percentile(f.frame, 95), percentile(f.frame, 100), f.median / baseMedian, f.coverageMean,
+                      f.uploadRatio);
         result.table += line;
-        result.modes.push_back({m.label, median, percentile(frame, 95), percentile(frame, 100), median / baseMedian,
-                                covMean, uploadRatio});
-        panels[0].series.push_back({m.label, frame});
-        panels[1].series.push_back({m.label, cov});
-        panels[2].series.push_back({m.label, texels});
+        result.modes.push_back({m.label, f.median, percentile(f.frame, 95), percentile(f.frame, 100),
+                                f.median / baseMedian, f.coverageMean, f.uploadRatio});
+        panels[0].series.push_back({m.label, f.frame});
+        panels[1].series.push_back({m.label, f.coverage});
+        panels[2].series.push_back({m.label, f.texels});
     }
+    std::string err;
     if (!writeTextAtomic(out / "summary.json", summary.dump(2) + "\n", err))
-        return fail((out / "summary.json").string() + ": " + err);
-    if (modes->size() > 1 && !writeTextAtomic(out / "compare.json", compare.dump(2) + "\n", err))
-        return fail((out / "compare.json").string() + ": " + err);
-    if (auto st = writeLinePlot(out / "plot.png", panels, "frame"); !st)
-        return fail(st.message());
+        return Error{(out / "summary.json").string() + ": " + err};
+    if (modes.size() > 1 && !writeTextAtomic(out / "compare.json", compare.dump(2) + "\n", err))
+        return Error{(out / "compare.json").string() + ": " + err};
+    return writeLinePlot(out / "plot.png", panels, "frame");
+}
+
+} // namespace
+
+Result<BenchResult> runBench(const Scene& scene, const BenchSettings& a, const std::filesystem::path& out) {
+    auto canopy = a.canopy.settings();
+    if (!canopy) return canopy.error();
+    const auto view = parseImageryView(a.imagery.view);
+    if (!view)
+        return Error{"--view '" + a.imagery.view + "': expected leafon|leafoff|blend|swipe|lod|wireframe|levels|relief|canopy"};
+    if (auto st = a.clipmap.check(); !st) return st.error();
+    if (a.frames < 2) return Error{"--frames must be at least 2"};
+    auto modes = parseModes(a);
+    if (!modes) return modes.error();
+    const auto terrain = [&](double x, double y) { return scene.terrainHeight(x, y); };
+    PathScene ps{scene.localMin, scene.localMax, terrain};
+    std::error_code ec;
+    auto path = std::filesystem::exists(a.path, ec) ? CameraPath::fromJson(a.path) : CameraPath::named(a.path, ps, a.seed);
+    if (!path) return path.error();
+    std::filesystem::create_directories(out, ec);
+    if (ec) return Error{out.string() + ": cannot create folder (" + ec.message() + ")"};
+    const std::filesystem::path cache = a.cacheDir.empty() ? defaultCacheDir() : a.cacheDir;
+    std::vector<ImagePyramid> pyramids;
+    std::optional<ImagePyramid> elevation;
+    if (auto st = BenchRun::prepareInputs(scene, *modes, cache, pyramids, elevation); !st) return st.error();
+
+    auto ctx = gl::createHeadlessContext();
+    if (!ctx) return ctx.error();
+    if (auto st = gl::checkFramebufferSize((*ctx)->info(), a.width, a.height, "--size"); !st) return st.error();
+    // The modes' GL objects must die while the context lives (it was created after them).
+    struct ReleaseFirst {
+        std::vector<Mode>& modes;
+        ~ReleaseFirst() { modes.clear(); }
+    } releaseFirst{*modes};
+    const int glErrors = gl::debugErrorCount();
+    BenchRun run(scene, a, *modes, *canopy, *view, cache);
+    if (auto st = run.createRenderers(pyramids, elevation); !st) return st.error();
+    if (auto st = run.run(*path); !st) return st.error(); // a damaged tile: the command rebuilds and runs again
+    if (const std::string e = gl::drainErrors(); !e.empty() || gl::debugErrorCount() != glErrors)
+        return Error{"OpenGL error during the benchmark " + e};
+
+    if (auto st = writeFramesCsv(out / "frames.csv", *modes); !st) return st.error();
+    BenchResult result;
+    result.device = (*ctx)->info().platform + ": " + (*ctx)->info().renderer;
+    result.seconds = run.seconds();
+    if (auto st = writeSummary(out, summaryHead((*ctx)->info(), scene, a, run.seconds()), *modes, result); !st)
+        return st.error();
     return result;
 }
 

@@ -10,37 +10,6 @@
 
 namespace seasonview::app {
 
-void CityArgs::addTo(CLI::App& cmd) {
-    cmd.add_option("--city", mode,
-                   "City model (the scene's `buildings`): atlas (texture-atlas tree), original (each original texture "
-                   "bound per draw), flat (one dummy texture, the upper bound), off")
-        ->check(CLI::IsMember({"atlas", "original", "flat", "off"}))
-        ->capture_default_str();
-    cmd.add_option("--city-tree", tree, "Atlas tree file to draw (default: built from the scene's buildings into the cache)");
-    cmd.add_option("--city-capacity", capacityMb, "Resident atlases and original textures, MB")->capture_default_str();
-    cmd.add_option("--city-tpp", tpp, "City: pixels per texel allowed (larger: coarser atlases)")->capture_default_str();
-    cmd.add_option("--city-upload", upload,
-                   "City: BC atlases uploaded compressed, decoded (RGB8), or auto (decoded on software rasterisers)")
-        ->check(CLI::IsMember({"auto", "compressed", "decoded"}))
-        ->capture_default_str();
-    cmd.add_option("--city-occlusion", occlusion,
-                   "City, atlas mode: skip nodes hidden behind what is drawn (occlusion queries on node boxes)")
-        ->check(CLI::IsMember({"on", "off"}))
-        ->capture_default_str();
-}
-
-Result<std::optional<city::CitySettings>> CityArgs::settings() const {
-    if (mode == "off") return std::optional<city::CitySettings>();
-    if (!(capacityMb >= 1.0)) return Error{"--city-capacity must be at least 1 MB"};
-    if (!(tpp > 0.0)) return Error{"--city-tpp must be positive"};
-    city::CitySettings s;
-    s.mode = *city::parseCityMode(mode);
-    s.capacityBytes = std::uint64_t(capacityMb * 1048576.0);
-    s.tpp = tpp;
-    s.upload = city::parseAtlasUpload(upload).value_or(city::AtlasUpload::Auto);
-    s.occlusion = occlusion != "off";
-    return std::optional<city::CitySettings>(s);
-}
 
 Result<std::filesystem::path> prepareCityTree(const Scene& scene, const std::filesystem::path& cacheDir,
                                               const std::string& explicitTree) {

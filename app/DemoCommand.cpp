@@ -28,9 +28,10 @@ namespace seasonview::app {
 namespace {
 
 struct DemoArgs {
-    std::string out = "out/demo", size = "1280x720", cache, preset;
+    std::string out = "out/demo", preset;
+    FrameArgs frame;  // the stills' size, --window
+    SceneArgs scene;  // --cache (the scene is generated)
     SynthOptions synth;
-    bool window = false;
     bool noCity = false;
     int benchFrames = 24;
 };
@@ -272,7 +273,7 @@ BenchSettings demoBenchSettings(int frames, const std::filesystem::path& cacheDi
     bs.height = 360;
     bs.frames = frames;
     bs.warmup = 2;
-    bs.clipSize = 1024;
+    bs.clipmap.clipSize = 1024;
     bs.compare = "centers=concentric,offset,footprint";
     bs.cacheDir = cacheDir;
     return bs;
@@ -312,7 +313,7 @@ struct DemoRun {
 // The page's benchmark section.
 void writeBenchHtml(std::ostringstream& html, const BenchResult& bench, const BenchSettings& bs) {
     html << "<h2>Benchmark</h2>\n<p>Flyover, " << bs.frames << " frames of " << bs.width << "&times;" << bs.height
-         << ", clipmap levels of " << bs.clipSize << "&sup2;, the three level-centre placements run interleaved on "
+         << ", clipmap levels of " << bs.clipmap.clipSize << "&sup2;, the three level-centre placements run interleaved on "
          << htmlEscape(bench.device) << " (<a href=\"bench/summary.json\">summary.json</a>, "
          << "<a href=\"bench/frames.csv\">frames.csv</a>). Ratios, not absolute times, are comparable across "
             "machines.</p>\n<table><tr><th>centers</th><th>median frame ms</th><th>ratio</th><th>mean coverage</th>"
@@ -429,16 +430,15 @@ Runner addDemoCommand(CLI::App& app) {
     args->synth.sizeM = 2048.0;
     args->synth.gsd = 0.25;
     CLI::App* cmd = app.add_subcommand("demo", "Generate the synthetic demo scene (cached) and write stills + index.html");
-    cmd->add_option("--out", args->out, "Output folder")->capture_default_str();
-    cmd->add_option("--size", args->size, "Still size WxH")->capture_default_str();
+    args->scene.addCacheTo(*cmd);
+    args->frame.addTo(*cmd, "Still", {.camera = false, .window = true});
+    cmd->add_option("--out", args->out, "Output folder")->capture_default_str()->group(kFrameGroup);
     cmd->add_option("--preset", args->preset, "Synthetic scene preset JSON (defaults are data/presets/demo.json's)");
     cmd->add_option("--size-m", args->synth.sizeM, "Synthetic scene side, metres")->capture_default_str();
     cmd->add_option("--gsd", args->synth.gsd, "Synthetic scene resolution, metres per pixel")->capture_default_str();
     cmd->add_option("--seed", args->synth.seed, "Synthetic scene seed")->capture_default_str();
-    cmd->add_option("--cache", args->cache, "Cache folder (default $SEASONVIEW_CACHE or ~/.cache/seasonview)");
     cmd->add_option("--bench-frames", args->benchFrames, "Frames of the demo's flyover benchmark (0: skip it)")
         ->capture_default_str();
-    cmd->add_flag("--window", args->window, "Render through a hidden GLFW window instead of headless EGL");
     cmd->add_flag("--no-city", args->noCity, "Skip the still of the scene's buildings (and building their atlas tree)");
     return [args, cmd]() -> int {
         auto fail = [](const std::string& m) {
@@ -456,7 +456,7 @@ Runner addDemoCommand(CLI::App& app) {
         }
         using clock = std::chrono::steady_clock;
         const auto t0 = clock::now();
-        auto size = parseSize(args->size);
+        auto size = args->frame.frameSize();
         if (!size) return fail(size.message());
         DemoRun run;
         std::tie(run.width, run.height) = *size;
@@ -471,7 +471,7 @@ Runner addDemoCommand(CLI::App& app) {
         run.cached = !*generated;
         SceneArgs sa;
         sa.manifest = (run.sceneDir / "scene.json").string();
-        sa.cache = args->cache;
+        sa.cache = args->scene.cache;
         auto scene = sa.load();
         if (!scene) return fail(scene.message());
         printSceneNotes(*scene);
@@ -484,8 +484,8 @@ Runner addDemoCommand(CLI::App& app) {
             requests.push_back({s.camera, im, run.out / s.file, {}, {}, {}});
         }
         RenderSettings settings;
-        settings.windowed = args->window;
-        settings.cacheDir = args->cache.empty() ? defaultCacheDir() : std::filesystem::path(args->cache);
+        settings.windowed = args->frame.window;
+        settings.cacheDir = args->scene.cacheDir();
         const auto tr = clock::now();
         auto info = renderStills(*scene, run.width, run.height, requests, settings);
         if (!info) return fail(info.message());

@@ -2,6 +2,7 @@
 // What `render` and `demo` share: turning CLI scene arguments into a Scene, parsing sizes and cameras, and
 // rendering stills with the reference renderer through a headless or windowed context.
 #include "Camera.h"
+#include "CliOptions.h"
 #include "ClipmapCenters.h"
 #include "CanopyRendererGL.h"
 #include "CityRendererGL.h"
@@ -24,27 +25,6 @@
 
 namespace seasonview::app {
 
-/// A scene given as a manifest path or as --leafon/--leafoff/--dem flags.
-/// The scene options every command shares: a manifest or the inputs as flags (each a file, folder, glob or VRT, the
-/// flag repeated or given several values for a list), the CRS of inputs that carry none, the working grid, the
-/// resampling and the cache. Grid flags given with a manifest override its keys.
-struct SceneArgs {
-    std::string manifest;
-    std::vector<std::string> leafon, leafoff, dem;
-    std::string cache;
-    std::string crs, gridCrs, extent, resampling, stretch, buildings, cityCrs;
-    double gridRes = 0.0;
-    /// Adds the options to `cmd` (`withDem` false: commands that read no DEM).
-    void addTo(CLI::App& cmd, bool withDem = true);
-    /// The sources the options name (the manifest's, with the grid flags applied); errors name the flag.
-    Result<SceneSources> sources() const;
-    Result<Scene> load() const;
-    std::filesystem::path cacheDir() const;
-};
-
-/// "WxH" -> width, height (1..16384 each).
-Result<std::pair<int, int>> parseSize(const std::string& text);
-
 /// The camera looking straight down at the whole scene (default when --camera is not given).
 Camera overviewCamera(const Scene& scene, double aspect);
 
@@ -66,27 +46,9 @@ struct StillRequest {
 
 enum class RendererKind { Clipmap, Reference };
 
-/// The `canopy` view: the derived canopy layer's rule and the stacked layers (foliage/CanopyRendererGL.h).
-struct CanopyRenderSettings {
-    SegmentationParams params;  // method and the ground layer's k
-    int layers = 16;            // stacked layers; 0 = off (the ground alone: leaf-off under the crowns)
-    bool trunks = true;         // trunks under the crowns (foliage/TrunksGL.h), the layers lifted to the crowns' base
-    double crownBaseFraction = 0.35; // with trunks: the crowns' base, fraction of the tree height
-    CanopyDrawMode draw = CanopyDrawMode::March; // how the layers are drawn (CanopyRendererGL.h)
-};
-
-/// --trunks on|off -> settings.trunks; errors name the flag.
-Status parseTrunksArg(const std::string& value, CanopyRenderSettings& settings);
-/// --canopy-draw layers|march -> settings.draw; errors name the flag.
-Status parseCanopyDrawArg(const std::string& value, CanopyRenderSettings& settings);
 /// The canopy's draw settings for a scene (tree height, crown base with trunks, the terrain's filtering and shading).
 CanopyDrawSettings canopyDrawSettings(const Scene& scene, const CanopyRenderSettings& canopy,
                                       const ImagerySettings& imagery);
-
-/// --canopy-layers N|off, --method M, --k K -> canopy settings; errors name the flag.
-Result<CanopyRenderSettings> parseCanopyArgs(const std::string& layers, const std::string& method, int k);
-/// --ground-under-canopy / --ground-elsewhere S (leafon|leafoff) -> the canopy view's ground seasons in `imagery`.
-Status parseCanopyGround(const std::string& under, const std::string& elsewhere, ImagerySettings& imagery);
 
 struct RenderSettings {
     RendererKind renderer = RendererKind::Clipmap;

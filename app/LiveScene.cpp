@@ -1,0 +1,148 @@
+#include "LiveScene.h"
+
+#include "RenderJob.h"
+
+#include <algorithm>
+#include <cstdio>
+
+namespace seasonview::app {
+
+Status LiveScene::ensureCanopy(const ViewerSettings& s) {
+    const int layers = std::max(1, s.layers);
+    const bool wantTrunks = s.trunks && s.layers > 0;
+    if (canopy && canopyParams.method == s.params.method && canopyParams.k == s.params.k && canopyLayers == layers &&
+        canopyTrunks == wantTrunks)
+        return Ok{};
+    if (!histograms) {
+        auto h = preparePairStats(*scene, pyramids, cache);
+        if (!h) return h.error();
+        histograms = std::move(*h);
+    }
+    trunks.reset();
+    terrain->setCanopy(nullptr);
+    canopy.reset();
+    CanopyOptions co;
+    co.params = s.params;
+    co.layers = layers;
+    auto c = CanopyClipmapGL::create(*clip, statsFromHistograms(*histograms, co.params.method), co);
+    if (!c) return c.error();
+    canopy = std::move(*c);
+    terrain->setCanopy(canopy.get());
+    if (!canopyRenderer) {
+        auto cr = CanopyRendererGL::create();
+        if (!cr) return cr.error();
+        canopyRenderer = std::move(*cr);
+    }
+    if (wantTrunks) {
+        auto t = TrunksGL::create(*scene, *clip, *canopy);
+        if (!t) return t.error();
+        trunks = std::move(*t);
+    }
+    canopyParams = s.params;
+    canopyLayers = layers;
+    canopyTrunks = wantTrunks;
+    return Ok{};
+}
+
+GeometryFrameStats LiveScene::draw(const Camera& cam, const ViewerSettings& s, const gl::RenderTarget& target,
+                                   bool complete) {
+    const int w = target.width(), h = target.height();
+    const ClipmapGeometry g = clipmapGeometry(*scene, clip->schedule().layout());
+    lastLoad = clip->update(clipmapCentres(*scene, cam, w, h, s.centers, g));
+    texelsTotal += lastLoad.texelsUploaded;
+    if (const auto& e = clip->readError(); e && !damagedReported) {
+        // Never drawn (coarser levels stand in); the pyramid is rebuilt on the next start.
+        invalidateDamagedPyramid(e->message, cache);
+        damagedReported = true;
+        std::fprintf(stderr, "seasonview view: %s (damaged in the cache: drawn from coarser levels, rebuilt from "
+                             "the source on the next start)\n", e->message.c_str());
+    }
+    terrain->updateGeometry(cam, h);
+    if (complete) {
+        const ClipmapFrameStats more = clip->completeSynchronously();
+        texelsTotal += more.texelsUploaded;
+        terrain->completeGeometry();
+    }
+    const bool canopyView = s.view == ImageryView::Canopy;
+    if (canopyView && canopy) {
+        if (complete) {
+            canopy->completeSynchronously();
+            if (trunks) trunks->find();
+        } else {
+            canopy->update();
+            if (trunks) trunks->update();
+        }
+    }
+    ImagerySettings im;
+    im.view = s.view;
+    im.blend = s.blend;
+    im.swipe = s.swipe;
+    im.shading = s.shading;
+    CanopyRenderSettings cs;
+    cs.params = s.params;
+    cs.layers = s.layers;
+    cs.trunks = trunks != nullptr;
+    cs.draw = s.marchLayers ? CanopyDrawMode::March : CanopyDrawMode::Layers;
+    const CanopyDrawSettings cd = canopyDrawSettings(*scene, cs, im);
+    const bool stacked = canopyView && canopy && s.layers > 0;
+    if (stacked && cd.crownBase <= 0.0) im.canopyBase = cd.darkest;
+    GeometryFrameStats drawn = stacked ? canopyRenderer->renderView(cam, *terrain, im, *canopy, cd, trunks.get(), target)
+                                       : terrain->render(cam, im, target);
+    cityStats = {};
+    if (city && s.city) {
+        city->settings().tpp = std::max(0.05f, s.cityTpp);
+        city->settings().roofs = city::roofImageryFor(im);
+        if (complete) city->complete(cam, target.width(), target.height());
+        else city->update(cam, target.width(), target.height());
+        cityStats = city->draw(cam, terrain.get(), target);
+        drawn.triangles += cityStats.triangles;
+        drawn.drawCalls += cityStats.drawCalls;
+    }
+    return drawn;
+}
+
+bool applySetting(ViewerSettings& s, const std::string& name, const nlohmann::json& v, std::string& err) {
+    auto str = [&]() { return v.is_string() ? v.get<std::string>() : v.dump(); };
+    if (name == "view") {
+        auto view = parseImageryView(str());
+        if (!view) return err = "view '" + str() + "' unknown", false;
+        s.view = *view;
+    } else if (name == "blend" && v.is_number()) {
+        s.blend = std::clamp(v.get<float>(), 0.0f, 1.0f);
+    } else if (name == "swipe" && v.is_number()) {
+        s.swipe = std::clamp(v.get<float>(), 0.0f, 1.0f);
+    } else if (name == "shading" && v.is_number()) {
+        s.shading = std::clamp(v.get<float>(), 0.0f, 1.0f);
+    } else if (name == "layers") {
+        if (v.is_string() && v.get<std::string>() == "off") s.layers = 0;
+        else if (v.is_number_integer() && v.get<int>() >= 1 && v.get<int>() <= 64) s.layers = v.get<int>();
+        else return err = "layers must be 1..64 or \"off\"", false;
+    } else if (name == "city" && v.is_boolean()) {
+        s.city = v.get<bool>();
+    } else if (name == "city_tpp" && v.is_number()) {
+        s.cityTpp = std::clamp(v.get<float>(), 0.05f, 16.0f);
+    } else if (name == "trunks" && v.is_boolean()) {
+        s.trunks = v.get<bool>();
+    } else if (name == "canopy_draw" && (str() == "layers" || str() == "march")) {
+        s.marchLayers = str() == "march";
+    } else if (name == "centers") {
+        auto c = parsePlacement(str());
+        if (!c) return err = "centers '" + str() + "' unknown", false;
+        s.centers = *c;
+    } else if (name == "method") {
+        auto m = parseSegmentationMethod(str());
+        if (!m) return err = "method '" + str() + "' unknown", false;
+        s.params.method = *m;
+    } else if (name == "k" && v.is_number_integer() && v.get<int>() >= 1 && v.get<int>() <= kSegMaxK &&
+               v.get<int>() % 2 == 1) {
+        s.params.k = v.get<int>();
+    } else if (name == "panel" && v.is_boolean()) {
+        s.panel = v.get<bool>();
+    } else {
+        err = "setting '" + name + "' with value " + v.dump() + " not understood";
+        return false;
+    }
+    return true;
+}
+
+} // namespace seasonview::app
