@@ -97,6 +97,60 @@ std::size_t CityRendererGL::triangles() const {
     return n;
 }
 
+namespace {
+
+// Into the scene's frame: point by point when the tree has its own CRS, then (`placeOnTerrain`) each building onto the
+// DEM; then every node's bounds there (every node is a contiguous range, §4.8.1). A tree in the scene's frame already
+// is left as it is.
+void placeInSceneFrame(const Scene& scene, AtlasTreeFile& f, bool placeOnTerrain) {
+    if (f.info.sceneFrame) return;
+    const GeoFrame from(f.info.crs, f.info.origin);
+    const bool translate = scene.frame.isTranslation() && f.info.crs == scene.frame.crs();
+    const glm::dvec2 shift = translate ? f.info.origin - scene.frame.centre() : glm::dvec2(0.0);
+    auto move = [&](glm::vec3& p) {
+        if (translate) {
+            p.x = float(double(p.x) + shift.x);
+            p.y = float(double(p.y) + shift.y);
+        } else {
+            const glm::dvec3 l = scene.frame.toLocal(f.info.crs, from.fromLocal(f.info.crs, glm::dvec2(p)), double(p.z));
+            p.x = float(l.x);
+            p.y = float(l.y);
+        }
+    };
+    for (auto& t : f.trees)
+        for (auto& v : t.vertices) move(v.position);
+    for (auto& p : f.plain.positions) move(p);
+    if (placeOnTerrain && scene.elevation) {
+        // Each building's lowest vertex onto the lowest ground under its vertices (CityModel.h's placeOnTerrain).
+        std::map<std::uint32_t, std::pair<double, double>> lowest; // building -> (lowest z, lowest ground)
+        auto see = [&](std::uint32_t b, const glm::vec3& p) {
+            auto& lg = lowest.try_emplace(b, 1e30, 1e30).first->second;
+            lg.first = std::min(lg.first, double(p.z));
+            lg.second = std::min(lg.second, scene.terrainHeight(p.x, p.y));
+        };
+        for (const auto& t : f.trees)
+            for (std::size_t i = 0; i < t.vertices.size(); ++i) see(t.triangleBuilding[i / 3], t.vertices[i].position);
+        for (std::size_t i = 0; i < f.plain.positions.size(); ++i) see(f.plain.building[i / 3], f.plain.positions[i]);
+        auto dz = [&](std::uint32_t b) { return float(lowest.at(b).second - lowest.at(b).first); };
+        for (auto& t : f.trees)
+            for (std::size_t i = 0; i < t.vertices.size(); ++i) t.vertices[i].position.z += dz(t.triangleBuilding[i / 3]);
+        for (std::size_t i = 0; i < f.plain.positions.size(); ++i) f.plain.positions[i].z += dz(f.plain.building[i / 3]);
+    }
+    for (auto& t : f.trees)
+        for (auto& n : t.nodes) {
+            if (n.count == 0) continue;
+            glm::vec3 lo(std::numeric_limits<float>::max()), hi(std::numeric_limits<float>::lowest());
+            for (std::size_t v = std::size_t(n.first) * 3; v < std::size_t(n.first + n.count) * 3; ++v) {
+                lo = glm::min(lo, t.vertices[v].position);
+                hi = glm::max(hi, t.vertices[v].position);
+            }
+            n.boundsMin = lo;
+            n.boundsMax = hi;
+        }
+}
+
+} // namespace
+
 Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scene, const std::string& treePath,
                                                                const CitySettings& settings) {
     auto file = AtlasTreeFile::open(treePath);
@@ -104,80 +158,36 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
     std::unique_ptr<CityRendererGL> r(new CityRendererGL());
     r->m_file = std::move(*file);
     r->m_settings = settings;
-    AtlasTreeFile& f = r->m_file;
+    placeInSceneFrame(scene, r->m_file, settings.placeOnTerrain);
+    if (auto st = r->buildPrograms(); !st) return st.error();
+    r->createGeometry();
+    r->createSamplers();
+    if (auto st = r->createPagers(treePath); !st) return st.error();
+    return r;
+}
 
-    // Into the scene's frame: point by point when the tree has its own CRS, then each building onto the DEM.
-    if (!f.info.sceneFrame) {
-        const GeoFrame from(f.info.crs, f.info.origin);
-        const bool translate = scene.frame.isTranslation() && f.info.crs == scene.frame.crs();
-        const glm::dvec2 shift = translate ? f.info.origin - scene.frame.centre() : glm::dvec2(0.0);
-        auto move = [&](glm::vec3& p) {
-            if (translate) {
-                p.x = float(double(p.x) + shift.x);
-                p.y = float(double(p.y) + shift.y);
-            } else {
-                const glm::dvec3 l = scene.frame.toLocal(f.info.crs, from.fromLocal(f.info.crs, glm::dvec2(p)), double(p.z));
-                p.x = float(l.x);
-                p.y = float(l.y);
-            }
-        };
-        for (auto& t : f.trees)
-            for (auto& v : t.vertices) move(v.position);
-        for (auto& p : f.plain.positions) move(p);
-        if (settings.placeOnTerrain && scene.elevation) {
-            // Each building's lowest vertex onto the lowest ground under its vertices (CityModel.h's placeOnTerrain).
-            std::map<std::uint32_t, std::pair<double, double>> lowest; // building -> (lowest z, lowest ground)
-            auto see = [&](std::uint32_t b, const glm::vec3& p) {
-                auto& lg = lowest.try_emplace(b, 1e30, 1e30).first->second;
-                lg.first = std::min(lg.first, double(p.z));
-                lg.second = std::min(lg.second, scene.terrainHeight(p.x, p.y));
-            };
-            for (const auto& t : f.trees)
-                for (std::size_t i = 0; i < t.vertices.size(); ++i) see(t.triangleBuilding[i / 3], t.vertices[i].position);
-            for (std::size_t i = 0; i < f.plain.positions.size(); ++i) see(f.plain.building[i / 3], f.plain.positions[i]);
-            auto dz = [&](std::uint32_t b) { return float(lowest.at(b).second - lowest.at(b).first); };
-            for (auto& t : f.trees)
-                for (std::size_t i = 0; i < t.vertices.size(); ++i) t.vertices[i].position.z += dz(t.triangleBuilding[i / 3]);
-            for (std::size_t i = 0; i < f.plain.positions.size(); ++i) f.plain.positions[i].z += dz(f.plain.building[i / 3]);
-        }
-    }
-
-    // Node bounds in the scene's frame (every node is a contiguous range, §4.8.1).
-    if (!f.info.sceneFrame)
-        for (auto& t : f.trees)
-            for (auto& n : t.nodes) {
-                if (n.count == 0) continue;
-                glm::vec3 lo(std::numeric_limits<float>::max()), hi(std::numeric_limits<float>::lowest());
-                for (std::size_t v = std::size_t(n.first) * 3; v < std::size_t(n.first + n.count) * 3; ++v) {
-                    lo = glm::min(lo, t.vertices[v].position);
-                    hi = glm::max(hi, t.vertices[v].position);
-                }
-                n.boundsMin = lo;
-                n.boundsMax = hi;
-            }
-
-    // Shaders.
+Status CityRendererGL::buildPrograms() {
     auto build = [](const char* variant) { return gl::ShaderProgram::build("city_building.vert", "city_building.frag", {variant}); };
-    for (auto [prog, variant] : {std::pair{&r->m_atlasProgram, "ATLAS"}, {&r->m_originalProgram, "ORIGINAL"},
-                                 {&r->m_flatProgram, "FLAT"}, {&r->m_roofProgram, "ROOF"}, {&r->m_plainProgram, "PLAIN"}}) {
+    for (auto [prog, variant] : {std::pair{&m_atlasProgram, "ATLAS"}, {&m_originalProgram, "ORIGINAL"},
+                                 {&m_flatProgram, "FLAT"}, {&m_roofProgram, "ROOF"}, {&m_plainProgram, "PLAIN"}}) {
         auto p = build(variant);
         if (!p) return p.error();
         *prog = std::move(*p);
     }
-    {
-        auto p = gl::ShaderProgram::build("city_box.vert", "city_box.frag");
-        if (!p) return p.error();
-        r->m_boxProgram = std::move(*p);
-    }
-    {
-        const bool s3tc = epoxy_has_gl_extension("GL_EXT_texture_compression_s3tc");
-        const auto* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
-        const bool software = name && isSoftwareRenderer(name);
-        r->m_decodeBc = f.info.format == AtlasFormat::Bc &&
-                        (!s3tc || settings.upload == AtlasUpload::Decoded ||
-                         (settings.upload == AtlasUpload::Auto && software));
-    }
+    auto box = gl::ShaderProgram::build("city_box.vert", "city_box.frag");
+    if (!box) return box.error();
+    m_boxProgram = std::move(*box);
+    const bool s3tc = epoxy_has_gl_extension("GL_EXT_texture_compression_s3tc");
+    const auto* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+    const bool software = name && isSoftwareRenderer(name);
+    m_decodeBc = m_file.info.format == AtlasFormat::Bc &&
+                 (!s3tc || m_settings.upload == AtlasUpload::Decoded ||
+                  (m_settings.upload == AtlasUpload::Auto && software));
+    return Ok{};
+}
 
+void CityRendererGL::createGeometry() {
+    const AtlasTreeFile& f = m_file;
     // Geometry: one vertex buffer per tree (§4.8.1 order), one for the plain triangles (roofs first).
     for (const auto& t : f.trees) {
         gl::Buffer vbo = gl::Buffer::create();
@@ -185,116 +195,113 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
                              t.vertices.empty() ? nullptr : t.vertices.data(), 0);
         gl::VertexArray vao = gl::VertexArray::create();
         setVertexLayout(vao.id(), vbo.id(), true);
-        r->m_vbo.push_back(std::move(vbo));
-        r->m_vao.push_back(std::move(vao));
-        r->m_traversals.push_back(std::make_unique<AtlasTraversal>(t, f.info));
-        r->m_atlases.emplace_back();
+        m_vbo.push_back(std::move(vbo));
+        m_vao.push_back(std::move(vao));
+        m_traversals.push_back(std::make_unique<AtlasTraversal>(t, f.info));
+        m_atlases.emplace_back();
     }
-    {
-        std::vector<glm::vec3> plain;
-        for (int pass = 0; pass < 2; ++pass)
-            for (std::size_t i = 0; i < f.plain.surface.size(); ++i)
-                if ((f.plain.surface[i] == Surface::Roof) == (pass == 0)) {
-                    for (int k = 0; k < 3; ++k) plain.push_back(f.plain.positions[i * 3 + std::size_t(k)]);
-                    (pass == 0 ? r->m_plainRoofs : r->m_plainOthers)++;
-                }
-        r->m_plainVbo = gl::Buffer::create();
-        glNamedBufferStorage(r->m_plainVbo.id(), GLsizeiptr(std::max<std::size_t>(plain.size(), 1) * sizeof(glm::vec3)),
-                             plain.empty() ? nullptr : plain.data(), 0);
-        r->m_plainVao = gl::VertexArray::create();
-        setVertexLayout(r->m_plainVao.id(), r->m_plainVbo.id(), false);
-    }
+    std::vector<glm::vec3> plain;
+    for (int pass = 0; pass < 2; ++pass)
+        for (std::size_t i = 0; i < f.plain.surface.size(); ++i)
+            if ((f.plain.surface[i] == Surface::Roof) == (pass == 0)) {
+                for (int k = 0; k < 3; ++k) plain.push_back(f.plain.positions[i * 3 + std::size_t(k)]);
+                (pass == 0 ? m_plainRoofs : m_plainOthers)++;
+            }
+    m_plainVbo = gl::Buffer::create();
+    glNamedBufferStorage(m_plainVbo.id(), GLsizeiptr(std::max<std::size_t>(plain.size(), 1) * sizeof(glm::vec3)),
+                         plain.empty() ? nullptr : plain.data(), 0);
+    m_plainVao = gl::VertexArray::create();
+    setVertexLayout(m_plainVao.id(), m_plainVbo.id(), false);
     // Occlusion-query boxes: the unit cube, 12 triangles.
-    {
-        std::vector<glm::vec3> corners;
-        for (int i = 0; i < 8; ++i) corners.emplace_back(float(i & 1), float((i >> 1) & 1), float((i >> 2) & 1));
-        const std::uint8_t faces[36] = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
-                                        2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
-        r->m_boxVbo = gl::Buffer::create();
-        glNamedBufferStorage(r->m_boxVbo.id(), GLsizeiptr(corners.size() * sizeof(glm::vec3)), corners.data(), 0);
-        r->m_boxIbo = gl::Buffer::create();
-        glNamedBufferStorage(r->m_boxIbo.id(), sizeof faces, faces, 0);
-        r->m_boxVao = gl::VertexArray::create();
-        setVertexLayout(r->m_boxVao.id(), r->m_boxVbo.id(), false);
-        glVertexArrayElementBuffer(r->m_boxVao.id(), r->m_boxIbo.id());
-    }
-    for (const auto& t : f.trees) r->m_occlusion.push_back(std::make_unique<NodeOcclusion>(t));
+    std::vector<glm::vec3> corners;
+    for (int i = 0; i < 8; ++i) corners.emplace_back(float(i & 1), float((i >> 1) & 1), float((i >> 2) & 1));
+    const std::uint8_t faces[36] = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+                                    2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+    m_boxVbo = gl::Buffer::create();
+    glNamedBufferStorage(m_boxVbo.id(), GLsizeiptr(corners.size() * sizeof(glm::vec3)), corners.data(), 0);
+    m_boxIbo = gl::Buffer::create();
+    glNamedBufferStorage(m_boxIbo.id(), sizeof faces, faces, 0);
+    m_boxVao = gl::VertexArray::create();
+    setVertexLayout(m_boxVao.id(), m_boxVbo.id(), false);
+    glVertexArrayElementBuffer(m_boxVao.id(), m_boxIbo.id());
+    for (const auto& t : f.trees) m_occlusion.push_back(std::make_unique<NodeOcclusion>(t));
+}
 
+void CityRendererGL::createSamplers() {
     // Samplers: atlases trilinear within their mip chain (clamped: fract() keeps coordinates inside), originals
     // repeated or clamped as their model says.
-    r->m_atlasSampler = gl::Sampler::create();
-    r->m_repeatSampler = gl::Sampler::create();
-    r->m_clampSampler = gl::Sampler::create();
-    for (GLuint s : {r->m_atlasSampler.id(), r->m_repeatSampler.id(), r->m_clampSampler.id()}) {
+    m_atlasSampler = gl::Sampler::create();
+    m_repeatSampler = gl::Sampler::create();
+    m_clampSampler = gl::Sampler::create();
+    for (GLuint s : {m_atlasSampler.id(), m_repeatSampler.id(), m_clampSampler.id()}) {
         glSamplerParameteri(s, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
         glSamplerParameteri(s, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-        glSamplerParameterf(s, GL_TEXTURE_MAX_ANISOTROPY, std::clamp(settings.anisotropy, 1.0f, 16.0f));
+        glSamplerParameterf(s, GL_TEXTURE_MAX_ANISOTROPY, std::clamp(m_settings.anisotropy, 1.0f, 16.0f));
     }
-    for (GLuint s : {r->m_atlasSampler.id(), r->m_clampSampler.id()}) {
+    for (GLuint s : {m_atlasSampler.id(), m_clampSampler.id()}) {
         glSamplerParameteri(s, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
         glSamplerParameteri(s, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
     }
-    glSamplerParameteri(r->m_repeatSampler.id(), GL_TEXTURE_WRAP_S, GL_REPEAT);
-    glSamplerParameteri(r->m_repeatSampler.id(), GL_TEXTURE_WRAP_T, GL_REPEAT);
+    glSamplerParameteri(m_repeatSampler.id(), GL_TEXTURE_WRAP_S, GL_REPEAT);
+    glSamplerParameteri(m_repeatSampler.id(), GL_TEXTURE_WRAP_T, GL_REPEAT);
 
     // The flat mode's one dummy texture: 64² of light grey with a faint grid (so it is still a texture fetch).
-    {
-        std::vector<std::uint8_t> px(64 * 64 * 4);
-        for (int y = 0; y < 64; ++y)
-            for (int x = 0; x < 64; ++x) {
-                const std::uint8_t v = (x % 16 == 0 || y % 16 == 0) ? 150 : 190;
-                std::uint8_t* p = &px[std::size_t(y * 64 + x) * 4];
-                p[0] = p[1] = p[2] = v;
-                p[3] = 255;
-            }
-        r->m_dummy = gl::Texture::create(GL_TEXTURE_2D);
-        glTextureStorage2D(r->m_dummy.id(), 7, GL_RGBA8, 64, 64);
-        glTextureSubImage2D(r->m_dummy.id(), 0, 0, 0, 64, 64, GL_RGBA, GL_UNSIGNED_BYTE, px.data());
-        glGenerateTextureMipmap(r->m_dummy.id());
-    }
+    std::vector<std::uint8_t> px(64 * 64 * 4);
+    for (int y = 0; y < 64; ++y)
+        for (int x = 0; x < 64; ++x) {
+            const std::uint8_t v = (x % 16 == 0 || y % 16 == 0) ? 150 : 190;
+            std::uint8_t* p = &px[std::size_t(y * 64 + x) * 4];
+            p[0] = p[1] = p[2] = v;
+            p[3] = 255;
+        }
+    m_dummy = gl::Texture::create(GL_TEXTURE_2D);
+    glTextureStorage2D(m_dummy.id(), 7, GL_RGBA8, 64, 64);
+    glTextureSubImage2D(m_dummy.id(), 0, 0, 0, 64, 64, GL_RGBA, GL_UNSIGNED_BYTE, px.data());
+    glGenerateTextureMipmap(m_dummy.id());
+}
 
-    // Pagers: one per tree (its atlases and the originals of its leaves); the capacity is shared in proportion to
-    // the trees' atlas bytes. Original mode pages originals only.
+// Pagers: one per tree (its atlases and the originals of its leaves); the capacity is shared in proportion to the
+// trees' atlas bytes. Original mode pages originals only.
+Status CityRendererGL::createPagers(const std::string& treePath) {
+    const AtlasTreeFile& f = m_file;
     PagerSettings ps;
-    ps.threaded = settings.threaded;
-    ps.decodedAtlases = r->m_decodeBc;
-    ps.uploadBytesPerFrame = settings.uploadBytesPerFrame;
-    if (settings.mode == CityMode::Atlas) {
-        std::vector<std::uint64_t> share;
-        std::uint64_t total = 0;
-        for (const auto& t : f.trees) {
-            std::uint64_t b = 0;
-            for (const auto& n : t.nodes) b += n.atlasBytes + n.textureBytes;
-            share.push_back(std::max<std::uint64_t>(b, 1));
-            total += share.back();
-        }
-        for (std::size_t t = 0; t < f.trees.size(); ++t) {
-            ps.capacityBytes = f.trees.size() == 1 ? settings.capacityBytes
-                                                   : std::max<std::uint64_t>(settings.capacityBytes * share[t] / total, 1);
-            r->m_pagers.push_back(std::make_unique<AtlasPager>(r->m_file, int(t), ps));
-            // Every frame draws at least the root's atlas (the coarsest, never a missing texture): a capacity that
-            // cannot hold it would leave the whole tree undrawn.
-            const auto& nodes = f.trees[t].nodes;
-            if (!nodes.empty() && nodes[0].atlasBytes > 0) {
-                const std::uint64_t root = r->m_pagers.back()->blockBytes({BlockKey::Kind::Atlas, 0});
-                if (root > ps.capacityBytes) {
-                    char msg[256];
-                    std::snprintf(msg, sizeof msg,
-                                  ": the city capacity (%.1f MB for this tree) cannot hold its root atlas (%.1f MB%s): "
-                                  "raise --city-capacity to at least %.0f MB",
-                                  double(ps.capacityBytes) / 1e6, double(root) / 1e6,
-                                  ps.decodedAtlases ? ", decoded" : "",
-                                  std::ceil(double(root) * double(total) / double(share[t]) / 1e6));
-                    return Error{treePath + (f.trees[t].alpha ? " (RGBA tree)" : " (RGB tree)") + msg};
-                }
-            }
-        }
-    } else if (settings.mode == CityMode::Original && !f.trees.empty()) {
-        ps.capacityBytes = settings.capacityBytes;
+    ps.threaded = m_settings.threaded;
+    ps.decodedAtlases = m_decodeBc;
+    ps.uploadBytesPerFrame = m_settings.uploadBytesPerFrame;
+    if (m_settings.mode == CityMode::Original && !f.trees.empty()) {
+        ps.capacityBytes = m_settings.capacityBytes;
         ps.queueLength = 32;
-        r->m_originalPager = std::make_unique<AtlasPager>(r->m_file, 0, ps);
+        m_originalPager = std::make_unique<AtlasPager>(m_file, 0, ps);
+        return Ok{};
     }
-    return r;
+    if (m_settings.mode != CityMode::Atlas) return Ok{};
+    std::vector<std::uint64_t> share;
+    std::uint64_t total = 0;
+    for (const auto& t : f.trees) {
+        std::uint64_t b = 0;
+        for (const auto& n : t.nodes) b += n.atlasBytes + n.textureBytes;
+        share.push_back(std::max<std::uint64_t>(b, 1));
+        total += share.back();
+    }
+    for (std::size_t t = 0; t < f.trees.size(); ++t) {
+        ps.capacityBytes = f.trees.size() == 1 ? m_settings.capacityBytes
+                                               : std::max<std::uint64_t>(m_settings.capacityBytes * share[t] / total, 1);
+        m_pagers.push_back(std::make_unique<AtlasPager>(m_file, int(t), ps));
+        // Every frame draws at least the root's atlas (the coarsest, never a missing texture): a capacity that
+        // cannot hold it would leave the whole tree undrawn.
+        const auto& nodes = f.trees[t].nodes;
+        if (nodes.empty() || nodes[0].atlasBytes == 0) continue;
+        const std::uint64_t root = m_pagers.back()->blockBytes({BlockKey::Kind::Atlas, 0});
+        if (root <= ps.capacityBytes) continue;
+        char msg[256];
+        std::snprintf(msg, sizeof msg,
+                      ": the city capacity (%.1f MB for this tree) cannot hold its root atlas (%.1f MB%s): "
+                      "raise --city-capacity to at least %.0f MB",
+                      double(ps.capacityBytes) / 1e6, double(root) / 1e6, ps.decodedAtlases ? ", decoded" : "",
+                      std::ceil(double(root) * double(total) / double(share[t]) / 1e6));
+        return Error{treePath + (f.trees[t].alpha ? " (RGBA tree)" : " (RGB tree)") + msg};
+    }
+    return Ok{};
 }
 
 AtlasView CityRendererGL::view(const Camera& camera, int width, int height) const {
@@ -517,221 +524,63 @@ void CityRendererGL::complete(const Camera& camera, int width, int height) {
     }
 }
 
-CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRendererGL* terrain,
-                                    const gl::RenderTarget& target) {
-    CityFrameStats st;
-    collectQueries(true);
-    const bool occlusion = m_settings.occlusion && m_settings.mode == CityMode::Atlas;
-    std::vector<std::vector<std::uint32_t>> drawnNodes(m_file.trees.size()); // for step (3)
-    target.bind();
-    glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_GREATER);
-    glDisable(GL_CULL_FACE); // CityGML rings are not reliably oriented
-    const AtlasView v = view(camera, target.width(), target.height());
-    const glm::mat4 viewProj(v.viewProj);
-    const glm::vec3 sun(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75)));
+// What one draw() shares between its passes: the view, the frame's counters, the texture bound on unit 0.
+struct CityRendererGL::DrawState {
+    AtlasView v;
+    glm::mat4 viewProj;
+    glm::vec3 sun;
+    CityFrameStats& st;
     GLuint bound = 0;
-    auto bindTexture = [&](GLuint id, GLuint sampler) {
+    std::vector<std::vector<std::uint32_t>> drawnNodes; // per tree: the nodes drawn, for step (3)
+    void bindTexture(GLuint id, GLuint sampler) {
         if (id == bound) return;
         glBindTextureUnit(0, id);
         glBindSampler(0, sampler);
         bound = id;
         ++st.textureBinds;
-    };
+    }
+};
 
+// One tree's atlas-mode draw: the program bound last and the atlases drawn (distinct: deferred nodes may share an
+// ancestor's stand-in).
+struct CityRendererGL::AtlasPass {
+    std::size_t tree;
+    const gl::ShaderProgram* current = nullptr;
+    std::vector<std::uint32_t> atlasesDrawn;
+};
+
+CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRendererGL* terrain,
+                                    const gl::RenderTarget& target) {
+    CityFrameStats st;
+    collectQueries(true);
+    const bool occlusion = m_settings.occlusion && m_settings.mode == CityMode::Atlas;
+    target.bind();
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_GREATER);
+    glDisable(GL_CULL_FACE); // CityGML rings are not reliably oriented
+    DrawState ds{view(camera, target.width(), target.height()), glm::mat4(1.0f),
+                 glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))), st, 0, {}};
+    ds.viewProj = glm::mat4(ds.v.viewProj);
+    ds.drawnNodes.resize(m_file.trees.size());
     for (std::size_t t = 0; t < m_file.trees.size(); ++t) {
         const AtlasTreeData& tree = m_file.trees[t];
         if (tree.vertices.empty()) continue;
         glBindVertexArray(m_vao[t].id());
-        const float alphaCut = tree.alpha ? 0.5f : -1.0f;
-        if (m_settings.mode == CityMode::Flat) {
-            m_flatProgram.set("uViewProj", viewProj);
-            m_flatProgram.set("uSunDir", sun);
-            m_flatProgram.set("uTexture", 0);
-            m_flatProgram.set("uAlphaCut", -1.0f);
-            m_flatProgram.set("uMaxAniso", std::clamp(m_settings.anisotropy, 1.0f, 16.0f));
-            m_flatProgram.use();
-            bindTexture(m_dummy.id(), m_repeatSampler.id());
-            glDrawArrays(GL_TRIANGLES, 0, GLsizei(tree.vertices.size()));
-            ++st.drawCalls;
-            st.triangles += std::int64_t(tree.vertices.size() / 3);
-            continue;
-        }
-        if (m_settings.mode == CityMode::Original) {
-            // Every leaf's runs of one texture with that texture: the conventional way, one bind and one call each.
-            m_originalProgram.set("uViewProj", viewProj);
-            m_originalProgram.set("uSunDir", sun);
-            m_originalProgram.set("uTexture", 0);
-            m_originalProgram.set("uAlphaCut", alphaCut);
-            m_originalProgram.set("uMaxAniso", std::clamp(m_settings.anisotropy, 1.0f, 16.0f));
-            m_originalProgram.use();
-            const auto& trav = *m_traversals[t];
-            for (std::uint32_t n = 0; n < tree.nodes.size(); ++n) {
-                const AtlasNode& node = tree.nodes[n];
-                if (!node.leaf() || !trav.visible(n, v)) continue;
-                for (std::uint32_t i = node.first; i < node.first + node.count;) {
-                    const std::uint32_t tex = tree.triangleTexture[i];
-                    std::uint32_t e = i + 1;
-                    while (e < node.first + node.count && tree.triangleTexture[e] == tex) ++e;
-                    auto it = m_textures.find(tex);
-                    if (it != m_textures.end())
-                        bindTexture(it->second.id(), m_file.textures[tex].repeat ? m_repeatSampler.id() : m_clampSampler.id());
-                    else {
-                        bindTexture(m_dummy.id(), m_repeatSampler.id());
-                        ++st.missingOriginals;
-                    }
-                    glDrawArrays(GL_TRIANGLES, GLint(i * 3), GLsizei((e - i) * 3));
-                    ++st.drawCalls;
-                    st.triangles += e - i;
-                    i = e;
-                }
-            }
-            continue;
-        }
-        // Atlas mode: the traversal's draws with what the pager made resident. Nothing before the root's atlas is
-        // (the first frames of a view that did not complete(); no occlusion answers from an empty picture either).
-        if (!m_atlases[t].count(0)) continue;
-        AtlasPager& pager = *m_pagers[t];
-        const AtlasTraversal& trav = *m_traversals[t];
-        const auto atlasResident = [&](std::uint32_t n) { return pager.resident({BlockKey::Kind::Atlas, n}); };
-        const auto textureResident = [&](std::uint32_t x) { return pager.textureResident(x); };
-        NodeOcclusion& occ = *m_occlusion[t];
-        VisibilityFn visibility;
-        if (occlusion) {
-            occ.beginFrame();
-            visibility = [&occ](std::uint32_t n) { return occ.forTraversal(n); };
-        }
-        auto markTraversed = [&](const AtlasTraversalResult& r) {
-            if (occlusion) occ.traversed(r);
-        };
-        for (const gl::ShaderProgram* p : {&m_atlasProgram, &m_originalProgram}) {
-            p->set("uViewProj", viewProj);
-            p->set("uSunDir", sun);
-            p->set("uTexture", 0);
-            p->set("uAlphaCut", alphaCut);
-            p->set("uMaxAniso", std::clamp(m_settings.anisotropy, 1.0f, 16.0f));
-        }
-        const gl::ShaderProgram* current = nullptr;
-        std::vector<std::uint32_t> atlasesDrawn; // distinct: deferred nodes may share an ancestor's stand-in
-        auto issue = [&](const AtlasTraversalResult& result) {
-            for (const AtlasDraw& d : result.draws)
-                if (!d.original) atlasesDrawn.push_back(d.node);
-            st.originalLeaves += int(result.originalLeaves);
-            st.coarserThanWanted += int(result.coarserThanWanted);
-            drawnNodes[t].insert(drawnNodes[t].end(), result.drawn.begin(), result.drawn.end());
-            for (const AtlasDraw& d : result.draws) {
-                const gl::ShaderProgram& prog = d.original ? m_originalProgram : m_atlasProgram;
-                if (&prog != current) {
-                    prog.use();
-                    current = &prog;
-                }
-                if (d.original) {
-                    auto it = m_textures.find(d.texture);
-                    if (it == m_textures.end()) continue; // cannot happen: the traversal checked residency
-                    bindTexture(it->second.id(), m_file.textures[d.texture].repeat ? m_repeatSampler.id() : m_clampSampler.id());
-                } else {
-                    auto it = m_atlases[t].find(d.node);
-                    if (it == m_atlases[t].end()) continue;
-                    bindTexture(it->second.id(), m_atlasSampler.id());
-                    prog.set("uLevelScale", float(std::ldexp(1.0, d.level)));
-                }
-                glDrawArrays(GL_TRIANGLES, GLint(d.first * 3), GLsizei(d.count * 3));
-                ++st.drawCalls;
-                st.triangles += d.count;
-            }
-        };
-        // (1) What is known visible.
-        const AtlasTraversalResult known = trav.draws(v, atlasResident, textureResident, visibility);
-        markTraversed(known);
-        issue(known);
-        // (2) The deferred nodes, nearest first, in rounds: test the boxes, wait, draw the visible ones.
-        std::vector<std::uint32_t> pending = known.deferred;
-        const auto distance = [&](std::uint32_t n) { return trav.distance(n, v); };
-        for (int grown = 0; !pending.empty();) {
-            NodeOcclusion::Round round = occ.nextRound(pending, distance, v.eye, grown);
-            std::vector<std::uint32_t>& visibleNow = round.visible;
-            std::vector<PendingQuery> queries;
-            queryBoxes(t, round.test, viewProj, queries);
-            st.occlusionQueries += int(queries.size());
-            if (!queries.empty()) ++st.occlusionWaits;
-            for (const PendingQuery& q : queries) {
-                GLuint any = 0;
-                glGetQueryObjectuiv(m_queries[q.query].id(), GL_QUERY_RESULT, &any);
-                if (any) visibleNow.push_back(q.node);
-                else {
-                    occ.answered(q.node, false, occ.frame());
-                    ++st.occludedNodes;
-                }
-            }
-            glBindVertexArray(m_vao[t].id());
-            current = nullptr;
-            bool drew = false;
-            for (std::uint32_t n : visibleNow) {
-                occ.foundVisible(n); // against the depth so far: tested again at the end
-                const AtlasTraversalResult below = trav.drawsBelow(n, v, atlasResident, textureResident, visibility);
-                markTraversed(below);
-                issue(below);
-                drew = drew || !below.drawn.empty();
-                pending.insert(pending.end(), below.deferred.begin(), below.deferred.end());
-            }
-            if (drew) ++grown; // rounds that only open inner nodes keep the batch small
-        }
-        std::sort(atlasesDrawn.begin(), atlasesDrawn.end());
-        st.atlasNodes += int(std::unique(atlasesDrawn.begin(), atlasesDrawn.end()) - atlasesDrawn.begin());
-        st.blocksResident += pager.stats().residentBlocks;
-        st.residentBytes += pager.stats().residentBytes;
-        st.loaderQueue += pager.stats().queued;
+        if (m_settings.mode == CityMode::Flat) drawFlat(t, ds);
+        else if (m_settings.mode == CityMode::Original) drawOriginal(t, ds);
+        else drawAtlas(t, ds, occlusion);
     }
     if (m_originalPager) {
         st.blocksResident = m_originalPager->stats().residentBlocks;
         st.residentBytes = m_originalPager->stats().residentBytes;
         st.loaderQueue = m_originalPager->stats().queued;
     }
-
-    // Plain triangles: roofs with the imagery (or one colour), the rest in one colour. Unit 0's sampler object would
-    // override the clipmap's own filtering.
-    glBindSampler(0, 0);
-    glBindVertexArray(m_plainVao.id());
-    if (m_plainRoofs > 0) {
-        m_roofProgram.set("uViewProj", viewProj);
-        m_roofProgram.set("uSunDir", sun);
-        m_roofProgram.set("uPlainColour", kRoofColour);
-        m_roofProgram.set("uAlphaCut", -1.0f);
-        const RoofImagery& ri = m_settings.roofs;
-        m_roofProgram.set("uSeason", std::clamp(ri.season, 0, 1));
-        m_roofProgram.set("uBlend", ri.blend < 0.0f ? -1.0f : std::clamp(ri.blend, 0.0f, 1.0f));
-        m_roofProgram.set("uSwipeX", ri.swipe < 0.0f ? -1.0f : std::clamp(ri.swipe, 0.0f, 1.0f) * float(target.width()));
-        m_roofProgram.set("uHasImagery", terrain && ri.imagery ? 1 : 0);
-        if (terrain) terrain->bindTerrain(m_roofProgram, v.viewProj);
-        else {
-            // Nothing to sample, but samplers of two types on one unit (the defaults: all on unit 0) fail the draw.
-            m_roofProgram.set("uClip", 12);
-            m_roofProgram.set("uCoarse", 13);
-            m_roofProgram.set("uClipTags", 11);
-            m_roofProgram.set("uLocalToImage", 10);
-        }
-        m_roofProgram.set("uViewProj", viewProj);
-        m_roofProgram.use();
-        glDrawArrays(GL_TRIANGLES, 0, GLsizei(m_plainRoofs * 3));
-        ++st.drawCalls;
-        st.triangles += std::int64_t(m_plainRoofs);
-        bound = 0;
-    }
-    if (m_plainOthers > 0) {
-        m_plainProgram.set("uViewProj", viewProj);
-        m_plainProgram.set("uSunDir", sun);
-        m_plainProgram.set("uPlainColour", kPlainColour);
-        m_plainProgram.set("uAlphaCut", -1.0f);
-        m_plainProgram.use();
-        glDrawArrays(GL_TRIANGLES, GLint(m_plainRoofs * 3), GLsizei(m_plainOthers * 3));
-        ++st.drawCalls;
-        st.triangles += std::int64_t(m_plainOthers);
-    }
+    drawPlain(ds, terrain, target.width());
     // (3) The drawn nodes' boxes against the frame's depth, for the next frame.
     if (occlusion) {
-        for (std::size_t t = 0; t < drawnNodes.size(); ++t) {
+        for (std::size_t t = 0; t < ds.drawnNodes.size(); ++t) {
             const std::size_t before = m_frameEndQueries.size();
-            queryBoxes(t, m_occlusion[t]->endOfFrameTests(drawnNodes[t], v.eye), viewProj, m_frameEndQueries);
+            queryBoxes(t, m_occlusion[t]->endOfFrameTests(ds.drawnNodes[t], ds.v.eye), ds.viewProj, m_frameEndQueries);
             st.occlusionQueries += int(m_frameEndQueries.size() - before);
         }
     }
@@ -739,15 +588,204 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
     glBindSampler(0, 0);
     st.uploadedBytes = m_frameUploaded;
     st.evictedBlocks = std::size_t(m_frameEvicted);
+    st.allocatedBytes = allocatedBytes();
+    return st;
+}
+
+// The GPU bytes of the resident atlases and original textures (whole, or allocated whole while their bands arrive:
+// the pagers' size of a texture).
+std::uint64_t CityRendererGL::allocatedBytes() const {
+    std::uint64_t bytes = 0;
     for (std::size_t t = 0; t < m_atlases.size() && t < m_pagers.size(); ++t)
-        for (const auto& [node, tex] : m_atlases[t]) st.allocatedBytes += m_pagers[t]->blockBytes({BlockKey::Kind::Atlas, node});
-    // Original textures (whole, or allocated whole while their bands arrive): the pagers' size of a texture.
+        for (const auto& [node, tex] : m_atlases[t]) bytes += m_pagers[t]->blockBytes({BlockKey::Kind::Atlas, node});
     const AtlasPager* pager = m_originalPager ? m_originalPager.get() : m_pagers.empty() ? nullptr : m_pagers[0].get();
     if (pager) {
-        for (const auto& [i, tex] : m_textures) st.allocatedBytes += pager->textureBytes(i);
-        for (const auto& [i, p] : m_partialTextures) st.allocatedBytes += pager->textureBytes(i);
+        for (const auto& [i, tex] : m_textures) bytes += pager->textureBytes(i);
+        for (const auto& [i, p] : m_partialTextures) bytes += pager->textureBytes(i);
     }
-    return st;
+    return bytes;
+}
+
+void CityRendererGL::setBuildingUniforms(const gl::ShaderProgram& p, const DrawState& ds, float alphaCut) const {
+    p.set("uViewProj", ds.viewProj);
+    p.set("uSunDir", ds.sun);
+    p.set("uTexture", 0);
+    p.set("uAlphaCut", alphaCut);
+    p.set("uMaxAniso", std::clamp(m_settings.anisotropy, 1.0f, 16.0f));
+}
+
+// Flat mode: the whole tree in one call with the dummy texture (the upper bound of what texturing can cost).
+void CityRendererGL::drawFlat(std::size_t t, DrawState& ds) {
+    const AtlasTreeData& tree = m_file.trees[t];
+    setBuildingUniforms(m_flatProgram, ds, -1.0f);
+    m_flatProgram.use();
+    ds.bindTexture(m_dummy.id(), m_repeatSampler.id());
+    glDrawArrays(GL_TRIANGLES, 0, GLsizei(tree.vertices.size()));
+    ++ds.st.drawCalls;
+    ds.st.triangles += std::int64_t(tree.vertices.size() / 3);
+}
+
+// Original mode: every visible leaf's runs of one texture with that texture, the conventional way: one bind and one
+// call each.
+void CityRendererGL::drawOriginal(std::size_t t, DrawState& ds) {
+    const AtlasTreeData& tree = m_file.trees[t];
+    setBuildingUniforms(m_originalProgram, ds, tree.alpha ? 0.5f : -1.0f);
+    m_originalProgram.use();
+    const auto& trav = *m_traversals[t];
+    for (std::uint32_t n = 0; n < tree.nodes.size(); ++n) {
+        const AtlasNode& node = tree.nodes[n];
+        if (!node.leaf() || !trav.visible(n, ds.v)) continue;
+        for (std::uint32_t i = node.first; i < node.first + node.count;) {
+            const std::uint32_t tex = tree.triangleTexture[i];
+            std::uint32_t e = i + 1;
+            while (e < node.first + node.count && tree.triangleTexture[e] == tex) ++e;
+            auto it = m_textures.find(tex);
+            if (it != m_textures.end())
+                ds.bindTexture(it->second.id(), m_file.textures[tex].repeat ? m_repeatSampler.id() : m_clampSampler.id());
+            else {
+                ds.bindTexture(m_dummy.id(), m_repeatSampler.id());
+                ++ds.st.missingOriginals;
+            }
+            glDrawArrays(GL_TRIANGLES, GLint(i * 3), GLsizei((e - i) * 3));
+            ++ds.st.drawCalls;
+            ds.st.triangles += e - i;
+            i = e;
+        }
+    }
+}
+
+// One traversal result's draws, each with its atlas or (a leaf nearer than its atlas serves) original texture.
+void CityRendererGL::issueDraws(const AtlasTraversalResult& result, AtlasPass& pass, DrawState& ds) {
+    const std::size_t t = pass.tree;
+    for (const AtlasDraw& d : result.draws)
+        if (!d.original) pass.atlasesDrawn.push_back(d.node);
+    ds.st.originalLeaves += int(result.originalLeaves);
+    ds.st.coarserThanWanted += int(result.coarserThanWanted);
+    ds.drawnNodes[t].insert(ds.drawnNodes[t].end(), result.drawn.begin(), result.drawn.end());
+    for (const AtlasDraw& d : result.draws) {
+        const gl::ShaderProgram& prog = d.original ? m_originalProgram : m_atlasProgram;
+        if (&prog != pass.current) {
+            prog.use();
+            pass.current = &prog;
+        }
+        if (d.original) {
+            auto it = m_textures.find(d.texture);
+            if (it == m_textures.end()) continue; // cannot happen: the traversal checked residency
+            ds.bindTexture(it->second.id(), m_file.textures[d.texture].repeat ? m_repeatSampler.id() : m_clampSampler.id());
+        } else {
+            auto it = m_atlases[t].find(d.node);
+            if (it == m_atlases[t].end()) continue;
+            ds.bindTexture(it->second.id(), m_atlasSampler.id());
+            prog.set("uLevelScale", float(std::ldexp(1.0, d.level)));
+        }
+        glDrawArrays(GL_TRIANGLES, GLint(d.first * 3), GLsizei(d.count * 3));
+        ++ds.st.drawCalls;
+        ds.st.triangles += d.count;
+    }
+}
+
+// Atlas mode: the traversal's draws with what the pager made resident; with occlusion culling, (1) what is known
+// visible, then (2) the deferred nodes in rounds. Nothing before the root's atlas is resident (the first frames of a
+// view that did not complete(); no occlusion answers from an empty picture either).
+void CityRendererGL::drawAtlas(std::size_t t, DrawState& ds, bool occlusion) {
+    if (!m_atlases[t].count(0)) return;
+    const AtlasTreeData& tree = m_file.trees[t];
+    AtlasPager& pager = *m_pagers[t];
+    const AtlasTraversal& trav = *m_traversals[t];
+    const auto atlasResident = [&](std::uint32_t n) { return pager.resident({BlockKey::Kind::Atlas, n}); };
+    const auto textureResident = [&](std::uint32_t x) { return pager.textureResident(x); };
+    NodeOcclusion& occ = *m_occlusion[t];
+    VisibilityFn visibility;
+    if (occlusion) {
+        occ.beginFrame();
+        visibility = [&occ](std::uint32_t n) { return occ.forTraversal(n); };
+    }
+    for (const gl::ShaderProgram* p : {&m_atlasProgram, &m_originalProgram})
+        setBuildingUniforms(*p, ds, tree.alpha ? 0.5f : -1.0f);
+    AtlasPass pass{t, nullptr, {}};
+    // (1) What is known visible.
+    const AtlasTraversalResult known = trav.draws(ds.v, atlasResident, textureResident, visibility);
+    if (occlusion) occ.traversed(known);
+    issueDraws(known, pass, ds);
+    // (2) The deferred nodes, nearest first, in rounds: test the boxes, wait, draw the visible ones.
+    std::vector<std::uint32_t> pending = known.deferred;
+    const auto distance = [&](std::uint32_t n) { return trav.distance(n, ds.v); };
+    for (int grown = 0; !pending.empty();) {
+        NodeOcclusion::Round round = occ.nextRound(pending, distance, ds.v.eye, grown);
+        std::vector<std::uint32_t>& visibleNow = round.visible;
+        std::vector<PendingQuery> queries;
+        queryBoxes(t, round.test, ds.viewProj, queries);
+        ds.st.occlusionQueries += int(queries.size());
+        if (!queries.empty()) ++ds.st.occlusionWaits;
+        for (const PendingQuery& q : queries) {
+            GLuint any = 0;
+            glGetQueryObjectuiv(m_queries[q.query].id(), GL_QUERY_RESULT, &any);
+            if (any) visibleNow.push_back(q.node);
+            else {
+                occ.answered(q.node, false, occ.frame());
+                ++ds.st.occludedNodes;
+            }
+        }
+        glBindVertexArray(m_vao[t].id());
+        pass.current = nullptr;
+        bool drew = false;
+        for (std::uint32_t n : visibleNow) {
+            occ.foundVisible(n); // against the depth so far: tested again at the end
+            const AtlasTraversalResult below = trav.drawsBelow(n, ds.v, atlasResident, textureResident, visibility);
+            if (occlusion) occ.traversed(below);
+            issueDraws(below, pass, ds);
+            drew = drew || !below.drawn.empty();
+            pending.insert(pending.end(), below.deferred.begin(), below.deferred.end());
+        }
+        if (drew) ++grown; // rounds that only open inner nodes keep the batch small
+    }
+    std::sort(pass.atlasesDrawn.begin(), pass.atlasesDrawn.end());
+    ds.st.atlasNodes += int(std::unique(pass.atlasesDrawn.begin(), pass.atlasesDrawn.end()) - pass.atlasesDrawn.begin());
+    ds.st.blocksResident += pager.stats().residentBlocks;
+    ds.st.residentBytes += pager.stats().residentBytes;
+    ds.st.loaderQueue += pager.stats().queued;
+}
+
+// Plain triangles: roofs with the imagery (or one colour), the rest in one colour. Unit 0's sampler object would
+// override the clipmap's own filtering.
+void CityRendererGL::drawPlain(DrawState& ds, const ClipmapTerrainRendererGL* terrain, int targetWidth) {
+    glBindSampler(0, 0);
+    glBindVertexArray(m_plainVao.id());
+    if (m_plainRoofs > 0) {
+        m_roofProgram.set("uViewProj", ds.viewProj);
+        m_roofProgram.set("uSunDir", ds.sun);
+        m_roofProgram.set("uPlainColour", kRoofColour);
+        m_roofProgram.set("uAlphaCut", -1.0f);
+        const RoofImagery& ri = m_settings.roofs;
+        m_roofProgram.set("uSeason", std::clamp(ri.season, 0, 1));
+        m_roofProgram.set("uBlend", ri.blend < 0.0f ? -1.0f : std::clamp(ri.blend, 0.0f, 1.0f));
+        m_roofProgram.set("uSwipeX", ri.swipe < 0.0f ? -1.0f : std::clamp(ri.swipe, 0.0f, 1.0f) * float(targetWidth));
+        m_roofProgram.set("uHasImagery", terrain && ri.imagery ? 1 : 0);
+        if (terrain) terrain->bindTerrain(m_roofProgram, ds.v.viewProj);
+        else {
+            // Nothing to sample, but samplers of two types on one unit (the defaults: all on unit 0) fail the draw.
+            m_roofProgram.set("uClip", 12);
+            m_roofProgram.set("uCoarse", 13);
+            m_roofProgram.set("uClipTags", 11);
+            m_roofProgram.set("uLocalToImage", 10);
+        }
+        m_roofProgram.set("uViewProj", ds.viewProj);
+        m_roofProgram.use();
+        glDrawArrays(GL_TRIANGLES, 0, GLsizei(m_plainRoofs * 3));
+        ++ds.st.drawCalls;
+        ds.st.triangles += std::int64_t(m_plainRoofs);
+        ds.bound = 0;
+    }
+    if (m_plainOthers > 0) {
+        m_plainProgram.set("uViewProj", ds.viewProj);
+        m_plainProgram.set("uSunDir", ds.sun);
+        m_plainProgram.set("uPlainColour", kPlainColour);
+        m_plainProgram.set("uAlphaCut", -1.0f);
+        m_plainProgram.use();
+        glDrawArrays(GL_TRIANGLES, GLint(m_plainRoofs * 3), GLsizei(m_plainOthers * 3));
+        ++ds.st.drawCalls;
+        ds.st.triangles += std::int64_t(m_plainOthers);
+    }
 }
 
 } // namespace seasonview::city

@@ -137,6 +137,21 @@ private:
     /// One occlusion query per node box, depth-tested against what is drawn, writing nothing.
     void queryBoxes(std::size_t tree, const std::vector<std::uint32_t>& nodes, const glm::mat4& viewProj,
                     std::vector<PendingQuery>& out);
+    // create()'s stages.
+    Status buildPrograms();
+    void createGeometry();
+    void createSamplers();
+    Status createPagers(const std::string& treePath);
+    // draw()'s passes.
+    struct DrawState;
+    struct AtlasPass;
+    void setBuildingUniforms(const gl::ShaderProgram& p, const DrawState& ds, float alphaCut) const;
+    void drawFlat(std::size_t tree, DrawState& ds);
+    void drawOriginal(std::size_t tree, DrawState& ds);
+    void drawAtlas(std::size_t tree, DrawState& ds, bool occlusion);
+    void issueDraws(const AtlasTraversalResult& result, AtlasPass& pass, DrawState& ds);
+    void drawPlain(DrawState& ds, const ClipmapTerrainRendererGL* terrain, int targetWidth);
+    std::uint64_t allocatedBytes() const;
 
     AtlasTreeFile m_file;
     CitySettings m_settings;
