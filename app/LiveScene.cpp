@@ -78,6 +78,11 @@ GeometryFrameStats LiveScene::draw(const Camera& cam, const ViewerSettings& s, c
     im.blend = s.blend;
     im.swipe = s.swipe;
     im.shading = s.shading;
+    im.anisotropy = s.anisotropy;
+    im.path = s.path;
+    im.terrain = s.terrain;
+    im.groundUnderCanopy = s.groundUnderCanopy;
+    im.groundElsewhere = s.groundElsewhere;
     CanopyRenderSettings cs;
     cs.params = s.params;
     cs.layers = s.layers;

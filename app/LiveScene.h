@@ -38,6 +38,12 @@ struct ViewerSettings {
     int coverageEvery = 30; // frames between coverage measurements (0: never)
     bool city = true;       // the city model, when the viewer was started with one (key B)
     float cityTpp = 1.0f;   // its pixels per texel
+    // As the command line set them (the View and Canopy view options): filtering, shading path, the terrain drawn
+    // or only the city, the canopy view's ground seasons (0 leaf-on, 1 leaf-off).
+    float anisotropy = 8.0f;
+    TerrainShading path = TerrainShading::Deferred;
+    bool terrain = true;
+    int groundUnderCanopy = 1, groundElsewhere = 0;
 };
 
 /// Applies a script's `set` event or a panel change given by name (view, blend, swipe, shading, layers, city,

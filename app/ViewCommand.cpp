@@ -63,6 +63,12 @@ Result<ViewerSettings> viewerSettings(const ViewArgs& a) {
     s.blend = imagery.blend;
     s.swipe = imagery.swipe;
     s.shading = imagery.shading;
+    s.anisotropy = imagery.anisotropy;
+    s.path = imagery.path;
+    s.terrain = imagery.terrain;
+    if (auto st = a.canopy.applyGround(imagery); !st) return st.error();
+    s.groundUnderCanopy = imagery.groundUnderCanopy;
+    s.groundElsewhere = imagery.groundElsewhere;
     auto canopy = a.canopy.settings();
     if (!canopy) return canopy.error();
     s.layers = canopy->layers;
@@ -99,6 +105,7 @@ Status viewerOptions(const ViewArgs& a, ViewerOptions& o) {
     o.settings = *settings;
     if (auto st = a.clipmap.check(); !st) return st;
     o.clipSize = a.clipmap.clipSize;
+    o.clipLevels = a.clipmap.clipLevels;
     o.gridSize = a.clipmap.gridSize;
     if (!a.mode.empty()) {
         if (a.mode == "map") o.mode = NavMode::Map;
@@ -138,6 +145,12 @@ Status viewerOptions(const ViewArgs& a, ViewerOptions& o) {
     auto city = a.city.settings();
     if (!city) return city.error();
     o.city = *city;
+    if (o.city) o.city->anisotropy = o.settings.anisotropy;
+    if (!o.settings.terrain) {
+        if (!o.city) return Error{"--terrain off draws only the city: give --city atlas|original|flat"};
+        if (o.settings.view == ImageryView::Canopy)
+            return Error{"--terrain off: the canopy is drawn with the terrain, not without"};
+    }
     return Ok{};
 }
 

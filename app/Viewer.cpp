@@ -419,6 +419,7 @@ Status prepareLive(const Scene& scene, const ViewerOptions& o, LiveScene& live) 
 Status createRenderers(const Scene& scene, const ViewerOptions& o, LiveScene& live) {
     ClipmapOptions co;
     co.size = o.clipSize;
+    co.minClipLevels = o.clipLevels;
     auto clip = ClipmapGL::create(live.pyramids, co);
     if (!clip) return clip.error();
     live.clip = std::move(*clip);

@@ -26,6 +26,7 @@ struct ViewerOptions {
     ViewerSettings settings;               // the panel's first state
     std::filesystem::path cache;           // pyramids and the city's tree
     int clipSize = 1024, gridSize = 255;   // imagery clipmap N, geometry clipmap n
+    int clipLevels = 0;                    // toroidal levels allocated at least (0: as the scene needs)
     std::optional<city::CitySettings> city; // the city model (nullopt: none)
     std::filesystem::path cityTree;         // its atlas tree
     std::vector<ScriptEvent> script;        // timed input (empty: none)

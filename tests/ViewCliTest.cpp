@@ -155,6 +155,45 @@ TEST(ViewCliTest, ScriptedSessionScreenshotsAndRecordedPath) {
     }
 }
 
+// The options view shares with render (CliOptions.h) mean the same in both: a viewer screenshot with the blend view,
+// a blend weight, relief shading and isotropic filtering is the still `render` makes with the same options and camera,
+// and differs from the still with render's defaults for those options.
+TEST(ViewCliTest, SharedOptionsMeanWhatTheyMeanInRender) {
+    TempDir dir("view-cli-shared");
+    const CliResult synth = runCli({"synth", "--size-m", "256", "--gsd", "0.5", "--seed", "11", "--no-city", "--out",
+                                    (dir / "scene").string()});
+    ASSERT_EQ(synth.exitCode, 0) << synth.err;
+    const std::string scene = (dir / "scene/scene.json").string(), cache = (dir / "cache").string();
+    const std::vector<std::string> shared = {"--camera", "10,-120,+60,20,-35", "--view", "blend", "--blend", "0.2",
+                                             "--shade", "0.8", "--aniso", "1", "--clip-size", "1024"};
+    std::vector<std::string> view = {"view", scene, "--size", "320x240", "--cache", cache, "--no-panel",
+                                     "--screenshot-at", "0:" + (dir / "view.png").string(), "--quit-at", "0.05"};
+    view.insert(view.end(), shared.begin(), shared.end());
+    const auto v = runCliWithDisplay(view);
+    if (!v) GTEST_SKIP() << "no DISPLAY and no xvfb-run: the viewer needs a window";
+    ASSERT_EQ(v->exitCode, 0) << v->err;
+    auto render = [&](const std::string& out, const std::vector<std::string>& options) {
+        std::vector<std::string> a = {"render", scene, "--size", "320x240", "--cache", cache, "--out", (dir / out).string()};
+        a.insert(a.end(), options.begin(), options.end());
+        const CliResult r = runCli(a);
+        EXPECT_EQ(r.exitCode, 0) << r.err;
+        auto img = readImageU8(dir / out, 3);
+        EXPECT_TRUE(img.ok()) << img.message();
+        return img.ok() ? *img : Image<std::uint8_t>{};
+    };
+    const Image<std::uint8_t> same = render("same.png", shared);
+    const Image<std::uint8_t> defaults =
+        render("defaults.png", {"--camera", "10,-120,+60,20,-35", "--view", "blend", "--clip-size", "1024"});
+    auto shot = readImageU8(dir / "view.png", 3);
+    ASSERT_TRUE(shot.ok()) << shot.message();
+    ASSERT_EQ(same.width, 320);
+    ASSERT_EQ(defaults.width, 320);
+    // The same renderer with every texel resident: the same pixels (byte for byte on llvmpipe).
+    EXPECT_LT(meanDiff(*shot, same, 0, 320), 0.05);
+    EXPECT_GT(meanDiff(same, defaults, 0, 320), 2.0) << "--blend and --shade change the still";
+    EXPECT_GT(meanDiff(*shot, defaults, 0, 320), 2.0) << "the viewer takes --blend and --shade";
+}
+
 TEST(ViewCliTest, BadArgumentsFailWithOneLine) {
     TempDir dir("view-cli-bad");
     {
@@ -171,6 +210,12 @@ TEST(ViewCliTest, BadArgumentsFailWithOneLine) {
         {{"--screenshot-at", "1:a.jpg2"}, "a.jpg2"},
         {{"--mode", "walk"}, "--mode 'walk'"},
         {{"--view", "sideways"}, "--view 'sideways'"},
+        // The options shared with render and bench (CliOptions.h) are checked as render checks them.
+        {{"--grid-size", "100"}, "--grid-size 100: expected 2^k - 1"},
+        {{"--clip-size", "100"}, "--clip-size 100"},
+        {{"--terrain", "off"}, "--terrain off draws only the city"},
+        {{"--ground-elsewhere", "autumn"}, "--ground-elsewhere 'autumn'"},
+        {{"--window-screenshot-at", "x:a.png"}, "--window-screenshot-at 'x:a.png'"},
     };
     for (const auto& [extra, message] : cases) {
         std::vector<std::string> args = {"view", "--leafon", on, "--leafoff", off, "--cache", (dir / "cache").string()};
