@@ -1,13 +1,15 @@
 // City models end to end: `synth`'s buildings, `atlas build`/`atlas info`, `render --city atlas|original|flat`
-// (golden images; the atlas close to the originals; roofs from the imagery), the real Berlin and Tokyo models with
-// their own photo textures, and bad input.
+// (golden images; the atlas close to the originals; roofs from the imagery), an OBJ in a national grid placed with
+// `--city-crs`, the real Berlin and Tokyo models with their own photo textures, and bad input.
 #include "TestUtil.h"
 
+#include <glm/common.hpp>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -467,6 +469,108 @@ TEST(CityCliTest, AtlasBuildAndInfo) {
     ASSERT_EQ(same.exitCode, 0) << same.err;
     EXPECT_NE(same.out.find("B/A size 1.000; PSNR of B against A 99.00 dB"), std::string::npos) << same.out;
     fails(runCli({"atlas", "compare", tree, coarse}), coarse);
+}
+
+// An OBJ in real coordinates of a national grid (Swiss LV95, EPSG:2056) over a UTM 32N scene near Bern, given by
+// `render --buildings X.obj --city-crs EPSG:2056`: seen straight down, the house is drawn where its corners project, to
+// a pixel, and exactly where the same house written in the scene's local frame (an OBJ without --city-crs) is drawn.
+TEST(CityCliTest, ObjInANationalGridIsDrawnWhereItBelongs) {
+    TempDir dir("city-crs");
+    const Crs utm = Crs::utm(32, true), lv95 = *Crs::fromEpsg(2056);
+    const glm::dvec2 centre = glm::round(convert(Crs::geographic(), utm, {7.44, 46.95}));
+    // 128 m × 128 m at 0.5 m around `centre`: the scene's local frame is UTM translated there (x east, y north).
+    writeTestImage(dir / "on.tif", 256, 256, testGeoref(0.5, centre.x - 64.0, centre.y + 64.0), false, 1);
+    writeTestImage(dir / "off.tif", 256, 256, testGeoref(0.5, centre.x - 64.0, centre.y + 64.0), false, 2);
+    // A 20 m × 12 m house, 3 m high, south-east of the centre: local x 20..40, y -30..-18. Its footprint
+    // counter-clockwise seen from above; OBJ is y up: (x, y, z) = (east, height, -north).
+    const glm::dvec2 foot[4] = {{20.0, -30.0}, {40.0, -30.0}, {40.0, -18.0}, {20.0, -18.0}};
+    const double top = 3.0;
+    // The walls textured (a tree needs textured triangles), the roof plain.
+    std::vector<std::uint8_t> wall(8 * 8 * 3, 170);
+    ASSERT_TRUE(writeImageAtomic(dir / "wall.png", wall.data(), 8, 8, 3).ok());
+    std::ofstream(dir / "house.mtl") << "newmtl wall\nmap_Kd wall.png\n";
+    auto obj = [&](auto place) {
+        std::string text = "mtllib house.mtl\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\no house\n";
+        for (double z : {0.0, top})
+            for (const glm::dvec2& f : foot) {
+                const glm::dvec2 p = place(f);
+                text += "v " + std::to_string(p.x) + " " + std::to_string(z) + " " + std::to_string(-p.y) + "\n";
+            }
+        text += "usemtl wall\n";
+        for (int i = 0; i < 4; ++i) { // walls facing out, then the roof facing up
+            const int j = (i + 1) % 4;
+            text += "f " + std::to_string(i + 1) + "/1 " + std::to_string(j + 1) + "/2 " + std::to_string(j + 5) +
+                    "/3 " + std::to_string(i + 5) + "/4\n";
+        }
+        return text + "f 5 6 7 8\n";
+    };
+    std::ofstream(dir / "house_lv95.obj") << obj([&](glm::dvec2 f) { return convert(utm, lv95, centre + f); });
+    std::ofstream(dir / "house_local.obj") << obj([](glm::dvec2 f) { return f; });
+
+    // Straight down from `height`, 256 px wide: 128 m on the ground, 0.5 m per pixel, north up.
+    const double tanHalfFov = std::tan(30.0 * 3.14159265358979 / 180.0), height = 64.0 / tanHalfFov;
+    const std::string camera = "0,0," + std::to_string(height) + ",0,-90,60";
+    auto render = [&](const std::string& out, const std::string& model, std::vector<std::string> extra) {
+        std::vector<std::string> a = {"render", "--leafon", (dir / "on.tif").string(), "--leafoff",
+                                      (dir / "off.tif").string(), "--buildings", (dir / model).string()};
+        a.insert(a.end(), {"--city", "flat", "--terrain", "off", "--camera", camera, "--size", "256x256"});
+        a.insert(a.end(), {"--clip-size", "256", "--cache", (dir / "cache").string(), "--out", (dir / out).string()});
+        a.insert(a.end(), extra.begin(), extra.end());
+        const CliResult r = runCli(a);
+        EXPECT_EQ(r.exitCode, 0) << out << ": " << r.err;
+        auto img = readImageU8(dir / out, 3);
+        EXPECT_TRUE(img.ok()) << img.message();
+        // The city's pixels: all but the clear colour (the top-left corner, far from the house).
+        std::vector<bool> city(256 * 256, false);
+        if (!img || img->width != 256 || img->height != 256)
+            return city;
+        for (int y = 0; y < 256; ++y)
+            for (int x = 0; x < 256; ++x)
+                for (int c = 0; c < 3; ++c)
+                    if (img->at(x, y, c) != img->at(0, 0, c))
+                        city[size_t(y) * 256 + size_t(x)] = true;
+        return city;
+    };
+    const std::vector<bool> national = render("lv95.png", "house_lv95.obj", {"--city-crs", "EPSG:2056"});
+    const std::vector<bool> local = render("local.png", "house_local.obj", {});
+    ASSERT_FALSE(HasFailure());
+
+    // Where the 8 corners project (pixel edges: 0 at the left and top of the image), and the drawn pixels' box.
+    glm::dvec2 lo(1e9), hi(-1e9);
+    for (double z : {0.0, top})
+        for (const glm::dvec2& f : foot) {
+            const double perMetre = 128.0 / ((height - z) * tanHalfFov);
+            const glm::dvec2 px(128.0 + f.x * perMetre, 128.0 - f.y * perMetre);
+            lo = glm::min(lo, px);
+            hi = glm::max(hi, px);
+        }
+    int x0 = 256, y0 = 256, x1 = -1, y1 = -1, drawn = 0, differ = 0;
+    for (int y = 0; y < 256; ++y)
+        for (int x = 0; x < 256; ++x) {
+            const size_t i = size_t(y) * 256 + size_t(x);
+            differ += national[i] != local[i];
+            if (!national[i])
+                continue;
+            ++drawn;
+            x0 = std::min(x0, x);
+            y0 = std::min(y0, y);
+            x1 = std::max(x1, x + 1);
+            y1 = std::max(y1, y + 1);
+        }
+    std::printf("house: pixels %d..%d x %d..%d, expected %.1f..%.1f x %.1f..%.1f; %d drawn, %d differ from local\n", x0,
+                x1, y0, y1, lo.x, hi.x, lo.y, hi.y, drawn, differ);
+    // A pixel is drawn when its centre is inside: the box's edges within a pixel of the projected corners' (and a
+    // half for rasterisation rules).
+    EXPECT_NEAR(x0, lo.x, 1.5);
+    EXPECT_NEAR(x1, hi.x, 1.5);
+    EXPECT_NEAR(y0, lo.y, 1.5);
+    EXPECT_NEAR(y1, hi.y, 1.5);
+    // Seen from above the house is its roof and the two walls facing the centre: nearly its whole box.
+    const double box = (hi.x - lo.x) * (hi.y - lo.y);
+    EXPECT_GT(drawn, 0.85 * box);
+    EXPECT_LT(drawn, 1.1 * box);
+    // Through PROJ and back the corners move by micrometres: only rasterisation ties at the edges may differ.
+    EXPECT_LE(differ, 20);
 }
 
 TEST(CityCliTest, BadInput) {

@@ -1,7 +1,7 @@
 // Real data in (issue: seasons as delivered): mosaics of tiles with overlaps, gaps and nodata collars (a nodata value,
 // an alpha band, an internal mask), JPEG-in-TIFF, VRTs, national CRSs and Web Mercator, DEM mosaics in another CRS,
-// and the bad input of each. Fixtures are made from a small synthetic scene with GDAL's own utilities, the way data
-// providers make deliveries.
+// and the bad input of each; the default working grid of geographic and Web Mercator leaf-ons. Fixtures are made from
+// a small synthetic scene with GDAL's own utilities, the way data providers make deliveries.
 #include "GridReader.h"
 #include "ImagePyramid.h"
 #include "SeasonCoverage.h"
@@ -16,6 +16,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <span>
 
 using namespace seasonview;
 using namespace seasonview::test;
@@ -80,6 +81,27 @@ std::vector<std::string> window(int x, int y, int w, int h) {
 std::vector<std::string> plus(std::vector<std::string> a, const std::vector<std::string>& b) {
     a.insert(a.end(), b.begin(), b.end());
     return a;
+}
+
+/// A w×h RGB raster on `g` (its pixels do not matter: only its header is read).
+void writeBlank(const fs::path& p, int w, int h, const Georef& g) {
+    const std::vector<std::uint8_t> px(size_t(w) * size_t(h) * 3, 100);
+    const Status st = writeGeoTiff(p, px.data(), SampleType::U8, w, h, 3, g);
+    ASSERT_TRUE(st.ok()) << st.message();
+}
+
+/// The size of a pixel of `g` at pixel coordinates `at`, measured in `crs`: the square root of its area there.
+double pixelSideIn(const Georef& g, glm::dvec2 at, const Crs& crs) {
+    glm::dvec2 p[3] = {g.pixelToCrs(at), g.pixelToCrs(at + glm::dvec2(1.0, 0.0)),
+                       g.pixelToCrs(at + glm::dvec2(0.0, 1.0))};
+    convert(g.crs, crs, std::span<glm::dvec2>(p, 3));
+    return std::sqrt(glm::length(p[1] - p[0]) * glm::length(p[2] - p[0]));
+}
+
+/// Whether `v` has at most 4 significant digits (what chooseWorkingGrid rounds a measured pixel to).
+bool fourSignificantDigits(double v) {
+    const double scale = std::pow(10.0, 3.0 - std::floor(std::log10(v)));
+    return std::abs(v * scale - std::round(v * scale)) < 1e-6;
 }
 
 } // namespace
@@ -429,4 +451,79 @@ TEST(IngestionTest, OwnBilinearKernelMatchesGdalsWarper) {
     EXPECT_LT(sum / n, 0.05);
     EXPECT_LE(worst, 2) << "rounding, and GDAL's 1/8-pixel approximation against our 1/20";
     EXPECT_LT(coverageDiffers, 40) << "a few pixels of the collar's edge";
+}
+
+TEST(IngestionTest, DefaultGridOfAGeographicOrWebMercatorLeafOn) {
+    // WorkingGrid.h and the README: the grid is in the leaf-on's CRS when that is projected, else (geographic) in the
+    // UTM zone of the leaf-on's centre; its pixel is the finest season's, exactly when that season is in the grid's
+    // CRS (and the grid on its lattice), else measured in the grid's CRS at its centre, to 4 significant digits.
+    TempDir dir("ingest-default-grid");
+    const GridOptions none{};
+    auto grid = [&](const char* on, const char* off) {
+        auto g = chooseWorkingGrid(mosaicOf(SourceList(dir / on)), mosaicOf(SourceList(dir / off)), none, on, off);
+        EXPECT_TRUE(g.ok()) << g.message();
+        return g ? *g : WorkingGrid{};
+    };
+    // Geographic seasons (EPSG:4326, 5e-6° pixels: 0.37-0.56 m), north and south, east and west of Greenwich. The
+    // leaf-off is 20 pixels east of the leaf-on, so that in the last case the leaf-on's centre (5.99996° E) is in
+    // zone 31 but the centre of both (6.00001° E) is in zone 32: the leaf-on decides.
+    struct Case {
+        glm::dvec2 corner; // the leaf-on's north-west corner, longitude and latitude
+        int epsg;
+    } cases[] = {{{2.18, 48.70}, 32631},
+                 {{-3.70, 40.42}, 32630},
+                 {{151.20, -33.87}, 32756},
+                 {{-70.65, -33.45}, 32719},
+                 {{5.9998, 47.0}, 32631}};
+    const double deg = 5e-6;
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.epsg);
+        const Georef on{Crs::geographic(), c.corner, glm::dvec2(deg)};
+        Georef off = on;
+        off.origin += glm::dvec2(20 * deg, -10 * deg);
+        writeBlank(dir / "geo_on.tif", 64, 64, on);
+        writeBlank(dir / "geo_off.tif", 64, 64, off);
+        const WorkingGrid g = grid("geo_on.tif", "geo_off.tif");
+        EXPECT_EQ(g.georef.crs.epsg(), c.epsg) << g.georef.crs.name();
+        EXPECT_EQ(g.georef.pixelSize.x, g.georef.pixelSize.y);
+        const double side = pixelSideIn(on, {32.0, 32.0}, g.georef.crs);
+        EXPECT_NEAR(g.georef.pixelSize.x, side, 1e-3 * side); // 4 digits, and the leaf-off's pixel may be the finer
+        EXPECT_TRUE(fourSignificantDigits(g.georef.pixelSize.x)) << g.georef.pixelSize.x;
+        for (const char* f : {"geo_on.tif", "geo_off.tif"}) { // the union of both
+            const auto [lo, hi] = extentIn(mosaicOf(SourceList(dir / f)), g.georef.crs);
+            EXPECT_LE(g.min().x, lo.x + 1e-6) << f;
+            EXPECT_LE(g.min().y, lo.y + 1e-6) << f;
+            EXPECT_GE(g.max().x, hi.x - 1e-6) << f;
+            EXPECT_GE(g.max().y, hi.y - 1e-6) << f;
+        }
+    }
+
+    // A Web Mercator leaf-on is projected: the grid stays in EPSG:3857, not UTM. Both seasons' north-west corner at
+    // 2.18° E, 48.70° N, where a Web Mercator metre is cos(48.70°) = 0.66 m on the ground.
+    const Crs merc = *Crs::fromEpsg(3857), utm = Crs::utm(31, true);
+    const glm::dvec2 m0 = glm::round(convert(Crs::geographic(), merc, {2.18, 48.70}));
+    const glm::dvec2 u0 = glm::round(convert(Crs::geographic(), utm, {2.18, 48.70}));
+    // The UTM leaf-off (0.5 m) is finer than the leaf-on (1.5 Web Mercator m = 0.99 m): the grid's pixel is the
+    // leaf-off's measured in Web Mercator (0.5 / 0.66 = 0.76), on multiples of itself.
+    writeBlank(dir / "merc_on.tif", 64, 64, Georef{merc, m0, glm::dvec2(1.5)});
+    writeBlank(dir / "utm_off.tif", 128, 128, Georef{utm, u0, glm::dvec2(0.5)});
+    const WorkingGrid a = grid("merc_on.tif", "utm_off.tif");
+    EXPECT_EQ(a.georef.crs.epsg(), 3857) << a.georef.crs.name();
+    const double side = pixelSideIn(Georef{utm, u0, glm::dvec2(0.5)}, {64.0, 64.0}, merc);
+    EXPECT_NEAR(side, 0.76, 0.01);
+    EXPECT_NEAR(a.georef.pixelSize.x, side, 1e-3 * side);
+    EXPECT_TRUE(fourSignificantDigits(a.georef.pixelSize.x)) << a.georef.pixelSize.x;
+    const glm::dvec2 steps = a.georef.origin / a.georef.pixelSize;
+    EXPECT_NEAR(steps.x, std::round(steps.x), 1e-6);
+    EXPECT_NEAR(steps.y, std::round(steps.y), 1e-6);
+    // The Web Mercator leaf-on is the finer (0.75 Web Mercator m = 0.50 m against a 1 m UTM leaf-off): its own pixel,
+    // exactly, and the grid on its lattice (it is read as it is, not resampled).
+    writeBlank(dir / "merc_on_fine.tif", 128, 128, Georef{merc, m0, glm::dvec2(0.75)});
+    writeBlank(dir / "utm_off_coarse.tif", 64, 64, Georef{utm, u0, glm::dvec2(1.0)});
+    const WorkingGrid b = grid("merc_on_fine.tif", "utm_off_coarse.tif");
+    EXPECT_EQ(b.georef.crs.epsg(), 3857);
+    EXPECT_EQ(b.georef.pixelSize, glm::dvec2(0.75));
+    const glm::dvec2 shift = (b.georef.origin - m0) / 0.75;
+    EXPECT_NEAR(shift.x, std::round(shift.x), 1e-6);
+    EXPECT_NEAR(shift.y, std::round(shift.y), 1e-6);
 }

@@ -90,6 +90,68 @@ TEST(ManifestTest, ErrorsNameTheManifestAndTheKey) {
     EXPECT_NE(missing.message().find("none.json: file not found"), std::string::npos);
 }
 
+// Seasons as lists of tiles and every grid key, as README's scene format writes them: parsed as written (paths
+// relative to the manifest, in order), and loaded as they say: the leaf-on's tiles take "crs" (they carry none), the
+// grid is "grid_crs" at "grid_res" over "extent", both seasons are warped onto it with "resampling", and "stretch"
+// percentile gives even 8-bit data a stretch.
+TEST(ManifestTest, TileListsAndGridKeysAsWritten) {
+    TempDir dir("manifest-tiles");
+    writeTiledTestPair(dir.path());
+    ASSERT_FALSE(HasFailure());
+    writeText(dir / "scene.json", R"({"leafon": ["tiles/on_w.tif", "tiles/on_e.tif"],
+        "leafoff": ["tiles/off_n.tif", "tiles/off_s.tif"], "crs": "EPSG:32632", "grid_crs": "EPSG:25832",
+        "grid_res": 0.25, "extent": [405004, 5757964, 405060, 5757996], "stretch": "percentile",
+        "resampling": "bilinear"})");
+    auto s = parseManifest(dir / "scene.json");
+    ASSERT_TRUE(s.ok()) << s.message();
+    EXPECT_TRUE(s->warnings.empty()) << s->warnings.front();
+    ASSERT_EQ(s->leafon.items.size(), 2u);
+    EXPECT_EQ(s->leafon.items[0].string(), (dir / "tiles/on_w.tif").string());
+    EXPECT_EQ(s->leafon.items[1].string(), (dir / "tiles/on_e.tif").string());
+    ASSERT_EQ(s->leafoff.items.size(), 2u);
+    EXPECT_EQ(s->leafoff.items[0].string(), (dir / "tiles/off_n.tif").string());
+    EXPECT_EQ(s->leafoff.items[1].string(), (dir / "tiles/off_s.tif").string());
+    EXPECT_EQ(s->crs, "EPSG:32632");
+    EXPECT_EQ(s->grid.crs, "EPSG:25832");
+    ASSERT_TRUE(s->grid.resolution);
+    EXPECT_EQ(*s->grid.resolution, 0.25);
+    ASSERT_TRUE(s->grid.extent);
+    EXPECT_EQ(*s->grid.extent, (std::array<double, 4>{405004, 5757964, 405060, 5757996}));
+    EXPECT_EQ(s->stretch, "percentile");
+    EXPECT_EQ(s->resampling, "bilinear");
+
+    auto scene = loadScene(*s, dir / "cache");
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    EXPECT_EQ(scene->leafon.source.tiles.size(), 2u);
+    EXPECT_EQ(scene->leafon.source.crs.epsg(), 32632) << "the tiles without a CRS take \"crs\"";
+    EXPECT_EQ(scene->leafoff.source.tiles.size(), 2u);
+    EXPECT_EQ(scene->grid.georef.crs.epsg(), 25832);
+    EXPECT_EQ(scene->grid.georef.pixelSize, glm::dvec2(0.25));
+    EXPECT_EQ(scene->grid.georef.origin, glm::dvec2(405004, 5757996));
+    EXPECT_EQ(scene->grid.width, 224);  // 56 m at 0.25 m
+    EXPECT_EQ(scene->grid.height, 128); // 32 m
+    EXPECT_EQ(scene->resampling, Resampling::Bilinear);
+    EXPECT_TRUE(scene->warped());
+    EXPECT_FALSE(scene->leafon.stretch.identity) << "\"stretch\": \"percentile\" stretches 8-bit data too";
+    EXPECT_FALSE(scene->leafoff.stretch.identity);
+
+    // Each key does something: without "stretch" 8-bit data is taken as it is; without "crs" the leaf-on's tiles
+    // are refused, the message suggesting --crs.
+    SceneSources autoStretch = *s;
+    autoStretch.stretch = "auto";
+    auto a = loadScene(autoStretch, dir / "cache");
+    ASSERT_TRUE(a.ok()) << a.message();
+    EXPECT_TRUE(a->leafon.stretch.identity);
+    writeText(dir / "nocrs.json", R"({"leafon": ["tiles/on_w.tif", "tiles/on_e.tif"],
+        "leafoff": ["tiles/off_n.tif", "tiles/off_s.tif"], "grid_crs": "EPSG:25832"})");
+    auto bare = parseManifest(dir / "nocrs.json");
+    ASSERT_TRUE(bare.ok()) << bare.message();
+    auto refused = loadScene(*bare, dir / "cache");
+    ASSERT_FALSE(refused.ok());
+    EXPECT_NE(refused.message().find("on_"), std::string::npos) << refused.message();
+    EXPECT_NE(refused.message().find("has no CRS (give one with --crs"), std::string::npos) << refused.message();
+}
+
 TEST(SceneTest, FlatSceneFrameAndExtent) {
     Pair p;
     auto scene = loadScene(p.sources(), p.dir / "cache");

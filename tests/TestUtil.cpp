@@ -195,6 +195,30 @@ Result<Scene> writeTestPair(const std::filesystem::path& dir, int w, int h, doub
     return loadScene(s, dir / "cache");
 }
 
+void writeTiledTestPair(const std::filesystem::path& dir) {
+    std::filesystem::create_directories(dir / "tiles");
+    const TreePair p = makeTreePair(128, 96, 5);
+    const Georef g = testGeoref(0.5);
+    // The leaf-on's halves: a geotransform and no CRS.
+    for (int half = 0; half < 2; ++half) {
+        std::vector<std::uint8_t> px(size_t(64) * 96 * 3);
+        for (int y = 0; y < 96; ++y)
+            for (int x = 0; x < 64; ++x)
+                for (int c = 0; c < 3; ++c)
+                    px[(size_t(y) * 64 + size_t(x)) * 3 + size_t(c)] = p.on.at(half * 64 + x, y, c);
+        Georef t = g;
+        t.origin.x += half * 64 * g.pixelSize.x;
+        GdalRasterSpec s;
+        s.geotransform = geotransformOf(t);
+        writeGdalRaster(dir / "tiles" / (half ? "on_e.tif" : "on_w.tif"), px.data(), SampleType::U8, 64, 96, 3, s);
+    }
+    // The leaf-off's halves, cut from one GeoTIFF that carries its CRS.
+    const Status st = writeGeoTiff(dir / "off_whole.tif", p.off.pixels.data(), SampleType::U8, 128, 96, 3, g);
+    ASSERT_TRUE(st.ok()) << st.message();
+    gdalTranslate(dir / "off_whole.tif", dir / "tiles/off_n.tif", {"-srcwin", "0", "0", "128", "48"});
+    gdalTranslate(dir / "off_whole.tif", dir / "tiles/off_s.tif", {"-srcwin", "0", "48", "128", "48"});
+}
+
 TreePair makeTreePair(int w, int h, int seed) {
     TreePair p;
     for (Image<std::uint8_t>* img : {&p.on, &p.off, &p.truth}) {

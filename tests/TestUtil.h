@@ -74,6 +74,12 @@ std::array<double, 6> geotransformOf(const Georef& g);
 /// (stretch cache in dir/cache).
 Result<Scene> writeTestPair(const std::filesystem::path& dir, int w, int h, double gsd, bool sixteenBit = false);
 
+/// A season pair delivered as tiles in dir/tiles, for manifests and flags that list tiles: makeTreePair(128, 96, 5) at
+/// 0.5 m with testGeoref's corner (E 405000..405064, N 5757952..5758000, UTM 32N); the leaf-on as west and east halves
+/// (on_w.tif, on_e.tif) with a geotransform but no CRS (they need --crs / "crs" EPSG:32632), the leaf-off as north and
+/// south halves (off_n.tif, off_s.tif) in EPSG:32632. Fails the test on error.
+void writeTiledTestPair(const std::filesystem::path& dir);
+
 /// A hand-made season pair (8-bit RGB, row 0 on top) with its ground truth, for the segmentation tests. Leaf-on:
 /// textured green crowns (lit and shaded sides, leaf clumps) on a meadow, and on the right a smooth crop field;
 /// leaf-off: the crowns are grey-brown twigs, the meadow is still green, the crop field is bare brown soil (a
