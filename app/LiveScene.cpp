@@ -63,7 +63,7 @@ GeometryFrameStats LiveScene::draw(const Camera& cam, const ViewerSettings& s, c
         texelsTotal += more.texelsUploaded;
         terrain->completeGeometry();
     }
-    const bool canopyView = s.view == ImageryView::Canopy;
+    const bool canopyView = s.imagery.view == ImageryView::Canopy;
     if (canopyView && canopy) {
         if (complete) {
             canopy->completeSynchronously();
@@ -73,16 +73,7 @@ GeometryFrameStats LiveScene::draw(const Camera& cam, const ViewerSettings& s, c
             if (trunks) trunks->update();
         }
     }
-    ImagerySettings im;
-    im.view = s.view;
-    im.blend = s.blend;
-    im.swipe = s.swipe;
-    im.shading = s.shading;
-    im.anisotropy = s.anisotropy;
-    im.path = s.path;
-    im.terrain = s.terrain;
-    im.groundUnderCanopy = s.groundUnderCanopy;
-    im.groundElsewhere = s.groundElsewhere;
+    ImagerySettings im = s.imagery;
     CanopyRenderSettings cs;
     cs.params = s.params;
     cs.layers = s.layers;
@@ -111,13 +102,13 @@ bool applySetting(ViewerSettings& s, const std::string& name, const nlohmann::js
     if (name == "view") {
         auto view = parseImageryView(str());
         if (!view) return err = "view '" + str() + "' unknown", false;
-        s.view = *view;
+        s.imagery.view = *view;
     } else if (name == "blend" && v.is_number()) {
-        s.blend = std::clamp(v.get<float>(), 0.0f, 1.0f);
+        s.imagery.blend = std::clamp(v.get<float>(), 0.0f, 1.0f);
     } else if (name == "swipe" && v.is_number()) {
-        s.swipe = std::clamp(v.get<float>(), 0.0f, 1.0f);
+        s.imagery.swipe = std::clamp(v.get<float>(), 0.0f, 1.0f);
     } else if (name == "shading" && v.is_number()) {
-        s.shading = std::clamp(v.get<float>(), 0.0f, 1.0f);
+        s.imagery.shading = std::clamp(v.get<float>(), 0.0f, 1.0f);
     } else if (name == "layers") {
         if (v.is_string() && v.get<std::string>() == "off") s.layers = 0;
         else if (v.is_number_integer() && v.get<int>() >= 1 && v.get<int>() <= 64) s.layers = v.get<int>();

@@ -27,8 +27,9 @@ namespace seasonview::app {
 
 /// What the panel edits (and `set` events in scripts).
 struct ViewerSettings {
-    ImageryView view = ImageryView::LeafOn;
-    float blend = 0.5f, swipe = 0.5f, shading = 0.0f;
+    // What is shown and how (view, blend, swipe and shading change in the panel; filtering, shading path, terrain on
+    // or off and the canopy ground's seasons as the command line set them).
+    ImagerySettings imagery;
     int layers = 16; // 0: off
     bool trunks = true;
     bool marchLayers = true; // CanopyDrawMode::March (false: every layer rasterised)
@@ -38,12 +39,6 @@ struct ViewerSettings {
     int coverageEvery = 30; // frames between coverage measurements (0: never)
     bool city = true;       // the city model, when the viewer was started with one (key B)
     float cityTpp = 1.0f;   // its pixels per texel
-    // As the command line set them (the View and Canopy view options): filtering, shading path, the terrain drawn
-    // or only the city, the canopy view's ground seasons (0 leaf-on, 1 leaf-off).
-    float anisotropy = 8.0f;
-    TerrainShading path = TerrainShading::Deferred;
-    bool terrain = true;
-    int groundUnderCanopy = 1, groundElsewhere = 0;
 };
 
 /// Applies a script's `set` event or a panel change given by name (view, blend, swipe, shading, layers, city,

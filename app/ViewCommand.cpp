@@ -57,18 +57,8 @@ void addViewerOptions(CLI::App& cmd, ViewArgs& a) {
 // The panel's first state from the shared options.
 Result<ViewerSettings> viewerSettings(const ViewArgs& a) {
     ViewerSettings s;
-    ImagerySettings imagery;
-    if (auto st = a.imagery.apply(imagery); !st) return st.error();
-    s.view = imagery.view;
-    s.blend = imagery.blend;
-    s.swipe = imagery.swipe;
-    s.shading = imagery.shading;
-    s.anisotropy = imagery.anisotropy;
-    s.path = imagery.path;
-    s.terrain = imagery.terrain;
-    if (auto st = a.canopy.applyGround(imagery); !st) return st.error();
-    s.groundUnderCanopy = imagery.groundUnderCanopy;
-    s.groundElsewhere = imagery.groundElsewhere;
+    if (auto st = a.imagery.apply(s.imagery); !st) return st.error();
+    if (auto st = a.canopy.applyGround(s.imagery); !st) return st.error();
     auto canopy = a.canopy.settings();
     if (!canopy) return canopy.error();
     s.layers = canopy->layers;
@@ -145,10 +135,10 @@ Status viewerOptions(const ViewArgs& a, ViewerOptions& o) {
     auto city = a.city.settings();
     if (!city) return city.error();
     o.city = *city;
-    if (o.city) o.city->anisotropy = o.settings.anisotropy;
-    if (!o.settings.terrain) {
+    if (o.city) o.city->anisotropy = o.settings.imagery.anisotropy;
+    if (!o.settings.imagery.terrain) {
         if (!o.city) return Error{"--terrain off draws only the city: give --city atlas|original|flat"};
-        if (o.settings.view == ImageryView::Canopy)
+        if (o.settings.imagery.view == ImageryView::Canopy)
             return Error{"--terrain off: the canopy is drawn with the terrain, not without"};
     }
     return Ok{};

@@ -147,7 +147,7 @@ Status Viewer::frame(int fw, int fh, double dt) {
     m_rec.add(m_t, cam);
 
     // Draw.
-    if (m_s.view == ImageryView::Canopy)
+    if (m_s.imagery.view == ImageryView::Canopy)
         if (auto st = m_live.ensureCanopy(m_s); !st) return st;
     const auto f0 = std::chrono::steady_clock::now();
     if (auto st = timedScreenshots(cam); !st) return st;
@@ -193,8 +193,9 @@ Status Viewer::applyScriptSettings(const FrameInput& in) {
 
 void Viewer::handleKeys(const std::vector<int>& pressed, glm::dvec2 cursor) {
     for (int key : pressed) {
-        if (key >= GLFW_KEY_1 && key <= GLFW_KEY_9) m_s.view = parseImageryView(kViewKeys[key - GLFW_KEY_1]).value();
-        else if (key == GLFW_KEY_TAB) m_s.view = m_s.view == ImageryView::LeafOn ? ImageryView::LeafOff : ImageryView::LeafOn;
+        if (key >= GLFW_KEY_1 && key <= GLFW_KEY_9) m_s.imagery.view = parseImageryView(kViewKeys[key - GLFW_KEY_1]).value();
+        else if (key == GLFW_KEY_TAB)
+            m_s.imagery.view = m_s.imagery.view == ImageryView::LeafOn ? ImageryView::LeafOff : ImageryView::LeafOn;
         else if (key == GLFW_KEY_C) m_s.layers = m_s.layers > 0 ? 0 : 16;
         else if (key == GLFW_KEY_T) m_s.trunks = !m_s.trunks;
         else if (key == GLFW_KEY_B) m_s.city = !m_s.city;
@@ -245,10 +246,10 @@ NavInput Viewer::navigationInput(const FrameInput& f, double dt) {
     in.fast = held(GLFW_KEY_LEFT_SHIFT) || held(GLFW_KEY_RIGHT_SHIFT);
     in.wheel = f.wheel;
     // The swipe bar: a drag starting on it moves it instead of the camera.
-    if (f.dragStarted[0] && m_s.view == ImageryView::Swipe)
-        m_swipeDrag = std::abs(f.dragStart[0].x - double(m_s.swipe) * double(m_viewport.x)) <= 8.0;
+    if (f.dragStarted[0] && m_s.imagery.view == ImageryView::Swipe)
+        m_swipeDrag = std::abs(f.dragStart[0].x - double(m_s.imagery.swipe) * double(m_viewport.x)) <= 8.0;
     if (f.dragButton != 0) m_swipeDrag = false;
-    if (m_swipeDrag) m_s.swipe = float(std::clamp(in.cursor.x / double(m_viewport.x), 0.0, 1.0));
+    if (m_swipeDrag) m_s.imagery.swipe = float(std::clamp(in.cursor.x / double(m_viewport.x), 0.0, 1.0));
     else if (f.dragButton == 0) in.drag = f.drag;
     // Right button: orbit around the ground point clicked.
     if (f.dragStarted[1])
@@ -303,7 +304,7 @@ void Viewer::panel(const Camera& cam, const GeometryFrameStats& drawn) {
     ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
     ImGui::SetNextWindowSize(ImVec2(420, 0), ImGuiCond_FirstUseEver);
     ImGui::Begin("seasonview");
-    int v = int(m_s.view);
+    int v = int(m_s.imagery.view);
     ImGui::TextUnformatted("Season");
     ImGui::RadioButton("leaf-on", &v, int(ImageryView::LeafOn));
     ImGui::SameLine();
@@ -312,8 +313,8 @@ void Viewer::panel(const Camera& cam, const GeometryFrameStats& drawn) {
     ImGui::RadioButton("blend", &v, int(ImageryView::Blend));
     ImGui::SameLine();
     ImGui::RadioButton("swipe", &v, int(ImageryView::Swipe));
-    ImGui::SliderFloat("blend", &m_s.blend, 0.0f, 1.0f);
-    ImGui::SliderFloat("swipe", &m_s.swipe, 0.0f, 1.0f);
+    ImGui::SliderFloat("blend", &m_s.imagery.blend, 0.0f, 1.0f);
+    ImGui::SliderFloat("swipe", &m_s.imagery.swipe, 0.0f, 1.0f);
     ImGui::TextUnformatted("Views");
     ImGui::RadioButton("canopy", &v, int(ImageryView::Canopy));
     ImGui::SameLine();
@@ -323,8 +324,8 @@ void Viewer::panel(const Camera& cam, const GeometryFrameStats& drawn) {
     ImGui::RadioButton("wireframe", &v, int(ImageryView::Wireframe));
     ImGui::SameLine();
     ImGui::RadioButton("relief", &v, int(ImageryView::Relief));
-    m_s.view = ImageryView(v);
-    ImGui::SliderFloat("shading", &m_s.shading, 0.0f, 1.0f);
+    m_s.imagery.view = ImageryView(v);
+    ImGui::SliderFloat("shading", &m_s.imagery.shading, 0.0f, 1.0f);
     bool layersOn = m_s.layers > 0;
     int n = std::max(m_s.layers, 1);
     if (ImGui::Checkbox("canopy layers", &layersOn)) m_s.layers = layersOn ? 16 : 0;

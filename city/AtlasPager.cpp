@@ -195,6 +195,31 @@ void AtlasPager::worker() {
     }
 }
 
+bool AtlasPager::evictOne(const std::set<BlockKey>& ideal, Frame& out) {
+    // The least recently requested resident block outside the ideal set, never the root's atlas.
+    auto victim = m_resident.end();
+    for (auto it = m_resident.begin(); it != m_resident.end(); ++it) {
+        if (ideal.count(it->first) || (it->first.kind == BlockKey::Kind::Atlas && it->first.index == 0)) continue;
+        if (victim == m_resident.end() || it->second < victim->second) victim = it;
+    }
+    if (victim == m_resident.end()) return false;
+    const BlockKey v = victim->first;
+    if (!split(v)) {
+        out.evict.push_back(v);
+        m_resident.erase(victim);
+        ++m_stats.evicted;
+        return true;
+    }
+    // Every resident part of it (none is in the ideal set: the set takes a texture whole).
+    for (auto it = m_resident.lower_bound(BlockKey{v.kind, v.index, 0});
+         it != m_resident.end() && it->first.kind == v.kind && it->first.index == v.index;) {
+        out.evict.push_back(it->first);
+        it = m_resident.erase(it);
+        ++m_stats.evicted;
+    }
+    return true;
+}
+
 AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
     ++m_frame;
     Frame out;
@@ -277,30 +302,7 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
         const std::uint64_t b = !split(r.key) ? blockBytes(r.key)
                                 : anyPart(m_resident, r.key.index) || anyPart(m_reserved, r.key.index) ? 0
                                                                                                        : textureBytes(r.key.index);
-        while (used + b > m_settings.capacityBytes) {
-            // The least recently requested resident block outside the ideal set.
-            auto victim = m_resident.end();
-            for (auto it = m_resident.begin(); it != m_resident.end(); ++it) {
-                if (ideal.count(it->first) || (it->first.kind == BlockKey::Kind::Atlas && it->first.index == 0)) continue;
-                if (victim == m_resident.end() || it->second < victim->second) victim = it;
-            }
-            if (victim == m_resident.end()) break;
-            const BlockKey v = victim->first;
-            if (!split(v)) {
-                out.evict.push_back(v);
-                m_resident.erase(victim);
-                ++m_stats.evicted;
-            } else {
-                // Every resident part of it (none is in the ideal set: the set takes a texture whole).
-                for (auto it = m_resident.lower_bound(BlockKey{v.kind, v.index, 0});
-                     it != m_resident.end() && it->first.kind == v.kind && it->first.index == v.index;) {
-                    out.evict.push_back(it->first);
-                    it = m_resident.erase(it);
-                    ++m_stats.evicted;
-                }
-            }
-            used = usedBytes();
-        }
+        while (used + b > m_settings.capacityBytes && evictOne(ideal, out)) used = usedBytes();
         if (used + b > m_settings.capacityBytes) break; // in-flight leftovers still hold the room: next frame
         used += b;
         m_reserved[r.key] = blockBytes(r.key);

@@ -23,6 +23,7 @@
 #include <functional>
 #include <map>
 #include <mutex>
+#include <set>
 #include <thread>
 #include <vector>
 
@@ -101,6 +102,9 @@ private:
     void worker();
     Result<LoadedBlock> load(const BlockKey& key) const;
     bool split(const BlockKey& key) const { return key.kind == BlockKey::Kind::Texture && textureParts(key.index) > 1; }
+    /// Evicts the least recently requested resident block outside `ideal` (a split texture with all its parts) into
+    /// `out`; false when there is none.
+    bool evictOne(const std::set<BlockKey>& ideal, Frame& out);
     /// Whether some part of split texture `texture` is in `blocks` (m_resident or m_reserved).
     template <class Map> static bool anyPart(const Map& blocks, std::uint32_t texture);
     /// GPU bytes held by the resident and by the reserved blocks (a split texture counted whole, once).

@@ -648,6 +648,32 @@ Result<SegmentFilesOpen> openSegmentFiles(const Scene& scene, const SegmentJob& 
     return f;
 }
 
+// The two seasons' row readers: the scene's files through their stretch, or, for a warped pair, its prepared level 0
+// (premultiplied RGBA: alpha is each season's coverage).
+Result<std::pair<RowReader, RowReader>> openSeasonRows(const Scene& scene, const SegmentJob& job, int rows) {
+    const bool fromLevelZero = job.levelZero.has_value();
+    auto a = fromLevelZero ? RowReader::open((*job.levelZero)[0], 3, nullptr, rows, true)
+                           : RowReader::open(scene.leafon.info.path, 3, &scene.leafon.stretch, rows);
+    if (!a) return a.error();
+    auto b = fromLevelZero ? RowReader::open((*job.levelZero)[1], 3, nullptr, rows, true)
+                           : RowReader::open(scene.leafoff.info.path, 3, &scene.leafoff.stretch, rows);
+    if (!b) return b.error();
+    return std::make_pair(std::move(*a), std::move(*b));
+}
+
+// Pixels where a season has no data (`valid` 0; null: every pixel has both) are not canopy: cleared in `mask`.
+// Returns how many there are.
+std::uint64_t clearNoData(std::uint8_t* mask, const std::uint8_t* valid, size_t n) {
+    if (!valid) return 0;
+    std::uint64_t cleared = 0;
+    for (size_t i = 0; i < n; ++i)
+        if (!valid[i]) {
+            mask[i] = 0;
+            ++cleared;
+        }
+    return cleared;
+}
+
 } // namespace
 
 Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
@@ -681,17 +707,8 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
 
     const CrownParams crownParams = crownParamsForGsd(pixelMetres(scene));
     const int crownHaloRows = withCrowns ? crownHalo(crownParams) : 0;
-    // A warped pair is read from its prepared level 0 (premultiplied RGBA: alpha is each season's coverage).
     const bool fromLevelZero = job.levelZero.has_value();
-    auto openPair = [&]() -> Result<std::pair<RowReader, RowReader>> {
-        auto a = fromLevelZero ? RowReader::open((*job.levelZero)[0], 3, nullptr, preferredRows, true)
-                               : RowReader::open(scene.leafon.info.path, 3, &scene.leafon.stretch, preferredRows);
-        if (!a) return a.error();
-        auto b = fromLevelZero ? RowReader::open((*job.levelZero)[1], 3, nullptr, preferredRows, true)
-                               : RowReader::open(scene.leafoff.info.path, 3, &scene.leafoff.stretch, preferredRows);
-        if (!b) return b.error();
-        return std::make_pair(std::move(*a), std::move(*b));
-    };
+    auto openPair = [&] { return openSeasonRows(scene, job, preferredRows); };
     auto pair = openPair();
     if (!pair) return pair.error();
 
@@ -738,12 +755,7 @@ Result<SegmentReport> segmentScene(const Scene& scene, const SegmentJob& job) {
         // Pixels where a season has no data are neither canopy nor background: not canopy for the crowns, left
         // out of the scores, their own value in the written mask.
         const std::uint8_t* valid = window.validRows(y0);
-        if (valid)
-            for (size_t i = 0; i < n; ++i)
-                if (!valid[i]) {
-                    m[i] = 0;
-                    ++nodataPixels;
-                }
+        nodataPixels += clearNoData(m.data(), valid, n);
         report.segmentSeconds += secondsSince(t);
 
         if (withTruth) {

@@ -122,6 +122,17 @@ std::int64_t canopyPixels(const GdalMask& m) {
     return std::count(m.values.begin(), m.values.end(), std::uint8_t(1));
 }
 
+/// A synthetic scene `sizeM` metres wide south of Paris (UTM 31N) at 0.5 m, seed 5, without a city.
+SynthOptions parisScene(double sizeM) {
+    SynthOptions o;
+    o.sizeM = sizeM;
+    o.gsd = 0.5;
+    o.seed = 5;
+    o.city = false;
+    o.centreLonLat = glm::dvec2(2.18, 48.70);
+    return o;
+}
+
 /// A 128 m synthetic scene south of Paris (UTM 31N, 256² px at 0.5 m, no city) in dir/scene, and its deciduous truth
 /// written again as a GeoTIFF on the scene's grid (dir/truth.tif), which segmentations on other grids can read.
 struct SmallScene {
@@ -129,14 +140,8 @@ struct SmallScene {
     Georef grid;
     explicit SmallScene(const TempDir& dir) { make(dir); }
     void make(const TempDir& dir) { // ASSERT_* cannot stand in a constructor
-        SynthOptions o;
-        o.sizeM = 128;
-        o.gsd = 0.5;
-        o.seed = 5;
-        o.city = false;
-        o.centreLonLat = glm::dvec2(2.18, 48.70);
         scene = dir / "scene";
-        auto r = generateSyntheticScene(o, scene);
+        auto r = generateSyntheticScene(parisScene(128), scene);
         ASSERT_TRUE(r.ok()) << r.message();
         auto info = readRasterInfo(scene / "leafon.tif");
         ASSERT_TRUE(info.ok() && info->georef) << info.message();
@@ -167,13 +172,7 @@ struct Delivered {
     fs::path scene;
     std::string extent; // the original grid's extent, for --extent
     Delivered() {
-        SynthOptions o;
-        o.sizeM = 512;
-        o.gsd = 0.5;
-        o.seed = 5;
-        o.city = false;
-        o.centreLonLat = glm::dvec2(2.18, 48.70);
-        auto r = generateSyntheticScene(o, dir / "scene");
+        auto r = generateSyntheticScene(parisScene(512), dir / "scene");
         EXPECT_TRUE(r.ok()) << r.message();
         scene = dir / "scene";
         auto info = readRasterInfo(scene / "leafon.tif");
