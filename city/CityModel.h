@@ -1,7 +1,7 @@
 #pragma once
 // A textured city model as seasonview draws it: a triangle soup in a local metric frame (x east, y north, z up,
 // metres), each triangle with its texture, building and surface kind. Loaded from CityGML 1.0/2.0 (libcitygml) or
-// OBJ+MTL (tinyobjloader); the atlas-tree build (issue 8) and the renderers consume it.
+// OBJ+MTL (tinyobjloader); the atlas-tree build and the renderers consume it.
 #include "AtlasLayout.h"
 
 #include "Crs.h"

@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
-# The GPU figures of issues 6 and 8, on the machine the `device` tool lends (docs/gpu.md): runs the bundle that
+# The GPU figures (frame time of the full scene; the city's atlas tree against its originals), on the machine the `device` tool lends (docs/gpu.md): runs the bundle that
 # scripts/gpu-bundle.py made (.gpu/, carried), on the EGL device platform, and leaves everything it measured in
 # one archive, $OUT/gpu_results.tgz, plus a summary on stdout.
 #   1. the demo scene (synth's 8192² scene, seed 1): `bench --compare scene=terrain,full` at 1920×1080, `flyover`
-#      (issue 6: median and p95 frame time of the full scene, goal ≤ 2 ms median)
+#      (median and p95 frame time of the full scene, goal ≤ 2 ms median)
 #   2. the 10,000-building block city: its atlas tree, then `bench --compare city=atlas,original,flat` along the
-#      pedestrian-to-overview path at 1920×1080 (issue 8: atlas ÷ flat ≤ 1.1, original ÷ atlas ≥ 3 at the
+#      pedestrian-to-overview path at 1920×1080 (goals: atlas ÷ flat ≤ 1.1, original ÷ atlas ≥ 3 at the
 #      overview, nodes per frame), the same with `--terrain off` (the city alone, as the paper timed it) and
 #      `--compare city-occlusion=off,on`
 # Environment: OUT (default out/gpu), SIZE (1920x1080), FRAMES (300), CITY_FRAMES (240), WORK (work folder,
@@ -51,10 +51,10 @@ nproc | tee -a "$RES/gpu.txt"
 log "demo scene (synth, prepare, stills, segmentation)"
 sv demo --out "$WORK/demo" > "$RES/demo.log" 2>&1
 tail -3 "$RES/demo.log"
-log "issue 6: terrain vs full scene, $SIZE, flyover, $FRAMES frames"
+log "terrain vs full scene, $SIZE, flyover, $FRAMES frames"
 sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmup 20 --size "$SIZE" \
     --view canopy --compare scene=terrain,full --out "$RES/full" 2>&1 | tee "$RES/full.log" | tail -4
-log "issue 6: full scene alone, $SIZE"
+log "full scene alone, $SIZE"
 sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmup 20 --size "$SIZE" \
     --view canopy --out "$RES/full_only" 2>&1 | tee "$RES/full_only.log" | tail -3
 
@@ -64,16 +64,16 @@ if [[ ${SKIP_CITY:-0} != 1 ]]; then
     sv atlas build "$WORK/blockcity/city/city.obj" --obj-local --screen-width "${SIZE%x*}" \
         --out "$WORK/blockcity.svat" --report "$RES/city_tree.json" > "$RES/city_tree.log" 2>&1
     tail -1 "$RES/city_tree.log"
-    log "issue 8: city atlas/original/flat, $SIZE, $CITY_FRAMES frames"
+    log "city atlas/original/flat, $SIZE, $CITY_FRAMES frames"
     sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
         --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
         --coverage-every 0 --compare city=atlas,original,flat --out "$RES/city" 2>&1 | tee "$RES/city.log" | tail -5
-    log "issue 8: the city alone (--terrain off), atlas/original/flat"
+    log "the city alone (--terrain off), atlas/original/flat"
     sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
         --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
         --coverage-every 0 --terrain off --compare city=atlas,original,flat --out "$RES/city_alone" 2>&1 |
         tee "$RES/city_alone.log" | tail -5
-    log "issue 8: occlusion culling off/on"
+    log "city occlusion culling off/on"
     sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
         --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
         --coverage-every 0 --compare city-occlusion=off,on --out "$RES/occ" 2>&1 | tee "$RES/occ.log" | tail -4

@@ -1,5 +1,5 @@
 #pragma once
-// The synthetic scene's buildings as a textured 3D model (issue 8): the same footprints, eaves, ridges and roof
+// The synthetic scene's buildings as a textured 3D model: the same footprints, eaves, ridges and roof
 // shapes the imagery painter drew from above, extruded from the terrain into an OBJ+MTL city model whose every
 // building has its own facade texture — procedural (plaster or brick, window grid, door) or cut from a folder of
 // facade photos — made unique by a painted label, as Buchholz's thesis §4.7.1 did with 300 photos for 10,000
