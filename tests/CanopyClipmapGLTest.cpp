@@ -323,6 +323,86 @@ TEST(CanopyClipmapGLTest, CellMaximaBoundOneLevelsValues) {
     EXPECT_EQ(gl::drainErrors(), "");
 }
 
+// Where a season has no data the canopy layer holds none, on every level, whatever the other season shows: the
+// synthetic pair with a hole in the leaf-off's coverage (an alpha band, 0 over a box holding treetops) agrees with
+// the CPU rule and its coverage gate on every level, and the hole's level-0 texels are all 0 although the rule
+// without the gate finds canopy there.
+TEST(CanopyClipmapGLTest, NoCanopyWhereASeasonHasNoData) {
+    ASSERT_TRUE(headlessContext());
+    TempDir dir("canopy-gl-nodata");
+    SynthOptions o;
+    o.sizeM = 256;
+    o.gsd = 0.25;
+    o.seed = 7;
+    auto rep = generateSyntheticScene(o, dir.path());
+    ASSERT_TRUE(rep.ok()) << rep.message();
+    auto info = readRasterInfo(dir / "leafoff.tif");
+    ASSERT_TRUE(info.ok() && info->georef) << info.message();
+    auto off = readImageU8(dir / "leafoff.tif", 3);
+    ASSERT_TRUE(off.ok()) << off.message();
+    const int w = off->width, h = off->height;
+    // The hole: a box in the middle third (the level windows are centred near it).
+    const int x0 = w * 3 / 8, x1 = w * 5 / 8, y0 = h * 3 / 8, y1 = h * 5 / 8;
+    std::vector<std::uint8_t> rgba(size_t(w) * size_t(h) * 4);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const size_t i = size_t(y) * size_t(w) + size_t(x);
+            for (size_t c = 0; c < 3; ++c) rgba[4 * i + c] = off->pixels[3 * i + c];
+            rgba[4 * i + 3] = x >= x0 && x < x1 && y >= y0 && y < y1 ? 0 : 255;
+        }
+    GdalRasterSpec spec;
+    spec.geotransform = geotransformOf(*info->georef);
+    spec.crs = info->georef->crs.identifier();
+    spec.lastBandIsAlpha = true;
+    spec.creationOptions = {"TILED=YES", "COMPRESS=DEFLATE"};
+    writeGdalRaster(dir / "leafoff_hole.tif", rgba.data(), SampleType::U8, w, h, 4, spec);
+    SceneSources src;
+    src.leafon = dir / "leafon.tif";
+    src.leafoff = dir / "leafoff_hole.tif";
+    auto scene = loadScene(src, dir / "cache");
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    auto pyr = app::preparePyramids(*scene, dir / "cache");
+    ASSERT_TRUE(pyr.ok()) << pyr.message();
+    expectAgreement(*pyr, SegmentationMethod::Default, 256, 16);
+
+    // Level 0 again, the hole's texels: the rule alone finds treetops there; the derived layer holds none.
+    ClipmapOptions co;
+    co.size = 256;
+    auto clip = ClipmapGL::create(*pyr, co);
+    ASSERT_TRUE(clip.ok()) << clip.message();
+    const ClipmapLayout& L = (*clip)->schedule().layout();
+    const glm::dvec2 c((x0 + x1) * 0.5, (y0 + y1) * 0.5);
+    (*clip)->update(std::vector<glm::dvec2>(size_t(L.clipLevels()), c));
+    (*clip)->completeSynchronously();
+    const SegmentationStats stats = pairStats(*pyr, SegmentationMethod::Default);
+    CanopyOptions opt;
+    opt.layers = 16;
+    auto canopy = CanopyClipmapGL::create(**clip, stats, opt);
+    ASSERT_TRUE(canopy.ok()) << canopy.message();
+    (*canopy)->completeSynchronously();
+    auto onRgb = readImageU8(dir / "leafon.tif", 3);
+    ASSERT_TRUE(onRgb.ok()) << onRgb.message();
+    std::vector<std::uint8_t> rule(size_t(w) * size_t(h));
+    RgbRows rows{onRgb->pixels.data(), off->pixels.data(), w, h, 0, h};
+    segmentRows(rows, 0, h, opt.params, stats, rule.data());
+    const std::vector<std::uint8_t> gpu = (*canopy)->readClipLevel(0);
+    const int slots = (*clip)->schedule().slotsPerSide();
+    std::int64_t inHole = 0, ruleCanopy = 0, derivedCanopy = 0;
+    for (int y = y0; y < y1; ++y)
+        for (int x = x0; x < x1; ++x) {
+            const int bx = x / L.block, by = y / L.block;
+            const size_t slot = size_t(wrapTexel(by, slots)) * size_t(slots) + size_t(wrapTexel(bx, slots));
+            if ((*canopy)->slotTags(0)[slot] != (bx | (by << 16))) continue; // not derived
+            ++inHole;
+            ruleCanopy += rule[size_t(y) * size_t(w) + size_t(x)] ? 1 : 0;
+            derivedCanopy += gpu[size_t(wrapTexel(y, L.size)) * size_t(L.size) + size_t(wrapTexel(x, L.size))] ? 1 : 0;
+        }
+    EXPECT_GT(inHole, 10000);
+    EXPECT_GT(ruleCanopy, 500) << "the hole covers treetops the rule finds with both seasons";
+    EXPECT_EQ(derivedCanopy, 0) << "no canopy where the leaf-off has no data";
+    EXPECT_EQ(gl::drainErrors(), "");
+}
+
 TEST(CanopyClipmapGLTest, RealSentinelPairAgreesWithTheCpu) {
     ASSERT_TRUE(headlessContext());
     const auto data = realDataDir();
