@@ -240,8 +240,8 @@ TEST(BandReaderTest, OwnJpegDecoderEqualsLibtiff) {
         EXPECT_GT(edge, all - 3.0) << "tile " << tile << ": the edge as good as the rest (not padded with black)";
         std::printf("own JPEG, tile %d: PSNR %.1f dB, last column and row %.1f dB\n", tile, all, edge);
     }
-    // A tile that is not JPEG at all: the own decoder refuses it, GDAL cannot read it either: one line naming
-    // the file and saying what libjpeg said, no crash.
+    // A tile that is not JPEG at all: the own decoder refuses it, finally (it is not handed to GDAL): one line
+    // naming the file and saying what libjpeg said, no crash.
     const fs::path path = dir / "damaged.tif";
     writeJpegTiff(path, pattern<std::uint8_t>(512, 512, 3, 9), 512, 512, 256);
     std::uint64_t offset = 0;
@@ -264,7 +264,7 @@ TEST(BandReaderTest, OwnJpegDecoderEqualsLibtiff) {
     EXPECT_EQ(st.message().rfind(path.string() + ": ", 0), 0u) << st.message();
     EXPECT_NE(st.message().find("JPEG tile 0"), std::string::npos) << st.message();
     EXPECT_EQ(st.message().find('\n'), std::string::npos) << st.message();
-    EXPECT_EQ(r->readsHandedOver(), 1);
+    EXPECT_EQ(r->readsHandedOver(), 0);
     EXPECT_TRUE(r->read(256, 512, 3, SampleType::U8, out.data()).ok()) << "the intact row of tiles still reads";
 }
 
@@ -341,9 +341,46 @@ TEST(BandReaderTest, DamagedTilesAreOneLineNamingTheFile) {
             if (st) continue;
             failed = true;
             EXPECT_EQ(st.message().rfind(path.string() + ": ", 0), 0u) << st.message();
+            EXPECT_NE(st.message().find(compression == TiffCompression::Zstd ? "Zstandard tile " : "deflate tile "),
+                      std::string::npos)
+                << st.message();
             EXPECT_EQ(st.message().find('\n'), std::string::npos) << st.message();
         }
         EXPECT_TRUE(failed) << "garbled tiles must not read as pixels";
-        EXPECT_GT(r->readsHandedOver(), 0) << "the own decoder must have refused the garbled tiles first";
+        EXPECT_EQ(r->readsHandedOver(), 0) << "the own decoder's refusal is final";
     }
+}
+
+// A deflate tile whose Adler-32 (the stream's last four bytes) is damaged: the own decoder checks it and refuses the
+// read, naming the tile and the check, and does not hand the tile to GDAL (its refusal is final).
+TEST(BandReaderTest, DeflateChecksumDamageIsFinal) {
+    TempDir dir("bandreader-adler");
+    const int w = 256, h = 256;
+    const std::vector<std::uint8_t> rgb = pattern<std::uint8_t>(w, h, 3, 7);
+    const fs::path path = dir / "a.tif";
+    GeoTiffWriteOptions o;
+    o.compression = TiffCompression::Deflate;
+    ASSERT_TRUE(writeGeoTiff(path, rgb.data(), SampleType::U8, w, h, 3, testGeoref(), o).ok());
+    std::uint64_t offset = 0, size = 0;
+    {
+        TIFF* t = TIFFOpen(path.c_str(), "r");
+        ASSERT_TRUE(t);
+        ASSERT_TRUE(TIFFIsTiled(t)) << "one 256² tile";
+        offset = TIFFGetStrileOffset(t, 0);
+        size = TIFFGetStrileByteCount(t, 0);
+        TIFFClose(t);
+    }
+    std::string bytes = readBytes(path);
+    ASSERT_GT(size, 4u);
+    bytes[size_t(offset + size - 1)] = char(bytes[size_t(offset + size - 1)] ^ 0x5a);
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+    auto r = BandReader::open(path, 256);
+    ASSERT_TRUE(r.ok()) << r.message();
+    ASSERT_TRUE(r->decodesTilesItself());
+    std::vector<std::uint8_t> out(size_t(w) * size_t(h) * 3);
+    const Status st = r->read(0, h, 3, SampleType::U8, out.data());
+    ASSERT_FALSE(st.ok()) << "a tile failing its checksum must not read as pixels";
+    EXPECT_EQ(st.message().rfind(path.string() + ": ", 0), 0u) << st.message();
+    EXPECT_NE(st.message().find("deflate tile 0"), std::string::npos) << st.message();
+    EXPECT_EQ(r->readsHandedOver(), 0);
 }

@@ -145,6 +145,10 @@ struct RawTiff {
     std::vector<std::unique_ptr<ZSTD_DCtx, DecompressorDeleter>> zstdContexts;            // per thread (zstd)
     std::vector<std::unique_ptr<JpegDecoder>> jpegDecoders;                              // per thread (JPEG)
     std::string failure; // what libjpeg said of the last block that did not decode, or why it could not be read
+    // The last read found a block damaged (past the end of the file, cut short, or failing its decoder's checks):
+    // final, not handed to GDAL. The own decoder only takes layouts it decodes as GDAL does, so its refusal is the
+    // data's fault, and its words (which tile, which check) are the ones to report.
+    bool damaged = false;
     std::uint64_t fileBytes = 0; // the file's size: no block may claim bytes past it
     ~RawTiff() {
         if (tif) TIFFClose(tif);
@@ -252,6 +256,7 @@ struct RawTiff {
     /// file's own size. False when a block cannot be read or decoded (GDAL then tries and reports).
     bool read(int width, int height, int y0, int y1, int channels, std::uint8_t* out) {
         failure.clear();
+        damaged = false;
         const size_t pixelBytes = size_t(samples) * size_t(sampleBytes);
         const size_t outPixel = size_t(channels) * size_t(sampleBytes);
         const size_t blockRowBytes = size_t(blockWidth) * pixelBytes;
@@ -267,6 +272,7 @@ struct RawTiff {
                 // A damaged index may claim gigabytes: checked against the file before anything is allocated.
                 const std::uint64_t offset = size == 0 ? 0 : TIFFGetStrileOffset(tif, strile);
                 if (size > fileBytes || offset > fileBytes - size) {
+                    damaged = true;
                     failure = std::string(tiled ? "tile " : "strip ") + std::to_string(strile) + ": " +
                               std::to_string(size) + " bytes at offset " + std::to_string(offset) +
                               " run past the end of the file (" + std::to_string(fileBytes) + " bytes)";
@@ -277,7 +283,12 @@ struct RawTiff {
                 if (size == 0) continue; // a sparse block: zeros, as libtiff reads it
                 const tmsize_t got = tiled ? TIFFReadRawTile(tif, strile, c.data(), tmsize_t(size))
                                            : TIFFReadRawStrip(tif, strile, c.data(), tmsize_t(size));
-                if (got != tmsize_t(size)) return false;
+                if (got != tmsize_t(size)) {
+                    damaged = true;
+                    failure = std::string(tiled ? "tile " : "strip ") + std::to_string(strile) + ": read " +
+                              std::to_string(std::max<tmsize_t>(got, 0)) + " of its " + std::to_string(size) + " bytes";
+                    return false;
+                }
             }
             const int blockY = by * blockHeight;
             const int rowsInBlock = tiled ? blockHeight : std::min(blockHeight, height - blockY);
@@ -291,11 +302,16 @@ struct RawTiff {
                 if (c.empty()) std::memset(block.data(), 0, bytes);
                 else if (!decode(c, block.data(), bytes, worker)) {
                     const bool first = ok.exchange(false);
-                    // The first failure's words (only it writes), for the error if GDAL cannot read it either.
-                    if (first && jpeg)
-                        failure = std::string("JPEG ") + (tiled ? "tile " : "strip ") +
-                                  std::to_string(tiled ? by * across + i : by) + ": " +
-                                  jpegDecoders[size_t(worker)]->error.message;
+                    // The first failure's words (only it writes).
+                    if (first) {
+                        const std::string which = std::string(tiled ? "tile " : "strip ") +
+                                                  std::to_string(tiled ? by * across + i : by);
+                        failure = jpeg   ? "JPEG " + which + ": " + jpegDecoders[size_t(worker)]->error.message
+                                  : zstd ? "Zstandard " + which + " does not decode to its " + std::to_string(bytes) +
+                                               " bytes"
+                                         : "deflate " + which + " does not inflate to its " + std::to_string(bytes) +
+                                               " bytes with a valid checksum";
+                    }
                     return;
                 }
                 const int x0 = i * blockWidth, cols = std::min(blockWidth, width - x0);
@@ -319,7 +335,10 @@ struct RawTiff {
                     }
                 }
             });
-            if (!ok) return false;
+            if (!ok) {
+                damaged = true;
+                return false;
+            }
         }
         return true;
     }
@@ -375,6 +394,7 @@ Status BandReader::read(int y0, int y1, int channels, SampleType type, void* out
            channels <= m_channels && "BandReader::read(): whole bands of existing rows and channels");
     if (m_in->raw && type == m_type) {
         if (m_in->raw->read(m_width, m_height, y0, y1, channels, static_cast<std::uint8_t*>(out))) return Ok{};
+        if (m_in->raw->damaged) return gdal::readFailure(m_path.string(), gdal::ErrorCapture(), y0, y1, m_in->raw->failure);
         ++m_handedOver;
     }
     int bands[4] = {1, 2, 3, 4};
