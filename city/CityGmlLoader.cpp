@@ -90,6 +90,7 @@ struct Reader {
     std::filesystem::path dir;
     std::map<std::string, int> known;
     std::vector<std::string> missing;
+    std::string unreadable; // the first texture that exists but does not read (an error)
     std::size_t untexturedByMissing = 0;
     PolygonChecks checks;
 
@@ -125,7 +126,7 @@ struct Reader {
             // CityGML's default wrap mode is "none" (outside [0,1] transparent): only wrap and mirror repeat.
             const bool repeat = tex->getWrapMode() == citygml::Texture::WrapMode::WM_WRAP ||
                                 tex->getWrapMode() == citygml::Texture::WrapMode::WM_MIRROR;
-            texture = textureIndex(model, file, repeat, known, missing);
+            texture = textureIndex(model, file, repeat, known, missing, unreadable);
             if (texture < 0) ++untexturedByMissing;
             for (const auto& c : coords) uvs.emplace_back(double(c.x), double(c.y));
         }
@@ -208,17 +209,18 @@ Result<CityModel> loadCityGml(const std::string& path, const CityLoadOptions& op
         if (t == "rgbTexture") theme = t;
     if (theme.empty() && !themes.empty()) theme = themes.front();
 
-    Reader reader{model, frame, latFirst, theme, std::filesystem::path(path).parent_path(), {}, {}, 0, {}};
+    Reader reader{model, frame, latFirst, theme, std::filesystem::path(path).parent_path(), {}, {}, {}, 0, {}};
     for (const CityObject* b : buildings) {
         const auto id = std::uint32_t(model.buildingIds.size());
         model.buildingIds.push_back(b->getId());
         reader.object(*b, maxLod(*b), id);
     }
+    if (!reader.unreadable.empty()) return Error{reader.unreadable};
     if (model.triangles.empty()) return fileError(path, "no building geometry with area (all polygons degenerate)");
     reader.checks.addWarnings(model);
     if (!reader.missing.empty())
         model.warnings.push_back(path + ": " + std::to_string(reader.missing.size()) +
-                                 " texture file(s) missing or unreadable (first: " + reader.missing.front() + "); " +
+                                 " texture file(s) missing (first: " + reader.missing.front() + "); " +
                                  std::to_string(reader.untexturedByMissing) + " polygon(s) drawn untextured");
     return model;
 }

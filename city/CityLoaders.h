@@ -30,10 +30,12 @@ std::vector<unsigned> triangulatePolygon(const std::vector<glm::dvec3>& verts);
 /// vertical walls) = roof, down-facing = ground, else wall.
 Surface surfaceFromNormal(const TexturedTriangle& tri);
 
-/// Index of a texture file in model.textures (added once per path); -1 with a warning counted in `missing` when
-/// the file does not exist or is not an image OpenImageIO can open.
+/// Index of a texture file in model.textures (added once per path); -1 when it cannot be used: counted in `missing`
+/// (a warning: real models often name textures they do not ship) when the file does not exist, and said in
+/// `unreadable` (the first such file; an error: a damaged texture is lost data) when it exists but its header does not
+/// read as an image OpenImageIO knows.
 int textureIndex(CityModel& model, const std::string& path, bool repeat, std::map<std::string, int>& known,
-                 std::vector<std::string>& missing);
+                 std::vector<std::string>& missing, std::string& unreadable);
 
 Result<CityModel> loadCityGml(const std::string& path, const CityLoadOptions& options);
 Result<CityModel> loadObj(const std::string& path, const CityLoadOptions& options);

@@ -215,20 +215,23 @@ Surface surfaceFromNormal(const TexturedTriangle& tri) {
 }
 
 int textureIndex(CityModel& model, const std::string& path, bool repeat, std::map<std::string, int>& known,
-                 std::vector<std::string>& missing) {
+                 std::vector<std::string>& missing, std::string& unreadable) {
     if (const auto it = known.find(path); it != known.end()) return it->second;
     int index = -1;
     std::error_code ec;
-    if (std::filesystem::is_regular_file(path, ec)) {
-        // The header only: a truncated or foreign file is caught here, its pixels are read by the atlas build.
-        if (auto in = OIIO::ImageInput::open(path)) {
-            index = int(model.textures.size());
-            const auto& spec = in->spec();
-            model.textures.push_back(CityTexture{path, repeat, spec.nchannels >= 4 ? 4 : 3, spec.width, spec.height});
-            in->close();
-        }
+    if (!std::filesystem::exists(path, ec)) {
+        missing.push_back(path);
+    } else if (auto in = OIIO::ImageInput::open(path)) {
+        // The header only: its pixels are read (and checked) by the atlas build and the renderers' loader.
+        index = int(model.textures.size());
+        const auto& spec = in->spec();
+        model.textures.push_back(CityTexture{path, repeat, spec.nchannels >= 4 ? 4 : 3, spec.width, spec.height});
+        in->close();
+    } else if (unreadable.empty()) {
+        std::string why = OIIO::geterror();
+        if (const auto nl = why.find('\n'); nl != std::string::npos) why.resize(nl);
+        unreadable = path + ": texture does not read as an image" + (why.empty() ? std::string() : " (" + why + ")");
     }
-    if (index < 0) missing.push_back(path);
     known.emplace(path, index);
     return index;
 }

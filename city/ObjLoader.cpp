@@ -52,13 +52,15 @@ Result<CityModel> loadObj(const std::string& path, const CityLoadOptions& option
     const std::filesystem::path dir = std::filesystem::path(path).parent_path();
     std::map<std::string, int> known;
     std::vector<std::string> missing;
+    std::string unreadable;
     std::vector<int> materialTexture(materials.size(), -1);
     std::vector<bool> materialMissing(materials.size(), false);
     for (std::size_t m = 0; m < materials.size(); ++m) {
         if (materials[m].diffuse_texname.empty()) continue;
         const std::filesystem::path t(materials[m].diffuse_texname);
         materialTexture[m] = textureIndex(model, (t.is_absolute() ? t : dir / t).lexically_normal().string(), true,
-                                          known, missing);
+                                          known, missing, unreadable);
+        if (!unreadable.empty()) return Error{unreadable};
         materialMissing[m] = materialTexture[m] < 0;
     }
 
@@ -130,7 +132,7 @@ Result<CityModel> loadObj(const std::string& path, const CityLoadOptions& option
     checks.addWarnings(model);
     if (!missing.empty())
         model.warnings.push_back(path + ": " + std::to_string(missing.size()) +
-                                 " texture file(s) missing or unreadable (first: " + missing.front() + "); " +
+                                 " texture file(s) missing (first: " + missing.front() + "); " +
                                  std::to_string(untexturedByMissing) + " face(s) drawn untextured");
     if (!reader.Warning().empty() && missing.empty())
         model.warnings.push_back(path + ": " + firstLine(reader.Warning()));

@@ -192,16 +192,29 @@ TEST(CityModelTest, MissingTextureIsAWarningAndTheWallUntextured) {
     EXPECT_EQ(m->triangles.size(), 4u);
 }
 
-TEST(CityModelTest, TruncatedTextureIsReportedMissing) {
+// A texture that is there but does not read as an image (cut short, or another kind of file under its name) is
+// lost data, not a texture the model forgot to ship: the model is refused, naming the texture, in CityGML and OBJ.
+TEST(CityModelTest, UnreadableTextureIsAnErrorNamingIt) {
     test::TempDir dir("city_gml_bad_tex");
     writePng(dir / "wall.png", 16, 16);
     const std::string bytes = test::readBytes(dir / "wall.png");
     writeText(dir / "wall.png", bytes.substr(0, 10));
     writeText(dir / "b.gml", cityGml("EPSG:25833", "wall.png"));
     auto m = loadCityModel((dir / "b.gml").string());
-    ASSERT_TRUE(m) << m.error().message;
-    ASSERT_EQ(m->warnings.size(), 1u);
-    EXPECT_NE(m->warnings[0].find("missing or unreadable"), std::string::npos) << m->warnings[0];
+    ASSERT_FALSE(m);
+    EXPECT_NE(m.error().message.find("wall.png: texture does not read as an image"), std::string::npos)
+        << m.error().message;
+    EXPECT_EQ(m.error().message.find('\n'), std::string::npos) << m.error().message;
+    // The same with an OBJ whose material names a text file as its texture.
+    writeText(dir / "notes.png", "not an image at all\n");
+    writeText(dir / "c.mtl", "newmtl brick\nmap_Kd notes.png\n");
+    writeText(dir / "c.obj", "mtllib c.mtl\nv 0 0 0\nv 4 0 0\nv 4 4 0\nvt 0 0\nvt 1 0\nvt 1 1\nusemtl brick\nf 1/1 2/2 3/3\n");
+    CityLoadOptions opts;
+    opts.localFrame = true;
+    auto o = loadCityModel((dir / "c.obj").string(), opts);
+    ASSERT_FALSE(o);
+    EXPECT_NE(o.error().message.find("notes.png: texture does not read as an image"), std::string::npos)
+        << o.error().message;
 }
 
 TEST(CityModelTest, DegenerateAndNonPlanarPolygonsAreWarnedAbout) {
