@@ -3,10 +3,21 @@
 #include "AtlasCodec.h"
 #include "AtlasTreeIo.h"
 
+#include <libdeflate.h>
+
 #include <cstring>
 #include <fstream>
 
 namespace seasonview::city {
+
+namespace {
+// Fuzz builds skip the checksums (CMakeLists.txt), so that mutated files reach the index parser and the decoders.
+#ifdef FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION
+constexpr bool kCheckCrc = false;
+#else
+constexpr bool kCheckCrc = true;
+#endif
+} // namespace
 
 namespace {
 
@@ -111,6 +122,7 @@ std::vector<std::uint8_t> serializeIndex(const AtlasTreeFile& f) {
             w.pod(n.count);
             w.pod(n.atlasOffset);
             w.pod(n.atlasBytes);
+            w.pod(n.atlasCrc);
             w.vec(n.textures);
             w.pod(n.textureBytes);
         }
@@ -124,11 +136,11 @@ std::vector<std::uint8_t> serializeIndex(const AtlasTreeFile& f) {
     return w.bytes;
 }
 
-std::vector<std::uint8_t> fileHeader(std::uint64_t indexOffset, std::uint64_t indexBytes) {
+std::vector<std::uint8_t> fileHeader(std::uint64_t indexOffset, std::uint64_t indexBytes, std::uint32_t indexCrc) {
     Writer w;
     for (char c : kMagic) w.pod(c);
     w.pod(AtlasTreeFile::kVersion);
-    w.pod(std::uint32_t(0));
+    w.pod(indexCrc);
     w.pod(indexOffset);
     w.pod(indexBytes);
     return w.bytes;
@@ -149,7 +161,7 @@ Result<AtlasTreeFile> AtlasTreeFile::open(const std::string& path) {
     Reader h(head);
     for (int k = 0; k < 8; ++k) (void)h.pod<char>();
     const auto version = h.pod<std::uint32_t>();
-    (void)h.pod<std::uint32_t>();
+    const auto indexCrc = h.pod<std::uint32_t>();
     const auto indexOffset = h.pod<std::uint64_t>(), indexBytes = h.pod<std::uint64_t>();
     if (version != kVersion)
         return fileError(path, "atlas tree version " + std::to_string(version) + ", this seasonview reads " +
@@ -160,6 +172,8 @@ Result<AtlasTreeFile> AtlasTreeFile::open(const std::string& path) {
     in.seekg(std::streamoff(indexOffset));
     if (!in.read(reinterpret_cast<char*>(index.data()), std::streamsize(index.size())))
         return fileError(path, "truncated atlas tree (index)");
+    if (kCheckCrc && std::uint32_t(libdeflate_crc32(0, index.data(), index.size())) != indexCrc)
+        return fileError(path, "corrupt atlas tree index (checksum)");
 
     AtlasTreeFile f;
     f.path = path;
@@ -208,6 +222,7 @@ Result<AtlasTreeFile> AtlasTreeFile::open(const std::string& path) {
             n.count = r.pod<std::uint32_t>();
             n.atlasOffset = r.pod<std::uint64_t>();
             n.atlasBytes = r.pod<std::uint64_t>();
+            n.atlasCrc = r.pod<std::uint32_t>();
             n.textures = r.vec<std::uint32_t>();
             n.textureBytes = r.pod<std::uint64_t>();
             tree.nodes.push_back(std::move(n));
@@ -250,6 +265,8 @@ Result<std::vector<std::uint8_t>> AtlasTreeFile::readAtlasBlob(int tree, int nod
     in.seekg(std::streamoff(n.atlasOffset));
     if (!in || !in.read(reinterpret_cast<char*>(blob.data()), std::streamsize(blob.size())))
         return fileError(path, "cannot read atlas of node " + std::to_string(node) + " (file changed or truncated?)");
+    if (kCheckCrc && std::uint32_t(libdeflate_crc32(0, blob.data(), blob.size())) != n.atlasCrc)
+        return fileError(path, "corrupt atlas of node " + std::to_string(node) + " (checksum)");
     return blob;
 }
 

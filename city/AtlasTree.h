@@ -48,6 +48,7 @@ struct AtlasNode {
     std::array<std::int32_t, 4> children{-1, -1, -1, -1};
     std::uint32_t first = 0, count = 0;
     std::uint64_t atlasOffset = 0, atlasBytes = 0; // 0 bytes: an empty node (no triangles, a blank atlas)
+    std::uint32_t atlasCrc = 0;                    // CRC-32 of the atlas's bytes in the file (checked when read)
     /// Leaves: the original textures their triangles use (indices into the tree's texture table) and the bytes
     /// they take decoded, for paging (§4.6).
     std::vector<std::uint32_t> textures;
@@ -89,7 +90,8 @@ struct AtlasTreeInfo {
 
 /// The in-memory index of a tree file: everything except the atlas pixels.
 struct AtlasTreeFile {
-    static constexpr std::uint32_t kVersion = 2; // 2: the CRS as its identifier (EPSG:N or WKT), not an EPSG number
+    // 2: the CRS as its identifier (EPSG:N or WKT), not an EPSG number; 3: CRC-32 of the index and of every atlas.
+    static constexpr std::uint32_t kVersion = 3;
     std::string path;
     AtlasTreeInfo info;
     std::vector<CityTexture> textures;   // original textures (paths as the model gave them)

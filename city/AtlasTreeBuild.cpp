@@ -6,6 +6,7 @@
 #include "ParallelIndices.h"
 #include "TextureSource.h"
 
+#include <libdeflate.h>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
@@ -496,6 +497,7 @@ struct AtlasMaker {
             const auto blob = encodeAtlas(s.format, tree.alpha, img, A, threads);
             n.atlasOffset = offset;
             n.atlasBytes = blob.size();
+            n.atlasCrc = std::uint32_t(libdeflate_crc32(0, blob.data(), blob.size()));
             os.write(reinterpret_cast<const char*>(blob.data()), std::streamsize(blob.size()));
             offset += blob.size();
             report.atlasBytes += blob.size();
@@ -724,7 +726,7 @@ Result<AtlasBuildReport> buildAtlasTree(const CityModel& model, const AtlasBuild
     file.info.source = model.source;
     const auto index = detail::serializeIndex(file);
     os.write(reinterpret_cast<const char*>(index.data()), std::streamsize(index.size()));
-    const auto header = detail::fileHeader(offset, index.size());
+    const auto header = detail::fileHeader(offset, index.size(), std::uint32_t(libdeflate_crc32(0, index.data(), index.size())));
     os.seekp(0);
     os.write(reinterpret_cast<const char*>(header.data()), std::streamsize(header.size()));
     os.close();

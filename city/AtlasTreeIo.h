@@ -11,6 +11,6 @@ namespace seasonview::city::detail {
 
 constexpr std::size_t kHeaderBytes = 32;
 std::vector<std::uint8_t> serializeIndex(const AtlasTreeFile& f);
-std::vector<std::uint8_t> fileHeader(std::uint64_t indexOffset, std::uint64_t indexBytes);
+std::vector<std::uint8_t> fileHeader(std::uint64_t indexOffset, std::uint64_t indexBytes, std::uint32_t indexCrc);
 
 } // namespace seasonview::city::detail
