@@ -465,6 +465,7 @@ void BenchRun::checkDamage(Mode& m) {
     if (!m_damaged.empty() || !m.clipmap) return;
     if (const auto& e = m.clipmap->readError()) m_damaged = e->message;
     else if (const auto g = m.clipRenderer->geometry().elevationReadError()) m_damaged = g->message;
+    else if (m.city) m_damaged = m.city->readError();
 }
 
 Status BenchRun::run(const CameraPath& path) {
@@ -576,6 +577,7 @@ void BenchRun::draw(Mode& m, const Camera& cam, FrameRow& row) {
         const auto c0 = Clock::now();
         m.city->update(cam, m_w, m_h);
         row.city = m.city->draw(cam, m.clipRenderer.get(), m_target);
+        checkDamage(m); // an atlas that did not decode is found when uploaded, in draw()
         row.cityCpuMs = ms(Clock::now() - c0);
         row.drawCalls += row.city.drawCalls;
         row.triangles += row.city.triangles;

@@ -60,4 +60,13 @@ Result<std::filesystem::path> prepareCityTree(const Scene& scene, const std::fil
     return tree;
 }
 
+bool removeDamagedCityTree(const std::string& message, const std::filesystem::path& cacheDir) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    const std::string dir = fs::weakly_canonical(fs::absolute(cacheDir / "atlas", ec), ec).string() + "/";
+    const fs::path named = fs::weakly_canonical(fs::absolute(message.substr(0, message.find(": ")), ec), ec);
+    if (named.string().rfind(dir, 0) != 0 || named.extension() != ".svat") return false;
+    return fs::remove(named, ec) && !ec;
+}
+
 } // namespace seasonview::app

@@ -20,4 +20,8 @@ namespace seasonview::app {
 Result<std::filesystem::path> prepareCityTree(const Scene& scene, const std::filesystem::path& cacheDir,
                                               const std::string& explicitTree);
 
+/// When `message` names an atlas tree that prepareCityTree built into `cacheDir` (a block that did not read or
+/// decode), removes it, so that the next run builds it again from the model; returns whether it did.
+bool removeDamagedCityTree(const std::string& message, const std::filesystem::path& cacheDir);
+
 } // namespace seasonview::app

@@ -44,19 +44,31 @@ Status LiveScene::ensureCanopy(const ViewerSettings& s) {
     return Ok{};
 }
 
+void LiveScene::reportDamage() {
+    if (!damagedReported) {
+        // Never drawn (coarser levels stand in, of the imagery or the elevation); rebuilt on the next start.
+        std::optional<ClipmapGL::ReadError> e = clip->readError();
+        if (!e) e = terrain->geometry().elevationReadError();
+        if (e) {
+            invalidateDamagedPyramid(e->message, cache);
+            damagedReported = true;
+            std::fprintf(stderr, "seasonview view: %s (damaged in the cache: drawn from coarser levels, rebuilt from "
+                                 "the source on the next start)\n", e->message.c_str());
+        }
+    }
+    if (city && !cityDamageReported)
+        if (const std::string e = city->readError(); !e.empty()) {
+            cityDamageReported = true;
+            std::fprintf(stderr, "seasonview view: %s (not drawn)\n", e.c_str());
+        }
+}
+
 GeometryFrameStats LiveScene::draw(const Camera& cam, const ViewerSettings& s, const gl::RenderTarget& target,
                                    bool complete) {
     const int w = target.width(), h = target.height();
     const ClipmapGeometry g = clipmapGeometry(*scene, clip->schedule().layout());
     lastLoad = clip->update(clipmapCentres(*scene, cam, w, h, s.centers, g));
     texelsTotal += lastLoad.texelsUploaded;
-    if (const auto& e = clip->readError(); e && !damagedReported) {
-        // Never drawn (coarser levels stand in); the pyramid is rebuilt on the next start.
-        invalidateDamagedPyramid(e->message, cache);
-        damagedReported = true;
-        std::fprintf(stderr, "seasonview view: %s (damaged in the cache: drawn from coarser levels, rebuilt from "
-                             "the source on the next start)\n", e->message.c_str());
-    }
     terrain->updateGeometry(cam, h);
     if (complete) {
         const ClipmapFrameStats more = clip->completeSynchronously();
@@ -94,6 +106,7 @@ GeometryFrameStats LiveScene::draw(const Camera& cam, const ViewerSettings& s, c
         drawn.triangles += cityStats.triangles;
         drawn.drawCalls += cityStats.drawCalls;
     }
+    reportDamage();
     return drawn;
 }
 

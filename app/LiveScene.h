@@ -63,7 +63,7 @@ struct LiveScene {
     bool canopyTrunks = false;
     ClipmapFrameStats lastLoad;
     std::int64_t texelsTotal = 0;
-    bool damagedReported = false;
+    bool damagedReported = false, cityDamageReported = false;
     std::unique_ptr<city::CityRendererGL> city;
     city::CityFrameStats cityStats;
 
@@ -71,6 +71,9 @@ struct LiveScene {
     Status ensureCanopy(const ViewerSettings& s);
     /// One frame into `target`. `complete`: wait for every texel the view needs (screenshots).
     GeometryFrameStats draw(const Camera& cam, const ViewerSettings& s, const gl::RenderTarget& target, bool complete);
+    /// Once each: a cache tile of the imagery or the elevation that did not read (drawn from coarser levels) said on
+    /// stderr, its pyramid marked to be rebuilt on the next start; a city block that did not read or decode.
+    void reportDamage();
     std::int64_t residentBytes() const { return clip->residentBytes() + (canopy ? canopy->residentBytes() : 0); }
 };
 

@@ -1,5 +1,7 @@
 #include "RenderJob.h"
 
+#include "CityJob.h"
+
 #include "CanopyClipmapGL.h"
 #include "CanopyRendererGL.h"
 #include "TrunksGL.h"
@@ -61,10 +63,18 @@ Status checkImageOutput(const std::filesystem::path& out) {
 }
 
 bool rebuildingDamaged(const std::string& message, const std::filesystem::path& cacheDir) {
-    if (!invalidateDamagedPyramid(message, cacheDir)) return false;
-    std::printf("note: %s: damaged in the cache; its pyramid is rebuilt from the source\n", message.c_str());
-    std::fflush(stdout);
-    return true;
+    if (invalidateDamagedPyramid(message, cacheDir)) {
+        std::printf("note: %s: damaged in the cache; its pyramid is rebuilt from the source\n", message.c_str());
+        std::fflush(stdout);
+        return true;
+    }
+    // A city's atlas tree is built before the stills or frames that read it: removed here, built on the next run.
+    if (removeDamagedCityTree(message, cacheDir)) {
+        std::printf("note: %s: damaged in the cache; removed, built again from the city model on the next run\n",
+                    message.c_str());
+        std::fflush(stdout);
+    }
+    return false;
 }
 
 namespace {

@@ -69,7 +69,8 @@ struct RenderSettings {
 Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std::filesystem::path& cacheDir);
 
 /// When `message` names a file of a pyramid in the cache (a tile that did not decode), invalidates that pyramid and
-/// says so on stdout; returns whether it did (the caller then prepares and runs again, once).
+/// says so on stdout; returns whether it did (the caller then prepares and runs again, once). A damaged atlas tree
+/// in the cache is removed (and said so) to be built again on the next run; false then.
 bool rebuildingDamaged(const std::string& message, const std::filesystem::path& cacheDir);
 
 /// For a warped scene (Scene::warped()), its pyramids' level-0 files (leaf-on, leaf-off): what the reference renderer

@@ -201,6 +201,7 @@ Result<city::CityFrameStats> ClipmapStills::drawCity(const StillRequest& s, cons
     m_city->complete(s.camera, m_c.width, m_c.height);
     m_city->resetOcclusion(); // a still: every node tested before it is drawn
     const city::CityFrameStats cst = m_city->draw(s.camera, m_renderer.get(), m_c.target);
+    if (std::string e = m_city->readError(); !e.empty()) return Error{e}; // never a still with a block missing
     if (!s.cityAccuracyOut.empty())
         if (auto st = writeCityAccuracy(s, imagery, ground, cst); !st) return st.error();
     return cst;

@@ -329,7 +329,14 @@ void CityRendererGL::uploadAtlas(int tree, const LoadedBlock& b) {
     for (int l = 0; l < levels; ++l) {
         const int s = std::max(4, size >> l);
         const auto data = atlasLevelData(format, alpha, b.data, size, l);
-        if (data.empty()) continue; // a corrupt blob stays black (the loader reported it)
+        if (data.empty()) {
+            // Never drawn (the node stays out of m_atlases); said by readError().
+            if (m_uploadError.empty())
+                m_uploadError = m_file.path + ": corrupt atlas of node " + std::to_string(b.key.index) + " (tree " +
+                                std::to_string(tree) + ", level " + std::to_string(l) + " does not decode)";
+            glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+            return;
+        }
         if (native) {
             glCompressedTextureSubImage2D(tex.id(), l, 0, 0, s, s, internal, GLsizei(data.size()), data.data());
         } else if (format == AtlasFormat::Bc) {
@@ -341,6 +348,13 @@ void CityRendererGL::uploadAtlas(int tree, const LoadedBlock& b) {
     }
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
     m_atlases[std::size_t(tree)][b.key.index] = std::move(tex);
+}
+
+std::string CityRendererGL::readError() const {
+    if (!m_uploadError.empty()) return m_uploadError;
+    for (const auto& p : m_pagers)
+        if (std::string e = p->error(); !e.empty()) return e;
+    return m_originalPager ? m_originalPager->error() : std::string();
 }
 
 void CityRendererGL::uploadMips(const gl::Texture& tex, const LoadedBlock& b) {

@@ -120,6 +120,10 @@ public:
     /// Whether BC atlases are uploaded decoded (settings().upload resolved against this GL).
     bool decodesAtlases() const { return m_decodeBc; }
     const AtlasTreeFile& file() const { return m_file; }
+    /// The first block that could not be read or decoded (an atlas of the tree, an original texture), as one line
+    /// naming its file; empty when none. Such a block is never drawn: a still or a bench that meets one stops, the
+    /// viewer says so.
+    std::string readError() const;
     std::size_t triangles() const;
 
 private:
@@ -178,6 +182,7 @@ private:
     gl::ShaderProgram m_atlasProgram, m_originalProgram, m_flatProgram, m_roofProgram, m_plainProgram;
     bool m_decodeBc = false; // BC atlases decoded to RGB(A)8 on upload
     std::uint64_t m_frame = 0, m_frameUploaded = 0, m_frameEvicted = 0;
+    std::string m_uploadError; // the first atlas whose blob did not decode on upload
     std::unique_ptr<AtlasPager> m_originalPager; // original mode: pages the originals the view shows
     // Occlusion culling (atlas mode): the answers and the policy per tree, the queries.
     std::vector<std::unique_ptr<NodeOcclusion>> m_occlusion;
