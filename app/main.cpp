@@ -5,25 +5,6 @@
 #include <exception>
 #include <map>
 
-#ifdef SEASONVIEW_SANITIZE
-#include <sanitizer/lsan_interface.h>
-#endif
-
-namespace {
-
-// The exit code of a command, after (in sanitized builds) a leak check. It runs here, not at exit: by then Mesa's
-// EGL driver is unloaded, and what it keeps for the process's life would be reported from an unknown module that no
-// suppression can name; here the driver is still loaded and tests/sanitizers/lsan.supp names it. A leak ends the
-// process with LSAN_OPTIONS' exitcode; after this check none runs at exit.
-int finish(int code) {
-#ifdef SEASONVIEW_SANITIZE
-    __lsan_do_leak_check();
-#endif
-    return code;
-}
-
-} // namespace
-
 int main(int argc, char** argv) {
     CLI::App app{"seasonview: render, compare and segment leaf-on/leaf-off aerial imagery"};
     app.require_subcommand(1);
@@ -56,7 +37,7 @@ int main(int argc, char** argv) {
     }
     try {
         for (CLI::App* sub : app.get_subcommands())
-            if (auto it = runners.find(sub); it != runners.end()) return finish(it->second());
+            if (auto it = runners.find(sub); it != runners.end()) return it->second();
     } catch (const std::exception& e) {
         std::fprintf(stderr, "seasonview: internal error: %s\n", e.what());
         return 1;
