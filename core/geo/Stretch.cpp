@@ -2,6 +2,7 @@
 #include "JsonFile.h"
 
 #include "AtomicFile.h"
+#include "StableHash.h"
 
 #include "BandReader.h"
 #include "GdalSupport.h"
@@ -85,20 +86,35 @@ std::filesystem::path defaultCacheDir() {
 
 namespace {
 
+/// What a stretch file holds, digested: a flipped digit in `low` or `high` that still reads as a number in range
+/// is caught by it.
+std::string stretchDigest(const std::string& key, int channels, const std::vector<float>& low,
+                          const std::vector<float>& high) {
+    std::string text = key + "|" + std::to_string(channels);
+    char buf[64];
+    for (size_t c = 0; c < low.size() && c < high.size(); ++c) {
+        std::snprintf(buf, sizeof buf, "|%.9g|%.9g", double(low[c]), double(high[c]));
+        text += buf;
+    }
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(stableHash64(text)));
+    return buf;
+}
+
 /// The stretch stored in the cache under `key`, or computed by `compute` and stored (best effort).
 Result<Stretch> cachedStretch(const std::string& key, const std::string& what, const std::filesystem::path& cacheDir,
                               const std::function<Result<Stretch>()>& compute) {
     char name[64];
     std::snprintf(name, sizeof name, "stretch-%016zx.json", std::hash<std::string>{}(key));
     const std::filesystem::path cached = cacheDir / name;
-    // A stretch file that does not read back whole (cut, edited, another key) is computed again.
+    // A stretch file that does not read back whole (cut, edited, flipped, another key) is computed again.
     if (auto j = readJsonFile(cached, "stretch"); j && jsonValue<std::string>(*j, "key", "") == key) {
         Stretch s;
         s.identity = false;
         s.channels = jsonValue<int>(*j, "channels", 0);
         const auto low = jsonValue<std::vector<float>>(*j, "low", {});
         const auto high = jsonValue<std::vector<float>>(*j, "high", {});
-        bool whole = s.channels >= 1 && s.channels <= 4 && low.size() == size_t(s.channels) && high.size() == low.size();
+        bool whole = s.channels >= 1 && s.channels <= 4 && low.size() == size_t(s.channels) && high.size() == low.size() &&
+                     jsonValue<std::string>(*j, "digest", "") == stretchDigest(key, s.channels, low, high);
         for (size_t c = 0; whole && c < low.size(); ++c) {
             whole = std::isfinite(low[c]) && std::isfinite(high[c]) && low[c] < high[c];
             s.low[c] = low[c];
@@ -114,7 +130,10 @@ Result<Stretch> cachedStretch(const std::string& key, const std::string& what, c
                         {"percentiles", {kStretchLowPercent, kStretchHighPercent}},
                         {"channels", s.channels},
                         {"low", std::vector<float>(s.low.begin(), s.low.begin() + s.channels)},
-                        {"high", std::vector<float>(s.high.begin(), s.high.begin() + s.channels)}};
+                        {"high", std::vector<float>(s.high.begin(), s.high.begin() + s.channels)},
+                        {"digest", stretchDigest(key, s.channels,
+                                                 std::vector<float>(s.low.begin(), s.low.begin() + s.channels),
+                                                 std::vector<float>(s.high.begin(), s.high.begin() + s.channels))}};
     std::error_code ec;
     std::filesystem::create_directories(cacheDir, ec);
     std::string err;
