@@ -100,29 +100,53 @@ SegmentationStats pairStats(const std::vector<ImagePyramid>& pyr, SegmentationMe
     return statsFromHistograms(pairHistograms(on, off, true, true), method);
 }
 
-void expectAgreement(const std::vector<ImagePyramid>& pyr, SegmentationMethod method, int clipSize, int layers) {
+// A clipmap of `clipSize` over the pair with every level window centred on `centre` (level-0 pixels), all resident,
+// and its derived canopy layer, every derivable block derived. Null members (and a test failure) when one cannot
+// be made.
+struct DerivedCanopy {
+    std::unique_ptr<ClipmapGL> clip;
+    std::unique_ptr<CanopyClipmapGL> canopy;
+    SegmentationStats stats;
+    int blocksDerived = 0;
+};
+DerivedCanopy deriveCanopy(const std::vector<ImagePyramid>& pyr, SegmentationMethod method, int clipSize, int layers,
+                           glm::dvec2 centre) {
+    DerivedCanopy d;
     ClipmapOptions co;
     co.size = clipSize;
     auto clip = ClipmapGL::create(pyr, co);
-    ASSERT_TRUE(clip.ok()) << clip.message();
-    const ClipmapLayout& L = (*clip)->schedule().layout();
-    ASSERT_GE(L.clipLevels(), 1);
-    // Level windows centred a little off the image centre, so some blocks sit on the image edge.
-    const glm::dvec2 c(pyr[0].width() * 0.4, pyr[0].height() * 0.55);
-    (*clip)->update(std::vector<glm::dvec2>(size_t(L.clipLevels()), c));
-    (*clip)->completeSynchronously();
-    const SegmentationStats stats = pairStats(pyr, method);
+    EXPECT_TRUE(clip.ok()) << clip.message();
+    if (!clip) return d;
+    d.clip = std::move(*clip);
+    const ClipmapLayout& L = d.clip->schedule().layout();
+    d.clip->update(std::vector<glm::dvec2>(size_t(L.clipLevels()), centre));
+    d.clip->completeSynchronously();
+    d.stats = pairStats(pyr, method);
     CanopyOptions o;
     o.params.method = method;
     o.layers = layers;
-    auto canopy = CanopyClipmapGL::create(**clip, stats, o);
-    ASSERT_TRUE(canopy.ok()) << canopy.message();
-    const CanopyFrameStats st = (*canopy)->completeSynchronously();
-    EXPECT_GT(st.blocksDerived, 0);
+    auto canopy = CanopyClipmapGL::create(*d.clip, d.stats, o);
+    EXPECT_TRUE(canopy.ok()) << canopy.message();
+    if (!canopy) return d;
+    d.canopy = std::move(*canopy);
+    d.blocksDerived = d.canopy->completeSynchronously().blocksDerived;
+    return d;
+}
+
+void expectAgreement(const std::vector<ImagePyramid>& pyr, SegmentationMethod method, int clipSize, int layers) {
+    // Level windows centred a little off the image centre, so some blocks sit on the image edge.
+    DerivedCanopy d = deriveCanopy(pyr, method, clipSize, layers, glm::dvec2(pyr[0].width() * 0.4, pyr[0].height() * 0.55));
+    ASSERT_TRUE(d.clip && d.canopy);
+    ClipmapGL* clip = d.clip.get();
+    CanopyClipmapGL* canopy = d.canopy.get();
+    const SegmentationStats& stats = d.stats;
+    const ClipmapLayout& L = clip->schedule().layout();
+    ASSERT_GE(L.clipLevels(), 1);
+    EXPECT_GT(d.blocksDerived, 0);
     EXPECT_EQ(gl::drainErrors(), "");
     for (int level = 0; level <= L.clipLevels(); ++level) {
         const bool coarse = level == L.clipLevels();
-        const Agreement a = compareLevel(pyr, **clip, **canopy, stats, level, coarse);
+        const Agreement a = compareLevel(pyr, *clip, *canopy, stats, level, coarse);
         SCOPED_TRACE("method " + std::string(segmentationMethodName(method)) + ", level " + std::to_string(level));
         EXPECT_GT(a.compared, 10000);
         EXPECT_GT(a.canopy, 0); // the scene has treetops at this level
@@ -131,7 +155,7 @@ void expectAgreement(const std::vector<ImagePyramid>& pyr, SegmentationMethod me
     // Blocks on the window's outer ring wait for neighbours that will never be resident; every interior one is
     // derived.
     int derived = 0;
-    for (std::int32_t t : (*canopy)->slotTags(0)) derived += t != ClipmapSchedule::kEmptyTag ? 1 : 0;
+    for (std::int32_t t : canopy->slotTags(0)) derived += t != ClipmapSchedule::kEmptyTag ? 1 : 0;
     EXPECT_GE(derived, ((clipSize / L.block) - 2) * ((clipSize / L.block) - 2) / 2);
 }
 
@@ -330,15 +354,10 @@ TEST(CanopyClipmapGLTest, CellMaximaBoundOneLevelsValues) {
 TEST(CanopyClipmapGLTest, NoCanopyWhereASeasonHasNoData) {
     ASSERT_TRUE(headlessContext());
     TempDir dir("canopy-gl-nodata");
-    SynthOptions o;
-    o.sizeM = 256;
-    o.gsd = 0.25;
-    o.seed = 7;
-    auto rep = generateSyntheticScene(o, dir.path());
-    ASSERT_TRUE(rep.ok()) << rep.message();
-    auto info = readRasterInfo(dir / "leafoff.tif");
+    const std::filesystem::path pair = synth().dir.path(); // the fixture's 1024² pair
+    auto info = readRasterInfo(pair / "leafoff.tif");
     ASSERT_TRUE(info.ok() && info->georef) << info.message();
-    auto off = readImageU8(dir / "leafoff.tif", 3);
+    auto off = readImageU8(pair / "leafoff.tif", 3);
     ASSERT_TRUE(off.ok()) << off.message();
     const int w = off->width, h = off->height;
     // The hole: a box in the middle third (the level windows are centred near it).
@@ -357,7 +376,7 @@ TEST(CanopyClipmapGLTest, NoCanopyWhereASeasonHasNoData) {
     spec.creationOptions = {"TILED=YES", "COMPRESS=DEFLATE"};
     writeGdalRaster(dir / "leafoff_hole.tif", rgba.data(), SampleType::U8, w, h, 4, spec);
     SceneSources src;
-    src.leafon = dir / "leafon.tif";
+    src.leafon = pair / "leafon.tif";
     src.leafoff = dir / "leafoff_hole.tif";
     auto scene = loadScene(src, dir / "cache");
     ASSERT_TRUE(scene.ok()) << scene.message();
@@ -366,33 +385,25 @@ TEST(CanopyClipmapGLTest, NoCanopyWhereASeasonHasNoData) {
     expectAgreement(*pyr, SegmentationMethod::Default, 256, 16);
 
     // Level 0 again, the hole's texels: the rule alone finds treetops there; the derived layer holds none.
-    ClipmapOptions co;
-    co.size = 256;
-    auto clip = ClipmapGL::create(*pyr, co);
-    ASSERT_TRUE(clip.ok()) << clip.message();
-    const ClipmapLayout& L = (*clip)->schedule().layout();
-    const glm::dvec2 c((x0 + x1) * 0.5, (y0 + y1) * 0.5);
-    (*clip)->update(std::vector<glm::dvec2>(size_t(L.clipLevels()), c));
-    (*clip)->completeSynchronously();
-    const SegmentationStats stats = pairStats(*pyr, SegmentationMethod::Default);
-    CanopyOptions opt;
-    opt.layers = 16;
-    auto canopy = CanopyClipmapGL::create(**clip, stats, opt);
-    ASSERT_TRUE(canopy.ok()) << canopy.message();
-    (*canopy)->completeSynchronously();
-    auto onRgb = readImageU8(dir / "leafon.tif", 3);
+    DerivedCanopy d = deriveCanopy(*pyr, SegmentationMethod::Default, 256, 16,
+                                   glm::dvec2((x0 + x1) * 0.5, (y0 + y1) * 0.5));
+    ASSERT_TRUE(d.clip && d.canopy);
+    const ClipmapLayout& L = d.clip->schedule().layout();
+    const SegmentationStats& stats = d.stats;
+    CanopyOptions opt = d.canopy->options();
+    auto onRgb = readImageU8(pair / "leafon.tif", 3);
     ASSERT_TRUE(onRgb.ok()) << onRgb.message();
     std::vector<std::uint8_t> rule(size_t(w) * size_t(h));
     RgbRows rows{onRgb->pixels.data(), off->pixels.data(), w, h, 0, h};
     segmentRows(rows, 0, h, opt.params, stats, rule.data());
-    const std::vector<std::uint8_t> gpu = (*canopy)->readClipLevel(0);
-    const int slots = (*clip)->schedule().slotsPerSide();
+    const std::vector<std::uint8_t> gpu = d.canopy->readClipLevel(0);
+    const int slots = d.clip->schedule().slotsPerSide();
     std::int64_t inHole = 0, ruleCanopy = 0, derivedCanopy = 0;
     for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
             const int bx = x / L.block, by = y / L.block;
             const size_t slot = size_t(wrapTexel(by, slots)) * size_t(slots) + size_t(wrapTexel(bx, slots));
-            if ((*canopy)->slotTags(0)[slot] != (bx | (by << 16))) continue; // not derived
+            if (d.canopy->slotTags(0)[slot] != (bx | (by << 16))) continue; // not derived
             ++inHole;
             ruleCanopy += rule[size_t(y) * size_t(w) + size_t(x)] ? 1 : 0;
             derivedCanopy += gpu[size_t(wrapTexel(y, L.size)) * size_t(L.size) + size_t(wrapTexel(x, L.size))] ? 1 : 0;
