@@ -14,9 +14,14 @@
 
 #include <glm/common.hpp>
 
+#include <cctype>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <limits>
+#include <optional>
+#include <vector>
 
 namespace seasonview::city::detail {
 namespace {
@@ -139,9 +144,53 @@ struct Reader {
     }
 };
 
+/// Polygon elements in a GML file's text (`<gml:Polygon` or `<Polygon` with any namespace prefix, not
+/// `<gml:PolygonPatch`), read in chunks: what libcitygml would build, counted before it allocates anything. Stops
+/// counting once past `limit`. Nullopt when the file cannot be read.
+std::optional<std::size_t> countGmlPolygons(const std::string& path, std::size_t limit) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return std::nullopt;
+    constexpr std::size_t kChunk = std::size_t(1) << 20, kKeep = 256; // a tag name with its prefix fits in kKeep
+    std::string buf;
+    std::size_t count = 0, from = 0; // buf[0, from): kept only as the context before the next matches
+    std::vector<char> chunk(kChunk);
+    while (in) {
+        in.read(chunk.data(), std::streamsize(kChunk));
+        const auto got = std::size_t(in.gcount());
+        if (got == 0) break;
+        buf.append(chunk.data(), got);
+        const bool last = !in;
+        // Tags starting before `end` are complete in buf (their name is shorter than kKeep).
+        const std::size_t end = last ? buf.size() : (buf.size() > kKeep ? buf.size() - kKeep : 0);
+        std::size_t at = from;
+        for (; (at = buf.find("Polygon", at)) != std::string::npos && at < end; at += 7) {
+            std::size_t q = at; // back over "prefix:" to the '<' that opens the tag
+            if (q > 0 && buf[q - 1] == ':') {
+                --q;
+                while (q > 0 && at - q < 64 &&
+                       (std::isalnum(static_cast<unsigned char>(buf[q - 1])) || std::strchr("_-.", buf[q - 1]) != nullptr))
+                    --q;
+            }
+            if (q == 0 || buf[q - 1] != '<') continue; // another name ending in Polygon, or text
+            const std::size_t after = at + 7;
+            if (after < buf.size() && (std::isalnum(static_cast<unsigned char>(buf[after])) || buf[after] == '_'))
+                continue; // <gml:PolygonPatch>
+            if (++count > limit) return count;
+        }
+        const std::size_t drop = end > 64 ? end - 64 : 0; // keep a prefix's room before `end`
+        buf.erase(0, drop);
+        from = end - drop;
+    }
+    return count;
+}
+
 } // namespace
 
 Result<CityModel> loadCityGml(const std::string& path, const CityLoadOptions& options) {
+    // Resource limit before parsing: libcitygml builds every polygon of the file in memory.
+    if (const auto n = countGmlPolygons(path, options.maxPolygons); n && *n > options.maxPolygons)
+        return fileError(path, "more than " + std::to_string(options.maxPolygons) + " polygons, over the limit of " +
+                                   std::to_string(options.maxPolygons));
     citygml::ParserParams params;
     params.tesselate = true;
     params.optimize = false;
@@ -194,9 +243,9 @@ Result<CityModel> loadCityGml(const std::string& path, const CityLoadOptions& op
         for (unsigned i = 0; i < o.getChildCityObjectsCount(); ++i) boundObject(o.getChildCityObject(i));
     };
     for (const CityObject* b : buildings) boundObject(*b);
-    if (polygons > kMaxCityPolygons)
+    if (polygons > options.maxPolygons)
         return fileError(path, std::to_string(polygons) + " polygons, over the limit of " +
-                                   std::to_string(kMaxCityPolygons));
+                                   std::to_string(options.maxPolygons));
     if (lo.x > hi.x) return fileError(path, "no building geometry (no polygons)");
     if (model.crs.isGeographic() && (std::abs(lo.y) > 90.0 || std::abs(hi.y) > 90.0 || std::abs(lo.x) > 180.0))
         return fileError(path, "coordinates out of range for " + model.crs.name() + " (wrong CRS?)");

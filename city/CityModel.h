@@ -51,6 +51,14 @@ struct CityModel {
     std::size_t texturedTriangles() const;
 };
 
+/// Limits on a city model, checked before its polygons are triangulated and stored: polygons per file (a
+/// country's LoD2 buildings are ~10^7), vertices per OBJ face (tinyobjloader counts them in a byte, so a longer face
+/// would be read as another; real walls and roofs have tens; CityGML polygons are tessellated by libcitygml). A file
+/// past them is refused with the limit named. A CityGML file's polygons are counted in its text before libcitygml
+/// parses it (and builds every polygon in memory).
+inline constexpr std::size_t kMaxCityPolygons = std::size_t(1) << 25;
+inline constexpr std::size_t kMaxPolygonVertices = 255;
+
 /// How to read a model.
 struct CityLoadOptions {
     /// The CRS when the file names none (always for OBJ; CityGML without srsName). Without it such a file is an
@@ -60,14 +68,9 @@ struct CityLoadOptions {
     bool localFrame = false;
     /// OBJ only: the file's up axis ('y', the OBJ convention, or 'z').
     char objUp = 'y';
+    /// Polygons a file may hold (kMaxCityPolygons; lower in tests). CityGML files are counted before they are parsed.
+    std::size_t maxPolygons = kMaxCityPolygons;
 };
-
-/// Limits on a city model, checked before its polygons are triangulated and stored: polygons per file (a
-/// country's LoD2 buildings are ~10^7), vertices per OBJ face (tinyobjloader counts them in a byte, so a longer face
-/// would be read as another; real walls and roofs have tens; CityGML polygons are tessellated by libcitygml). A file
-/// past them is refused with the limit named.
-inline constexpr std::size_t kMaxCityPolygons = std::size_t(1) << 25;
-inline constexpr std::size_t kMaxPolygonVertices = 255;
 
 /// Loads CityGML (.gml, .xml, .citygml) or OBJ (.obj, with its .mtl). CityGML: every Building (and its parts) at the
 /// highest LoD it has, textures of the theme "rgbTexture" or the first one; geographic CRSs are read in EPSG axis

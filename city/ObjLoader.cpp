@@ -91,8 +91,8 @@ Result<CityModel> loadObj(const std::string& path, const CityLoadOptions& option
             }
         }
     }
-    if (faces > kMaxCityPolygons)
-        return fileError(path, std::to_string(faces) + " faces, over the limit of " + std::to_string(kMaxCityPolygons));
+    if (faces > options.maxPolygons)
+        return fileError(path, std::to_string(faces) + " faces, over the limit of " + std::to_string(options.maxPolygons));
 
     PolygonChecks checks;
     std::size_t untexturedByMissing = 0;

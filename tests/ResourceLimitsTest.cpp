@@ -1,5 +1,5 @@
 // Declared sizes past the limits are refused before anything is allocated for them, the limit named: raster sides,
-// bands, tile counts, whole-image reads, polygons per face.
+// bands, tile counts, whole-image reads, polygons per face and per city model.
 #include "CityModel.h"
 #include "GdalSupport.h"
 #include "Raster.h"
@@ -132,4 +132,66 @@ TEST(ResourceLimitsTest, ObjFacesOverTheLimitOrNamingMissingVerticesAreRefused) 
     ASSERT_FALSE(m.ok());
     EXPECT_NE(m.message().find("a face refers to vertex 9, which does not exist (3 vertices)"), std::string::npos)
         << m.message();
+}
+
+namespace {
+/// A CityGML building of `n` square roof polygons (one of them written as `<Polygon>` without a prefix, as files
+/// with a default GML namespace do), plus a `gml:PolygonPatch` that is not a polygon.
+std::string cityGmlOfPolygons(int n) {
+    std::string polygons;
+    for (int i = 0; i < n; ++i) {
+        const std::string x0 = std::to_string(500000 + 20 * i), x1 = std::to_string(500010 + 20 * i);
+        const std::string tag = i == 0 ? "Polygon xmlns=\"http://www.opengis.net/gml\"" : "gml:Polygon";
+        const std::string close = i == 0 ? "Polygon" : "gml:Polygon";
+        polygons += "<gml:surfaceMember><" + tag + "><gml:exterior><gml:LinearRing><gml:posList srsDimension=\"3\">" +
+                    x0 + " 5400000 8 " + x1 + " 5400000 8 " + x1 + " 5400010 8 " + x0 + " 5400010 8 " + x0 +
+                    " 5400000 8</gml:posList></gml:LinearRing></gml:exterior></" + close + "></gml:surfaceMember>";
+    }
+    return R"(<?xml version="1.0" encoding="UTF-8"?>
+<CityModel xmlns="http://www.opengis.net/citygml/2.0" xmlns:gml="http://www.opengis.net/gml"
+ xmlns:bldg="http://www.opengis.net/citygml/building/2.0">
+<gml:boundedBy><gml:Envelope srsName="EPSG:32632" srsDimension="3"><gml:lowerCorner>500000 5400000 0</gml:lowerCorner>
+<gml:upperCorner>510000 5400010 8</gml:upperCorner></gml:Envelope></gml:boundedBy>
+<!-- gml:PolygonPatch and a comment naming <Polygons> are not polygons -->
+<cityObjectMember><bldg:Building gml:id="B1"><bldg:boundedBy><bldg:RoofSurface gml:id="R1"><bldg:lod2MultiSurface>
+<gml:MultiSurface>)" + polygons + R"(</gml:MultiSurface></bldg:lod2MultiSurface></bldg:RoofSurface></bldg:boundedBy>
+</bldg:Building></cityObjectMember></CityModel>
+)";
+}
+} // namespace
+
+TEST(ResourceLimitsTest, CityPolygonsOverTheLimitAreRefused) {
+    TempDir dir("limits-city");
+    {
+        std::ofstream(dir / "three.gml") << cityGmlOfPolygons(3);
+    }
+    city::CityLoadOptions at3, at2;
+    at3.maxPolygons = 3;
+    at2.maxPolygons = 2;
+    auto ok = city::loadCityModel((dir / "three.gml").string(), at3);
+    ASSERT_TRUE(ok.ok()) << ok.message();
+    EXPECT_EQ(ok->triangles.size(), 6u); // three squares: the count read from the text is what libcitygml builds
+    auto r = city::loadCityModel((dir / "three.gml").string(), at2);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.message().find("three.gml: more than 2 polygons, over the limit of 2"), std::string::npos) << r.message();
+    // The count reads the file in chunks of 1 MiB: with the second polygon's tag moved across the first chunk's end
+    // (and the part of it read again with the next chunk), all three are still counted.
+    const std::string text = cityGmlOfPolygons(3);
+    const std::size_t second = text.find("<gml:Polygon", text.find("<gml:Polygon") + 1);
+    for (int shift = -300; shift <= 20; shift += 3) {
+        std::string padded = text;
+        padded.insert(text.find("<cityObjectMember>"), std::size_t((1 << 20) - int(second) + shift), ' ');
+        std::ofstream(dir / "padded.gml") << padded;
+        auto p = city::loadCityModel((dir / "padded.gml").string(), at2);
+        EXPECT_FALSE(p.ok()) << "shift " << shift;
+    }
+    EXPECT_TRUE(city::loadCityModel((dir / "padded.gml").string(), at3).ok());
+
+    city::CityLoadOptions local;
+    local.localFrame = true;
+    local.maxPolygons = 2;
+    std::ofstream(dir / "three.obj") << "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\nf 2 3 4\n";
+    auto o = city::loadCityModel((dir / "three.obj").string(), local);
+    ASSERT_FALSE(o.ok());
+    EXPECT_NE(o.message().find("3 faces, over the limit of 2"), std::string::npos) << o.message();
 }
