@@ -1,13 +1,15 @@
 // Crash safety: `synth`, `prepare`, `atlas build` and `segment` killed (SIGKILL) at random moments leave either the
 // complete earlier result or none, never a file a later run accepts; the run after the kills gives byte-identical
 // results to an uninterrupted one, and leftovers of the killed runs are cleaned away. A full disk (the file-size
-// limit RLIMIT_FSIZE, which makes every write past it fail as a full disk does) gives one line, exit 1, and no
-// output or cache entry.
+// limit RLIMIT_FSIZE, which makes every write past it fail as a full disk does, at 0 and at 32 KiB) gives one line,
+// exit 1, and no output or cache entry.
 #include "TestUtil.h"
 
 #include <gtest/gtest.h>
 
+#include <cerrno>
 #include <chrono>
+#include <iostream>
 #include <fcntl.h>
 #include <map>
 #include <random>
@@ -24,9 +26,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// Starts seasonview with `args` (stdout and stderr to `log`); `fileSizeLimit` > 0 sets RLIMIT_FSIZE (bytes) with
-/// SIGXFSZ ignored, so writes past it fail with EFBIG.
-pid_t spawn(const std::vector<std::string>& args, const fs::path& log, rlim_t fileSizeLimit = 0) {
+/// Starts seasonview with `args` (stdout and stderr to `log`).
+pid_t spawn(const std::vector<std::string>& args, const fs::path& log) {
     std::vector<std::string> all = {SEASONVIEW_BINARY};
     all.insert(all.end(), args.begin(), args.end());
     std::vector<char*> argv;
@@ -37,11 +38,6 @@ pid_t spawn(const std::vector<std::string>& args, const fs::path& log, rlim_t fi
         const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
         ::dup2(fd, 1);
         ::dup2(fd, 2);
-        if (fileSizeLimit > 0) {
-            ::signal(SIGXFSZ, SIG_IGN);
-            const rlimit r{fileSizeLimit, fileSizeLimit};
-            ::setrlimit(RLIMIT_FSIZE, &r);
-        }
         ::execv(argv[0], argv.data());
         ::_exit(127);
     }
@@ -53,6 +49,38 @@ int waitFor(pid_t pid) {
     int status = 0;
     ::waitpid(pid, &status, 0);
     return WIFEXITED(status) ? WEXITSTATUS(status) : -WTERMSIG(status);
+}
+
+/// Runs seasonview with `args` under RLIMIT_FSIZE = `limit` bytes (SIGXFSZ ignored: every write past it fails with
+/// EFBIG, as on a full disk; 0 fails every write). Its stdout and stderr come back through a pipe, which the limit
+/// does not touch. Returns the exit code (or -signal) and what it printed.
+std::pair<int, std::string> runWithFileSizeLimit(const std::vector<std::string>& args, rlim_t limit) {
+    std::vector<std::string> all = {SEASONVIEW_BINARY};
+    all.insert(all.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (auto& a : all) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    int fds[2];
+    if (::pipe(fds) != 0) return {-1, "pipe failed"};
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+        ::close(fds[0]);
+        ::dup2(fds[1], 1);
+        ::dup2(fds[1], 2);
+        ::signal(SIGXFSZ, SIG_IGN);
+        const rlimit r{limit, limit};
+        ::setrlimit(RLIMIT_FSIZE, &r);
+        ::execv(argv[0], argv.data());
+        ::_exit(127);
+    }
+    ::close(fds[1]);
+    std::string out;
+    char buf[4096];
+    for (ssize_t n; (n = ::read(fds[0], buf, sizeof buf)) != 0;)
+        if (n > 0) out.append(buf, size_t(n));
+        else if (errno != EINTR) break;
+    ::close(fds[0]);
+    return {waitFor(pid), out};
 }
 
 /// A file's size and a hash of its bytes, for comparisons whose failures print short.
@@ -138,6 +166,7 @@ TEST_F(CrashSafety, SynthKilledLeavesNoSceneThatReadsAsWhole) {
                 EXPECT_EQ(bytes, reference.at(name)) << name << " is not whole";
             }
     });
+    std::cout << "[ kills    ] synth: " << killed << " of 6 runs killed before they finished\n";
     EXPECT_GE(killed, 3) << "too few runs were killed before they finished to mean anything";
     runWhole(args);
     EXPECT_EQ(snapshot(out), reference) << "after the kills: not identical, or temporaries left behind";
@@ -160,6 +189,7 @@ TEST_F(CrashSafety, PrepareKilledLeavesOnlyValidPyramidsAndResumes) {
             }
         }
     });
+    std::cout << "[ kills    ] prepare: " << killed << " of 8 runs killed before they finished\n";
     EXPECT_GE(killed, 4);
     runWhole(args);
     EXPECT_EQ(snapshot(dir / "cache"), reference) << "after the kills: not identical, or temporaries left behind";
@@ -193,6 +223,8 @@ TEST_F(CrashSafety, AtlasBuildAndSegmentKilledLeaveTheOldResultOrNone) {
                         EXPECT_EQ(fingerprint(dir / o), reference.at(o)) << o << " is not whole";
                     }
             });
+            std::cout << "[ kills    ] " << args->front() << (round == 0 ? " (old result there)" : " (none there)")
+                      << ": " << killed << " of 4 runs killed before they finished\n";
             EXPECT_GE(killed, 2);
         }
         runWhole(*args);
@@ -223,15 +255,19 @@ TEST_F(CrashSafety, FullDiskIsOneLineAndLeavesNothing) {
     };
     // The segment and render cases need the pyramids prepared (their own writes are what fills the disk).
     ASSERT_EQ(runCli({"prepare", scene, "--cache", (dir / "cache").string()}).exitCode, 0);
-    for (const Case& c : cases) {
-        SCOPED_TRACE(c.args.front());
-        const int rc = waitFor(spawn(c.args, dir / "log.txt", 32 * 1024));
-        const std::string log = readBytes(dir / "log.txt");
-        EXPECT_EQ(rc, 1) << log;
-        // One line: the error (progress bars and notes go to stdout, here the same file: look at the last line).
-        const std::string last = log.substr(log.rfind('\n', log.size() - 2) + 1);
-        EXPECT_NE(last.find("seasonview " + c.args.front()), std::string::npos) << log;
-        for (const auto& o : c.outputs) EXPECT_FALSE(fs::exists(dir / o)) << o << " left after a failed write";
+    // 0: the first write fails, whatever its size (the small JSON files included); 32 KiB: writes fail part way.
+    for (const rlim_t limit : {rlim_t(0), rlim_t(32 * 1024)}) {
+        for (const Case& c : cases) {
+            SCOPED_TRACE(c.args.front() + " with writes failing past " + std::to_string(limit) + " bytes");
+            const auto [rc, log] = runWithFileSizeLimit(c.args, limit);
+            EXPECT_EQ(rc, 1) << log;
+            // One line: the error (progress bars and notes go to stdout, here the same pipe: look at the last line).
+            const std::string last = log.substr(log.rfind('\n', log.size() - 2) + 1);
+            EXPECT_NE(last.find("seasonview " + c.args.front()), std::string::npos) << log;
+            for (const auto& o : c.outputs) EXPECT_FALSE(fs::exists(dir / o)) << o << " left after a failed write";
+        }
+        for (const auto& [name, bytes] : snapshot(dir.path()))
+            EXPECT_FALSE(isTemporary(name)) << name << " left behind by a failed write";
     }
     // No pyramid of the full-disk prepare is accepted: a later prepare without the limit builds them all.
     CliResult again = runCli({"prepare", scene, "--cache", (dir / "full-cache").string()});

@@ -172,7 +172,10 @@ Result<GeoTiffStreamWriter> GeoTiffStreamWriter::open(const std::filesystem::pat
     // offset limit.
     w.m_bigTiff = rawBytes > options.bigTiffAbove;
     w.m_tif = tiff::open(w.m_tmp, w.m_bigTiff ? "w8" : "w", w.m_error.get());
-    if (!w.m_tif) return fileError(path.string(), "cannot create file (" + *w.m_error + ")");
+    if (!w.m_tif) {
+        discardTemporary(w.m_tmp); // libtiff creates the file before it fails to write the header (a full disk)
+        return fileError(path.string(), "cannot create file (" + *w.m_error + ")");
+    }
 
     TIFF* t = w.m_tif;
     TIFFSetField(t, TIFFTAG_IMAGEWIDTH, std::uint32_t(width));

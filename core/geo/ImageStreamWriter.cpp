@@ -151,6 +151,7 @@ Result<ImageStreamWriter> ImageStreamWriter::open(const std::filesystem::path& p
     if (!impl.out->open(impl.tmp.string(), spec)) {
         std::string e = firstLine(impl.out->geterror());
         impl.out.reset();
+        discardTemporary(impl.tmp); // the writer may have created the file before failing (a full disk)
         return fileError(path.string(), "cannot create file" + (e.empty() ? std::string() : " (" + e + ")"));
     }
     return w;
