@@ -1,5 +1,7 @@
 #include "BlockLoader.h"
 
+#include "ZstdTileCheck.h"
+
 #include <OpenImageIO/imagecache.h>
 
 #include <algorithm>
@@ -12,6 +14,7 @@ struct PyramidBlockSource::Cache {
         void operator()(OIIO::ImageCache* c) const { OIIO::ImageCache::destroy(c); }
     };
     std::unique_ptr<OIIO::ImageCache, Destroy> cache;
+    ZstdTileCheck check; // libtiff, under OpenImageIO, does not verify the tiles' checksums (ZstdTileCheck.h)
 };
 
 PyramidBlockSource::PyramidBlockSource(std::vector<std::vector<std::filesystem::path>> levelFiles, int cacheMegabytes,
@@ -31,6 +34,7 @@ Status PyramidBlockSource::read(int layer, int level, const TexelRect& t, std::u
     const OIIO::ustring name(file.string());
     // Imagery pyramid files are premultiplied RGBA, as the texture holds them. Elevation: floats.
     const bool rgb = m_format == TexelFormat::Rgba8;
+    if (auto st = m_cache->check.check(file, t.x0, t.y0, t.x1, t.y1); !st) return st.error();
     if (!m_cache->cache->get_pixels(name, 0, 0, t.x0, t.x1, t.y0, t.y1, 0, 1, 0, rgb ? 4 : 1,
                                     rgb ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT, rgba, OIIO::AutoStride,
                                     OIIO::AutoStride, OIIO::AutoStride)) {

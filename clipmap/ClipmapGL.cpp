@@ -1,9 +1,11 @@
 #include "ClipmapGL.h"
 
 #include "Raster.h"
+#include "ZstdTileCheck.h"
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 namespace seasonview {
@@ -77,12 +79,17 @@ Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyra
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
 
     c->m_coarse = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
+    // The resident levels are read whole through GDAL, whose libtiff does not verify the tiles' checksums.
+    ZstdTileCheck residentCheck;
+    constexpr int kWhole = std::numeric_limits<int>::max();
     if (heights) {
         // The resident levels, exact, one array layer each (layer i's level clipLevels + k at i · coarse levels + k).
         glTextureStorage3D(c->m_coarse.id(), 1, GL_R32F, c->m_coarseSize.x, c->m_coarseSize.y, n * c->m_coarseLevels);
         for (int i = 0; i < n; ++i)
             for (int k = 0; k < c->m_coarseLevels; ++k) {
-                auto level = readImageF32(layers[size_t(i)].levels[size_t(clipLevels + k)].file, 1);
+                const auto& file = layers[size_t(i)].levels[size_t(clipLevels + k)].file;
+                if (auto st = residentCheck.check(file, 0, 0, kWhole, kWhole); !st) return st.error();
+                auto level = readImageF32(file, 1);
                 if (!level) return level.error();
                 glTextureSubImage3D(c->m_coarse.id(), 0, 0, 0, i * c->m_coarseLevels + k, level->width, level->height,
                                     1, GL_RED, GL_FLOAT, level->pixels.data());
@@ -94,6 +101,7 @@ Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyra
         glTextureStorage3D(c->m_coarse.id(), c->m_coarseLevels, GL_RGBA8, c->m_coarseSize.x, c->m_coarseSize.y, n);
         for (int i = 0; i < n; ++i) {
             const PyramidLevel& lv = layers[size_t(i)].levels[size_t(clipLevels)];
+            if (auto st = residentCheck.check(lv.file, 0, 0, kWhole, kWhole); !st) return st.error();
             auto base = readImageU8(lv.file, 4);
             if (!base) return base.error();
             if (base->channels != 4) return fileError(lv.file.string(), "is not RGBA");

@@ -79,6 +79,51 @@ TEST_F(Damaged, RenderRebuildsTheDamagedPyramidAndDrawsWhatACleanCacheDraws) {
     }
 }
 
+TEST_F(Damaged, RenderRebuildsAnElevationLevelWithOneFlippedByte) {
+    // A DEM of noise: its levels' Zstandard frames are mostly raw literals, so one flipped byte decodes without an
+    // error through libtiff and only the tile's content checksum (ZstdTileCheck) sees it. Levels 0 and 1 stream
+    // through the block loader at this clip size; the coarser ones are resident, read whole.
+    std::vector<float> dem(size_t(300) * 200);
+    std::uint32_t s = 5;
+    for (auto& h : dem) {
+        s = s * 1664525u + 1013904223u;
+        h = 40.0f + float(s >> 8) / float(1 << 24) * 4.0f;
+    }
+    GdalRasterSpec spec;
+    spec.geotransform = geotransformOf(testGeoref(1.0));
+    spec.crs = "EPSG:32632";
+    writeGdalRaster(dir / "dem.tif", dem.data(), SampleType::F32, 300, 200, 1, spec);
+    const auto still = [&](const std::string& out) {
+        return with(scene("render"), {"--dem", (dir / "dem.tif").string(), "--view", "relief", "--size", "320x240",
+                                      "--clip-size", "256", "--out", (dir / out).string()});
+    };
+    CliResult clean = runCli(still("clean.png"));
+    ASSERT_EQ(clean.exitCode, 0) << clean.err;
+    for (const char* level : {"level_00.tif", "level_03.tif"}) {
+        SCOPED_TRACE(level);
+        const auto files = cachedLevels(dir / "cache", "dem.tif", level);
+        ASSERT_EQ(files.size(), 1u);
+        TIFF* t = TIFFOpen(files[0].c_str(), "r");
+        ASSERT_TRUE(t);
+        const std::uint64_t at = TIFFGetStrileOffset(t, 0) + TIFFGetStrileByteCount(t, 0) / 2;
+        TIFFClose(t);
+        std::fstream f(files[0], std::ios::in | std::ios::out | std::ios::binary);
+        f.seekg(std::streamoff(at));
+        char c = 0;
+        f.read(&c, 1);
+        c = char(c ^ 0x01);
+        f.seekp(std::streamoff(at));
+        f.write(&c, 1);
+        f.close();
+        CliResult again = runCli(still("again.png"));
+        ASSERT_EQ(again.exitCode, 0) << again.err;
+        EXPECT_NE(again.out.find("checksum"), std::string::npos) << again.out;
+        EXPECT_NE(again.out.find("damaged in the cache; its pyramid is rebuilt from the source"), std::string::npos)
+            << again.out;
+        EXPECT_TRUE(readBytes(dir / "again.png") == readBytes(dir / "clean.png")) << "the still differs from the clean one";
+    }
+}
+
 TEST_F(Damaged, SegmentAndBenchRebuildTheDamagedPyramid) {
     const auto seg = [&](const std::string& out) {
         return with(scene("segment"), {"--out", (dir / out).string()});

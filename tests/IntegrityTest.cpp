@@ -5,10 +5,12 @@
 #include "GridReader.h"
 #include "Raster.h"
 #include "TestUtil.h"
+#include "ZstdTileCheck.h"
 
 #include <gtest/gtest.h>
 #include <tiffio.h>
 
+#include <chrono>
 #include <fstream>
 
 using namespace seasonview;
@@ -86,6 +88,56 @@ TEST(IntegrityTest, BitFlipsAnywhereInAZstdTileAreCaught) {
         caught += everyReaderRefuses(dir / "flipped.tif") ? 1 : 0;
     }
     EXPECT_EQ(caught, tried);
+}
+
+TEST(IntegrityTest, ZstdTileCheckCatchesFlipsInFloatTilesThatDecodeSilently) {
+    // Heights as the elevation pyramid stores them: floats, Zstandard with the floating-point predictor. Noise
+    // leaves most of a frame as raw literals, where a flipped byte breaks nothing but the content checksum, which
+    // libtiff's codec never reaches (GDAL and OpenImageIO read such a tile as other heights).
+    TempDir dir("integrity-zstd-float");
+    std::vector<float> heights(size_t(256) * 256);
+    std::uint32_t s = 11;
+    for (auto& h : heights) {
+        s = s * 1664525u + 1013904223u;
+        h = 100.0f + float(s >> 8) / float(1 << 24) * 50.0f;
+    }
+    GeoTiffWriteOptions o;
+    o.compression = TiffCompression::Zstd;
+    o.tileSize = 128;
+    ASSERT_TRUE(writeGeoTiff(dir / "clean.tif", heights.data(), SampleType::F32, 256, 256, 1, testGeoref(), o).ok());
+    {
+        ZstdTileCheck check;
+        EXPECT_TRUE(check.check(dir / "clean.tif", 0, 0, 256, 256).ok());
+    }
+    const auto [offset, size] = tileBytes(dir / "clean.tif", 3);
+    ASSERT_GT(size, 64u);
+    int caught = 0, tried = 0;
+    for (std::uint64_t k = 1; k < 40; ++k) {
+        fs::copy_file(dir / "clean.tif", dir / "flipped.tif", fs::copy_options::overwrite_existing);
+        flipByte(dir / "flipped.tif", offset + size * k / 40);
+        ++tried;
+        ZstdTileCheck check;
+        EXPECT_TRUE(check.check(dir / "flipped.tif", 0, 0, 128, 128).ok()) << "tile 0 is intact";
+        const Status st = check.check(dir / "flipped.tif", 100, 100, 300, 300); // tiles 0, 1, 2 and 3
+        if (!st) {
+            ++caught;
+            EXPECT_EQ(st.message().rfind((dir / "flipped.tif").string() + ": tile 3 (column 1, row 1)", 0), 0u)
+                << st.message();
+        }
+    }
+    EXPECT_EQ(caught, tried);
+
+    // Checked once per file: a file rewritten in place (another size or time) is checked again.
+    ZstdTileCheck check;
+    fs::copy_file(dir / "clean.tif", dir / "rewritten.tif");
+    ASSERT_TRUE(check.check(dir / "rewritten.tif", 0, 0, 256, 256).ok());
+    fs::copy_file(dir / "flipped.tif", dir / "rewritten.tif", fs::copy_options::overwrite_existing);
+    fs::last_write_time(dir / "rewritten.tif", fs::last_write_time(dir / "rewritten.tif") + std::chrono::seconds(2));
+    EXPECT_FALSE(check.check(dir / "rewritten.tif", 0, 0, 256, 256).ok());
+    // Files of other compressions pass: there is no checksum to verify.
+    o.compression = TiffCompression::Deflate;
+    ASSERT_TRUE(writeGeoTiff(dir / "deflate.tif", heights.data(), SampleType::F32, 256, 256, 1, testGeoref(), o).ok());
+    EXPECT_TRUE(check.check(dir / "deflate.tif", 0, 0, 256, 256).ok());
 }
 
 TEST(IntegrityTest, FilesCutShortAreErrorsNamingTheFile) {

@@ -1,0 +1,106 @@
+#include "ZstdTileCheck.h"
+
+#include "TiffSupport.h"
+
+#include <tiffio.h>
+#include <zstd.h>
+
+#include <algorithm>
+
+namespace seasonview {
+
+struct ZstdTileCheck::Decoder {
+    struct Free {
+        void operator()(ZSTD_DCtx* d) const { ZSTD_freeDCtx(d); }
+    };
+    std::unique_ptr<ZSTD_DCtx, Free> context{ZSTD_createDCtx()};
+    std::vector<std::uint8_t> compressed, decoded;
+};
+
+ZstdTileCheck::ZstdTileCheck() : m_decoder(std::make_unique<Decoder>()) {}
+ZstdTileCheck::~ZstdTileCheck() = default;
+
+Status ZstdTileCheck::check(const std::filesystem::path& file, int x0, int y0, int x1, int y1) {
+    if (x1 <= x0 || y1 <= y0) return Ok{};
+    std::lock_guard<std::mutex> lock(m_mutex);
+    std::error_code ec;
+    const std::uintmax_t bytes = std::filesystem::file_size(file, ec);
+    const auto modified = std::filesystem::last_write_time(file, ec);
+    auto it = m_files.find(file.string());
+    if (it != m_files.end() && (it->second.bytes != bytes || it->second.modified != modified)) {
+        m_files.erase(it);
+        it = m_files.end();
+    }
+    File* f = it == m_files.end() ? nullptr : &it->second;
+    if (f && !f->zstd) return Ok{};
+    if (f) { // all checked already?
+        x0 = std::max(x0, 0), y0 = std::max(y0, 0), x1 = std::min(x1, f->width), y1 = std::min(y1, f->height);
+        if (x1 <= x0 || y1 <= y0) return Ok{};
+        bool all = true;
+        for (int ty = y0 / f->tileHeight; all && ty <= (y1 - 1) / f->tileHeight; ++ty)
+            for (int tx = x0 / f->tileWidth; all && tx <= (x1 - 1) / f->tileWidth; ++tx) {
+                const size_t i = size_t(ty) * size_t(f->tilesAcross) + size_t(tx);
+                all = i < f->checked.size() && f->checked[i];
+            }
+        if (all) return Ok{};
+    }
+    std::string error;
+    TIFF* tif = tiff::open(file, "r", &error);
+    if (!tif) return fileError(file.string(), "cannot open (" + error + ")");
+    struct Close {
+        TIFF* t;
+        ~Close() { TIFFClose(t); }
+    } closer{tif};
+    if (!f) {
+        File n;
+        n.bytes = bytes;
+        n.modified = modified;
+        std::uint16_t compression = COMPRESSION_NONE;
+        std::uint32_t width = 0, height = 0, tw = 0, th = 0;
+        TIFFGetFieldDefaulted(tif, TIFFTAG_COMPRESSION, &compression);
+        n.zstd = compression == COMPRESSION_ZSTD && TIFFIsTiled(tif) && TIFFGetField(tif, TIFFTAG_TILEWIDTH, &tw) &&
+                 TIFFGetField(tif, TIFFTAG_TILELENGTH, &th) && TIFFGetField(tif, TIFFTAG_IMAGEWIDTH, &width) &&
+                 TIFFGetField(tif, TIFFTAG_IMAGELENGTH, &height) && tw > 0 && th > 0 && width > 0 && height > 0;
+        if (n.zstd) {
+            n.width = int(width);
+            n.height = int(height);
+            n.tileWidth = int(tw);
+            n.tileHeight = int(th);
+            n.tilesAcross = int((width + tw - 1) / tw);
+            n.checked.assign(size_t(TIFFNumberOfTiles(tif)), 0);
+        }
+        f = &m_files.emplace(file.string(), std::move(n)).first->second;
+        if (!f->zstd) return Ok{};
+        x0 = std::max(x0, 0), y0 = std::max(y0, 0), x1 = std::min(x1, f->width), y1 = std::min(y1, f->height);
+        if (x1 <= x0 || y1 <= y0) return Ok{};
+    }
+    const tmsize_t tileBytes = TIFFTileSize(tif);
+    Decoder& d = *m_decoder;
+    d.decoded.resize(size_t(std::max<tmsize_t>(tileBytes, 1)));
+    for (int ty = y0 / f->tileHeight; ty <= (y1 - 1) / f->tileHeight; ++ty)
+        for (int tx = x0 / f->tileWidth; tx <= (x1 - 1) / f->tileWidth; ++tx) {
+            const size_t i = size_t(ty) * size_t(f->tilesAcross) + size_t(tx);
+            if (i >= f->checked.size() || f->checked[i]) continue;
+            const auto tile = TIFFComputeTile(tif, std::uint32_t(tx * f->tileWidth), std::uint32_t(ty * f->tileHeight), 0, 0);
+            const std::uint64_t size = TIFFGetStrileByteCount(tif, tile);
+            const std::string where = "tile " + std::to_string(tile) + " (column " + std::to_string(tx) + ", row " +
+                                      std::to_string(ty) + ")";
+            // A tile larger than its decoded size plus Zstandard's framing cannot be one of ours.
+            if (size == 0 || size > ZSTD_compressBound(size_t(tileBytes)))
+                return fileError(file.string(), where + " claims " + std::to_string(size) + " bytes");
+            d.compressed.resize(size_t(size));
+            if (TIFFReadRawTile(tif, tile, d.compressed.data(), tmsize_t(size)) != tmsize_t(size))
+                return fileError(file.string(), where + " reads short");
+            const size_t n = ZSTD_decompressDCtx(d.context.get(), d.decoded.data(), d.decoded.size(),
+                                                 d.compressed.data(), d.compressed.size());
+            if (ZSTD_isError(n))
+                return fileError(file.string(), where + " does not decode (Zstandard: " + ZSTD_getErrorName(n) + ")");
+            if (n != size_t(tileBytes))
+                return fileError(file.string(), where + " decodes to " + std::to_string(n) + " bytes, not " +
+                                                    std::to_string(tileBytes));
+            f->checked[i] = 1;
+        }
+    return Ok{};
+}
+
+} // namespace seasonview
