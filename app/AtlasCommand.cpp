@@ -167,7 +167,6 @@ int atlasBuild(const AtlasArgs* a) {
     const auto t0 = std::chrono::steady_clock::now();
     auto model = loadCityForCli(a->input, a->crs, a->objLocal, a->objUp);
     if (!model) return fail(model.error().message);
-    for (const auto& w : model->warnings) std::fprintf(stderr, "seasonview atlas: warning: %s\n", w.c_str());
     const double loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf("%s: %zu buildings, %zu triangles (%zu textured), %zu textures, read in %.1f s\n", a->input.c_str(),
                 model->buildingIds.size(), model->triangles.size(), model->texturedTriangles(),
@@ -195,7 +194,9 @@ int atlasBuild(const AtlasArgs* a) {
     s.cacheBytes = std::uint64_t(std::max(16.0, a->cacheMb) * 1048576.0);
     s.progress = terminalProgress("atlas tree");
     auto r = city::buildAtlasTree(*model, s, a->out);
-    if (!r) return fail(r.error().message);
+    // The model's warnings after the build: a failure is one line, with the first warning as its likely cause.
+    if (!r) return fail(model->failureWithWarnings(r.error().message));
+    for (const auto& w : model->warnings) std::fprintf(stderr, "seasonview atlas: warning: %s\n", w.c_str());
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf("%s: %zu nodes (%zu leaves, %zu empty, depth %d), %zu tree triangles (%zu critical at dmin %.2f m, "
                 "dmin now %.2f m, %zu split), %zu plain, mean leaf fill %.1f %%, atlases %.1f MB, file %.1f MB, "

@@ -48,11 +48,12 @@ Result<std::filesystem::path> prepareCityTree(const Scene& scene, const std::fil
     options.crs = modelCrs;
     auto m = city::loadCityModel(model.string(), options);
     if (!m) return m.error();
-    for (const auto& w : m->warnings) std::fprintf(stderr, "seasonview: warning: %s\n", w.c_str());
     city::AtlasBuildSettings bs;
     bs.progress = terminalProgress("atlas tree");
     auto r = city::buildAtlasTree(*m, bs, tree.string());
-    if (!r) return r.error();
+    // The model's warnings after the build: a failure is one line, with the first warning as its likely cause.
+    if (!r) return Error{m->failureWithWarnings(r.error().message)};
+    for (const auto& w : m->warnings) std::fprintf(stderr, "seasonview: warning: %s\n", w.c_str());
     std::printf("city: built the atlas tree of %s in %.1f s: %zu nodes, %.1f MB, %s\n", model.string().c_str(),
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), r->nodes,
                 double(r->fileBytes) / 1e6, tree.string().c_str());

@@ -33,6 +33,12 @@ std::size_t CityModel::texturedTriangles() const {
     return std::size_t(std::count_if(triangles.begin(), triangles.end(), [](const auto& t) { return t.texture >= 0; }));
 }
 
+std::string CityModel::failureWithWarnings(const std::string& message) const {
+    if (warnings.empty()) return message;
+    return message + " (after " + std::to_string(warnings.size()) + (warnings.size() == 1 ? " warning: " : " warnings, the first: ") +
+           warnings.front() + ")";
+}
+
 std::optional<int> epsgFromSrsName(const std::string& srsName) {
     std::smatch m;
     // "EPSG:25833", "EPSG::25833", "EPSG/0/25833" (OGC URN and URL forms); the first code of a compound CRS.

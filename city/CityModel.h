@@ -49,6 +49,9 @@ struct CityModel {
     glm::dvec3 boundsMin() const;
     glm::dvec3 boundsMax() const;
     std::size_t texturedTriangles() const;
+    /// `message` with the first load warning appended (and how many there were): what a command that fails on the
+    /// model prints, so the failure stays one line and names its likely cause (a cut .mtl, missing textures).
+    std::string failureWithWarnings(const std::string& message) const;
 };
 
 /// Limits on a city model, checked before its polygons are triangulated and stored: polygons per file (a

@@ -619,6 +619,20 @@ TEST(CityCliTest, BadInput) {
     fails(s.render("x.png", {"--city", "atlas", "--city-tree", (s.dir / "bad.svat").string()}), "bad.svat");
     fails(s.render("x.png", {"--city", "sideways"}), "--city");
     {
+        // A material library cut before its materials: every face untextured, nothing to build a tree from. One
+        // line, the load's first warning given as the cause.
+        std::filesystem::create_directories(s.dir / "cut-mtl");
+        std::filesystem::copy_file(s.dir / "s/city/city.obj", s.dir / "cut-mtl/city.obj",
+                                   std::filesystem::copy_options::overwrite_existing);
+        std::ofstream(s.dir / "cut-mtl/city.mtl") << "# Blender MTL File\nnewm";
+        fails(runCli({"atlas", "build", (s.dir / "cut-mtl/city.obj").string(), "--obj-local", "--out",
+                      (s.dir / "x.svat").string()}),
+              "no textured triangles to build a tree from (after ");
+        const CliResult r = runCli({"atlas", "build", (s.dir / "cut-mtl/city.obj").string(), "--obj-local", "--out",
+                                    (s.dir / "x.svat").string()});
+        EXPECT_NE(r.err.find("not found in .mtl"), std::string::npos) << r.err;
+    }
+    {
         // A capacity below the root atlas would leave the city undrawn: refused, naming the tree and the size.
         const auto big = (s.dir / "big.svat").string();
         ASSERT_EQ(runCli({"atlas", "build", (s.dir / "s/city/city.obj").string(), "--obj-local", "--out", big,
