@@ -1,11 +1,10 @@
 #!/usr/bin/env bash
-# The unit tests (seasonview_tests) and CLI tests (seasonview_cli_tests, which run a sanitized seasonview) built
-# with AddressSanitizer + UndefinedBehaviorSanitizer into build-asan/, with leak checks on for both. The CLI tests'
-# processes get Mesa's driver (swrast_dri.so) preloaded: EGL otherwise unloads it at exit, and what it allocated for
-# the process's life is then reported from an unknown module that no suppression can name (a preloaded library is
-# never unloaded, so its leaks are named and suppressed in tests/sanitizers/lsan.supp). The GL tests (seasonview_gl_tests)
-# are left out to keep CI within its time: their renderers run under the sanitizers through the CLI tests' render,
-# bench and view. A sanitizer report makes the process exit 86, which fails its test.
+# The whole suite built with AddressSanitizer + UndefinedBehaviorSanitizer into build-asan/ and run with leak checks
+# on: the unit tests (seasonview_tests), the GL tests (seasonview_gl_tests) and the CLI tests (seasonview_cli_tests,
+# which run a sanitized seasonview). The GL and CLI tests' processes get Mesa's driver (swrast_dri.so) preloaded: EGL
+# otherwise unloads it at exit, and what it allocated for the process's life is then reported from an unknown module
+# that no suppression can name (a preloaded library is never unloaded, so its leaks are named and suppressed in
+# tests/sanitizers/lsan.supp). A sanitizer report makes the process exit 86, which fails its test.
 # Run by .ci/run after scripts/test.sh (which installs the packages).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -15,7 +14,8 @@ cd "$ROOT"
 # build of scripts/test.sh holds the code to -Werror.
 cmake -S "$ROOT" -B "$ROOT/build-asan" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" \
   -DSEASONVIEW_SANITIZE=ON -DSEASONVIEW_WERROR=OFF >/dev/null
-cmake --build "$ROOT/build-asan" -j "$(nproc 2>/dev/null || echo 2)" --target seasonview seasonview_tests seasonview_cli_tests
+cmake --build "$ROOT/build-asan" -j "$(nproc 2>/dev/null || echo 2)" --target seasonview seasonview_tests seasonview_gl_tests \
+  seasonview_cli_tests
 SAN="exitcode=86:strict_string_checks=1:detect_stack_use_after_return=1:check_initialization_order=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1:exitcode=86"
 export LSAN_OPTIONS="suppressions=$ROOT/tests/sanitizers/lsan.supp:print_suppressions=0:exitcode=86"
@@ -24,4 +24,4 @@ DRIVER="$(ls /usr/lib/*/dri/swrast_dri.so 2>/dev/null | head -1)"
 [[ -n "$DRIVER" ]] || { echo "test-sanitized.sh: Mesa's swrast_dri.so not found (libgl1-mesa-dri)" >&2; exit 1; }
 # verify_asan_link_order=0: the preloaded driver comes before the ASan runtime in the library list.
 LD_PRELOAD="$DRIVER" ASAN_OPTIONS="detect_leaks=1:verify_asan_link_order=0:$SAN" \
-  ctest --test-dir "$ROOT/build-asan" --output-on-failure -j 2 -L cli "$@"
+  ctest --test-dir "$ROOT/build-asan" --output-on-failure -j 2 -L 'gl|cli' "$@"
