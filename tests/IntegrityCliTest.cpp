@@ -83,12 +83,7 @@ TEST_F(Damaged, RenderRebuildsAnElevationLevelWithOneFlippedByte) {
     // A DEM of noise: its levels' Zstandard frames are mostly raw literals, so one flipped byte decodes without an
     // error through libtiff and only the tile's content checksum (ZstdTileCheck) sees it. Levels 0 and 1 stream
     // through the block loader at this clip size; the coarser ones are resident, read whole.
-    std::vector<float> dem(size_t(300) * 200);
-    std::uint32_t s = 5;
-    for (auto& h : dem) {
-        s = s * 1664525u + 1013904223u;
-        h = 40.0f + float(s >> 8) / float(1 << 24) * 4.0f;
-    }
+    const std::vector<float> dem = noiseHeights(size_t(300) * 200, 5, 40.0f, 4.0f);
     GdalRasterSpec spec;
     spec.geotransform = geotransformOf(testGeoref(1.0));
     spec.crs = "EPSG:32632";
@@ -107,14 +102,7 @@ TEST_F(Damaged, RenderRebuildsAnElevationLevelWithOneFlippedByte) {
         ASSERT_TRUE(t);
         const std::uint64_t at = TIFFGetStrileOffset(t, 0) + TIFFGetStrileByteCount(t, 0) / 2;
         TIFFClose(t);
-        std::fstream f(files[0], std::ios::in | std::ios::out | std::ios::binary);
-        f.seekg(std::streamoff(at));
-        char c = 0;
-        f.read(&c, 1);
-        c = char(c ^ 0x01);
-        f.seekp(std::streamoff(at));
-        f.write(&c, 1);
-        f.close();
+        flipByte(files[0], at, 0x01);
         CliResult again = runCli(still("again.png"));
         ASSERT_EQ(again.exitCode, 0) << again.err;
         EXPECT_NE(again.out.find("checksum"), std::string::npos) << again.out;

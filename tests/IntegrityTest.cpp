@@ -39,16 +39,6 @@ std::pair<std::uint64_t, std::uint64_t> tileBytes(const fs::path& p, int index) 
     return {o, n};
 }
 
-void flipByte(const fs::path& p, std::uint64_t at) {
-    std::fstream f(p, std::ios::in | std::ios::out | std::ios::binary);
-    f.seekg(std::streamoff(at));
-    char c = 0;
-    f.read(&c, 1);
-    c = char(c ^ 0x55);
-    f.seekp(std::streamoff(at));
-    f.write(&c, 1);
-}
-
 /// Whether every reader refuses the file (one line naming it); false when any read it as pixels.
 bool everyReaderRefuses(const fs::path& p, std::string* why = nullptr) {
     auto img = readImageU8(p, 3);
@@ -95,12 +85,7 @@ TEST(IntegrityTest, ZstdTileCheckCatchesFlipsInFloatTilesThatDecodeSilently) {
     // leaves most of a frame as raw literals, where a flipped byte breaks nothing but the content checksum, which
     // libtiff's codec never reaches (GDAL and OpenImageIO read such a tile as other heights).
     TempDir dir("integrity-zstd-float");
-    std::vector<float> heights(size_t(256) * 256);
-    std::uint32_t s = 11;
-    for (auto& h : heights) {
-        s = s * 1664525u + 1013904223u;
-        h = 100.0f + float(s >> 8) / float(1 << 24) * 50.0f;
-    }
+    const std::vector<float> heights = noiseHeights(size_t(256) * 256, 11, 100.0f, 50.0f);
     GeoTiffWriteOptions o;
     o.compression = TiffCompression::Zstd;
     o.tileSize = 128;

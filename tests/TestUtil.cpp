@@ -292,6 +292,26 @@ std::string readBytes(const std::filesystem::path& p) {
     return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
 }
 
+void flipByte(const std::filesystem::path& p, std::uint64_t at, std::uint8_t mask) {
+    std::fstream f(p, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(std::streamoff(at));
+    char c = 0;
+    f.read(&c, 1);
+    c = char(c ^ char(mask));
+    f.seekp(std::streamoff(at));
+    f.write(&c, 1);
+    EXPECT_TRUE(f.good()) << "cannot flip byte " << at << " of " << p;
+}
+
+std::vector<float> noiseHeights(std::size_t n, std::uint32_t seed, float base, float range) {
+    std::vector<float> v(n);
+    for (auto& h : v) {
+        seed = seed * 1664525u + 1013904223u;
+        h = base + float(seed >> 8) / float(1 << 24) * range;
+    }
+    return v;
+}
+
 std::vector<std::uint8_t> rgbOf(const std::vector<std::uint8_t>& rgba) {
     std::vector<std::uint8_t> rgb;
     rgb.reserve(rgba.size() / 4 * 3);

@@ -97,6 +97,12 @@ gl::GlContext* headlessContext();
 /// The whole file as bytes ("" when unreadable).
 std::string readBytes(const std::filesystem::path& p);
 
+/// XORs the byte at offset `at` of a file with `mask`, in place (a bit flip on disk).
+void flipByte(const std::filesystem::path& p, std::uint64_t at, std::uint8_t mask = 0x55);
+
+/// `n` heights, uniform noise in [base, base + range) from `seed`: Zstandard stores such tiles mostly as raw literals.
+std::vector<float> noiseHeights(std::size_t n, std::uint32_t seed, float base, float range);
+
 /// RGBA rows -> RGB rows.
 std::vector<std::uint8_t> rgbOf(const std::vector<std::uint8_t>& rgba);
 

@@ -125,15 +125,14 @@ Result<Stretch> cachedStretch(const std::string& key, const std::string& what, c
     auto computed = compute();
     if (!computed) return computed.error();
     const Stretch s = *computed;
+    const std::vector<float> low(s.low.begin(), s.low.begin() + s.channels), high(s.high.begin(), s.high.begin() + s.channels);
     nlohmann::json j = {{"key", key},
                         {"file", what},
                         {"percentiles", {kStretchLowPercent, kStretchHighPercent}},
                         {"channels", s.channels},
-                        {"low", std::vector<float>(s.low.begin(), s.low.begin() + s.channels)},
-                        {"high", std::vector<float>(s.high.begin(), s.high.begin() + s.channels)},
-                        {"digest", stretchDigest(key, s.channels,
-                                                 std::vector<float>(s.low.begin(), s.low.begin() + s.channels),
-                                                 std::vector<float>(s.high.begin(), s.high.begin() + s.channels))}};
+                        {"low", low},
+                        {"high", high},
+                        {"digest", stretchDigest(key, s.channels, low, high)}};
     std::error_code ec;
     std::filesystem::create_directories(cacheDir, ec);
     std::string err;

@@ -31,27 +31,21 @@ Status ZstdTileCheck::check(const std::filesystem::path& file, int x0, int y0, i
         m_files.erase(it);
         it = m_files.end();
     }
-    File* f = it == m_files.end() ? nullptr : &it->second;
-    if (f && !f->zstd) return Ok{};
-    if (f) { // all checked already?
-        x0 = std::max(x0, 0), y0 = std::max(y0, 0), x1 = std::min(x1, f->width), y1 = std::min(y1, f->height);
-        if (x1 <= x0 || y1 <= y0) return Ok{};
-        bool all = true;
-        for (int ty = y0 / f->tileHeight; all && ty <= (y1 - 1) / f->tileHeight; ++ty)
-            for (int tx = x0 / f->tileWidth; all && tx <= (x1 - 1) / f->tileWidth; ++tx) {
-                const size_t i = size_t(ty) * size_t(f->tilesAcross) + size_t(tx);
-                all = i < f->checked.size() && f->checked[i];
-            }
-        if (all) return Ok{};
-    }
-    std::string error;
-    TIFF* tif = tiff::open(file, "r", &error);
-    if (!tif) return fileError(file.string(), "cannot open (" + error + ")");
+    // The file is opened only when a tile of the rectangle has not been checked yet (or the file is new here).
+    TIFF* tif = nullptr;
     struct Close {
-        TIFF* t;
-        ~Close() { TIFFClose(t); }
+        TIFF*& t;
+        ~Close() {
+            if (t) TIFFClose(t);
+        }
     } closer{tif};
-    if (!f) {
+    std::string error;
+    const auto open = [&]() -> Status {
+        if (!tif && !(tif = tiff::open(file, "r", &error))) return fileError(file.string(), "cannot open (" + error + ")");
+        return Ok{};
+    };
+    if (it == m_files.end()) {
+        if (auto st = open(); !st) return st;
         File n;
         n.bytes = bytes;
         n.modified = modified;
@@ -69,19 +63,19 @@ Status ZstdTileCheck::check(const std::filesystem::path& file, int x0, int y0, i
             n.tilesAcross = int((width + tw - 1) / tw);
             n.checked.assign(size_t(TIFFNumberOfTiles(tif)), 0);
         }
-        f = &m_files.emplace(file.string(), std::move(n)).first->second;
-        if (!f->zstd) return Ok{};
-        x0 = std::max(x0, 0), y0 = std::max(y0, 0), x1 = std::min(x1, f->width), y1 = std::min(y1, f->height);
-        if (x1 <= x0 || y1 <= y0) return Ok{};
+        it = m_files.emplace(file.string(), std::move(n)).first;
     }
-    const tmsize_t tileBytes = TIFFTileSize(tif);
+    File& f = it->second;
+    if (!f.zstd) return Ok{};
+    x0 = std::max(x0, 0), y0 = std::max(y0, 0), x1 = std::min(x1, f.width), y1 = std::min(y1, f.height);
     Decoder& d = *m_decoder;
-    d.decoded.resize(size_t(std::max<tmsize_t>(tileBytes, 1)));
-    for (int ty = y0 / f->tileHeight; ty <= (y1 - 1) / f->tileHeight; ++ty)
-        for (int tx = x0 / f->tileWidth; tx <= (x1 - 1) / f->tileWidth; ++tx) {
-            const size_t i = size_t(ty) * size_t(f->tilesAcross) + size_t(tx);
-            if (i >= f->checked.size() || f->checked[i]) continue;
-            const auto tile = TIFFComputeTile(tif, std::uint32_t(tx * f->tileWidth), std::uint32_t(ty * f->tileHeight), 0, 0);
+    for (int ty = y0 / f.tileHeight; y1 > y0 && ty <= (y1 - 1) / f.tileHeight; ++ty)
+        for (int tx = x0 / f.tileWidth; x1 > x0 && tx <= (x1 - 1) / f.tileWidth; ++tx) {
+            const size_t i = size_t(ty) * size_t(f.tilesAcross) + size_t(tx);
+            if (i >= f.checked.size() || f.checked[i]) continue;
+            if (auto st = open(); !st) return st;
+            const tmsize_t tileBytes = TIFFTileSize(tif);
+            const auto tile = TIFFComputeTile(tif, std::uint32_t(tx * f.tileWidth), std::uint32_t(ty * f.tileHeight), 0, 0);
             const std::uint64_t size = TIFFGetStrileByteCount(tif, tile);
             const std::string where = "tile " + std::to_string(tile) + " (column " + std::to_string(tx) + ", row " +
                                       std::to_string(ty) + ")";
@@ -91,6 +85,7 @@ Status ZstdTileCheck::check(const std::filesystem::path& file, int x0, int y0, i
             d.compressed.resize(size_t(size));
             if (TIFFReadRawTile(tif, tile, d.compressed.data(), tmsize_t(size)) != tmsize_t(size))
                 return fileError(file.string(), where + " reads short");
+            d.decoded.resize(size_t(std::max<tmsize_t>(tileBytes, 1)));
             const size_t n = ZSTD_decompressDCtx(d.context.get(), d.decoded.data(), d.decoded.size(),
                                                  d.compressed.data(), d.compressed.size());
             if (ZSTD_isError(n))
@@ -98,7 +93,7 @@ Status ZstdTileCheck::check(const std::filesystem::path& file, int x0, int y0, i
             if (n != size_t(tileBytes))
                 return fileError(file.string(), where + " decodes to " + std::to_string(n) + " bytes, not " +
                                                     std::to_string(tileBytes));
-            f->checked[i] = 1;
+            f.checked[i] = 1;
         }
     return Ok{};
 }
