@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -45,6 +46,9 @@ struct FrameRow {
     std::int64_t elevationTexelsUploaded = 0, elevationResidentBytes = 0;
     int blocksMissing = 0;
     int canopyBlocksDerived = 0; // canopy view: blocks the segmentation rule ran on this frame
+    int canopyBlocksPending = 0; // canopy view: resident blocks waiting for a neighbour or the budget
+    int canopyBlocksUnread = 0;  // canopy view: resident blocks no canopy lookup read lately (not derived)
+    int canopyBlocksOnDemand = 0; // canopy view: of the blocks derived, those derived because a lookup read them
     int trunkSearches = 0;       // canopy view with trunks: 1 when the crown centres were searched this frame
     int runOrder = 0;            // the frame's place among all modes' measured frames as they ran (interleaved)
     double coverage = NAN;
@@ -58,6 +62,7 @@ struct Mode {
     float anisotropy = 8.0f;
     int canopyLayers = -1;        // -1: as --view says; 0: no canopy (leaf-on terrain); N: canopy view, N layers
     bool perFrameSegmentation = false; // the canopy layer re-derived every frame (the paper's per-frame evaluation)
+    std::optional<bool> canopyLevelsRead; // compare canopy-levels: derive only the blocks read (unset: --canopy-levels)
     bool terrainOnly = false;     // scene=terrain: the relief alone (geometry, no imagery, no canopy)
     std::optional<CanopyDrawMode> canopyDraw; // canopy-draw=...: this mode's way of drawing the layers
     std::optional<city::CityMode> cityMode; // the city model drawn after the terrain (nullopt: none)
@@ -215,6 +220,9 @@ Status applyCompareValue(const BenchSettings& a, const std::string& key, const s
         if (v != "upload" && v != "perframe")
             return Error{"--compare: segmentation '" + v + "' (expected upload|perframe)"};
         m.perFrameSegmentation = v == "perframe";
+    } else if (key == "canopy-levels") {
+        if (v != "read" && v != "all") return Error{"--compare: canopy-levels '" + v + "' (expected all|read)"};
+        m.canopyLevelsRead = v == "read";
     } else if (v == "reference") {
         m.renderer = RendererKind::Reference;
     } else if (v != "clipmap") {
@@ -283,12 +291,13 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     const size_t eq = a.compare.find('=');
     const std::string key = a.compare.substr(0, eq);
     if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso" && key != "canopy" &&
-                                    key != "canopy-draw" && key != "segmentation" && key != "scene" && key != "city" &&
+                                    key != "canopy-draw" && key != "segmentation" && key != "canopy-levels" && key != "scene" &&
+                                    key != "city" &&
                                     key != "city-upload" && key != "city-occlusion" && key != "terrain" &&
                                     key != "terrain-shading"))
         return Error{"--compare '" + a.compare +
                      "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
-                     "canopy-draw=layers,march, segmentation=upload,perframe, scene=terrain,full or "
+                     "canopy-draw=layers,march, segmentation=upload,perframe, canopy-levels=all,read, scene=terrain,full or "
                      "city=atlas,original,flat,off, city-upload=compressed,decoded,auto, city-occlusion=off,on, "
                      "terrain=on,off or terrain-shading=forward,deferred"};
     std::stringstream list(a.compare.substr(eq + 1));
@@ -326,7 +335,7 @@ public:
     // Every mode's renderers (reference, or clipmaps, terrain, canopy and trunks), then the city's.
     Status createRenderers(const std::vector<ImagePyramid>& pyramids, const std::optional<ImagePyramid>& elevation);
     // The warm-up at the path's start, a fully loaded view, then the measured frames; a damaged cache tile stops it.
-    Status run(const CameraPath& path);
+    Status run(const CameraPath& path, const std::filesystem::path& out);
     double seconds() const { return m_seconds; }
 
 private:
@@ -421,6 +430,7 @@ Status BenchRun::createCanopy(Mode& m, const std::vector<ImagePyramid>& pyramids
     CanopyOptions opt;
     opt.params = m_canopy.params;
     opt.layers = std::max(1, layers);
+    opt.onDemand = m.canopyLevelsRead.value_or(m_canopy.levelsRead);
     auto cc = CanopyClipmapGL::create(*m.clipmap, statsFromHistograms(*hist, opt.params.method), opt);
     if (!cc) return cc.error();
     m.canopy = std::move(*cc);
@@ -432,6 +442,7 @@ Status BenchRun::createCanopy(Mode& m, const std::vector<ImagePyramid>& pyramids
         auto tr = TrunksGL::create(m_scene, *m.clipmap, *m.canopy);
         if (!tr) return tr.error();
         m.trunks = std::move(*tr);
+        m.canopy->keepLevelsFrom(m.trunks->level()); // the crown search reads its level whole
     }
     return Ok{};
 }
@@ -468,7 +479,16 @@ void BenchRun::checkDamage(Mode& m) {
     else if (m.city) m_damaged = m.city->readError();
 }
 
-Status BenchRun::run(const CameraPath& path) {
+// The last measured frame of each mode, as drawn: `last_frame_<mode>.png` (characters other than letters, digits,
+// '.', '-' and '_' in the mode's label as '_'), so a run's pictures can be looked at and compared.
+std::filesystem::path lastFrameFile(const std::filesystem::path& out, const std::string& label) {
+    std::string name = label;
+    for (char& c : name)
+        if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '-' && c != '_') c = '_';
+    return out / ("last_frame_" + name + ".png");
+}
+
+Status BenchRun::run(const CameraPath& path, const std::filesystem::path& out) {
     const auto terrain = [&](double x, double y) { return m_scene.terrainHeight(x, y); };
     const auto start = Clock::now();
     for (int i = 0; i < m_a.warmup; ++i)
@@ -488,7 +508,11 @@ Status BenchRun::run(const CameraPath& path) {
     if (!m_damaged.empty()) return Error{m_damaged};
     for (int f = 0; f < m_a.frames; ++f) {
         const Camera cam = path.at(double(f) / double(m_a.frames - 1), terrain);
-        for (Mode& m : m_modes) frame(m, cam, f, true); // interleaved: every mode sees the same load
+        for (Mode& m : m_modes) {
+            frame(m, cam, f, true); // interleaved: every mode sees the same load
+            if (f + 1 == m_a.frames && m_damaged.empty())
+                if (auto st = writeRgb(m_target, lastFrameFile(out, m.label)); !st) return st;
+        }
         if (!m_damaged.empty()) return Error{m_damaged};
     }
     m_seconds = ms(Clock::now() - start) / 1000.0;
@@ -543,6 +567,9 @@ void BenchRun::stream(Mode& m, const Camera& cam, FrameRow& row, ClipmapFrameSta
         // Upload-time derivation: only blocks newly resident; per-frame: everything resident, every frame.
         const CanopyFrameStats derived = m.perFrameSegmentation ? m.canopy->rederiveAll() : m.canopy->update();
         row.canopyBlocksDerived = derived.blocksDerived;
+        row.canopyBlocksPending = derived.blocksPending;
+        row.canopyBlocksUnread = derived.blocksUnread;
+        row.canopyBlocksOnDemand = derived.blocksOnDemand;
         // Crown centres of the trunks: searched again when the searched level's derived blocks changed.
         if (m.trunks) row.trunkSearches = m.trunks->update() ? 1 : 0;
     }
@@ -611,13 +638,14 @@ Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>
            "city_texture_binds,city_draw_calls,city_triangles,city_blocks_resident,city_resident_bytes,"
            "city_loader_queue,city_coarser_than_wanted,heap_in_use_bytes,heap_mapped_bytes,canopy_blocks_derived,"
            "trunk_searches,city_cpu_ms,city_occluded_nodes,city_occlusion_queries,city_occlusion_waits,"
-           "elevation_texels_uploaded,elevation_resident_bytes,run_order,city_allocated_bytes,city_evicted_blocks\n";
+           "elevation_texels_uploaded,elevation_resident_bytes,run_order,city_allocated_bytes,city_evicted_blocks,"
+           "canopy_blocks_pending,canopy_blocks_unread,canopy_blocks_on_demand\n";
     for (const Mode& m : modes)
         for (const FrameRow& r : m.rows) {
             char line[512];
             std::snprintf(line, sizeof line,
                           "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s,"
-                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f,%d,%d,%d,%lld,%lld,%d,%llu,%zu\n",
+                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f,%d,%d,%d,%lld,%lld,%d,%llu,%zu,%d,%d,%d\n",
                           m.label.c_str(), r.frame, r.camera.position.x, r.camera.position.y, r.camera.position.z,
                           r.camera.yawDeg, r.camera.pitchDeg, r.cpuMs, r.gpuMs, r.frameMs, r.drawCalls,
                           (long long)r.triangles, (long long)r.texelsUploaded, (long long)r.exposedTexels,
@@ -629,7 +657,8 @@ Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>
                           r.canopyBlocksDerived, r.trunkSearches, r.cityCpuMs, r.city.occludedNodes,
                           r.city.occlusionQueries, r.city.occlusionWaits, (long long)r.elevationTexelsUploaded,
                           (long long)r.elevationResidentBytes, r.runOrder,
-                          (unsigned long long)r.city.allocatedBytes, r.city.evictedBlocks);
+                          (unsigned long long)r.city.allocatedBytes, r.city.evictedBlocks, r.canopyBlocksPending,
+                          r.canopyBlocksUnread, r.canopyBlocksOnDemand);
             csv << line;
         }
     std::string err;
@@ -837,7 +866,7 @@ Result<BenchResult> runBench(const Scene& scene, const BenchSettings& a, const s
     const int glErrors = gl::debugErrorCount();
     BenchRun run(scene, a, *modes, *canopy, *view, cache);
     if (auto st = run.createRenderers(pyramids, elevation); !st) return st.error();
-    if (auto st = run.run(*path); !st) return st.error(); // a damaged tile: the command rebuilds and runs again
+    if (auto st = run.run(*path, out); !st) return st.error(); // a damaged tile: the command rebuilds and runs again
     if (const std::string e = gl::drainErrors(); !e.empty() || gl::debugErrorCount() != glErrors)
         return Error{"OpenGL error during the benchmark " + e};
 

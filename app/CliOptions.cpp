@@ -261,6 +261,12 @@ Status parseTrunksArg(const std::string& value, CanopyRenderSettings& settings) 
     return Ok{};
 }
 
+Status parseCanopyLevelsArg(const std::string& value, CanopyRenderSettings& settings) {
+    if (value != "read" && value != "all") return Error{"--canopy-levels '" + value + "': expected read|all"};
+    settings.levelsRead = value == "read";
+    return Ok{};
+}
+
 Status parseCanopyDrawArg(const std::string& value, CanopyRenderSettings& settings) {
     if (value != "layers" && value != "march") return Error{"--canopy-draw '" + value + "': expected layers|march"};
     settings.draw = value == "layers" ? CanopyDrawMode::Layers : CanopyDrawMode::March;
@@ -299,6 +305,12 @@ void CanopyArgs::addTo(CLI::App& cmd) {
                    "canopy view: how the stacked layers are drawn: march (the top layer rasterised, each pixel's ray "
                    "intersected with the layers below) or layers (every layer rasterised, §4.2 as written); layers|march")
         ->capture_default_str();
+    cmd.add_option("--canopy-levels", levels,
+                   "canopy view (view, bench): which blocks of the canopy layer are derived as they arrive: read (on "
+                   "levels finer than the trunks' search level, only those the view's canopy lookups have read; a "
+                   "lookup falls back to the next coarser level until its block is derived) or all; stills derive "
+                   "everything; read|all")
+        ->capture_default_str();
     cmd.add_option("--ground-under-canopy", groundUnder,
                    "canopy view: season of the ground under the crowns (seen where layers are off), leafon|leafoff")
         ->capture_default_str();
@@ -313,6 +325,7 @@ Result<CanopyRenderSettings> CanopyArgs::settings() const {
     if (!c) return c.error();
     if (auto st = parseTrunksArg(trunks, *c); !st) return st.error();
     if (auto st = parseCanopyDrawArg(draw, *c); !st) return st.error();
+    if (auto st = parseCanopyLevelsArg(levels, *c); !st) return st.error();
     return c;
 }
 

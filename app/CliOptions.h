@@ -96,6 +96,7 @@ struct CanopyRenderSettings {
     bool trunks = true;         // trunks under the crowns (foliage/TrunksGL.h), the layers lifted to the crowns' base
     double crownBaseFraction = 0.35; // with trunks: the crowns' base, fraction of the tree height
     CanopyDrawMode draw = CanopyDrawMode::March; // how the layers are drawn (CanopyRendererGL.h)
+    bool levelsRead = true;     // derive only the canopy blocks the view's lookups read (CanopyOptions::onDemand)
 };
 
 /// --canopy-layers N|off, --method M, --k K -> canopy settings; errors name the flag.
@@ -104,12 +105,14 @@ Result<CanopyRenderSettings> parseCanopyArgs(const std::string& layers, const st
 Status parseTrunksArg(const std::string& value, CanopyRenderSettings& settings);
 /// --canopy-draw layers|march -> settings.draw; errors name the flag.
 Status parseCanopyDrawArg(const std::string& value, CanopyRenderSettings& settings);
+/// --canopy-levels read|all -> settings.levelsRead; errors name the flag.
+Status parseCanopyLevelsArg(const std::string& value, CanopyRenderSettings& settings);
 /// --ground-under-canopy / --ground-elsewhere S (leafon|leafoff) -> the canopy view's ground seasons in `imagery`.
 Status parseCanopyGround(const std::string& under, const std::string& elsewhere, ImagerySettings& imagery);
 
 /// Canopy view: the segmentation rule of the derived layer, the stacked layers, trunks, the ground's seasons.
 struct CanopyArgs {
-    std::string layers = "16", method = "default", trunks = "on", draw = "march";
+    std::string layers = "16", method = "default", trunks = "on", draw = "march", levels = "read";
     std::string groundUnder = "leafoff", groundElsewhere = "leafon";
     int k = kSegDefaultK;
     void addTo(CLI::App& cmd);

@@ -24,6 +24,7 @@ Status LiveScene::ensureCanopy(const ViewerSettings& s) {
     CanopyOptions co;
     co.params = s.params;
     co.layers = layers;
+    co.onDemand = s.canopyLevelsRead;
     auto c = CanopyClipmapGL::create(*clip, statsFromHistograms(*histograms, co.params.method), co);
     if (!c) return c.error();
     canopy = std::move(*c);
@@ -37,6 +38,7 @@ Status LiveScene::ensureCanopy(const ViewerSettings& s) {
         auto t = TrunksGL::create(*scene, *clip, *canopy);
         if (!t) return t.error();
         trunks = std::move(*t);
+        canopy->keepLevelsFrom(trunks->level()); // the crown search reads its level whole
     }
     canopyParams = s.params;
     canopyLayers = layers;

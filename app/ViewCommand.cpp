@@ -65,6 +65,7 @@ Result<ViewerSettings> viewerSettings(const ViewArgs& a) {
     s.params = canopy->params;
     s.trunks = canopy->trunks;
     s.marchLayers = canopy->draw == CanopyDrawMode::March;
+    s.canopyLevelsRead = canopy->levelsRead;
     auto centers = a.clipmap.placement();
     if (!centers) return centers.error();
     s.centers = *centers;

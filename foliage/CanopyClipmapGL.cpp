@@ -93,6 +93,18 @@ Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL
     c->m_maxMapped = static_cast<const std::uint8_t*>(
         glMapNamedBufferRange(c->m_maxReadback.id(), 0, GLsizeiptr(bytes), mapFlags));
     if (!c->m_maxMapped) return Error{"canopy layer: cannot map the cell maxima's readback buffer"};
+    // (At least one entry: a scene small enough for no toroidal level records nothing.)
+    const std::vector<std::int32_t> noReads(std::max<size_t>(1, size_t(clipLevels) * size_t(c->m_slotCount)),
+                                            ClipmapSchedule::kEmptyTag);
+    c->m_reads = gl::Buffer::create();
+    glNamedBufferStorage(c->m_reads.id(), GLsizeiptr(noReads.size() * 4), noReads.data(), GL_DYNAMIC_STORAGE_BIT);
+    c->m_readsReadback = gl::Buffer::create();
+    glNamedBufferStorage(c->m_readsReadback.id(), GLsizeiptr(noReads.size() * 4), nullptr, mapFlags);
+    c->m_readsMapped = static_cast<const std::int32_t*>(
+        glMapNamedBufferRange(c->m_readsReadback.id(), 0, GLsizeiptr(noReads.size() * 4), mapFlags));
+    if (!c->m_readsMapped) return Error{"canopy layer: cannot map the read blocks' readback buffer"};
+    c->m_readTag.assign(size_t(clipLevels), std::vector<std::int32_t>(size_t(c->m_slotCount), ClipmapSchedule::kEmptyTag));
+    c->m_readFrame.assign(size_t(clipLevels), std::vector<std::int64_t>(size_t(c->m_slotCount), 0));
     c->m_maxKnown.assign(entries, -1);
     c->m_cellMax.assign(bytes, 0);
     c->m_maxGeneration.assign(entries, 0);
@@ -133,6 +145,62 @@ bool CanopyClipmapGL::derivable(int level, int bx, int by) const {
 CanopyClipmapGL::~CanopyClipmapGL() {
     if (m_maxFence) glDeleteSync(m_maxFence);
     if (m_maxMapped) glUnmapNamedBuffer(m_maxReadback.id());
+    if (m_readsFence) glDeleteSync(m_readsFence);
+    if (m_readsMapped) glUnmapNamedBuffer(m_readsReadback.id());
+}
+
+void CanopyClipmapGL::collectReads() {
+    ++m_frame;
+    const size_t levels = m_readTag.size(), slots = size_t(m_slotCount);
+    if (m_readsFence) {
+        const GLenum r = glClientWaitSync(m_readsFence, 0, 0);
+        if (r == GL_ALREADY_SIGNALED || r == GL_CONDITION_SATISFIED) {
+            glDeleteSync(m_readsFence);
+            m_readsFence = nullptr;
+            for (size_t l = 0; l < levels; ++l)
+                for (size_t i = 0; i < slots; ++i) {
+                    const std::int32_t tag = m_readsMapped[l * slots + i];
+                    if (tag == ClipmapSchedule::kEmptyTag) continue;
+                    m_readTag[l][i] = tag;
+                    m_readFrame[l][i] = m_frame;
+                }
+            m_readsBack = true;
+        }
+    }
+    if (!m_readsFence && levels > 0) {
+        // The buffer holds what the frames since the last copy read (update() runs before a frame's draws).
+        glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT);
+        glCopyNamedBufferSubData(m_reads.id(), m_readsReadback.id(), 0, 0, GLsizeiptr(levels * slots * 4));
+        m_readsFence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+        const GLint empty = ClipmapSchedule::kEmptyTag;
+        glClearNamedBufferData(m_reads.id(), GL_R32I, GL_RED_INTEGER, GL_INT, &empty);
+    }
+}
+
+void CanopyClipmapGL::noteRead(int level, glm::dvec2 lo, glm::dvec2 hi) const {
+    const ClipmapSchedule& s = m_source.schedule();
+    const ClipmapLayout& L = s.layout();
+    const int slots = s.slotsPerSide();
+    for (int l = std::max(level, 0); l < std::min(L.clipLevels(), m_keepFrom); ++l) {
+        const double texel = std::ldexp(1.0, l);
+        const glm::ivec2 size = L.levelSizes[size_t(l)];
+        const glm::ivec2 t0 = glm::clamp(glm::ivec2(glm::floor(lo / texel)), glm::ivec2(0), size - 1);
+        const glm::ivec2 t1 = glm::clamp(glm::ivec2(glm::floor(hi / texel)), glm::ivec2(0), size - 1);
+        const glm::ivec2 b0 = t0 / L.block, b1 = t1 / L.block;
+        if ((b1.x - b0.x + 1) * (b1.y - b0.y + 1) > slots * slots) continue; // wider than the level's window
+        for (int by = b0.y; by <= b1.y; ++by)
+            for (int bx = b0.x; bx <= b1.x; ++bx) {
+                const size_t slot = size_t(wrapTexel(by, slots)) * size_t(slots) + size_t(wrapTexel(bx, slots));
+                m_readTag[size_t(l)][slot] = blockTag(bx, by);
+                m_readFrame[size_t(l)][slot] = m_frame;
+            }
+    }
+}
+
+bool CanopyClipmapGL::wanted(int level, size_t slot, std::int32_t tag) const {
+    if (level >= m_keepFrom) return true;
+    return m_readTag[size_t(level)][slot] == tag &&
+           m_frame - m_readFrame[size_t(level)][slot] <= std::int64_t(std::max(m_options.readWindow, 1));
 }
 
 void CanopyClipmapGL::collectMaxima(bool wait) {
@@ -255,7 +323,7 @@ void CanopyClipmapGL::derive(int level, bool coarse, const std::vector<glm::ivec
     m_totalDerived += std::int64_t(blocks.size());
 }
 
-CanopyFrameStats CanopyClipmapGL::run(int budget, bool everything) {
+CanopyFrameStats CanopyClipmapGL::run(int budget, bool everything, bool onDemand) {
     CanopyFrameStats st;
     const ClipmapSchedule& s = m_source.schedule();
     const ClipmapLayout& L = s.layout();
@@ -272,6 +340,10 @@ CanopyFrameStats CanopyClipmapGL::run(int budget, bool everything) {
                 const size_t slot = size_t(wrapTexel(by, slots)) * size_t(slots) + size_t(wrapTexel(bx, slots));
                 if (!everything && m_tags[size_t(level)][slot] == blockTag(bx, by)) continue;
                 if (s.slotTags(level)[slot] != blockTag(bx, by)) continue; // not uploaded yet
+                if (onDemand && !wanted(level, slot, blockTag(bx, by))) { // no lookup reads it: wait until one does
+                    ++st.blocksUnread;
+                    continue;
+                }
                 if (!derivable(level, bx, by) || (!everything && st.blocksDerived + int(todo.size()) >= budget)) {
                     ++st.blocksPending;
                     continue;
@@ -286,6 +358,7 @@ CanopyFrameStats CanopyClipmapGL::run(int budget, bool everything) {
         glTextureSubImage3D(m_tagTexture.id(), 0, 0, 0, level, slots, slots, 1, GL_RED_INTEGER, GL_INT,
                             m_tags[size_t(level)].data());
         st.blocksDerived += int(todo.size());
+        if (onDemand && level < m_keepFrom) st.blocksOnDemand += int(todo.size());
     }
     if (everything) {
         const glm::ivec2 coarse = L.levelSizes[size_t(L.clipLevels())];
@@ -299,7 +372,8 @@ CanopyFrameStats CanopyClipmapGL::run(int budget, bool everything) {
 }
 
 CanopyFrameStats CanopyClipmapGL::update() {
-    const CanopyFrameStats st = run(m_options.blocksPerFrame, false);
+    collectReads();
+    const CanopyFrameStats st = run(m_options.blocksPerFrame, false, m_options.onDemand && m_readsBack);
     collectMaxima(false);
     return st;
 }
@@ -324,6 +398,7 @@ void CanopyClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit) cons
     program.set("uCanopyCoarse", firstUnit + 1);
     program.set("uCanopyTags", firstUnit + 2);
     program.set("uCanopyLayers", m_options.layers);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kCanopyReadsBinding, m_reads.id());
 }
 
 std::vector<std::uint8_t> CanopyClipmapGL::readClipLevel(int level) const {

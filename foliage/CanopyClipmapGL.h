@@ -24,12 +24,22 @@ struct CanopyOptions {
     int layers = 16;             // N stacked layers (1..32)
     int topK = 0;                // k of the top layer (odd, <= kSegMaxK); 0 = min(kSegMaxK, 3 k)
     int blocksPerFrame = 256;    // derivation budget per update()
+    // update() derives the blocks of levels finer than keepLevelsFrom() only where canopy lookups read them: the
+    // canopy view's shaders record, for a sample of pixels, the block each lookup starts at and the blocks under it
+    // on every coarser level (read back without waiting); a block none read in the last readWindow frames waits
+    // (a lookup falls back to the next coarser level meanwhile, as for any block not derived yet). Until the first
+    // record is back every block is derived. false: every block.
+    bool onDemand = true;
+    int readWindow = 30;
 };
 
 struct CanopyFrameStats {
     int blocksDerived = 0;
     int blocksPending = 0;       // resident in both seasons but waiting for a neighbour or the budget
+    int blocksUnread = 0;        // onDemand: resident, but no lookup read them lately: not derived
+    int blocksOnDemand = 0;      // onDemand: of blocksDerived, those on levels finer than keepLevelsFrom() (read)
 };
+
 
 class CanopyClipmapGL : public CanopySource {
 public:
@@ -46,8 +56,19 @@ public:
     /// Re-derives everything resident (the per-frame mode: what evaluating the rule every frame costs).
     CanopyFrameStats rederiveAll();
 
+    /// Levels from `level` up are derived whether read or not (onDemand): a pass that reads a whole level (the
+    /// trunks' crown search, TrunksGL::level()) and the coarser ones.
+    void keepLevelsFrom(int level) { m_keepFrom = level; }
+
+    /// Records that lookups at `level` read the level-0 pixel box [lo, hi] (onDemand): the blocks under it on this
+    /// and every coarser clip level, as the shaders' record does for theirs. For passes whose depth test must stay
+    /// early, where a fragment shader that writes a buffer would make it late (the rasterised canopy layers: their
+    /// level and box are known per patch on the CPU).
+    void noteRead(int level, glm::dvec2 lo, glm::dvec2 hi) const;
+
     /// Binds uCanopyClip (usampler2DArray), uCanopyCoarse (usampler2D) and uCanopyTags (isampler2DArray) to units
-    /// firstUnit .. firstUnit + 2 and sets uCanopyLayers (common_canopy.glsl).
+    /// firstUnit .. firstUnit + 2, sets uCanopyLayers (common_canopy.glsl) and binds the record of the levels read
+    /// (kCanopyReadsBinding).
     void bind(const gl::ShaderProgram& program, int firstUnit) const override;
 
     const CanopyOptions& options() const { return m_options; }
@@ -83,7 +104,23 @@ private:
     bool derivable(int level, int bx, int by) const;
     // Runs the compute shader over `blocks` of `level` (coarse: the coarse base).
     void derive(int level, bool coarse, const std::vector<glm::ivec2>& blocks);
-    CanopyFrameStats run(int budget, bool everything);
+    CanopyFrameStats run(int budget, bool everything, bool onDemand = false);
+    // The blocks read (onDemand): takes the record copied after an earlier frame when its fence has signalled, then
+    // copies the last frame's and clears it for the next.
+    void collectReads();
+    // Whether a lookup read block `tag` of `level` (in `slot`) lately, or the level is kept whole.
+    bool wanted(int level, size_t slot, std::int32_t tag) const;
+    // The record (shaders/common_view.glsl, canopyNoteRead): per clip level, per slot, the block read there.
+    gl::Buffer m_reads, m_readsReadback;
+    const std::int32_t* m_readsMapped = nullptr;
+    GLsync m_readsFence = nullptr;
+    // Per clip level, per slot: the block last read there, and the frame its record came back (noteRead() records
+    // from const draws).
+    mutable std::vector<std::vector<std::int32_t>> m_readTag;
+    mutable std::vector<std::vector<std::int64_t>> m_readFrame;
+    std::int64_t m_frame = 0;
+    bool m_readsBack = false; // a record has come back
+    int m_keepFrom = 1 << 20;
 
     const ClipmapGL& m_source;
     CanopyOptions m_options;

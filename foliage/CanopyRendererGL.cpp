@@ -161,6 +161,9 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
                 marchReach = descent > 1e-6 ? std::min(stackHeight / descent / texelMetres * 1.25, 1e6) : 1e6;
             }
             top = canopy.maxValueOver(pmin - reach - marchReach, pmax + reach + marchReach, levels.x, levels.y) - 1;
+            // The rasterised layers read levels.x over the box: recorded here, as their shader records nothing (a
+            // fragment shader writing a buffer loses the early depth test the layers drawn top first rely on).
+            if (!march) canopy.noteRead(levels.x, pmin - reach, pmax + reach);
         }
         if (top < first) return;
         const int packed = levels.x | (std::min(levels.y, 255) << 8);

@@ -31,6 +31,21 @@ uniform float uSwipeX;   // pixels
 uniform vec3 uLevelColors[8];
 uniform vec3 uNoDataColour; // where neither season has data (imagery/clipmap texels are premultiplied RGBA)
 
+// The canopy blocks read (foliage/CanopyClipmapGL.h, CanopyOptions::onDemand): a canopy lookup at level-0 position p
+// starting at `level` records the block it starts at and the blocks under p on every coarser clip level (those it
+// falls back to), per level and slot (the block's tag); update() derives the blocks read. Every pixel records: one in
+// 4 × 4 missed blocks that show in a few pixels only, which then stayed at a coarser level.
+layout(std430, binding = 3) buffer CanopyReads { int canopyReads[]; };
+void canopyNoteRead(vec2 p, int level) {
+    for (int l = max(level, 0); l < uClipLevels; ++l) {
+        float s = exp2(float(l));
+        ivec2 q = clamp(ivec2(floor(p / s)), ivec2(0), ivec2(ceil(uLevel0Size / s)) - 1);
+        ivec2 b = clipBlockOf(q);
+        ivec2 slot = clipSlotOf(b);
+        canopyReads[(l * uSlotsPerSide + slot.y) * uSlotsPerSide + slot.x] = b.x | (b.y << 16);
+    }
+}
+
 // Season s (0 leaf-on, 1 leaf-off) where it has data, the other season where it has none, then uNoDataColour: never
 // black. The other season is fetched only where s lacks data.
 vec3 seasonColour(int s, vec2 p, ClipFootprint f, out int used) {
@@ -71,7 +86,9 @@ vec3 viewColour(vec2 p, ClipFootprint f, vec3 n, int level, out int used) {
     } else if (uView == 8) {
         // The ground of the canopy view: leaf-off under the crowns (the trees stand on it as layers), leaf-on
         // elsewhere; both configurable.
-        bool under = uHasCanopy != 0 && canopyAt(p, int(floor(max(f.lambdaIso, 0.0)))) > 0;
+        int canopyLevel = int(floor(max(f.lambdaIso, 0.0)));
+        if (uHasCanopy != 0) canopyNoteRead(p, canopyLevel);
+        bool under = uHasCanopy != 0 && canopyAt(p, canopyLevel) > 0;
         // One seasonColour call: the season is per-pixel data here, a layer index into the one array both seasons
         // share (common_clipmap.glsl), so only the season shown is sampled.
         bool base = under && uCanopyBase > 0.0;

@@ -53,6 +53,7 @@ void main() {
         // Level and footprint from this pixel's own position (uniform control flow), used at the hit.
         ClipFootprint fm = clipmapFootprint(p);
         int canopyLevel = vCanopyLevels.x;
+        canopyNoteRead(p, canopyLevel); // this pass writes gl_FragDepth: its depth test is late anyway
         vec3 dir = vLocal - uEye;
         vec3 n = normalize(vNormal);
         vec2 grad = n.z > 0.2 ? -n.xy / n.z : vec2(0.0); // terrain slope, metres per metre

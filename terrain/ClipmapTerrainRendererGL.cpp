@@ -60,6 +60,8 @@ Result<std::unique_ptr<ClipmapTerrainRendererGL>> ClipmapTerrainRendererGL::crea
     auto g = GeometryClipmapGL::create(scene, elevationGrid(scene), elevation, options);
     if (!g) return g.error();
     r->m_geometry = std::move(*g);
+    r->m_noCanopyReads = gl::Buffer::create();
+    glNamedBufferStorage(r->m_noCanopyReads.id(), 16, nullptr, 0); // the shaders write it only with a canopy
     r->m_layoutDefines = clipmap.layoutDefines("CLIP_");
     for (const std::string& d : r->m_geometry->layoutDefines()) r->m_layoutDefines.push_back(d);
     // The leaf-on view's programs now (a shader that does not compile fails here), the others when first drawn.
@@ -146,6 +148,8 @@ void ClipmapTerrainRendererGL::bindTerrain(const gl::ShaderProgram& program, con
         program.set("uCanopyClip", kCanopyUnit);
         program.set("uCanopyCoarse", kCanopyUnit + 1);
         program.set("uCanopyTags", kCanopyUnit + 2);
+        // The canopy view's record of the levels read (common_view.glsl) goes to a buffer nothing reads.
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kCanopyReadsBinding, m_noCanopyReads.id());
     }
     program.set("uHasCanopy", m_canopy ? 1 : 0);
 }

@@ -67,6 +67,9 @@ public:
 /// Texture units of the terrain passes: imagery clipmap 0.., elevation and lookup 8..12, canopy 13..15, G-buffer
 /// 16..17.
 inline constexpr int kCanopyUnit = 13;
+/// The SSBO binding of the canopy view's record of the canopy blocks its lookups read (shaders/common_view.glsl,
+/// canopyNoteRead; foliage/CanopyClipmapGL.h reads it back).
+inline constexpr int kCanopyReadsBinding = 3;
 inline constexpr int kGBufferUnit = 16; // the deferred resolve's G-buffer: 16 and 17
 inline constexpr float kMaxAnisotropy = 16.0f;
 
@@ -148,6 +151,7 @@ private:
     mutable glm::ivec2 m_gbufferSize{0};
     mutable GLuint m_gbufferDepth = 0;
     mutable gl::VertexArray m_emptyVao;
+    gl::Buffer m_noCanopyReads; // bound for common_view.glsl's record of canopy levels read when there is no canopy
 };
 
 } // namespace seasonview

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cstdlib>
 #include <array>
 #include <fstream>
 #include <tuple>
@@ -192,6 +193,108 @@ TEST(BenchCli, CanopyCompareAddsLayersAndTrunks) {
                                   "--out", (dir / "bad").string()});
     EXPECT_EQ(bad.exitCode, 1);
     EXPECT_NE(bad.err.find("scene 'city' (expected terrain|full)"), std::string::npos) << bad.err;
+}
+
+// canopy-levels=all,read: with `read` (the default) the canopy layer derives a block of a level finer than the
+// trunks' (level 1 at 0.25 m, kept whole for their crown search) only once a canopy lookup has read it (the record
+// comes back from the GPU a frame or two later). High over the scene no lookup reads level 0, so its blocks arriving
+// as the windows move wait underived (canopy_blocks_unread) and none is derived on demand; `all` derives them. Low
+// over the ground the nearest lookups read level 0 and those blocks are derived (canopy_blocks_on_demand). Once the
+// camera has stood still a while both draw the same picture (last_frame_*.png).
+TEST(BenchCli, CanopyLevelsReadDeriveOnlyTheBlocksTheViewReads) {
+    TempDir dir("bench-canopy-levels");
+    const CliResult s = runCli({"synth", "--out", (dir / "scene").string(), "--size-m", "256", "--gsd", "0.25"});
+    ASSERT_EQ(s.exitCode, 0) << s.err;
+    struct Row {
+        std::int64_t derived = 0, unread = 0, onDemand = 0;
+    };
+    auto run = [&](const std::string& name, const std::string& keys, int frames, std::vector<std::string> extra = {}) {
+        const std::filesystem::path path = dir / (name + ".json");
+        std::ofstream(path) << keys;
+        const std::string out = (dir / ("out-" + name)).string();
+        std::vector<std::string> args = {"bench", (dir / "scene/scene.json").string(), "--path", path.string(),
+                                         "--frames", std::to_string(frames), "--warmup", "2", "--size", "160x90",
+                                         "--clip-size", "256", "--view", "canopy", "--compare",
+                                         "canopy-levels=all,read", "--coverage-every", "0", "--cache",
+                                         (dir / "cache").string(), "--out", out};
+        args.insert(args.end(), extra.begin(), extra.end());
+        const CliResult r = runCli(args);
+        EXPECT_EQ(r.exitCode, 0) << r.err;
+        std::map<std::string, std::vector<Row>> rows;
+        std::ifstream csv(out + "/frames.csv");
+        std::string header;
+        std::getline(csv, header);
+        std::vector<std::string> names;
+        std::stringstream h(header);
+        for (std::string c; std::getline(h, c, ',');) names.push_back(c);
+        auto column = [&](const std::string& n) { return size_t(std::find(names.begin(), names.end(), n) - names.begin()); };
+        const size_t derived = column("canopy_blocks_derived"), unread = column("canopy_blocks_unread"),
+                     onDemand = column("canopy_blocks_on_demand");
+        EXPECT_LT(onDemand, names.size());
+        for (std::string line; std::getline(csv, line);) {
+            std::vector<std::string> cells;
+            std::stringstream l(line);
+            for (std::string c; std::getline(l, c, ',');) cells.push_back(c);
+            if (cells.size() != names.size()) {
+                ADD_FAILURE() << line;
+                continue;
+            }
+            rows[cells[0]].push_back({std::stoll(cells[derived]), std::stoll(cells[unread]), std::stoll(cells[onDemand])});
+        }
+        return rows;
+    };
+    auto sum = [](const std::vector<Row>& rows, std::int64_t Row::*field) {
+        std::int64_t n = 0;
+        for (const Row& r : rows) n += r.*field;
+        return n;
+    };
+    // 300 m over the scene, straight down, crossing it: level 0's 64-m window moves ~20 m a frame.
+    auto high = run("high", R"([{"time": 0, "x": -80, "y": -80, "z": "+300", "yaw": 45, "pitch": -89},
+                                {"time": 1, "x": 80, "y": 80, "z": "+300", "yaw": 45, "pitch": -89}])", 10);
+    ASSERT_EQ(high["canopy-levels=all"].size(), 10u);
+    ASSERT_EQ(high["canopy-levels=read"].size(), 10u);
+    EXPECT_EQ(sum(high["canopy-levels=all"], &Row::unread), 0);
+    EXPECT_EQ(sum(high["canopy-levels=all"], &Row::onDemand), 0);
+    EXPECT_GT(sum(high["canopy-levels=read"], &Row::unread), 0);
+    EXPECT_EQ(sum(high["canopy-levels=read"], &Row::onDemand), 0);
+    EXPECT_LT(sum(high["canopy-levels=read"], &Row::derived), sum(high["canopy-levels=all"], &Row::derived));
+    // 3 m over the ground looking ahead, moving, then standing still.
+    auto low = run("low", R"([{"time": 0, "x": -60, "y": -60, "z": "+3", "yaw": 45, "pitch": -20},
+                               {"time": 1, "x": -30, "y": -30, "z": "+3", "yaw": 45, "pitch": -20},
+                               {"time": 3, "x": -30, "y": -30, "z": "+3", "yaw": 45, "pitch": -20}])", 24);
+    ASSERT_EQ(low["canopy-levels=read"].size(), 24u);
+    EXPECT_GT(sum(low["canopy-levels=read"], &Row::onDemand), 0);
+    // The same canopy once still: no pixel shows another season or a tree the other lacks (differences of a few
+    // levels where one mode's imagery loader, which frames never wait for, is a tile behind the other's on a loaded
+    // machine).
+    auto samePicture = [&](const std::string& out) {
+        auto all = readImageU8(dir / out / "last_frame_canopy-levels_all.png", 3);
+        auto read = readImageU8(dir / out / "last_frame_canopy-levels_read.png", 3);
+        ASSERT_TRUE(all.ok()) << all.message();
+        ASSERT_TRUE(read.ok()) << read.message();
+        ASSERT_EQ(all->pixels.size(), read->pixels.size());
+        int strong = 0;
+        for (std::size_t i = 0; i + 2 < all->pixels.size(); i += 3) {
+            int d = 0;
+            for (int c = 0; c < 3; ++c) d = std::max(d, std::abs(int(all->pixels[i + c]) - int(read->pixels[i + c])));
+            strong += d > 24 ? 1 : 0;
+        }
+        EXPECT_LE(strong, int(all->pixels.size() / 3 / 1000)) << out << ": " << strong << " pixels differ by more than 24";
+        std::set<std::uint32_t> colours;
+        for (std::size_t i = 0; i + 2 < read->pixels.size(); i += 3)
+            colours.insert(std::uint32_t(read->pixels[i]) << 16 | std::uint32_t(read->pixels[i + 1]) << 8 | read->pixels[i + 2]);
+        EXPECT_GT(colours.size(), 100u) << out << ": a drawn view";
+    };
+    samePicture("out-low");
+    // The ground alone (no layers, so no trunks and no level kept whole): only the ground's own lookups, recorded on
+    // the GPU, bring the level-0 blocks under the nearest pixels in.
+    const std::string lowKeys = R"([{"time": 0, "x": -60, "y": -60, "z": "+3", "yaw": 45, "pitch": -20},
+                                    {"time": 1, "x": -30, "y": -30, "z": "+3", "yaw": 45, "pitch": -20},
+                                    {"time": 3, "x": -30, "y": -30, "z": "+3", "yaw": 45, "pitch": -20}])";
+    auto ground = run("ground", lowKeys, 24, {"--canopy-layers", "off"});
+    ASSERT_EQ(ground["canopy-levels=read"].size(), 24u);
+    EXPECT_GT(sum(ground["canopy-levels=read"], &Row::onDemand), 0);
+    samePicture("out-ground");
 }
 
 // Counters add up where both clipmaps stream: a 4 km scene with a 4 m DEM (1024² samples) under a 63-vertex
