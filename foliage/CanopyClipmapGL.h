@@ -25,8 +25,9 @@ struct CanopyOptions {
     int topK = 0;                // k of the top layer (odd, <= kSegMaxK); 0 = min(kSegMaxK, 3 k)
     int blocksPerFrame = 256;    // derivation budget per update()
     // update() derives the blocks of levels finer than keepLevelsFrom() only where canopy lookups read them: the
-    // canopy view's shaders record, for a sample of pixels, the block each lookup starts at and the blocks under it
-    // on every coarser level (read back without waiting); a block none read in the last readWindow frames waits
+    // canopy view's ground and marched layers record, per pixel, the block each lookup starts at and the blocks under
+    // it on every coarser level (read back without waiting), the rasterised layers through noteRead(); a block none
+    // read in the last readWindow frames waits
     // (a lookup falls back to the next coarser level meanwhile, as for any block not derived yet). Until the first
     // record is back every block is derived. false: every block.
     bool onDemand = true;
@@ -39,7 +40,6 @@ struct CanopyFrameStats {
     int blocksUnread = 0;        // onDemand: resident, but no lookup read them lately: not derived
     int blocksOnDemand = 0;      // onDemand: of blocksDerived, those on levels finer than keepLevelsFrom() (read)
 };
-
 
 class CanopyClipmapGL : public CanopySource {
 public:
@@ -67,7 +67,7 @@ public:
     void noteRead(int level, glm::dvec2 lo, glm::dvec2 hi) const;
 
     /// Binds uCanopyClip (usampler2DArray), uCanopyCoarse (usampler2D) and uCanopyTags (isampler2DArray) to units
-    /// firstUnit .. firstUnit + 2, sets uCanopyLayers (common_canopy.glsl) and binds the record of the levels read
+    /// firstUnit .. firstUnit + 2, sets uCanopyLayers (common_canopy.glsl) and binds the record of the blocks read
     /// (kCanopyReadsBinding).
     void bind(const gl::ShaderProgram& program, int firstUnit) const override;
 
