@@ -6,6 +6,7 @@
 #include <cassert>
 #include <cmath>
 #include <string>
+#include <utility>
 
 namespace seasonview {
 
@@ -15,6 +16,14 @@ constexpr int kCell = 8;             // texels per side of a cell with its own m
 constexpr int kMaxDispatchBlocks = 4096;
 constexpr int kMaxLayers = 32;       // uLayerK[32]
 std::int32_t blockTag(int bx, int by) { return bx | (by << 16); }
+// The texels of clip level `level` that nearest-texel fetches at level-0 pixel positions in [lo, hi] read (floor),
+// clamped to the level like the shaders' fetches: first and last.
+std::pair<glm::ivec2, glm::ivec2> texelsOver(const ClipmapLayout& L, int level, glm::dvec2 lo, glm::dvec2 hi) {
+    const double texel = std::ldexp(1.0, level); // level-0 pixels per texel of this level
+    const glm::ivec2 size = L.levelSizes[size_t(level)];
+    return {glm::clamp(glm::ivec2(glm::floor(lo / texel)), glm::ivec2(0), size - 1),
+            glm::clamp(glm::ivec2(glm::floor(hi / texel)), glm::ivec2(0), size - 1)};
+}
 } // namespace
 
 Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL& source, const SegmentationStats& stats,
@@ -151,6 +160,7 @@ CanopyClipmapGL::~CanopyClipmapGL() {
 
 void CanopyClipmapGL::collectReads() {
     ++m_frame;
+    if (!m_options.onDemand) return; // every block is derived: nothing to read back
     const size_t levels = m_readTag.size(), slots = size_t(m_slotCount);
     if (m_readsFence) {
         const GLenum r = glClientWaitSync(m_readsFence, 0, 0);
@@ -182,10 +192,7 @@ void CanopyClipmapGL::noteRead(int level, glm::dvec2 lo, glm::dvec2 hi) const {
     const ClipmapLayout& L = s.layout();
     const int slots = s.slotsPerSide();
     for (int l = std::max(level, 0); l < std::min(L.clipLevels(), m_keepFrom); ++l) {
-        const double texel = std::ldexp(1.0, l);
-        const glm::ivec2 size = L.levelSizes[size_t(l)];
-        const glm::ivec2 t0 = glm::clamp(glm::ivec2(glm::floor(lo / texel)), glm::ivec2(0), size - 1);
-        const glm::ivec2 t1 = glm::clamp(glm::ivec2(glm::floor(hi / texel)), glm::ivec2(0), size - 1);
+        const auto [t0, t1] = texelsOver(L, l, lo, hi);
         const glm::ivec2 b0 = t0 / L.block, b1 = t1 / L.block;
         if ((b1.x - b0.x + 1) * (b1.y - b0.y + 1) > slots * slots) continue; // wider than the level's window
         for (int by = b0.y; by <= b1.y; ++by)
@@ -245,12 +252,7 @@ int CanopyClipmapGL::maxValueOver(glm::dvec2 lo, glm::dvec2 hi, int minLevel, in
         if (level > maxLevel && !coarser) break;
         coarser = false;
         const bool coarse = level == L.clipLevels();
-        const double texel = std::ldexp(1.0, level); // level-0 pixels per texel of this level
-        const glm::ivec2 size = L.levelSizes[size_t(level)];
-        // The texels a fragment in the box may read here (nearest texel of its position: floor), clamped to the
-        // level like the shader's fetches.
-        const glm::ivec2 t0 = glm::clamp(glm::ivec2(glm::floor(lo / texel)), glm::ivec2(0), size - 1);
-        const glm::ivec2 t1 = glm::clamp(glm::ivec2(glm::floor(hi / texel)), glm::ivec2(0), size - 1);
+        const auto [t0, t1] = texelsOver(L, level, lo, hi); // what a fragment in the box may read here
         const glm::ivec2 b0 = t0 / L.block, b1 = t1 / L.block;
         if ((b1.x - b0.x + 1) * (b1.y - b0.y + 1) > 256) return all;
         for (int by = b0.y; by <= b1.y; ++by)
