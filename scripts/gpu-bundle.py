@@ -44,16 +44,20 @@ KEEP = [
     "libImath", "libOpenEXR", "libIex", "libIlmThread", "libOpenColorIO.so", "libyaml-cpp.so", "libpystring",
     "libexpat.so", "libminizip.so", "libbz2.so", "libfmt.so", "libtbb.so", "libtbbmalloc.so", "libboost_",
     "libgomp.so",
+    # GDAL opens every raster (core/geo/GdalSupport.cpp) and PROJ builds its CRSs from proj.db (SQLite)
+    "libgdal.so", "libproj.so", "libsqlite3.so", "libjson-c.so",
 ]
 
 # Stubbed functions that run anyway and may simply return (a pointer to an empty string, for the version
 # queries): what they set up or report is never used. OpenImageIO's DICOM plugin registers DCMTK's decoders at
 # load, and OpenImageIO asks every format library for its version when it first lists its plugins.
 SOFT = {"_ZN10DiRegisterC1Ev", "_ZN10DiRegisterD1Ev", "_ZN10DiRegisterD2Ev", "_ZN10DiRegisterC2Ev",
-        "opj_version", "libraw_version"}
+        "opj_version", "libraw_version", "nc_inq_libvers"}
 
 # Loaded at run time by dlopen, not in the link closure: glvnd's EGL and GL entry points.
 DLOPENED = ["libEGL.so.1", "libOpenGL.so.0", "libGLdispatch.so.0", "libGLESv2.so.2"]
+
+PROJ_DB = "/usr/share/proj/proj.db"
 
 # Mesa's EGL vendor library and llvmpipe's driver (--local-check).
 MESA = ["/lib/x86_64-linux-gnu/libEGL_mesa.so.0", "/usr/lib/x86_64-linux-gnu/dri/swrast_dri.so"]
@@ -203,6 +207,9 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--binary", default="build/seasonview")
     ap.add_argument("--out", default=".gpu")
+    ap.add_argument("--pack", default=".gpu-carry/bundle.tar.xz",
+                    help="the bundle xz-compressed, which is what the device tool carries (the bundle itself is over "
+                         "its 64 MiB; scripts/gpu-bench.sh unpacks it); '' for none")
     ap.add_argument("--local-check", action="store_true",
                     help="also keep real what Mesa's EGL and llvmpipe load (libX11, libdrm, LLVM, ...), so the bundle "
                          "runs here on llvmpipe; not for the GPU machine, whose NVIDIA EGL needs none of them")
@@ -244,6 +251,10 @@ def main():
             else:
                 make_stub(path, lib_dir, work, wanted, taken)
                 stubbed.append(so)
+    # PROJ's database of CRSs (GDAL asks PROJ for the grid's CRS); scripts/gpu-bench.sh points PROJ_DATA at it.
+    if os.path.exists(PROJ_DB):
+        os.makedirs(os.path.join(args.out, "share", "proj"))
+        shutil.copy2(PROJ_DB, os.path.join(args.out, "share", "proj", "proj.db"))
     size = sum(os.path.getsize(os.path.join(dp, f)) for dp, _, fs in os.walk(args.out) for f in fs)
     # Every library found and every symbol bound (LD_BIND_NOW), here, from the bundle.
     env = dict(os.environ, LD_LIBRARY_PATH=lib_dir, LD_BIND_NOW="1")
@@ -251,6 +262,12 @@ def main():
     if check.returncode != 0:
         sys.exit(f"gpu-bundle: {args.out}/seasonview does not start from the bundle: {check.stderr.strip()[:500]}")
     print(f"{args.out}: the binary, {len(kept)} libraries, {len(stubbed)} stubs, {size / 2**20:.1f} MiB")
+    if args.pack and not args.local_check:
+        os.makedirs(os.path.dirname(args.pack) or ".", exist_ok=True)
+        parent, name = os.path.split(os.path.abspath(args.out))
+        subprocess.run(["tar", "-cJf", os.path.abspath(args.pack), "-C", parent, name], check=True,
+                       env=dict(os.environ, XZ_OPT="-9 -T2"))
+        print(f"{args.pack}: {os.path.getsize(args.pack) / 2**20:.1f} MiB (carry its folder; gpu-bench.sh unpacks it)")
 
 
 if __name__ == "__main__":
