@@ -26,8 +26,9 @@ namespace {
 namespace fs = std::filesystem;
 
 /// Bumped whenever the level files' content or layout changes: old caches then no longer match any key.
-/// 2: RGBA, premultiplied, on the working grid. 3: tiles with Zstandard content checksums.
-constexpr int kPyramidFormatVersion = 3;
+/// 2: RGBA, premultiplied, on the working grid. 3: tiles with Zstandard content checksums. 4: each tile followed by
+/// a CRC-32 of its bytes (ZstdTileCheck.h).
+constexpr int kPyramidFormatVersion = 4;
 constexpr const char* kManifestName = "pyramid.json";
 
 struct SourceId {

@@ -11,6 +11,7 @@
 #include <tiffio.h>
 
 #include <chrono>
+#include <cstring>
 #include <fstream>
 
 using namespace seasonview;
@@ -123,6 +124,94 @@ TEST(IntegrityTest, ZstdTileCheckCatchesFlipsInFloatTilesThatDecodeSilently) {
     o.compression = TiffCompression::Deflate;
     ASSERT_TRUE(writeGeoTiff(dir / "deflate.tif", heights.data(), SampleType::F32, 256, 256, 1, testGeoref(), o).ok());
     EXPECT_TRUE(check.check(dir / "deflate.tif", 0, 0, 256, 256).ok());
+}
+
+TEST(IntegrityTest, ZstdTilesCarryACrcTheCheckVerifiesWithoutDecoding) {
+    // GeoTiffStreamWriter ends each Zstandard tile with a skippable frame holding a CRC-32 of the bytes before it:
+    // readers pass over it (the pixels read back the same), ZstdTileCheck verifies it instead of decoding the tile,
+    // and a tile without one (another writer's) is still checked by decoding it.
+    TempDir dir("integrity-zstd-crc");
+    const std::vector<std::uint8_t> px = noiseRgb(256, 256, 5);
+    GeoTiffWriteOptions o;
+    o.compression = TiffCompression::Zstd;
+    o.tileSize = 128;
+    ASSERT_TRUE(writeGeoTiff(dir / "clean.tif", px.data(), SampleType::U8, 256, 256, 3, testGeoref(), o).ok());
+    const auto rawTile = [](const fs::path& p, int index) {
+        TIFF* t = TIFFOpen(p.c_str(), "r");
+        std::vector<std::uint8_t> raw;
+        if (!t) return raw;
+        raw.resize(size_t(TIFFGetStrileByteCount(t, std::uint32_t(index))));
+        if (TIFFReadRawTile(t, std::uint32_t(index), raw.data(), tmsize_t(raw.size())) != tmsize_t(raw.size())) raw.clear();
+        TIFFClose(t);
+        return raw;
+    };
+    for (int i = 0; i < 4; ++i) {
+        const std::vector<std::uint8_t> raw = rawTile(dir / "clean.tif", i);
+        ASSERT_GT(raw.size(), kTileChecksumBytes);
+        EXPECT_EQ(verifyTileChecksum(raw.data(), raw.size()), TileChecksum::Matches) << "tile " << i;
+    }
+    auto img = readImageU8(dir / "clean.tif", 3);
+    ASSERT_TRUE(img.ok()) << img.message();
+    EXPECT_EQ(img->pixels, px);
+    auto band = BandReader::open(dir / "clean.tif", 64);
+    ASSERT_TRUE(band.ok()) << band.message();
+    std::vector<std::uint8_t> rows(px.size());
+    ASSERT_TRUE(band->read(0, 256, 3, SampleType::U8, rows.data()).ok());
+    EXPECT_EQ(rows, px);
+    {
+        ZstdTileCheck check;
+        EXPECT_TRUE(check.check(dir / "clean.tif", 0, 0, 256, 256).ok());
+    }
+
+    // The CRC itself damaged: the tile is refused, by name.
+    const auto [offset, size] = tileBytes(dir / "clean.tif", 2);
+    fs::copy_file(dir / "clean.tif", dir / "crc.tif");
+    flipByte(dir / "crc.tif", offset + size - 1);
+    {
+        ZstdTileCheck check;
+        EXPECT_TRUE(check.check(dir / "crc.tif", 0, 0, 256, 128).ok()) << "tiles 0 and 1 are intact";
+        const Status st = check.check(dir / "crc.tif", 0, 0, 256, 256);
+        ASSERT_FALSE(st.ok());
+        EXPECT_EQ(st.message(), (dir / "crc.tif").string() + ": tile 2 (column 0, row 1) fails its CRC-32 checksum (damaged)");
+    }
+
+    // libtiff's own codec writes no trailer: those tiles are decoded, and a frame that does not decode is refused.
+    {
+        TIFF* t = TIFFOpen((dir / "libtiff.tif").c_str(), "w");
+        ASSERT_TRUE(t);
+        TIFFSetField(t, TIFFTAG_IMAGEWIDTH, 256u);
+        TIFFSetField(t, TIFFTAG_IMAGELENGTH, 256u);
+        TIFFSetField(t, TIFFTAG_SAMPLESPERPIXEL, std::uint16_t(3));
+        TIFFSetField(t, TIFFTAG_BITSPERSAMPLE, std::uint16_t(8));
+        TIFFSetField(t, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_RGB);
+        TIFFSetField(t, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+        TIFFSetField(t, TIFFTAG_TILEWIDTH, 128u);
+        TIFFSetField(t, TIFFTAG_TILELENGTH, 128u);
+        TIFFSetField(t, TIFFTAG_COMPRESSION, COMPRESSION_ZSTD);
+        std::vector<std::uint8_t> tile(size_t(128) * 128 * 3);
+        for (int ty = 0; ty < 2; ++ty)
+            for (int tx = 0; tx < 2; ++tx) {
+                for (int y = 0; y < 128; ++y)
+                    std::memcpy(tile.data() + size_t(y) * 128 * 3,
+                                px.data() + (size_t(ty * 128 + y) * 256 + size_t(tx) * 128) * 3, 128 * 3);
+                ASSERT_GE(TIFFWriteEncodedTile(t, std::uint32_t(ty * 2 + tx), tile.data(), tmsize_t(tile.size())), 0);
+            }
+        TIFFClose(t);
+    }
+    const std::vector<std::uint8_t> foreign = rawTile(dir / "libtiff.tif", 1);
+    ASSERT_FALSE(foreign.empty());
+    EXPECT_EQ(verifyTileChecksum(foreign.data(), foreign.size()), TileChecksum::Absent);
+    {
+        ZstdTileCheck check;
+        EXPECT_TRUE(check.check(dir / "libtiff.tif", 0, 0, 256, 256).ok());
+    }
+    const auto [offset1, size1] = tileBytes(dir / "libtiff.tif", 1);
+    ASSERT_GT(size1, 4u);
+    flipByte(dir / "libtiff.tif", offset1); // the frame's magic number
+    ZstdTileCheck check;
+    const Status st = check.check(dir / "libtiff.tif", 0, 0, 256, 256);
+    ASSERT_FALSE(st.ok());
+    EXPECT_NE(st.message().find("tile 1 (column 1, row 0) does not decode"), std::string::npos) << st.message();
 }
 
 TEST(IntegrityTest, FilesCutShortAreErrorsNamingTheFile) {

@@ -5,6 +5,7 @@
 #include "JpegSupport.h"
 #include "ParallelIndices.h"
 #include "TiffSupport.h"
+#include "ZstdTileCheck.h"
 
 #include <libdeflate.h>
 #include <zstd.h>
@@ -384,6 +385,8 @@ Status GeoTiffStreamWriter::encodeBlockRow(const std::uint8_t* rows, int y0, int
                 const size_t n =
                     ZSTD_compress2(enc.zstd[size_t(worker)].get(), out.data(), out.size(), block, blockBytes);
                 out.resize(ZSTD_isError(n) ? 0 : n); // empty: reported as a failure below
+                // A CRC-32 of the frame after it, so the reader checks the tile without decoding it (ZstdTileCheck.h).
+                if (!out.empty()) appendTileChecksum(out);
             } else {
                 libdeflate_compressor* c = enc.compressors[size_t(worker)].get();
                 out.resize(libdeflate_zlib_compress_bound(c, blockBytes));

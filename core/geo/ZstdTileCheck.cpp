@@ -2,12 +2,46 @@
 
 #include "TiffSupport.h"
 
+#include <libdeflate.h>
 #include <tiffio.h>
 #include <zstd.h>
 
 #include <algorithm>
 
 namespace seasonview {
+
+namespace {
+// A skippable frame's magic number is 0x184D2A50..0x184D2A5F (RFC 8878 §3.1.2); ours, then the content's size.
+constexpr std::uint32_t kSkippableMagic = 0x184D2A5E;
+constexpr std::uint8_t kTag[4] = {'S', 'V', 'C', '1'};
+
+void putLe32(std::uint8_t* p, std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) p[i] = std::uint8_t(v >> (8 * i));
+}
+std::uint32_t getLe32(const std::uint8_t* p) {
+    return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
+}
+} // namespace
+
+void appendTileChecksum(std::vector<std::uint8_t>& tile) {
+    const std::uint32_t crc = libdeflate_crc32(0, tile.data(), tile.size());
+    const size_t at = tile.size();
+    tile.resize(at + kTileChecksumBytes);
+    std::uint8_t* t = tile.data() + at;
+    putLe32(t, kSkippableMagic);
+    putLe32(t + 4, 8);
+    std::copy(std::begin(kTag), std::end(kTag), t + 8);
+    putLe32(t + 12, crc);
+}
+
+TileChecksum verifyTileChecksum(const std::uint8_t* tile, std::size_t bytes) {
+    if (bytes < kTileChecksumBytes) return TileChecksum::Absent;
+    const std::uint8_t* t = tile + bytes - kTileChecksumBytes;
+    if (getLe32(t) != kSkippableMagic || getLe32(t + 4) != 8 || !std::equal(std::begin(kTag), std::end(kTag), t + 8))
+        return TileChecksum::Absent;
+    return libdeflate_crc32(0, tile, bytes - kTileChecksumBytes) == getLe32(t + 12) ? TileChecksum::Matches
+                                                                                    : TileChecksum::Differs;
+}
 
 struct ZstdTileCheck::Decoder {
     struct Free {
@@ -40,8 +74,10 @@ Status ZstdTileCheck::check(const std::filesystem::path& file, int x0, int y0, i
         }
     } closer{tif};
     std::string error;
+    // "m": raw tiles read with read() rather than copied out of a mapping, whose page faults cost more than the copy
+    // (docs/performance.md, step 12).
     const auto open = [&]() -> Status {
-        if (!tif && !(tif = tiff::open(file, "r", &error))) return fileError(file.string(), "cannot open (" + error + ")");
+        if (!tif && !(tif = tiff::open(file, "rm", &error))) return fileError(file.string(), "cannot open (" + error + ")");
         return Ok{};
     };
     if (it == m_files.end()) {
@@ -79,12 +115,18 @@ Status ZstdTileCheck::check(const std::filesystem::path& file, int x0, int y0, i
             const std::uint64_t size = TIFFGetStrileByteCount(tif, tile);
             const std::string where = "tile " + std::to_string(tile) + " (column " + std::to_string(tx) + ", row " +
                                       std::to_string(ty) + ")";
-            // A tile larger than its decoded size plus Zstandard's framing cannot be one of ours.
-            if (size == 0 || size > ZSTD_compressBound(size_t(tileBytes)))
+            // A tile larger than its decoded size plus Zstandard's framing and our trailer cannot be one of ours.
+            if (size == 0 || size > ZSTD_compressBound(size_t(tileBytes)) + kTileChecksumBytes)
                 return fileError(file.string(), where + " claims " + std::to_string(size) + " bytes");
             d.compressed.resize(size_t(size));
             if (TIFFReadRawTile(tif, tile, d.compressed.data(), tmsize_t(size)) != tmsize_t(size))
                 return fileError(file.string(), where + " reads short");
+            // Our tiles carry a CRC-32 of their bytes: no decode needed.
+            switch (verifyTileChecksum(d.compressed.data(), d.compressed.size())) {
+            case TileChecksum::Matches: f.checked[i] = 1; continue;
+            case TileChecksum::Differs: return fileError(file.string(), where + " fails its CRC-32 checksum (damaged)");
+            case TileChecksum::Absent: break;
+            }
             d.decoded.resize(size_t(std::max<tmsize_t>(tileBytes, 1)));
             const size_t n = ZSTD_decompressDCtx(d.context.get(), d.decoded.data(), d.decoded.size(),
                                                  d.compressed.data(), d.compressed.size());
