@@ -31,7 +31,8 @@ void SceneArgs::addTo(CLI::App& cmd, bool withDem) {
     cmd.add_option("scene", manifest, "Scene manifest (scene.json); or give --leafon/--leafoff");
     cmd.add_option("--leafon", leafon,
                    "Leaf-on (summer) imagery, 8- or 16-bit RGB(A) in any format and CRS GDAL reads: a file, a folder "
-                   "of tiles, a glob or a VRT (several for a mosaic)")
+                   "of tiles, a glob, a VRT (several for a mosaic) or an http(s):// URL read by range requests (a "
+                   "Cloud-Optimized GeoTIFF)")
         ->expected(1, -1);
     cmd.add_option("--leafoff", leafoff,
                    "Leaf-off (winter) imagery, as --leafon; any grid, resolution and CRS (warped onto the working "
@@ -39,8 +40,8 @@ void SceneArgs::addTo(CLI::App& cmd, bool withDem) {
         ->expected(1, -1);
     if (withDem) {
         cmd.add_option("--dem", dem,
-                       "Elevation (metres or feet) in any format and CRS: a file, folder, glob or VRT of tiles; flat "
-                       "without")
+                       "Elevation (metres or feet) in any format and CRS: a file, folder, glob or VRT of tiles, "
+                       "or a URL as --leafon; flat without")
             ->expected(1, -1);
         cmd.add_option("--buildings", buildings, "City model (CityGML or OBJ) for --city, when no manifest names one");
         cmd.add_option("--city-crs", cityCrs,

@@ -1,5 +1,7 @@
 #include "GdalSupport.h"
 
+#include "WebSource.h"
+
 #include <cpl_conv.h>
 #include <ogr_spatialref.h>
 
@@ -14,6 +16,13 @@ void init() {
         CPLSetConfigOption("GDAL_PAM_ENABLED", "NO");
         // JPEG-in-TIFF (YCbCr) decoded to RGB by libjpeg, as every orthophoto reader does.
         CPLSetConfigOption("CONVERT_YCBCR_TO_RGB", "YES");
+        // Inputs on the web (WebSource.h): requests that name us, time out, and are retried with backoff on 429 and
+        // 502-504 (GDAL's retry set). A URL's side files are not asked for: web::RemoteOpen.
+        CPLSetConfigOption("GDAL_HTTP_USERAGENT", web::userAgent().c_str());
+        CPLSetConfigOption("GDAL_HTTP_TIMEOUT", "30");
+        CPLSetConfigOption("GDAL_HTTP_CONNECTTIMEOUT", "10");
+        CPLSetConfigOption("GDAL_HTTP_MAX_RETRY", "3");
+        CPLSetConfigOption("GDAL_HTTP_RETRY_DELAY", "1");
         GDALAllRegister();
         // Messages outside an ErrorCapture are dropped: every failure reaches the user as one Result line.
         CPLSetErrorHandler(CPLQuietErrorHandler);
@@ -97,16 +106,21 @@ Status checkRasterLimits(GDALDataset& ds, const std::string& file) {
 Result<Dataset> openRaster(const std::filesystem::path& path) {
     init();
     std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) return fileError(path.string(), "file not found");
-    if (std::filesystem::is_directory(path, ec)) return fileError(path.string(), "is a directory, not an image");
-    if (std::filesystem::is_regular_file(path, ec) && std::filesystem::file_size(path, ec) == 0)
+    const bool remote = web::isRemote(path); // a URL (WebSource.h): GDAL asks the server
+    if (!remote && !std::filesystem::exists(path, ec)) return fileError(path.string(), "file not found");
+    if (!remote && std::filesystem::is_directory(path, ec)) return fileError(path.string(), "is a directory, not an image");
+    if (!remote && std::filesystem::is_regular_file(path, ec) && std::filesystem::file_size(path, ec) == 0)
         return fileError(path.string(), "empty file, not an image");
     ErrorCapture errors;
+    const web::RemoteOpen quiet(path);
     Dataset ds(GDALDataset::FromHandle(
         GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR, nullptr, nullptr, nullptr)));
     if (!ds) {
-        const std::string why = errors.message();
-        return fileError(path.string(), "not a readable image" + (why.empty() ? std::string() : " (" + why + ")"));
+        std::string why = errors.message();
+        if (remote) // GDAL names the URL by its /vsicurl/ path: the user gave the URL
+            for (size_t at; (at = why.find("/vsicurl/")) != std::string::npos;) why.erase(at, 9);
+        return fileError(remote ? web::urlOf(path) : path.string(),
+                         "not a readable image" + (why.empty() ? std::string() : " (" + why + ")"));
     }
     if (ds->GetRasterCount() < 1 || ds->GetRasterXSize() < 1 || ds->GetRasterYSize() < 1)
         return fileError(path.string(), "image has no pixels");

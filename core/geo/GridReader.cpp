@@ -3,6 +3,7 @@
 #include "BandReader.h"
 #include "GdalSupport.h"
 #include "WarpKernel.h"
+#include "WebSource.h"
 
 #include <gdal_alg.h>
 #include <gdalwarper.h>
@@ -290,6 +291,7 @@ Status GridReader::read(int y0, int y1, int channels, SampleType type, void* sam
         gdal::ErrorCapture errors;
         if (!t.ds) {
             const char* open[] = {"NUM_THREADS=ALL_CPUS", nullptr};
+            const web::RemoteOpen quiet(t.info.path);
             t.ds.reset(GDALDataset::FromHandle(GDALOpenEx(t.info.path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY,
                                                           nullptr, open, nullptr)));
             if (!t.ds) return fileError(name, "cannot be opened again (" + errors.message() + ")");

@@ -1,6 +1,7 @@
 #include "RasterMosaic.h"
 
 #include "GdalSupport.h"
+#include "WebSource.h"
 
 #include <glm/common.hpp>
 
@@ -55,7 +56,9 @@ Result<std::vector<fs::path>> expand(const SourceList& sources) {
     for (const fs::path& item : sources.items) {
         const std::string text = item.string();
         std::error_code ec;
-        if (fs::is_directory(item, ec)) {
+        if (web::isUrl(text)) {
+            files.push_back(web::gdalPath(text)); // read by HTTP ranges (WebSource.h)
+        } else if (fs::is_directory(item, ec)) {
             auto in = rastersIn(item);
             if (!in) return in.error();
             files.insert(files.end(), in->begin(), in->end());
@@ -108,6 +111,7 @@ const RasterInfo& RasterMosaic::finest() const {
 }
 
 Result<std::string> fileIdentity(const std::filesystem::path& p) {
+    if (web::isRemote(p)) return web::identity(web::urlOf(p));
     std::error_code ec;
     if (!fs::is_regular_file(p, ec)) return fileError(p.string(), fs::exists(p, ec) ? "not a file" : "file not found");
     const std::string path = fs::weakly_canonical(fs::absolute(p, ec), ec).string();
@@ -125,9 +129,16 @@ Result<RasterMosaic> openMosaic(const SourceList& sources, const std::string& ro
     if (!files) return files.error();
     RasterMosaic m;
     for (const fs::path& f : *files) {
+        // A URL: the server asked first, so that an HTTP error is said as such (WebSource.h).
+        std::optional<std::string> remoteId;
+        if (web::isRemote(f)) {
+            auto id = web::identity(web::urlOf(f));
+            if (!id) return id.error();
+            remoteId = *id;
+        }
         auto info = readRasterInfo(f, assumedCrs);
         if (!info) return info.error();
-        const std::string name = f.string();
+        const std::string name = web::urlOf(f); // a URL as the user gave it
         if (info->geotransformWithoutCrs) return fileError(name, "has no CRS (give one with --crs EPSG:CODE)");
         if (!info->georef)
             return fileError(name, role + " raster has no georeferencing (no GeoTIFF keys, world file or .prj)");
@@ -152,7 +163,7 @@ Result<RasterMosaic> openMosaic(const SourceList& sources, const std::string& ro
         const glm::dvec2 hi(g.origin.x + g.pixelSize.x * info->width, g.origin.y);
         m.min = m.tiles.empty() ? lo : glm::min(m.min, lo);
         m.max = m.tiles.empty() ? hi : glm::max(m.max, hi);
-        auto id = fileIdentity(f);
+        auto id = remoteId ? Result<std::string>(*remoteId) : fileIdentity(f);
         if (!id) return id.error();
         m.key += *id + ";";
         m.tiles.push_back(std::move(*info));

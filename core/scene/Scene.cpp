@@ -1,6 +1,7 @@
 #include "Scene.h"
 
 #include "JsonFile.h"
+#include "WebSource.h"
 
 #include <nlohmann/json.hpp>
 
@@ -48,7 +49,7 @@ Result<SceneSources> manifestFromJson(const json& j, const std::filesystem::path
     const std::filesystem::path base = manifest.parent_path();
     auto resolve = [&](const std::string& relative) {
         const std::filesystem::path p = relative;
-        return p.is_absolute() ? p : base / p;
+        return p.is_absolute() || web::isUrl(relative) ? p : base / p; // a URL stays one (WebSource.h)
     };
     auto path = [&](const json& obj, const char* key, bool required, std::filesystem::path& out,
                     const std::string& prefix) -> Status {

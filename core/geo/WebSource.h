@@ -1,0 +1,46 @@
+#pragma once
+// Scene inputs on the web. A URL (http:// or https://) given for a season or the DEM is read through GDAL's
+// /vsicurl/ file system: HTTP range requests for the headers and the tiles a read touches, as a Cloud-Optimized
+// GeoTIFF is meant to be read (any raster GDAL reads by ranges works; a COG's layout keeps the requests few).
+// Every request names seasonview in its User-Agent, times out, and is retried with backoff on 429 and 502–504.
+// Before the raster is opened, one HEAD request asks the server for the file: an HTTP error is one line naming the
+// URL and the status, and the answer's size, Last-Modified and ETag are the input's identity for the caches.
+#include "Result.h"
+
+#include <filesystem>
+#include <string>
+#include <string_view>
+
+namespace seasonview::web {
+
+/// Whether an input as the user gave it is a URL (http:// or https://).
+bool isUrl(std::string_view input);
+/// The name GDAL opens a URL by ("/vsicurl/URL").
+std::filesystem::path gdalPath(const std::string& url);
+/// Whether a path is such a name.
+bool isRemote(const std::filesystem::path& path);
+/// The URL of such a name (itself for any other path).
+std::string urlOf(const std::filesystem::path& path);
+/// What caches key a URL on: "URL|size|Last-Modified|ETag", from a HEAD request. Errors, one line naming the URL:
+/// an HTTP status of 400 or more ("HTTP 404"), no answer (the transfer library's words), no size.
+Result<std::string> identity(const std::string& url);
+/// The User-Agent every request sends ("seasonview/VERSION").
+std::string userAgent();
+
+/// While alive, GDAL opens `path`, when it is a URL, without listing its folder or asking for side files (.aux.xml,
+/// .ovr, .msk: requests that a web server answers 404 or with a listing page); local files still find theirs
+/// (world files, .prj). Set for this thread only.
+class RemoteOpen {
+public:
+    explicit RemoteOpen(const std::filesystem::path& path);
+    ~RemoteOpen();
+    RemoteOpen(const RemoteOpen&) = delete;
+    RemoteOpen& operator=(const RemoteOpen&) = delete;
+
+private:
+    bool m_set = false;
+    std::string m_previous;
+    bool m_hadPrevious = false;
+};
+
+} // namespace seasonview::web
