@@ -11,7 +11,8 @@
 #      overview, nodes per frame), the same with `--terrain off` (the city alone, as the paper timed it) and
 #      `--compare city-occlusion=off,on`
 # Environment: OUT (default out/gpu), SIZE (1920x1080), FRAMES (300), CITY_FRAMES (240), WORK (work folder,
-# default /tmp/seasonview-gpu), SKIP_CITY=1 to stop after step 2, SKIP_DEMO=1 to run step 3 alone (on the H200
+# default /tmp/seasonview-gpu), CITY_TREE_WIDTH (the screen width the city's atlas tree is built for; default the
+# frame's), SKIP_CITY=1 to stop after step 2, SKIP_DEMO=1 to run step 3 alone (on the H200
 # machine steps 1–2 take 1.5 minutes, while step 3's atlas tree for 1920 pixels did not finish in 6.5: give it a
 # call of its own). Locally (llvmpipe) the same script checks the
 # bundle: SIZE=320x180 FRAMES=6 CITY_FRAMES=6 scripts/gpu-bench.sh
@@ -83,7 +84,7 @@ fi
 if [[ ${SKIP_CITY:-0} != 1 ]]; then
     log "block city (synth, atlas tree for the screen width)"
     sv synth --preset data/presets/blockcity.json --out "$WORK/blockcity" > "$RES/city_synth.log" 2>&1
-    sv atlas build "$WORK/blockcity/city/city.obj" --obj-local --screen-width "${SIZE%x*}" \
+    sv atlas build "$WORK/blockcity/city/city.obj" --obj-local --screen-width "${CITY_TREE_WIDTH:-${SIZE%x*}}" \
         --out "$WORK/blockcity.svat" --report "$RES/city_tree.json" > "$RES/city_tree.log" 2>&1
     tail -1 "$RES/city_tree.log"
     log "city atlas/original/flat, $SIZE, $CITY_FRAMES frames"
