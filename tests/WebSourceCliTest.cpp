@@ -1,12 +1,14 @@
 // Seasons and the DEM given as URLs (WebSource.h): read by HTTP range requests from a server on 127.0.0.1 that the
 // test starts (HttpTestServer.h), drawn as the same files on disk draw, and every fault the server injects one line
 // naming the URL, exit 1, no pyramid written.
+#include "Crs.h"
 #include "HttpTestServer.h"
 #include "TestUtil.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 
 using namespace seasonview;
@@ -43,6 +45,25 @@ struct ServedScene {
     }
 };
 
+/// Bytes of `path` the server sent in answer to range requests.
+long long rangeBytes(const std::vector<HttpTestServer::Request>& requests, const std::string& path = {}) {
+    long long bytes = 0;
+    for (const auto& r : requests) {
+        if ((!path.empty() && r.path != path) || r.range.empty()) continue;
+        bytes += std::atoll(r.range.c_str() + r.range.find('-') + 1) - std::atoll(r.range.c_str() + 6) + 1;
+    }
+    return bytes;
+}
+
+/// The picture drawn from the web as the one drawn from disk (PSNR >= 45 dB).
+void expectSameRender(const fs::path& disk, const fs::path& web) {
+    auto da = readImageU8(disk, 3), db = readImageU8(web, 3);
+    ASSERT_TRUE(da.ok() && db.ok());
+    const ImageDiff d = compareRgb(da->pixels, db->pixels, da->width, da->height, 3);
+    ASSERT_TRUE(d.sameSize);
+    EXPECT_GE(d.psnr, 45.0) << "max delta " << d.maxDelta;
+}
+
 bool hasPyramid(const fs::path& cache) {
     std::error_code ec;
     for (fs::recursive_directory_iterator it(cache, ec), end; !ec && it != end; it.increment(ec))
@@ -64,11 +85,7 @@ TEST(WebSourceCliTest, SeasonsAndDemByUrlDrawAsTheFilesOnDisk) {
     ASSERT_EQ(a.exitCode, 0) << a.err;
     const CliResult b = s.run(web, s.urls(), "cache_web");
     ASSERT_EQ(b.exitCode, 0) << b.err;
-    auto da = readImageU8(s.dir / "disk.png", 3), db = readImageU8(s.dir / "web.png", 3);
-    ASSERT_TRUE(da.ok() && db.ok());
-    const ImageDiff d = compareRgb(da->pixels, db->pixels, da->width, da->height, 3);
-    ASSERT_TRUE(d.sameSize);
-    EXPECT_GE(d.psnr, 45.0) << "max delta " << d.maxDelta;
+    expectSameRender(s.dir / "disk.png", s.dir / "web.png");
 
     // Range requests only, each naming seasonview; the file asked for by HEAD first.
     const auto requests = s.server->requests();
@@ -85,15 +102,9 @@ TEST(WebSourceCliTest, SeasonsAndDemByUrlDrawAsTheFilesOnDisk) {
     s.server->clearRequests();
     const CliResult c = s.run(web, s.urls(), "cache_web");
     ASSERT_EQ(c.exitCode, 0) << c.err;
-    for (const std::string season : {"/leafon.tif", "/leafoff.tif"}) {
-        long long bytes = 0;
-        for (const auto& r : s.server->requests()) {
-            if (r.path != season || r.range.empty()) continue;
-            const auto dash = r.range.find('-');
-            bytes += std::atoll(r.range.c_str() + dash + 1) - std::atoll(r.range.c_str() + 6) + 1;
-        }
-        EXPECT_LT(bytes, (long long)fs::file_size(s.scene / season.substr(1)) / 4) << season;
-    }
+    for (const std::string season : {"/leafon.tif", "/leafoff.tif"})
+        EXPECT_LT(rangeBytes(s.server->requests(), season), (long long)fs::file_size(s.scene / season.substr(1)) / 4)
+            << season;
 }
 
 TEST(WebSourceCliTest, ServerFaultsAreOneLineNamingTheUrl) {
@@ -157,15 +168,93 @@ TEST(WebSourceCliTest, RealSaclayCogByUrlDrawsAsTheFile) {
     ASSERT_EQ(a.exitCode, 0) << a.err;
     const CliResult b = render(server.url() + "/leafon_3857_cog.tif", "web");
     ASSERT_EQ(b.exitCode, 0) << b.err;
-    auto da = readImageU8(dir / "disk.png", 3), db = readImageU8(dir / "web.png", 3);
-    ASSERT_TRUE(da.ok() && db.ok());
-    const ImageDiff d = compareRgb(da->pixels, db->pixels, da->width, da->height, 3);
-    ASSERT_TRUE(d.sameSize);
-    EXPECT_GE(d.psnr, 45.0) << "max delta " << d.maxDelta;
-    long long fetched = 0;
-    for (const auto& r : server.requests())
-        if (!r.range.empty())
-            fetched += std::atoll(r.range.c_str() + r.range.find('-') + 1) - std::atoll(r.range.c_str() + 6) + 1;
-    std::printf("Saclay COG by URL: %zu requests, %lld bytes of %lld\n", server.requests().size(), fetched,
+    expectSameRender(dir / "disk.png", dir / "web.png");
+    std::printf("Saclay COG by URL: %zu requests, %lld bytes of %lld\n", server.requests().size(),
+                rangeBytes(server.requests()),
                 (long long)fs::file_size(s / "leafon_3857_cog.tif"));
+}
+
+TEST(WebSourceCliTest, XyzTileServiceDrawsAsTheSamePixelsOnDisk) {
+    // The synthetic leaf-on cut into 256² PNG tiles of Web Mercator at zoom 17, as a tile server serves them, next to
+    // the same pixels as one GeoTIFF. The service is read over the leaf-off's footprint at the leaf-off's pixel size
+    // (0.5 m: zoom 18, which the server does not have, so 17).
+    ServedScene s("web-xyz");
+    ASSERT_TRUE(fs::exists(s.scene / "leafon.tif"));
+    auto info = readRasterInfo(s.scene / "leafoff.tif");
+    ASSERT_TRUE(info.ok() && info->georef) << info.message();
+    const Georef& g = *info->georef;
+    auto mercator = Crs::fromEpsg(3857);
+    ASSERT_TRUE(mercator.ok());
+    const glm::dvec2 lo(g.origin.x, g.origin.y - g.pixelSize.y * info->height);
+    const glm::dvec2 hi(g.origin.x + g.pixelSize.x * info->width, g.origin.y);
+    std::vector<glm::dvec2> pts;
+    for (int i = 0; i <= 4; ++i)
+        for (int k = 0; k <= 4; ++k) pts.push_back(lo + (hi - lo) * glm::dvec2(i / 4.0, k / 4.0));
+    convert(g.crs, *mercator, pts);
+    const double half = 20037508.342789244, t = 2.0 * half / double(1 << 17);
+    double minX = 1e300, maxX = -1e300, minY = 1e300, maxY = -1e300;
+    for (const auto& p : pts) minX = std::min(minX, p.x), maxX = std::max(maxX, p.x), minY = std::min(minY, p.y), maxY = std::max(maxY, p.y);
+    const long long x0 = (long long)std::floor((minX + half) / t), x1 = (long long)std::floor((maxX + half) / t - 1e-9);
+    const long long y0 = (long long)std::floor((half - maxY) / t), y1 = (long long)std::floor((half - minY) / t - 1e-9);
+    const auto num = [](double v) {
+        char b[40];
+        std::snprintf(b, sizeof b, "%.10f", v);
+        return std::string(b);
+    };
+    const fs::path merc = s.dir / "leafon_3857.tif";
+    gdalWarp(s.scene / "leafon.tif", merc,
+             {"-t_srs", "EPSG:3857", "-tr", num(t / 256), num(t / 256), "-te", num(-half + double(x0) * t),
+              num(half - double(y1 + 1) * t), num(-half + double(x1 + 1) * t), num(half - double(y0) * t), "-r",
+              "bilinear", "-dstalpha", "-co", "TILED=YES"});
+    for (long long x = x0; x <= x1; ++x)
+        for (long long y = y0; y <= y1; ++y) {
+            const fs::path tile = s.dir / "tiles/17" / std::to_string(x) / (std::to_string(y) + ".png");
+            fs::create_directories(tile.parent_path());
+            gdalTranslate(merc, tile,
+                          {"-of", "PNG", "-srcwin", std::to_string((x - x0) * 256), std::to_string((y - y0) * 256),
+                           "256", "256"});
+        }
+    HttpTestServer tiles(s.dir / "tiles");
+    const auto render = [&](const std::string& leafon, const std::string& name) {
+        return runCli({"render", "--leafon", leafon, "--leafoff", (s.scene / "leafoff.tif").string(), "--dem",
+                       (s.scene / "dem.tif").string(), "--camera", "0,-150,+120,20,-40", "--size", "320x240", "--view",
+                       "swipe", "--cache", (s.dir / ("cache_" + name)).string(), "--out",
+                       (s.dir / (name + ".png")).string()});
+    };
+    const CliResult a = render(merc.string(), "disk");
+    ASSERT_EQ(a.exitCode, 0) << a.err;
+    const CliResult b = render(tiles.url() + "/{z}/{x}/{y}.png", "web");
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    expectSameRender(s.dir / "disk.png", s.dir / "web.png");
+    const auto first = tiles.requests();
+    EXPECT_TRUE(std::any_of(first.begin(), first.end(), [](const auto& r) { return r.path.rfind("/18/", 0) == 0; }))
+        << "zoom 18 asked for first";
+    for (const auto& r : first) EXPECT_EQ(r.userAgent.rfind("seasonview/", 0), 0u) << r.path;
+
+    // Tiles are cached: the same render again fetches none.
+    tiles.clearRequests();
+    const CliResult c = render(tiles.url() + "/{z}/{x}/{y}.png", "web");
+    ASSERT_EQ(c.exitCode, 0) << c.err;
+    EXPECT_TRUE(tiles.requests().empty()) << tiles.requests().size() << " requests, the first " << tiles.requests().front().path;
+
+    // A service that fails: one line naming the tile's URL.
+    HttpTestServer::Fault down;
+    down.status = 500;
+    tiles.setFault("*", down);
+    const CliResult e = render(tiles.url() + "/{z}/{x}/{y}.png", "down");
+    EXPECT_EQ(e.exitCode, 1);
+    EXPECT_NE(e.err.find(tiles.url() + "/18/"), std::string::npos) << e.err;
+    EXPECT_NE(e.err.find("HTTP 500"), std::string::npos) << e.err;
+    EXPECT_EQ(std::count(e.err.begin(), e.err.end(), '\n'), 1) << e.err;
+
+    // Not read yet, and not readable without an area: one line each.
+    const CliResult tms = render(tiles.url() + "/{z}/{x}/{-y}.png", "tms");
+    EXPECT_EQ(tms.exitCode, 1);
+    EXPECT_NE(tms.err.find("TMS rows ({-y}) are not read yet"), std::string::npos) << tms.err;
+    const CliResult both = runCli({"render", "--leafon", tiles.url() + "/{z}/{x}/{y}.png", "--leafoff",
+                                   tiles.url() + "/{z}/{x}/{y}.png", "--cache", (s.dir / "cache_both").string(),
+                                   "--out", (s.dir / "both.png").string()});
+    EXPECT_EQ(both.exitCode, 1);
+    EXPECT_NE(both.err.find("both seasons are tile services"), std::string::npos) << both.err;
+    EXPECT_FALSE(fs::exists(s.dir / "both.png"));
 }

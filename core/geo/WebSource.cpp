@@ -1,5 +1,6 @@
 #include "WebSource.h"
 
+#include "AtomicFile.h"
 #include "GdalSupport.h"
 
 #include <cpl_conv.h>
@@ -8,6 +9,10 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <vector>
 
 #ifndef SEASONVIEW_VERSION
 #define SEASONVIEW_VERSION "0"
@@ -35,6 +40,46 @@ std::string header(char** headers, const std::string& name) {
         return v;
     }
     return {};
+}
+
+/// One request through GDAL's HTTP client (seasonview's User-Agent, GDAL's timeout and retries): the status (200, or
+/// the 400+ GDAL reports as "HTTP error code : N"), content type, headers and body; an error naming the URL when no
+/// answer came.
+struct Answer {
+    std::string status = "200";
+    std::string contentType;
+    std::string contentLength, lastModified, etag;
+    std::vector<std::uint8_t> body;
+};
+
+Result<Answer> fetch(const std::string& url, bool headOnly) {
+    gdal::init();
+    gdal::ErrorCapture quiet;
+    const std::string agent = "USERAGENT=" + userAgent();
+    std::vector<const char*> options = {agent.c_str(), "TIMEOUT=30", "MAX_RETRY=3", "RETRY_DELAY=1"};
+    if (headOnly) options.insert(options.end(), {"CUSTOMREQUEST=HEAD", "NO_BODY=YES"});
+    options.push_back(nullptr);
+    CPLHTTPResult* r = CPLHTTPFetch(url.c_str(), options.data());
+    if (!r) return fileError(url, "no answer (HTTP is not available in this GDAL)");
+    struct Free {
+        CPLHTTPResult* r;
+        ~Free() { CPLHTTPDestroyResult(r); }
+    } freeing{r};
+    Answer a;
+    const std::string err = r->pszErrBuf ? r->pszErrBuf : "";
+    if (const auto at = err.find("HTTP error code"); at != std::string::npos) {
+        const auto digits = err.find_first_of("0123456789", at);
+        a.status = digits == std::string::npos ? "?" : err.substr(digits, 3);
+        return a;
+    }
+    if (r->nStatus != 0 || !err.empty())
+        return fileError(url, "no answer from the server (" + (err.empty() ? "transfer failed" : err) + ")");
+    a.contentType = lower(r->pszContentType ? r->pszContentType : "");
+    a.contentLength = header(r->papszHeaders, "content-length");
+    a.lastModified = header(r->papszHeaders, "last-modified");
+    a.etag = header(r->papszHeaders, "etag");
+    if (r->pabyData && r->nDataLen > 0) a.body.assign(r->pabyData, r->pabyData + r->nDataLen);
+    return a;
 }
 } // namespace
 
@@ -65,32 +110,151 @@ RemoteOpen::~RemoteOpen() {
 std::string userAgent() { return std::string("seasonview/") + SEASONVIEW_VERSION; }
 
 Result<std::string> identity(const std::string& url) {
-    gdal::init();
-    gdal::ErrorCapture quiet;
-    const std::string agent = "USERAGENT=" + userAgent();
-    const char* options[] = {"CUSTOMREQUEST=HEAD", "NO_BODY=YES", agent.c_str(), nullptr};
-    CPLHTTPResult* r = CPLHTTPFetch(url.c_str(), options);
-    if (!r) return fileError(url, "no answer (HTTP is not available in this GDAL)");
-    struct Free {
-        CPLHTTPResult* r;
-        ~Free() { CPLHTTPDestroyResult(r); }
-    } freeing{r};
-    const std::string err = r->pszErrBuf ? r->pszErrBuf : "";
-    // GDAL says "HTTP error code : N" for a status of 400 or more.
-    if (const auto at = err.find("HTTP error code"); at != std::string::npos) {
-        const auto digits = err.find_first_of("0123456789", at);
-        const std::string code = digits == std::string::npos ? "?" : err.substr(digits, 3);
-        return fileError(url, "HTTP " + code + (code == "404" ? " (not found on the server)" : ""));
-    }
-    if (r->nStatus != 0 || !err.empty())
-        return fileError(url, "no answer from the server (" + (err.empty() ? "transfer failed" : err) + ")");
-    const std::string type = lower(r->pszContentType ? r->pszContentType : "");
-    if (type.rfind("text/html", 0) == 0)
+    auto a = fetch(url, true);
+    if (!a) return a.error();
+    if (a->status != "200") return fileError(url, "HTTP " + a->status + (a->status == "404" ? " (not found on the server)" : ""));
+    if (a->contentType.rfind("text/html", 0) == 0)
         return fileError(url, "the server answers with a web page (text/html), not a raster");
-    const std::string size = header(r->papszHeaders, "content-length");
+    const std::string& size = a->contentLength;
     if (size.empty() || size.find_first_not_of("0123456789") != std::string::npos || size == "0")
         return fileError(url, "the server gives no size for it (a web raster is read by ranges: a file, e.g. a COG)");
-    return url + "|" + size + "|" + header(r->papszHeaders, "last-modified") + "|" + header(r->papszHeaders, "etag");
+    return url + "|" + size + "|" + a->lastModified + "|" + a->etag;
+}
+
+bool isTileTemplate(std::string_view s) {
+    return isUrl(s) && s.find("{z}") != std::string_view::npos && s.find("{x}") != std::string_view::npos &&
+           (s.find("{y}") != std::string_view::npos || s.find("{-y}") != std::string_view::npos);
+}
+
+namespace {
+
+constexpr double kMercatorHalf = 20037508.342789244; // EPSG:3857's half extent
+constexpr int kTileSize = 256;
+constexpr int kMaxZoom = 22;
+
+std::string tileUrl(std::string t, int z, long long x, long long y) {
+    for (const auto& [key, v] : {std::pair<std::string, long long>{"{z}", z}, {"{x}", x}, {"{y}", y}})
+        for (size_t at; (at = t.find(key)) != std::string::npos;) t.replace(at, key.size(), std::to_string(v));
+    return t;
+}
+
+enum class Probe { Image, Missing };
+
+/// GET of one tile: an image, missing (404, 204), or an error naming its URL.
+Result<Probe> probeTile(const std::string& url) {
+    auto a = fetch(url, false);
+    if (!a) return a.error();
+    if (a->status == "404") return Probe::Missing;
+    if (a->status != "200") return fileError(url, "HTTP " + a->status);
+    const std::vector<std::uint8_t>& d = a->body;
+    if (d.empty()) return Probe::Missing; // 204
+    const bool png = d.size() >= 8 && d[0] == 0x89 && d[1] == 'P' && d[2] == 'N' && d[3] == 'G';
+    const bool jpeg = d.size() >= 3 && d[0] == 0xFF && d[1] == 0xD8 && d[2] == 0xFF;
+    const bool webp = d.size() >= 12 && std::string_view(reinterpret_cast<const char*>(d.data()) + 8, 4) == "WEBP";
+    if (!png && !jpeg && !webp)
+        return fileError(url, "the server answers with " +
+                                  (a->contentType.rfind("text/html", 0) == 0 ? std::string("a web page (text/html)")
+                                                                             : "something else (" + a->contentType + ")") +
+                                  ", not a PNG, JPEG or WebP tile");
+    return Probe::Image;
+}
+
+std::string num(double v) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.10f", v);
+    return buf;
+}
+
+/// FNV-1a of a text, 8 hex digits: the name of a file in the cache derived from it.
+std::string fnv1a(const std::string& text) {
+    std::uint32_t v = 2166136261u;
+    for (unsigned char c : text) v = (v ^ c) * 16777619u;
+    char name[16];
+    std::snprintf(name, sizeof name, "%08x", v);
+    return name;
+}
+
+std::string xmlEscape(const std::string& s) {
+    std::string o;
+    for (char c : s) {
+        if (c == '&') o += "&amp;";
+        else if (c == '<') o += "&lt;";
+        else if (c == '>') o += "&gt;";
+        else o += c;
+    }
+    return o;
+}
+
+} // namespace
+
+Result<std::filesystem::path> describeTileService(const std::string& url, const TileArea& area,
+                                                  const std::filesystem::path& cacheDir) {
+    gdal::init();
+    if (url.find("{-y}") != std::string::npos)
+        return fileError(url, "TMS rows ({-y}) are not read yet: give an XYZ template ({y}, rows from the top)");
+    if (!(area.maxX > area.minX && area.maxY > area.minY && area.pixelSize > 0) || !std::isfinite(area.pixelSize))
+        return fileError(url, "no area to read the tile service over");
+    // The coarsest zoom whose pixels are not larger than wanted.
+    int z = int(std::ceil(std::log2(2.0 * kMercatorHalf / kTileSize / area.pixelSize - 1e-9)));
+    z = std::clamp(z, 0, kMaxZoom);
+    const double cx = 0.5 * (area.minX + area.maxX), cy = 0.5 * (area.minY + area.maxY);
+    // The zoom found is remembered in the cache, so that a second run asks the service for nothing.
+    const std::filesystem::path dir = cacheDir / "web";
+    const std::string probeKey = url + "|" + std::to_string(z) + "|" + num(cx) + "|" + num(cy);
+    const std::filesystem::path memo = dir / ("zoom_" + fnv1a(probeKey) + ".txt");
+    std::error_code ec;
+    bool known = false;
+    if (std::ifstream in(memo); in) {
+        int remembered = -1;
+        if ((in >> remembered) && remembered >= 0 && remembered <= z) z = remembered, known = true;
+    }
+    for (; !known; --z) {
+        const double t = 2.0 * kMercatorHalf / std::ldexp(1.0, z);
+        const auto probe = probeTile(tileUrl(url, z, (long long)std::floor((cx + kMercatorHalf) / t),
+                                             (long long)std::floor((kMercatorHalf - cy) / t)));
+        if (!probe) return probe.error();
+        if (*probe == Probe::Image) {
+            std::filesystem::create_directories(dir, ec);
+            std::string err;
+            (void)writeTextAtomic(memo, std::to_string(z) + "\n", err); // not kept: the next run probes again
+            break;
+        }
+        if (z == 0) return fileError(url, "the service has no tile over the area at any zoom (404)");
+    }
+    const long long n = 1LL << z;
+    const double t = 2.0 * kMercatorHalf / double(n);
+    const auto clampTile = [&](double v) { return std::clamp((long long)std::floor(v), 0LL, n - 1); };
+    const long long x0 = clampTile((area.minX + kMercatorHalf) / t), x1 = clampTile((area.maxX + kMercatorHalf) / t - 1e-9);
+    const long long y0 = clampTile((kMercatorHalf - area.maxY) / t), y1 = clampTile((kMercatorHalf - area.minY) / t - 1e-9);
+    const long long w = (x1 - x0 + 1) * kTileSize, h = (y1 - y0 + 1) * kTileSize;
+    if (w > gdal::kMaxRasterSide || h > gdal::kMaxRasterSide)
+        return fileError(url, "the area is " + std::to_string(w) + "x" + std::to_string(h) + " pixels at zoom " +
+                                  std::to_string(z) + ", over the limit of " + std::to_string(gdal::kMaxRasterSide) +
+                                  " a side (a smaller --extent)");
+    std::string server = url;
+    for (const auto& [key, v] : {std::pair<std::string, std::string>{"{z}", "${z}"}, {"{x}", "${x}"}, {"{y}", "${y}"}})
+        for (size_t at = 0; (at = server.find(key, at)) != std::string::npos; at += v.size())
+            server.replace(at, key.size(), v);
+    const std::string xml =
+        "<GDAL_WMS>\n  <Service name=\"TMS\"><ServerUrl>" + xmlEscape(server) + "</ServerUrl></Service>\n" +
+        "  <DataWindow><UpperLeftX>" + num(-kMercatorHalf + double(x0) * t) + "</UpperLeftX><UpperLeftY>" +
+        num(kMercatorHalf - double(y0) * t) + "</UpperLeftY><LowerRightX>" + num(-kMercatorHalf + double(x1 + 1) * t) +
+        "</LowerRightX><LowerRightY>" + num(kMercatorHalf - double(y1 + 1) * t) + "</LowerRightY><SizeX>" +
+        std::to_string(w) + "</SizeX><SizeY>" + std::to_string(h) + "</SizeY><TileLevel>" + std::to_string(z) +
+        "</TileLevel><TileX>" + std::to_string(x0) + "</TileX><TileY>" + std::to_string(y0) +
+        "</TileY><YOrigin>top</YOrigin></DataWindow>\n" +
+        "  <Projection>EPSG:3857</Projection><BlockSizeX>256</BlockSizeX><BlockSizeY>256</BlockSizeY>"
+        "<BandsCount>4</BandsCount>\n"
+        "  <MaxConnections>4</MaxConnections><Timeout>30</Timeout><UserAgent>" + xmlEscape(userAgent()) +
+        "</UserAgent><ZeroBlockHttpCodes>204,404</ZeroBlockHttpCodes>\n"
+        "  <Cache><Path>" + xmlEscape((dir / "tiles").string()) + "</Path></Cache>\n</GDAL_WMS>\n";
+    std::filesystem::create_directories(dir, ec);
+    const std::filesystem::path file = dir / (fnv1a(xml) + ".xml"); // named by its content
+    if (!std::filesystem::exists(file, ec)) {
+        std::string err;
+        if (!writeTextAtomic(file, xml, err)) return fileError(file.string(), err);
+    }
+    return file;
 }
 
 } // namespace seasonview::web

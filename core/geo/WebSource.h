@@ -27,6 +27,26 @@ Result<std::string> identity(const std::string& url);
 /// The User-Agent every request sends ("seasonview/VERSION").
 std::string userAgent();
 
+/// Whether an input is an XYZ tile service: a URL template with {z}, {x} and {y} (256-pixel tiles of Web Mercator,
+/// rows from the top, as OpenStreetMap's and most services'). {-y} (TMS rows) is refused by describeTileService.
+bool isTileTemplate(std::string_view input);
+
+/// The part of a tile service a scene reads: a rectangle in Web Mercator (EPSG:3857) and the pixel size wanted
+/// there, in EPSG:3857 units (the zoom chosen is the coarsest whose pixels are not larger).
+struct TileArea {
+    double minX = 0, minY = 0, maxX = 0, maxY = 0;
+    double pixelSize = 1;
+};
+
+/// A GDAL WMS description of the service over `area`, written into cacheDir/web/ (the same content, the same file:
+/// its identity keys the pyramid cache), its tiles cached by GDAL in cacheDir/web/tiles/ so that a second run fetches
+/// none. The zoom: the coarsest not coarser than area.pixelSize, or, where the service has no tile at the area's
+/// centre at that zoom (404 or 204), the finest it has (at most 23 requests). Tiles missing when read (404, 204)
+/// are no data; other HTTP errors, a web page instead of an image and failed transfers are errors naming the tile's
+/// URL. At most 4 connections, seasonview's User-Agent, 30 s timeout, retries on 429 and 502-504.
+Result<std::filesystem::path> describeTileService(const std::string& url, const TileArea& area,
+                                                  const std::filesystem::path& cacheDir);
+
 /// While alive, GDAL opens `path`, when it is a URL, without listing its folder or asking for side files (.aux.xml,
 /// .ovr, .msk: requests that a web server answers 404 or with a listing page); local files still find theirs
 /// (world files, .prj). Set for this thread only.

@@ -202,6 +202,54 @@ void placeOnGrid(ImageryLayer& layer, const WorkingGrid& grid) {
     i.driver = layer.direct ? t.driver : "warped";
 }
 
+bool isTileService(const SourceList& s) { return s.items.size() == 1 && web::isTileTemplate(s.items.front().string()); }
+
+/// Where a tile service is read (WebSource.h): over the other season's footprint at its pixel size, or over --extent
+/// in --grid-crs at --grid-res.
+Result<web::TileArea> tileArea(const SceneSources& sources, const SourceList& other, const std::optional<Crs>& assumed) {
+    auto mercator = Crs::fromEpsg(3857);
+    if (!mercator) return mercator.error();
+    std::optional<Crs> crs;
+    glm::dvec2 lo{0.0}, hi{0.0};
+    double res = 0;
+    if (!isTileService(other)) {
+        auto m = openMosaic(other, "other season", assumed);
+        if (!m) return m.error();
+        crs = m->crs;
+        lo = m->min;
+        hi = m->max;
+        res = m->finest().georef->pixelSize.x;
+    } else if (sources.grid.extent && !sources.grid.crs.empty() && sources.grid.resolution) {
+        auto c = Crs::fromUserInput(sources.grid.crs);
+        if (!c) return Error{"--grid-crs: " + c.message()};
+        crs = *c;
+        lo = {(*sources.grid.extent)[0], (*sources.grid.extent)[1]};
+        hi = {(*sources.grid.extent)[2], (*sources.grid.extent)[3]};
+        res = *sources.grid.resolution;
+    } else {
+        return Error{"scene: both seasons are tile services, which cover the world: give --extent with --grid-crs and "
+                     "--grid-res"};
+    }
+    std::vector<glm::dvec2> pts;
+    for (int i = 0; i <= 4; ++i)
+        for (int k = 0; k <= 4; ++k) pts.push_back(lo + (hi - lo) * glm::dvec2(i / 4.0, k / 4.0));
+    const glm::dvec2 c = 0.5 * (lo + hi);
+    pts.push_back(c);
+    pts.push_back(c + glm::dvec2(res, 0.0));
+    convert(*crs, *mercator, pts);
+    web::TileArea a;
+    a.minX = a.minY = 1e300;
+    a.maxX = a.maxY = -1e300;
+    for (size_t i = 0; i + 2 < pts.size(); ++i) {
+        a.minX = std::min(a.minX, pts[i].x), a.maxX = std::max(a.maxX, pts[i].x);
+        a.minY = std::min(a.minY, pts[i].y), a.maxY = std::max(a.maxY, pts[i].y);
+    }
+    a.pixelSize = glm::length(pts[pts.size() - 1] - pts[pts.size() - 2]);
+    if (!std::isfinite(a.minX + a.maxX + a.minY + a.maxY + a.pixelSize))
+        return Error{"scene: the area to read the tile service over does not map to Web Mercator"};
+    return a;
+}
+
 } // namespace
 
 Result<ImageryLayer> openImageryLayer(const SourceList& sources, const std::string& role,
@@ -236,9 +284,20 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
     auto stretch = parseStretchMode(sources.stretch);
     if (!stretch) return stretch.error();
 
-    auto on = openImagery(sources.leafon, "leaf-on", assumed, cacheDir, *stretch);
+    // A season from a tile service (WebSource.h) is read as a GDAL WMS description of the part of the service the
+    // scene covers, written into the cache.
+    SourceList leafonSources = sources.leafon, leafoffSources = sources.leafoff;
+    for (SourceList* s : {&leafonSources, &leafoffSources}) {
+        if (!isTileService(*s)) continue;
+        auto area = tileArea(sources, s == &leafonSources ? sources.leafoff : sources.leafon, assumed);
+        if (!area) return area.error();
+        auto xml = web::describeTileService(s->items.front().string(), *area, cacheDir);
+        if (!xml) return xml.error();
+        s->items = {*xml};
+    }
+    auto on = openImagery(leafonSources, "leaf-on", assumed, cacheDir, *stretch);
     if (!on) return on.error();
-    auto off = openImagery(sources.leafoff, "leaf-off", assumed, cacheDir, *stretch);
+    auto off = openImagery(leafoffSources, "leaf-off", assumed, cacheDir, *stretch);
     if (!off) return off.error();
     scene.leafon = std::move(*on);
     scene.leafoff = std::move(*off);
