@@ -247,6 +247,18 @@ TEST(WebSourceCliTest, XyzTileServiceDrawsAsTheSamePixelsOnDisk) {
     EXPECT_NE(e.err.find("HTTP 500"), std::string::npos) << e.err;
     EXPECT_EQ(std::count(e.err.begin(), e.err.end(), '\n'), 1) << e.err;
 
+    // One tile failing while the season is read: one line and no picture (the line names the service's description
+    // in the cache, not yet the tile's URL).
+    tiles.clearFaults();
+    const std::string corner = "/17/" + std::to_string(x0) + "/" + std::to_string(y0) + ".png";
+    tiles.setFault(corner, down);
+    const CliResult f = render(tiles.url() + "/{z}/{x}/{y}.png", "tile");
+    EXPECT_EQ(f.exitCode, 1);
+    EXPECT_NE(f.err.find("truncated or corrupt image data"), std::string::npos) << f.err;
+    EXPECT_EQ(std::count(f.err.begin(), f.err.end(), '\n'), 1) << f.err;
+    EXPECT_FALSE(fs::exists(s.dir / "tile.png"));
+    tiles.clearFaults();
+
     // Not read yet, and not readable without an area: one line each.
     const CliResult tms = render(tiles.url() + "/{z}/{x}/{-y}.png", "tms");
     EXPECT_EQ(tms.exitCode, 1);
