@@ -2,6 +2,7 @@
 
 #include "AtomicFile.h"
 #include "GdalSupport.h"
+#include "StableHash.h"
 
 #include <cpl_conv.h>
 #include <cpl_http.h>
@@ -132,9 +133,10 @@ constexpr double kMercatorHalf = 20037508.342789244; // EPSG:3857's half extent
 constexpr int kTileSize = 256;
 constexpr int kMaxZoom = 22;
 
-std::string tileUrl(std::string t, int z, long long x, long long y) {
-    for (const auto& [key, v] : {std::pair<std::string, long long>{"{z}", z}, {"{x}", x}, {"{y}", y}})
-        for (size_t at; (at = t.find(key)) != std::string::npos;) t.replace(at, key.size(), std::to_string(v));
+/// The template with {z}, {x} and {y} replaced.
+std::string fillTemplate(std::string t, const std::string& z, const std::string& x, const std::string& y) {
+    for (const auto& [key, v] : {std::pair<std::string, const std::string&>{"{z}", z}, {"{x}", x}, {"{y}", y}})
+        for (size_t at = 0; (at = t.find(key, at)) != std::string::npos; at += v.size()) t.replace(at, key.size(), v);
     return t;
 }
 
@@ -165,12 +167,10 @@ std::string num(double v) {
     return buf;
 }
 
-/// FNV-1a of a text, 8 hex digits: the name of a file in the cache derived from it.
-std::string fnv1a(const std::string& text) {
-    std::uint32_t v = 2166136261u;
-    for (unsigned char c : text) v = (v ^ c) * 16777619u;
-    char name[16];
-    std::snprintf(name, sizeof name, "%08x", v);
+/// The name of a file in the cache derived from a text (StableHash.h, as the other caches name theirs).
+std::string cacheName(const std::string& text) {
+    char name[24];
+    std::snprintf(name, sizeof name, "%016llx", static_cast<unsigned long long>(stableHash64(text)));
     return name;
 }
 
@@ -201,7 +201,7 @@ Result<std::filesystem::path> describeTileService(const std::string& url, const 
     // The zoom found is remembered in the cache, so that a second run asks the service for nothing.
     const std::filesystem::path dir = cacheDir / "web";
     const std::string probeKey = url + "|" + std::to_string(z) + "|" + num(cx) + "|" + num(cy);
-    const std::filesystem::path memo = dir / ("zoom_" + fnv1a(probeKey) + ".txt");
+    const std::filesystem::path memo = dir / ("zoom_" + cacheName(probeKey) + ".txt");
     std::error_code ec;
     bool known = false;
     if (std::ifstream in(memo); in) {
@@ -210,8 +210,9 @@ Result<std::filesystem::path> describeTileService(const std::string& url, const 
     }
     for (; !known; --z) {
         const double t = 2.0 * kMercatorHalf / std::ldexp(1.0, z);
-        const auto probe = probeTile(tileUrl(url, z, (long long)std::floor((cx + kMercatorHalf) / t),
-                                             (long long)std::floor((kMercatorHalf - cy) / t)));
+        const auto probe = probeTile(fillTemplate(url, std::to_string(z),
+                                                  std::to_string((long long)std::floor((cx + kMercatorHalf) / t)),
+                                                  std::to_string((long long)std::floor((kMercatorHalf - cy) / t))));
         if (!probe) return probe.error();
         if (*probe == Probe::Image) {
             std::filesystem::create_directories(dir, ec);
@@ -231,10 +232,7 @@ Result<std::filesystem::path> describeTileService(const std::string& url, const 
         return fileError(url, "the area is " + std::to_string(w) + "x" + std::to_string(h) + " pixels at zoom " +
                                   std::to_string(z) + ", over the limit of " + std::to_string(gdal::kMaxRasterSide) +
                                   " a side (a smaller --extent)");
-    std::string server = url;
-    for (const auto& [key, v] : {std::pair<std::string, std::string>{"{z}", "${z}"}, {"{x}", "${x}"}, {"{y}", "${y}"}})
-        for (size_t at = 0; (at = server.find(key, at)) != std::string::npos; at += v.size())
-            server.replace(at, key.size(), v);
+    const std::string server = fillTemplate(url, "${z}", "${x}", "${y}"); // GDAL's TMS mini-driver's keys
     const std::string xml =
         "<GDAL_WMS>\n  <Service name=\"TMS\"><ServerUrl>" + xmlEscape(server) + "</ServerUrl></Service>\n" +
         "  <DataWindow><UpperLeftX>" + num(-kMercatorHalf + double(x0) * t) + "</UpperLeftX><UpperLeftY>" +
@@ -249,7 +247,7 @@ Result<std::filesystem::path> describeTileService(const std::string& url, const 
         "</UserAgent><ZeroBlockHttpCodes>204,404</ZeroBlockHttpCodes>\n"
         "  <Cache><Path>" + xmlEscape((dir / "tiles").string()) + "</Path></Cache>\n</GDAL_WMS>\n";
     std::filesystem::create_directories(dir, ec);
-    const std::filesystem::path file = dir / (fnv1a(xml) + ".xml"); // named by its content
+    const std::filesystem::path file = dir / (cacheName(xml) + ".xml"); // named by its content
     if (!std::filesystem::exists(file, ec)) {
         std::string err;
         if (!writeTextAtomic(file, xml, err)) return fileError(file.string(), err);

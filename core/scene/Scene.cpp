@@ -204,21 +204,19 @@ void placeOnGrid(ImageryLayer& layer, const WorkingGrid& grid) {
 
 bool isTileService(const SourceList& s) { return s.items.size() == 1 && web::isTileTemplate(s.items.front().string()); }
 
-/// Where a tile service is read (WebSource.h): over the other season's footprint at its pixel size, or over --extent
-/// in --grid-crs at --grid-res.
-Result<web::TileArea> tileArea(const SceneSources& sources, const SourceList& other, const std::optional<Crs>& assumed) {
+/// Where a tile service is read (WebSource.h): over the other season's footprint at its pixel size (`other`, opened
+/// already), or, when both are services, over --extent in --grid-crs at --grid-res.
+Result<web::TileArea> tileArea(const SceneSources& sources, const RasterMosaic* other) {
     auto mercator = Crs::fromEpsg(3857);
     if (!mercator) return mercator.error();
     std::optional<Crs> crs;
     glm::dvec2 lo{0.0}, hi{0.0};
     double res = 0;
-    if (!isTileService(other)) {
-        auto m = openMosaic(other, "other season", assumed);
-        if (!m) return m.error();
-        crs = m->crs;
-        lo = m->min;
-        hi = m->max;
-        res = m->finest().georef->pixelSize.x;
+    if (other) {
+        crs = other->crs;
+        lo = other->min;
+        hi = other->max;
+        res = other->finest().georef->pixelSize.x;
     } else if (sources.grid.extent && !sources.grid.crs.empty() && sources.grid.resolution) {
         auto c = Crs::fromUserInput(sources.grid.crs);
         if (!c) return Error{"--grid-crs: " + c.message()};
@@ -285,22 +283,28 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
     if (!stretch) return stretch.error();
 
     // A season from a tile service (WebSource.h) is read as a GDAL WMS description of the part of the service the
-    // scene covers, written into the cache.
-    SourceList leafonSources = sources.leafon, leafoffSources = sources.leafoff;
-    for (SourceList* s : {&leafonSources, &leafoffSources}) {
-        if (!isTileService(*s)) continue;
-        auto area = tileArea(sources, s == &leafonSources ? sources.leafoff : sources.leafon, assumed);
-        if (!area) return area.error();
-        auto xml = web::describeTileService(s->items.front().string(), *area, cacheDir);
-        if (!xml) return xml.error();
-        s->items = {*xml};
-    }
-    auto on = openImagery(leafonSources, "leaf-on", assumed, cacheDir, *stretch);
-    if (!on) return on.error();
-    auto off = openImagery(leafoffSources, "leaf-off", assumed, cacheDir, *stretch);
-    if (!off) return off.error();
-    scene.leafon = std::move(*on);
-    scene.leafoff = std::move(*off);
+    // scene covers, written into the cache: over the other season's footprint, so that one is opened first.
+    const SourceList* given[2] = {&sources.leafon, &sources.leafoff};
+    const char* roles[2] = {"leaf-on", "leaf-off"};
+    const bool service[2] = {isTileService(sources.leafon), isTileService(sources.leafoff)};
+    ImageryLayer* layers[2] = {&scene.leafon, &scene.leafoff};
+    bool opened[2] = {false, false};
+    for (int pass = 0; pass < 2; ++pass)
+        for (int i = 0; i < 2; ++i) {
+            if (service[i] != (pass == 1)) continue;
+            SourceList s = *given[i];
+            if (service[i]) {
+                auto area = tileArea(sources, opened[1 - i] ? &layers[1 - i]->source : nullptr);
+                if (!area) return area.error();
+                auto xml = web::describeTileService(s.items.front().string(), *area, cacheDir);
+                if (!xml) return xml.error();
+                s.items = {*xml};
+            }
+            auto layer = openImagery(s, roles[i], assumed, cacheDir, *stretch);
+            if (!layer) return layer.error();
+            *layers[i] = std::move(*layer);
+            opened[i] = true;
+        }
     auto grid = chooseWorkingGrid(scene.leafon.source, scene.leafoff.source, *options, sources.leafon.describe(),
                                   sources.leafoff.describe());
     if (!grid) return grid.error();
