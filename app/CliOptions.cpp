@@ -32,8 +32,9 @@ void SceneArgs::addTo(CLI::App& cmd, bool withDem) {
     cmd.add_option("--leafon", leafon,
                    "Leaf-on (summer) imagery, 8- or 16-bit RGB(A) in any format and CRS GDAL reads: a file, a folder "
                    "of tiles, a glob, a VRT (several for a mosaic) an http(s):// URL read by range requests (a "
-                   "Cloud-Optimized GeoTIFF), or an XYZ tile service's URL template with {z}, {x} and {y} (read over "
-                   "the other season's footprint at its pixel size, or --extent with --grid-crs and --grid-res)")
+                   "Cloud-Optimized GeoTIFF), or an XYZ tile service's URL template with {z}, {x} and {y} ({-y}: TMS "
+                   "rows; read over --extent, else the other season's footprint, at --grid-res, else the other "
+                   "season's pixel size)")
         ->expected(1, -1);
     cmd.add_option("--leafoff", leafoff,
                    "Leaf-off (winter) imagery, as --leafon; any grid, resolution and CRS (warped onto the working "
@@ -55,7 +56,18 @@ void SceneArgs::addTo(CLI::App& cmd, bool withDem) {
     cmd.add_option("--grid-res", gridRes,
                    "Working grid's pixel size in its CRS's units (default: the finest season's)");
     cmd.add_option("--extent", extent,
-                   "Working grid's extent XMIN,YMIN,XMAX,YMAX in its CRS (default: the union of both seasons)");
+                   "Scene's extent W,S,E,N: degrees (WGS 84 longitudes, latitudes) when the numbers read as such, "
+                   "else in the working grid's CRS (default: the union of both seasons)");
+    cmd.add_option("--extent-crs", extentCrs,
+                   "The CRS --extent is given in (any EPSG code, URN, WKT or PROJ string; 'grid': the working grid's)");
+    cmd.add_option("--extent-of", extentOf,
+                   "Scene's extent: the footprint of one input, leafon|leafoff|dem")
+        ->check(CLI::IsMember({"leafon", "leafoff", "dem"}));
+    cmd.add_flag("--offline", offline,
+                 "Tile services from the disk cache only (no request; tiles never fetched are no data)");
+    cmd.add_option("--web-cache-mb", webCacheMb,
+                   "Bound of the tile services' disk cache in MiB (least recently fetched tiles go; default 1024)")
+        ->check(CLI::PositiveNumber);
     cmd.add_option("--resampling", resampling,
                    "How seasons are warped onto the working grid: auto|near|bilinear|cubic|average|lanczos (auto: "
                    "near on the grid's lattice, average where a season is 1.5x finer, else bilinear)");
@@ -103,9 +115,19 @@ Result<SceneSources> SceneArgs::sources() const {
         std::istringstream in(extent);
         char comma = 0;
         if (!(in >> e[0] >> comma >> e[1] >> comma >> e[2] >> comma >> e[3]) || !(in >> std::ws).eof())
-            return Error{"--extent '" + extent + "': expected XMIN,YMIN,XMAX,YMAX in the grid's CRS"};
+            return Error{"--extent '" + extent + "': expected W,S,E,N (degrees, or in --extent-crs)"};
         src.grid.extent = e;
+        src.grid.extentOf.clear(); // the flags win over the manifest's keys
+        src.grid.extentCrs = extentCrs;
+    } else if (!extentCrs.empty()) {
+        src.grid.extentCrs = extentCrs;
     }
+    if (!extentOf.empty()) {
+        src.grid.extentOf = extentOf;
+        if (extent.empty()) src.grid.extent.reset(), src.grid.extentCrs.clear();
+    }
+    if (offline) src.offline = true;
+    if (webCacheMb > 0) src.webCacheMb = webCacheMb;
     if (!resampling.empty()) src.resampling = resampling;
     if (!buildings.empty()) src.buildings = buildings;
     if (!cityCrs.empty()) src.buildingsCrs = cityCrs;

@@ -36,8 +36,10 @@ struct SceneArgs {
     std::string manifest;
     std::vector<std::string> leafon, leafoff, dem;
     std::string cache;
-    std::string crs, gridCrs, extent, resampling, stretch, buildings, cityCrs;
+    std::string crs, gridCrs, extent, extentCrs, extentOf, resampling, stretch, buildings, cityCrs;
     double gridRes = 0.0;
+    bool offline = false;
+    double webCacheMb = 0.0;
     /// Adds the options to `cmd` (`withDem` false: commands that read no DEM).
     void addTo(CLI::App& cmd, bool withDem = true);
     /// Adds --cache alone (a command that makes its own scene: `demo`).

@@ -2,6 +2,7 @@
 #include "ReferenceMesh.h"
 #include "Scene.h"
 #include "TestUtil.h"
+#include "WebSource.h"
 
 #include <gtest/gtest.h>
 
@@ -217,6 +218,73 @@ TEST(SceneTest, SeasonsOnOtherGridsGetOneWorkingGrid) {
     EXPECT_NE(d.message().find("--extent"), std::string::npos) << d.message();
 }
 
+// --extent in degrees (the default when the numbers read as longitudes and latitudes), in a CRS named by
+// --extent-crs ("grid": the grid's), or the footprint of an input (--extent-of); the web keys of a manifest.
+TEST(SceneTest, ExtentInDegreesInItsOwnCrsOrAnInputsFootprint) {
+    Pair p;
+    SceneSources s = p.sources();
+    s.grid.resolution = 1.0;
+    const glm::dvec2 lo(405004.0, 5757984.0), hi(405020.0, 5757996.0); // UTM 32N, inside both seasons
+    s.grid.extent = std::array<double, 4>{lo.x, lo.y, hi.x, hi.y};     // projected numbers: the grid's CRS
+    auto a = loadScene(s, p.dir / "cache");
+    ASSERT_TRUE(a.ok()) << a.message();
+    EXPECT_EQ(a->grid.width, 16);
+    EXPECT_EQ(a->grid.height, 12);
+    s.grid.extentCrs = "grid";
+    auto b = loadScene(s, p.dir / "cache");
+    ASSERT_TRUE(b.ok()) << b.message();
+    EXPECT_EQ(b->grid.width, 16);
+    // The same box in degrees: its outline in UTM is the box, give or take the curvature of a 16 m square.
+    std::vector<glm::dvec2> corners = {lo, hi};
+    convert(Crs::utm(32, true), Crs::geographic(), corners);
+    s.grid.extent = std::array<double, 4>{corners[0].x, corners[0].y, corners[1].x, corners[1].y};
+    s.grid.extentCrs.clear();
+    auto c = loadScene(s, p.dir / "cache");
+    ASSERT_TRUE(c.ok()) << c.message();
+    EXPECT_EQ(c->grid.georef.crs.epsg(), 32632);
+    EXPECT_GE(c->grid.width, 16);
+    EXPECT_LE(c->grid.width, 18); // the grid's meridian convergence (~0.8°) turns the box
+    EXPECT_GE(c->grid.height, 12);
+    EXPECT_LE(c->grid.height, 14);
+    s.grid.extentCrs = "EPSG:4326";
+    auto d = loadScene(s, p.dir / "cache");
+    ASSERT_TRUE(d.ok()) << d.message();
+    EXPECT_EQ(d->grid.width, c->grid.width);
+    // Named as an input's footprint: the leaf-off's (the whole 32 x 24 m).
+    s.grid.extent.reset();
+    s.grid.extentCrs.clear();
+    s.grid.extentOf = "leafoff";
+    auto e = loadScene(s, p.dir / "cache");
+    ASSERT_TRUE(e.ok()) << e.message();
+    EXPECT_EQ(e->grid.width, 32);
+    EXPECT_EQ(e->grid.height, 24);
+    // Errors name the flag.
+    s.grid.extentOf = "dem";
+    auto f = loadScene(s, p.dir / "cache");
+    ASSERT_FALSE(f.ok());
+    EXPECT_NE(f.message().find("--extent-of dem: no DEM given"), std::string::npos) << f.message();
+    s.grid.extentOf.clear();
+    s.grid.extent = std::array<double, 4>{lo.x, lo.y, hi.x, hi.y};
+    s.grid.extentCrs = "EPSG:0";
+    auto g = loadScene(s, p.dir / "cache");
+    ASSERT_FALSE(g.ok());
+    EXPECT_EQ(g.message().rfind("--extent-crs: ", 0), 0u) << g.message();
+
+    writeText(p.dir / "web.json", R"({"leafon": "on.tif", "leafoff": "off.tif", "extent": [8.1, 52.0, 8.2, 52.1],
+        "extent_crs": "EPSG:4326", "offline": true, "web_cache_mb": 64})");
+    auto m = parseManifest(p.dir / "web.json");
+    ASSERT_TRUE(m.ok()) << m.message();
+    EXPECT_TRUE(m->warnings.empty()) << m->warnings.front();
+    EXPECT_EQ(m->grid.extentCrs, "EPSG:4326");
+    EXPECT_TRUE(m->offline);
+    EXPECT_EQ(m->webCacheMb, 64);
+    writeText(p.dir / "of.json", R"({"leafon": "on.tif", "leafoff": "off.tif", "extent_of": "leafon",
+        "web_cache_mb": 0})");
+    auto bad = parseManifest(p.dir / "of.json");
+    ASSERT_FALSE(bad.ok());
+    EXPECT_NE(bad.message().find("'web_cache_mb' must be a positive number"), std::string::npos) << bad.message();
+}
+
 TEST(SceneTest, SeasonsThatDoNotOverlapAreAnError) {
     Pair p;
     writeTestImage(p.dir / "far.tif", 64, 48, testGeoref(0.5, 405100, 5758000));
@@ -351,4 +419,48 @@ TEST(HeightfieldTest, TriangulatedSurfaceSplitsCellsAlongTheReferenceDiagonal) {
     EXPECT_DOUBLE_EQ(f.sampleCrs(at(0.5, 0.5)), 7.5);               // bilinear: mean of all four
     EXPECT_DOUBLE_EQ(f.sampleCrsTriangulated(at(0.25, 0.25)), 7.5); // NW triangle: 0 + 0.25*10 + 0.25*20
     EXPECT_DOUBLE_EQ(f.sampleCrsTriangulated(at(0.75, 0.75)), 7.5); // SE triangle: 0 + 0.25*20 + 0.25*10
+}
+
+// A service description's identity is what it describes: the run's options (offline, the cache and its bound,
+// connections, timeout, User-Agent) leave it, and so the pyramid made from it, unchanged; another window changes it.
+TEST(SceneTest, ServiceDescriptionIdentityIgnoresTheRunsOptions) {
+    TempDir dir("service-identity");
+    const std::string head = "<GDAL_WMS>\n  <Service name=\"TMS\"><ServerUrl>http://h/${z}/${x}/${y}.png</ServerUrl>"
+                             "</Service>\n  <DataWindow><TileLevel>17</TileLevel><TileX>10</TileX></DataWindow>\n";
+    writeText(dir / "a.xml", head + "  <OfflineMode>false</OfflineMode><Cache><Path>/c</Path></Cache>\n</GDAL_WMS>\n");
+    writeText(dir / "b.xml", head + "  <OfflineMode>true</OfflineMode><Cache><Path>/d</Path><MaxSize>1048576</MaxSize>"
+                                    "</Cache><MaxConnections>2</MaxConnections><Timeout>5</Timeout><UserAgent>x"
+                                    "</UserAgent>\n</GDAL_WMS>\n");
+    std::string other = head;
+    other.replace(other.find("<TileX>10"), 9, "<TileX>11");
+    writeText(dir / "c.xml", other + "</GDAL_WMS>\n");
+    auto a = fileIdentity(dir / "a.xml"), b = fileIdentity(dir / "b.xml"), c = fileIdentity(dir / "c.xml");
+    ASSERT_TRUE(a.ok() && b.ok() && c.ok());
+    EXPECT_EQ(*a, *b);
+    EXPECT_NE(*a, *c);
+    EXPECT_EQ(a->rfind("service|", 0), 0u) << *a;
+    writeText(dir / "plain.xml", "<VRTDataset/>");
+    auto plain = fileIdentity(dir / "plain.xml");
+    ASSERT_TRUE(plain.ok());
+    EXPECT_NE(plain->rfind("service|", 0), 0u) << "other XML files keep path|size|mtime";
+}
+
+// The tile cache's bound: the least recently fetched tiles go first, until what is left fits.
+TEST(SceneTest, TileCacheTrimRemovesTheOldestTilesBeyondTheBound) {
+    TempDir dir("tile-trim");
+    const auto now = std::filesystem::file_time_type::clock::now();
+    for (int i = 0; i < 5; ++i) {
+        const auto f = dir / ("a" + std::to_string(i % 2)) / ("t" + std::to_string(i) + ".png");
+        std::filesystem::create_directories(f.parent_path());
+        writeText(f, std::string(1000, 'x'));
+        std::filesystem::last_write_time(f, now - std::chrono::hours(10 - i)); // t0 oldest
+    }
+    EXPECT_EQ(web::trimTileCache(dir.path(), 5000), 0);
+    EXPECT_EQ(web::trimTileCache(dir.path(), 2500), 3000);
+    EXPECT_FALSE(std::filesystem::exists(dir / "a0/t0.png"));
+    EXPECT_FALSE(std::filesystem::exists(dir / "a1/t1.png"));
+    EXPECT_FALSE(std::filesystem::exists(dir / "a0/t2.png"));
+    EXPECT_TRUE(std::filesystem::exists(dir / "a1/t3.png"));
+    EXPECT_TRUE(std::filesystem::exists(dir / "a0/t4.png"));
+    EXPECT_EQ(web::trimTileCache(dir / "none", 0), 0);
 }

@@ -174,46 +174,76 @@ TEST(WebSourceCliTest, RealSaclayCogByUrlDrawsAsTheFile) {
                 (long long)fs::file_size(s / "leafon_3857_cog.tif"));
 }
 
-TEST(WebSourceCliTest, XyzTileServiceDrawsAsTheSamePixelsOnDisk) {
-    // The synthetic leaf-on cut into 256² PNG tiles of Web Mercator at zoom 17, as a tile server serves them, next to
-    // the same pixels as one GeoTIFF. The service is read over the leaf-off's footprint at the leaf-off's pixel size
-    // (0.5 m: zoom 18, which the server does not have, so 17).
-    ServedScene s("web-xyz");
-    ASSERT_TRUE(fs::exists(s.scene / "leafon.tif"));
+namespace {
+
+/// The synthetic leaf-on cut into 256² PNG tiles of Web Mercator at zoom 17 under dir/tiles/17/x/y.png (XYZ rows)
+/// and dir/tms/17/x/y.png (TMS rows), next to the same pixels as one GeoTIFF (merc), and the leaf-off's footprint.
+struct MercatorTiles {
+    fs::path merc;
+    long long x0 = 0, x1 = 0, y0 = 0, y1 = 0;
+    std::string lonLat; // the leaf-off's footprint "W,S,E,N" in degrees
+};
+
+MercatorTiles makeTiles(const ServedScene& s) {
+    MercatorTiles m;
     auto info = readRasterInfo(s.scene / "leafoff.tif");
-    ASSERT_TRUE(info.ok() && info->georef) << info.message();
+    EXPECT_TRUE(info.ok() && info->georef) << info.message();
+    if (!info.ok() || !info->georef) return m;
     const Georef& g = *info->georef;
     auto mercator = Crs::fromEpsg(3857);
-    ASSERT_TRUE(mercator.ok());
+    EXPECT_TRUE(mercator.ok());
     const glm::dvec2 lo(g.origin.x, g.origin.y - g.pixelSize.y * info->height);
     const glm::dvec2 hi(g.origin.x + g.pixelSize.x * info->width, g.origin.y);
     std::vector<glm::dvec2> pts;
     for (int i = 0; i <= 4; ++i)
         for (int k = 0; k <= 4; ++k) pts.push_back(lo + (hi - lo) * glm::dvec2(i / 4.0, k / 4.0));
+    std::vector<glm::dvec2> deg = pts;
     convert(g.crs, *mercator, pts);
+    convert(g.crs, Crs::geographic(), deg);
     const double half = 20037508.342789244, t = 2.0 * half / double(1 << 17);
     double minX = 1e300, maxX = -1e300, minY = 1e300, maxY = -1e300;
     for (const auto& p : pts) minX = std::min(minX, p.x), maxX = std::max(maxX, p.x), minY = std::min(minY, p.y), maxY = std::max(maxY, p.y);
-    const long long x0 = (long long)std::floor((minX + half) / t), x1 = (long long)std::floor((maxX + half) / t - 1e-9);
-    const long long y0 = (long long)std::floor((half - maxY) / t), y1 = (long long)std::floor((half - minY) / t - 1e-9);
+    m.x0 = (long long)std::floor((minX + half) / t), m.x1 = (long long)std::floor((maxX + half) / t - 1e-9);
+    m.y0 = (long long)std::floor((half - maxY) / t), m.y1 = (long long)std::floor((half - minY) / t - 1e-9);
     const auto num = [](double v) {
         char b[40];
         std::snprintf(b, sizeof b, "%.10f", v);
         return std::string(b);
     };
-    const fs::path merc = s.dir / "leafon_3857.tif";
-    gdalWarp(s.scene / "leafon.tif", merc,
-             {"-t_srs", "EPSG:3857", "-tr", num(t / 256), num(t / 256), "-te", num(-half + double(x0) * t),
-              num(half - double(y1 + 1) * t), num(-half + double(x1 + 1) * t), num(half - double(y0) * t), "-r",
+    double w = 1e300, e = -1e300, so = 1e300, n = -1e300;
+    for (const auto& p : deg) w = std::min(w, p.x), e = std::max(e, p.x), so = std::min(so, p.y), n = std::max(n, p.y);
+    m.lonLat = num(w) + "," + num(so) + "," + num(e) + "," + num(n);
+    m.merc = s.dir / "leafon_3857.tif";
+    gdalWarp(s.scene / "leafon.tif", m.merc,
+             {"-t_srs", "EPSG:3857", "-tr", num(t / 256), num(t / 256), "-te", num(-half + double(m.x0) * t),
+              num(half - double(m.y1 + 1) * t), num(-half + double(m.x1 + 1) * t), num(half - double(m.y0) * t), "-r",
               "bilinear", "-dstalpha", "-co", "TILED=YES"});
-    for (long long x = x0; x <= x1; ++x)
-        for (long long y = y0; y <= y1; ++y) {
+    for (long long x = m.x0; x <= m.x1; ++x)
+        for (long long y = m.y0; y <= m.y1; ++y) {
             const fs::path tile = s.dir / "tiles/17" / std::to_string(x) / (std::to_string(y) + ".png");
             fs::create_directories(tile.parent_path());
-            gdalTranslate(merc, tile,
-                          {"-of", "PNG", "-srcwin", std::to_string((x - x0) * 256), std::to_string((y - y0) * 256),
+            gdalTranslate(m.merc, tile,
+                          {"-of", "PNG", "-srcwin", std::to_string((x - m.x0) * 256), std::to_string((y - m.y0) * 256),
                            "256", "256"});
+            const fs::path tms = s.dir / "tms/17" / std::to_string(x) / (std::to_string((1LL << 17) - 1 - y) + ".png");
+            fs::create_directories(tms.parent_path());
+            fs::copy_file(tile, tms);
         }
+    return m;
+}
+
+} // namespace
+
+TEST(WebSourceCliTest, XyzTileServiceDrawsAsTheSamePixelsOnDisk) {
+    // The synthetic leaf-on as a tile server serves it, next to the same pixels as one GeoTIFF. The service is read
+    // over the leaf-off's footprint at the leaf-off's pixel size (0.5 m: zoom 18, which the server does not have,
+    // so 17).
+    ServedScene s("web-xyz");
+    ASSERT_TRUE(fs::exists(s.scene / "leafon.tif"));
+    const MercatorTiles m = makeTiles(s);
+    ASSERT_FALSE(m.merc.empty());
+    const fs::path merc = m.merc;
+    const long long x0 = m.x0, y0 = m.y0;
     HttpTestServer tiles(s.dir / "tiles");
     const auto render = [&](const std::string& leafon, const std::string& name) {
         return runCli({"render", "--leafon", leafon, "--leafoff", (s.scene / "leafoff.tif").string(), "--dem",
@@ -259,14 +289,109 @@ TEST(WebSourceCliTest, XyzTileServiceDrawsAsTheSamePixelsOnDisk) {
     EXPECT_FALSE(fs::exists(s.dir / "tile.png"));
     tiles.clearFaults();
 
-    // Not read yet, and not readable without an area: one line each.
-    const CliResult tms = render(tiles.url() + "/{z}/{x}/{-y}.png", "tms");
-    EXPECT_EQ(tms.exitCode, 1);
-    EXPECT_NE(tms.err.find("TMS rows ({-y}) are not read yet"), std::string::npos) << tms.err;
+    // Offline: the same render from the disk cache alone, no request; a cache that never saw the service is one line.
+    tiles.clearRequests();
+    const CliResult offline = runCli({"render", "--leafon", tiles.url() + "/{z}/{x}/{y}.png", "--leafoff",
+                                      (s.scene / "leafoff.tif").string(), "--dem", (s.scene / "dem.tif").string(),
+                                      "--camera", "0,-150,+120,20,-40", "--size", "320x240", "--view", "swipe",
+                                      "--cache", (s.dir / "cache_web").string(), "--offline", "--out",
+                                      (s.dir / "offline.png").string()});
+    ASSERT_EQ(offline.exitCode, 0) << offline.err;
+    EXPECT_TRUE(tiles.requests().empty()) << tiles.requests().size() << " requests";
+    expectSameRender(s.dir / "disk.png", s.dir / "offline.png");
+    const CliResult cold = runCli({"render", "--leafon", tiles.url() + "/{z}/{x}/{y}.png", "--leafoff",
+                                   (s.scene / "leafoff.tif").string(), "--cache", (s.dir / "cache_cold").string(),
+                                   "--offline", "--out", (s.dir / "cold.png").string()});
+    EXPECT_EQ(cold.exitCode, 1);
+    EXPECT_NE(cold.err.find("not in the cache (--offline)"), std::string::npos) << cold.err;
+    EXPECT_EQ(std::count(cold.err.begin(), cold.err.end(), '\n'), 1) << cold.err;
+    EXPECT_FALSE(fs::exists(s.dir / "cold.png"));
+    EXPECT_TRUE(tiles.requests().empty()) << tiles.requests().size() << " requests";
+
+    // The tile cache's bound (--web-cache-mb), kept from the start of a run: the pyramid made from the tiles stays.
+    const auto tileBytes = [&] {
+        long long bytes = 0;
+        for (const auto& e : fs::recursive_directory_iterator(s.dir / "cache_web/web/tiles"))
+            if (e.is_regular_file()) bytes += (long long)e.file_size();
+        return bytes;
+    };
+    const long long before = tileBytes();
+    const CliResult bounded = runCli({"render", "--leafon", tiles.url() + "/{z}/{x}/{y}.png", "--leafoff",
+                                      (s.scene / "leafoff.tif").string(), "--dem", (s.scene / "dem.tif").string(),
+                                      "--camera", "0,-150,+120,20,-40", "--size", "320x240", "--view", "swipe",
+                                      "--cache", (s.dir / "cache_web").string(), "--offline", "--web-cache-mb", "0.1",
+                                      "--out", (s.dir / "bounded.png").string()});
+    ASSERT_EQ(bounded.exitCode, 0) << bounded.err;
+    expectSameRender(s.dir / "disk.png", s.dir / "bounded.png");
+    EXPECT_GT(before, 104857) << "the tiles fetched fit the bound already: the check below proves nothing";
+    EXPECT_LE(tileBytes(), 104857);
+    EXPECT_GT(tileBytes(), 0);
+
+    // Not readable without an area: one line.
     const CliResult both = runCli({"render", "--leafon", tiles.url() + "/{z}/{x}/{y}.png", "--leafoff",
                                    tiles.url() + "/{z}/{x}/{y}.png", "--cache", (s.dir / "cache_both").string(),
                                    "--out", (s.dir / "both.png").string()});
     EXPECT_EQ(both.exitCode, 1);
     EXPECT_NE(both.err.find("both seasons are tile services"), std::string::npos) << both.err;
     EXPECT_FALSE(fs::exists(s.dir / "both.png"));
+}
+
+TEST(WebSourceCliTest, TmsRowsAndAnExtentInDegreesDrawAsTheSamePixelsOnDisk) {
+    // The same tiles numbered from the bottom (TMS, {-y}); then both seasons from the service, read over an extent
+    // given in degrees at a pixel size given in the grid's CRS, drawn as the same pixels on disk on the same grid.
+    ServedScene s("web-tms");
+    const MercatorTiles m = makeTiles(s);
+    ASSERT_FALSE(m.merc.empty());
+    HttpTestServer tms(s.dir / "tms");
+    HttpTestServer xyz(s.dir / "tiles");
+    const auto render = [&](const std::vector<std::string>& inputs, const std::string& name) {
+        std::vector<std::string> args = {"render", "--dem", (s.scene / "dem.tif").string(), "--camera",
+                                         "0,-150,+120,20,-40", "--size", "320x240", "--view", "swipe", "--cache",
+                                         (s.dir / ("cache_" + name)).string(), "--out", (s.dir / (name + ".png")).string()};
+        args.insert(args.end(), inputs.begin(), inputs.end());
+        return runCli(args);
+    };
+    const std::string leafoff = (s.scene / "leafoff.tif").string();
+    const CliResult a = render({"--leafon", m.merc.string(), "--leafoff", leafoff}, "disk");
+    ASSERT_EQ(a.exitCode, 0) << a.err;
+    const CliResult b = render({"--leafon", tms.url() + "/{z}/{x}/{-y}.png", "--leafoff", leafoff}, "tms");
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    expectSameRender(s.dir / "disk.png", s.dir / "tms.png");
+    const auto requests = tms.requests();
+    ASSERT_FALSE(requests.empty());
+    for (const auto& r : requests)
+        if (r.path.rfind("/17/", 0) == 0) {
+            EXPECT_TRUE(fs::exists(s.dir / "tms" / r.path.substr(1))) << r.path;
+        }
+
+    // Both seasons from services: the area is --extent in degrees (the leaf-off's footprint), the pixel size
+    // --grid-res in the grid's CRS (Web Mercator, the leaf-on's). The same on disk: the same pixels as GeoTIFFs.
+    const std::vector<std::string> grid = {"--extent", m.lonLat, "--grid-res", "1.1"};
+    std::vector<std::string> disk = {"--leafon", m.merc.string(), "--leafoff", m.merc.string()};
+    disk.insert(disk.end(), grid.begin(), grid.end());
+    const CliResult c = render(disk, "disk2");
+    ASSERT_EQ(c.exitCode, 0) << c.err;
+    std::vector<std::string> web = {"--leafon", xyz.url() + "/{z}/{x}/{y}.png", "--leafoff",
+                                    tms.url() + "/{z}/{x}/{-y}.png"};
+    web.insert(web.end(), grid.begin(), grid.end());
+    const CliResult d = render(web, "both");
+    ASSERT_EQ(d.exitCode, 0) << d.err;
+    expectSameRender(s.dir / "disk2.png", s.dir / "both.png");
+
+    // The same extent named by an input (--extent-of dem) reads the DEM's footprint; --extent-of a service and both
+    // extents at once are one line each.
+    std::vector<std::string> of = {"--leafon", xyz.url() + "/{z}/{x}/{y}.png", "--leafoff",
+                                   tms.url() + "/{z}/{x}/{-y}.png", "--extent-of", "dem", "--grid-res", "1.1"};
+    const CliResult e = render(of, "of");
+    ASSERT_EQ(e.exitCode, 0) << e.err;
+    of[5] = "leafon";
+    const CliResult f = render(of, "ofservice");
+    EXPECT_EQ(f.exitCode, 1);
+    EXPECT_NE(f.err.find("--extent-of leafon: the leaf-on is a tile service"), std::string::npos) << f.err;
+    EXPECT_EQ(std::count(f.err.begin(), f.err.end(), '\n'), 1) << f.err;
+    of.insert(of.end(), {"--extent", m.lonLat});
+    of[5] = "dem";
+    const CliResult g = render(of, "twoextents");
+    EXPECT_EQ(g.exitCode, 1);
+    EXPECT_NE(g.err.find("--extent and --extent-of"), std::string::npos) << g.err;
 }

@@ -112,6 +112,7 @@ const RasterInfo& RasterMosaic::finest() const {
 
 Result<std::string> fileIdentity(const std::filesystem::path& p) {
     if (web::isRemote(p)) return web::identity(web::urlOf(p));
+    if (auto service = web::serviceIdentity(p)) return *service; // what it describes, not the run's options
     std::error_code ec;
     if (!fs::is_regular_file(p, ec)) return fileError(p.string(), fs::exists(p, ec) ? "not a file" : "file not found");
     const std::string path = fs::weakly_canonical(fs::absolute(p, ec), ec).string();

@@ -57,7 +57,8 @@ inline constexpr std::size_t kMaxMosaicTiles = std::size_t(1) << 18;
 Result<RasterMosaic> openMosaic(const SourceList& sources, const std::string& role,
                                 const std::optional<Crs>& assumedCrs = {});
 
-/// `path|size|mtime` of a file (canonical absolute path): what caches key a source file on.
+/// `path|size|mtime` of a file (canonical absolute path): what caches key a source file on. A URL: its HEAD
+/// (web::identity); a GDAL service description: what it describes (web::serviceIdentity).
 Result<std::string> fileIdentity(const std::filesystem::path& path);
 
 } // namespace seasonview

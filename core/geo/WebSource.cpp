@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <vector>
 
 #ifndef SEASONVIEW_VERSION
@@ -135,7 +136,7 @@ constexpr int kMaxZoom = 22;
 
 /// The template with {z}, {x} and {y} replaced.
 std::string fillTemplate(std::string t, const std::string& z, const std::string& x, const std::string& y) {
-    for (const auto& [key, v] : {std::pair<std::string, const std::string&>{"{z}", z}, {"{x}", x}, {"{y}", y}})
+    for (const auto& [key, v] : {std::pair<std::string, const std::string&>{"{z}", z}, {"{x}", x}, {"{y}", y}, {"{-y}", y}})
         for (size_t at = 0; (at = t.find(key, at)) != std::string::npos; at += v.size()) t.replace(at, key.size(), v);
     return t;
 }
@@ -187,11 +188,94 @@ std::string xmlEscape(const std::string& s) {
 
 } // namespace
 
+namespace {
+
+/// The elements of a service description that do not change its pixels (serviceIdentity).
+constexpr const char* kRunElements[] = {"OfflineMode", "Cache", "MaxConnections", "Timeout", "UserAgent"};
+
+/// `xml` without the elements named (each "<Name ...>...</Name>" or "<Name/>"), and without line breaks' spaces.
+std::string withoutElements(std::string xml) {
+    for (const std::string name : kRunElements) {
+        for (size_t at = 0; (at = xml.find("<" + name, at)) != std::string::npos;) {
+            const char next = at + 1 + name.size() < xml.size() ? xml[at + 1 + name.size()] : '\0';
+            if (next != '>' && next != '/' && next != ' ') {
+                at += name.size();
+                continue;
+            }
+            const size_t open = xml.find('>', at);
+            if (open == std::string::npos) break;
+            size_t end = open + 1;
+            if (xml[open - 1] != '/') {
+                const size_t close = xml.find("</" + name + ">", open);
+                if (close == std::string::npos) break;
+                end = close + name.size() + 3;
+            }
+            xml.erase(at, end - at);
+        }
+    }
+    std::string out;
+    for (char c : xml)
+        if (c != '\n' && c != '\r') out += c;
+    return out;
+}
+
+/// Writes `text` to `file` unless it holds it already (so that an unchanged description keeps its date).
+Result<Ok> writeIfChanged(const std::filesystem::path& file, const std::string& text) {
+    if (std::ifstream in(file, std::ios::binary); in) {
+        const std::string old((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        if (old == text) return Ok{};
+    }
+    std::string err;
+    if (!writeTextAtomic(file, text, err)) return fileError(file.string(), err);
+    return Ok{};
+}
+
+} // namespace
+
+long long trimTileCache(const std::filesystem::path& tilesDir, long long maxBytes) {
+    struct Tile {
+        std::filesystem::path path;
+        std::filesystem::file_time_type time;
+        long long bytes;
+    };
+    std::vector<Tile> tiles;
+    long long total = 0;
+    std::error_code ec;
+    for (std::filesystem::recursive_directory_iterator it(tilesDir, ec), end; !ec && it != end; it.increment(ec)) {
+        std::error_code e;
+        if (!it->is_regular_file(e)) continue;
+        const auto size = it->file_size(e);
+        const auto time = it->last_write_time(e);
+        if (e) continue;
+        tiles.push_back({it->path(), time, (long long)size});
+        total += (long long)size;
+    }
+    if (total <= maxBytes) return 0;
+    std::sort(tiles.begin(), tiles.end(), [](const Tile& a, const Tile& b) { return a.time < b.time; });
+    long long removed = 0;
+    for (const Tile& t : tiles) {
+        if (total - removed <= maxBytes) break;
+        if (std::filesystem::remove(t.path, ec)) removed += t.bytes;
+    }
+    return removed;
+}
+
+std::optional<std::string> serviceIdentity(const std::filesystem::path& file) {
+    std::error_code ec;
+    if (lower(file.extension().string()) != ".xml" || !std::filesystem::is_regular_file(file, ec)) return std::nullopt;
+    const auto size = std::filesystem::file_size(file, ec);
+    if (ec || size > (1u << 20)) return std::nullopt;
+    std::ifstream in(file, std::ios::binary);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (text.rfind("<GDAL_WMS>", 0) != 0 && text.rfind("<GDAL_WMTS>", 0) != 0) return std::nullopt;
+    return "service|" + cacheName(withoutElements(text));
+}
+
 Result<std::filesystem::path> describeTileService(const std::string& url, const TileArea& area,
-                                                  const std::filesystem::path& cacheDir) {
+                                                  const std::filesystem::path& cacheDir,
+                                                  const ServiceOptions& options) {
     gdal::init();
-    if (url.find("{-y}") != std::string::npos)
-        return fileError(url, "TMS rows ({-y}) are not read yet: give an XYZ template ({y}, rows from the top)");
+    const bool tms = url.find("{-y}") != std::string::npos; // rows counted from the bottom
     if (!(area.maxX > area.minX && area.maxY > area.minY && area.pixelSize > 0) || !std::isfinite(area.pixelSize))
         return fileError(url, "no area to read the tile service over");
     // The coarsest zoom whose pixels are not larger than wanted.
@@ -208,11 +292,14 @@ Result<std::filesystem::path> describeTileService(const std::string& url, const 
         int remembered = -1;
         if ((in >> remembered) && remembered >= 0 && remembered <= z) z = remembered, known = true;
     }
+    if (!known && options.offline)
+        return fileError(url, "not in the cache (--offline): no earlier run read this service over this area");
     for (; !known; --z) {
         const double t = 2.0 * kMercatorHalf / std::ldexp(1.0, z);
+        const long long row = (long long)std::floor((kMercatorHalf - cy) / t);
         const auto probe = probeTile(fillTemplate(url, std::to_string(z),
                                                   std::to_string((long long)std::floor((cx + kMercatorHalf) / t)),
-                                                  std::to_string((long long)std::floor((kMercatorHalf - cy) / t))));
+                                                  std::to_string(tms ? (1LL << z) - 1 - row : row)));
         if (!probe) return probe.error();
         if (*probe == Probe::Image) {
             std::filesystem::create_directories(dir, ec);
@@ -233,26 +320,54 @@ Result<std::filesystem::path> describeTileService(const std::string& url, const 
                                   std::to_string(z) + ", over the limit of " + std::to_string(gdal::kMaxRasterSide) +
                                   " a side (a smaller --extent)");
     const std::string server = fillTemplate(url, "${z}", "${x}", "${y}"); // GDAL's TMS mini-driver's keys
+    // XYZ: a window of the tiles the area touches (TileX/TileY: its first tile). TMS: GDAL numbers rows from the
+    // window's bottom, so the window is the whole world and a VRT cuts the area from it.
+    const std::string window =
+        tms ? "<UpperLeftX>" + num(-kMercatorHalf) + "</UpperLeftX><UpperLeftY>" + num(kMercatorHalf) +
+                  "</UpperLeftY><LowerRightX>" + num(kMercatorHalf) + "</LowerRightX><LowerRightY>" +
+                  num(-kMercatorHalf) + "</LowerRightY><TileLevel>" + std::to_string(z) +
+                  "</TileLevel><TileCountX>1</TileCountX><TileCountY>1</TileCountY><YOrigin>bottom</YOrigin>"
+            : "<UpperLeftX>" + num(-kMercatorHalf + double(x0) * t) + "</UpperLeftX><UpperLeftY>" +
+                  num(kMercatorHalf - double(y0) * t) + "</UpperLeftY><LowerRightX>" +
+                  num(-kMercatorHalf + double(x1 + 1) * t) + "</LowerRightX><LowerRightY>" +
+                  num(kMercatorHalf - double(y1 + 1) * t) + "</LowerRightY><SizeX>" + std::to_string(w) +
+                  "</SizeX><SizeY>" + std::to_string(h) + "</SizeY><TileLevel>" + std::to_string(z) +
+                  "</TileLevel><TileX>" + std::to_string(x0) + "</TileX><TileY>" + std::to_string(y0) +
+                  "</TileY><YOrigin>top</YOrigin>";
+    // Tiles do not expire (10 years) and GDAL's cleaner is off (CleanTimeout 0): trimTileCache bounds the folder.
+    const std::string cache = "<Cache><Path>" + xmlEscape((dir / "tiles").string()) +
+                              "</Path><Expires>315360000</Expires><CleanTimeout>0</CleanTimeout></Cache>";
+    trimTileCache(dir / "tiles", (long long)(std::max(options.cacheMb, 0.0) * 1048576.0));
     const std::string xml =
         "<GDAL_WMS>\n  <Service name=\"TMS\"><ServerUrl>" + xmlEscape(server) + "</ServerUrl></Service>\n" +
-        "  <DataWindow><UpperLeftX>" + num(-kMercatorHalf + double(x0) * t) + "</UpperLeftX><UpperLeftY>" +
-        num(kMercatorHalf - double(y0) * t) + "</UpperLeftY><LowerRightX>" + num(-kMercatorHalf + double(x1 + 1) * t) +
-        "</LowerRightX><LowerRightY>" + num(kMercatorHalf - double(y1 + 1) * t) + "</LowerRightY><SizeX>" +
-        std::to_string(w) + "</SizeX><SizeY>" + std::to_string(h) + "</SizeY><TileLevel>" + std::to_string(z) +
-        "</TileLevel><TileX>" + std::to_string(x0) + "</TileX><TileY>" + std::to_string(y0) +
-        "</TileY><YOrigin>top</YOrigin></DataWindow>\n" +
+        "  <DataWindow>" + window + "</DataWindow>\n" +
         "  <Projection>EPSG:3857</Projection><BlockSizeX>256</BlockSizeX><BlockSizeY>256</BlockSizeY>"
-        "<BandsCount>4</BandsCount>\n"
+        "<BandsCount>4</BandsCount><ZeroBlockHttpCodes>204,404</ZeroBlockHttpCodes>\n"
         "  <MaxConnections>4</MaxConnections><Timeout>30</Timeout><UserAgent>" + xmlEscape(userAgent()) +
-        "</UserAgent><ZeroBlockHttpCodes>204,404</ZeroBlockHttpCodes>\n"
-        "  <Cache><Path>" + xmlEscape((dir / "tiles").string()) + "</Path></Cache>\n</GDAL_WMS>\n";
+        "</UserAgent><OfflineMode>" + (options.offline ? "true" : "false") + "</OfflineMode>\n  " + cache +
+        "\n</GDAL_WMS>\n";
     std::filesystem::create_directories(dir, ec);
-    const std::filesystem::path file = dir / (cacheName(xml) + ".xml"); // named by its content
-    if (!std::filesystem::exists(file, ec)) {
-        std::string err;
-        if (!writeTextAtomic(file, xml, err)) return fileError(file.string(), err);
-    }
-    return file;
+    // Named by what it describes (the run's options left out: serviceIdentity), rewritten when they change.
+    const std::filesystem::path file = dir / (cacheName(withoutElements(xml)) + ".xml");
+    if (auto st = writeIfChanged(file, xml); !st) return st.error();
+    if (!tms) return file;
+    const double px = t / kTileSize;
+    std::string vrt = "<VRTDataset rasterXSize=\"" + std::to_string(w) + "\" rasterYSize=\"" + std::to_string(h) +
+                      "\">\n  <SRS>EPSG:3857</SRS>\n  <GeoTransform>" + num(-kMercatorHalf + double(x0) * t) + ", " +
+                      num(px) + ", 0, " + num(kMercatorHalf - double(y0) * t) + ", 0, " + num(-px) + "</GeoTransform>\n";
+    const char* interp[4] = {"Red", "Green", "Blue", "Alpha"};
+    for (int b = 1; b <= 4; ++b)
+        vrt += "  <VRTRasterBand dataType=\"Byte\" band=\"" + std::to_string(b) +
+               "\" blockXSize=\"256\" blockYSize=\"256\"><ColorInterp>" + interp[b - 1] +
+               "</ColorInterp><SimpleSource><SourceFilename relativeToVRT=\"0\">" + xmlEscape(file.string()) +
+               "</SourceFilename><SourceBand>" + std::to_string(b) + "</SourceBand><SrcRect xOff=\"" +
+               std::to_string(x0 * kTileSize) + "\" yOff=\"" + std::to_string(y0 * kTileSize) + "\" xSize=\"" +
+               std::to_string(w) + "\" ySize=\"" + std::to_string(h) + "\"/><DstRect xOff=\"0\" yOff=\"0\" xSize=\"" +
+               std::to_string(w) + "\" ySize=\"" + std::to_string(h) + "\"/></SimpleSource></VRTRasterBand>\n";
+    vrt += "</VRTDataset>\n";
+    const std::filesystem::path cut = dir / (cacheName(vrt) + ".vrt");
+    if (auto st = writeIfChanged(cut, vrt); !st) return st.error();
+    return cut;
 }
 
 } // namespace seasonview::web

@@ -8,6 +8,7 @@
 #include "Result.h"
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -27,9 +28,24 @@ Result<std::string> identity(const std::string& url);
 /// The User-Agent every request sends ("seasonview/VERSION").
 std::string userAgent();
 
-/// Whether an input is an XYZ tile service: a URL template with {z}, {x} and {y} (256-pixel tiles of Web Mercator,
-/// rows from the top, as OpenStreetMap's and most services'). {-y} (TMS rows) is refused by describeTileService.
+/// Whether an input is an XYZ or TMS tile service: a URL template with {z}, {x} and {y} (256-pixel tiles of Web
+/// Mercator, rows from the top, as OpenStreetMap's and most services') or {-y} (TMS: rows from the bottom).
 bool isTileTemplate(std::string_view input);
+
+/// The tile cache's default bound (--web-cache-mb).
+inline constexpr double kDefaultWebCacheMb = 1024.0;
+
+/// How a run uses tile services. `offline`: only the disk cache (GDAL's OfflineMode: a tile not cached is no data,
+/// the zoom must have been found by an earlier run); `cacheMb`: the bound of the on-disk tile cache, in MiB.
+struct ServiceOptions {
+    bool offline = false;
+    double cacheMb = kDefaultWebCacheMb;
+};
+
+/// Bounds a tile cache folder to `maxBytes`: removes the least recently fetched tiles (oldest modification time
+/// first) until the files left hold no more. Returns the bytes removed. Tiles are kept without expiry otherwise
+/// (GDAL's own expiry and cleaner are off): the pyramids made from them do not expire either.
+long long trimTileCache(const std::filesystem::path& tilesDir, long long maxBytes);
 
 /// The part of a tile service a scene reads: a rectangle in Web Mercator (EPSG:3857) and the pixel size wanted
 /// there, in EPSG:3857 units (the zoom chosen is the coarsest whose pixels are not larger).
@@ -43,9 +59,19 @@ struct TileArea {
 /// none. The zoom: the coarsest not coarser than area.pixelSize, or, where the service has no tile at the area's
 /// centre at that zoom (404 or 204), the finest it has (at most 23 requests). Tiles missing when read (404, 204)
 /// are no data; other HTTP errors, a web page instead of an image and failed transfers are errors naming the tile's
-/// URL. At most 4 connections, seasonview's User-Agent, 30 s timeout, retries on 429 and 502-504.
+/// URL. At most 4 connections, seasonview's User-Agent, 30 s timeout, retries on 429 and 502-504. The tile cache is
+/// bounded to options.cacheMb (trimTileCache) before the service is read. A TMS template
+/// ({-y}) is described over the whole world (GDAL counts TMS rows from its window's bottom) and cut to the area by a
+/// VRT next to it, which is what is returned then.
 Result<std::filesystem::path> describeTileService(const std::string& url, const TileArea& area,
-                                                  const std::filesystem::path& cacheDir);
+                                                  const std::filesystem::path& cacheDir,
+                                                  const ServiceOptions& options = {});
+
+/// The identity caches key a GDAL service description on (a GDAL_WMS or GDAL_WMTS XML file, written by
+/// describeTileService or by the user): its content less the elements that do not change its pixels (OfflineMode,
+/// Cache, MaxConnections, Timeout, UserAgent), so that an offline run or another cache bound finds the same pyramid.
+/// Empty for any other file.
+std::optional<std::string> serviceIdentity(const std::filesystem::path& file);
 
 /// While alive, GDAL opens `path`, when it is a URL, without listing its folder or asking for side files (.aux.xml,
 /// .ovr, .msk: requests that a web server answers 404 or with a listing page); local files still find theirs

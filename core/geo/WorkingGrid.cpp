@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <limits>
 #include <span>
+#include <tuple>
 #include <vector>
 
 namespace seasonview {
@@ -71,6 +72,29 @@ std::pair<glm::dvec2, glm::dvec2> extentIn(const RasterMosaic& m, const Crs& crs
     return {lo, hi};
 }
 
+std::pair<glm::dvec2, glm::dvec2> boxIn(glm::dvec2 lo, glm::dvec2 hi, const Crs& from, const Crs& to) {
+    if (from == to) return {lo, hi};
+    constexpr int kPerEdge = 32;
+    std::vector<glm::dvec2> pts;
+    for (int i = 0; i < kPerEdge; ++i) {
+        const double f = double(i) / kPerEdge;
+        pts.push_back({lo.x + f * (hi.x - lo.x), lo.y});
+        pts.push_back({hi.x, lo.y + f * (hi.y - lo.y)});
+        pts.push_back({hi.x - f * (hi.x - lo.x), hi.y});
+        pts.push_back({lo.x, hi.y - f * (hi.y - lo.y)});
+    }
+    convert(from, to, std::span<glm::dvec2>(pts));
+    glm::dvec2 a(std::numeric_limits<double>::max()), b(std::numeric_limits<double>::lowest());
+    for (const glm::dvec2& p : pts) a = glm::min(a, p), b = glm::max(b, p);
+    return {a, b};
+}
+
+Crs defaultGridCrs(const Crs& crs, glm::dvec2 lo, glm::dvec2 hi) {
+    if (!crs.isGeographic()) return crs;
+    const glm::dvec2 c = convert(crs, Crs::geographic(), 0.5 * (lo + hi));
+    return Crs::utmAt(c.x, c.y);
+}
+
 bool onGridLattice(const RasterInfo& tile, const WorkingGrid& grid) {
     if (!tile.georef || tile.georef->crs != grid.georef.crs) return false;
     const Georef& t = *tile.georef;
@@ -85,14 +109,7 @@ Result<WorkingGrid> chooseWorkingGrid(const RasterMosaic& on, const RasterMosaic
                                       const std::string& onName, const std::string& offName) {
     WorkingGrid grid;
     // CRS.
-    if (options.crs) {
-        grid.georef.crs = *options.crs;
-    } else if (!on.crs.isGeographic()) {
-        grid.georef.crs = on.crs;
-    } else {
-        const glm::dvec2 c = convert(on.crs, Crs::geographic(), 0.5 * (on.min + on.max));
-        grid.georef.crs = Crs::utmAt(c.x, c.y);
-    }
+    grid.georef.crs = options.crs ? *options.crs : defaultGridCrs(on.crs, on.min, on.max);
     const Crs& crs = grid.georef.crs;
 
     // Extents in the grid's CRS, and their overlap.
@@ -130,6 +147,10 @@ Result<WorkingGrid> chooseWorkingGrid(const RasterMosaic& on, const RasterMosaic
         lo = {(*options.extent)[0], (*options.extent)[1]};
         hi = {(*options.extent)[2], (*options.extent)[3]};
         if (!(lo.x < hi.x && lo.y < hi.y)) return Error{"--extent: xmin < xmax and ymin < ymax expected"};
+        if (options.extentCrs) {
+            std::tie(lo, hi) = boxIn(lo, hi, *options.extentCrs, crs);
+            if (!finite(lo, hi)) return Error{"--extent cannot be expressed in the grid's CRS " + crs.name()};
+        }
         if (!(lo.x < interHi.x && lo.y < interHi.y && hi.x > interLo.x && hi.y > interLo.y))
             return Error{"--extent " + extentText(lo, hi) + " lies outside the area both seasons cover (" +
                          extentText(interLo, interHi) + " in " + crs.name() + ")"};

@@ -16,7 +16,8 @@ namespace seasonview {
 struct GridOptions {
     std::optional<Crs> crs;
     std::optional<double> resolution;            // grid CRS units per pixel (square pixels)
-    std::optional<std::array<double, 4>> extent; // xmin, ymin, xmax, ymax in the grid CRS
+    std::optional<std::array<double, 4>> extent; // xmin, ymin, xmax, ymax in extentCrs
+    std::optional<Crs> extentCrs;                // absent: the grid's CRS; else the box is transformed into it
 };
 
 struct WorkingGrid {
@@ -37,7 +38,8 @@ inline constexpr int kMaxGridSide = 131072;
 ///   scene's centre.
 /// - Pixel size: options.resolution; else the finest season's: exactly its pixel when it is in the grid's CRS, else
 ///   its pixel's area measured in the grid's CRS at its centre (square root, 4 significant digits).
-/// - Extent: options.extent; else the union of both seasons (their outlines transformed into the grid's CRS).
+/// - Extent: options.extent (its outline transformed from options.extentCrs into the grid's CRS, edges sampled at 32
+///   points each); else the union of both seasons (their outlines transformed into the grid's CRS).
 /// - Alignment: pixel corners on the finest season's own pixel grid when it is in the grid's CRS at the grid's
 ///   pixel size (so it is read as it is, not resampled), else on multiples of the pixel size.
 /// Errors: seasons whose extents do not overlap (naming both), a grid larger than kMaxGridSide per side (naming
@@ -48,6 +50,12 @@ Result<WorkingGrid> chooseWorkingGrid(const RasterMosaic& leafon, const RasterMo
 
 /// The outline of a mosaic's extent in another CRS: its bounding box there (edges sampled at 32 points each).
 std::pair<glm::dvec2, glm::dvec2> extentIn(const RasterMosaic& m, const Crs& crs);
+
+/// The bounding box in `to` of the box lo..hi in `from` (edges sampled at 32 points each).
+std::pair<glm::dvec2, glm::dvec2> boxIn(glm::dvec2 lo, glm::dvec2 hi, const Crs& from, const Crs& to);
+
+/// The grid CRS chooseWorkingGrid picks without --grid-crs for a leaf-on in `crs` covering lo..hi (in `crs`).
+Crs defaultGridCrs(const Crs& crs, glm::dvec2 lo, glm::dvec2 hi);
 
 /// Whether `tile` lies exactly on `grid`'s pixel lattice at its pixel size and in its CRS (then its pixels are the
 /// grid's pixels, shifted by whole pixels), within 1e-6 pixel.

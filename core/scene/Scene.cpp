@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <span>
 #include <sstream>
 
 namespace seasonview {
@@ -88,7 +89,7 @@ Result<SceneSources> manifestFromJson(const json& j, const std::filesystem::path
     };
     static const char* known[] = {"name", "leafon", "leafoff", "elevation", "buildings", "truth", "parameters",
                                   "generator", "description", "crs", "grid_crs", "grid_res", "extent", "resampling",
-                                  "stretch", "buildings_crs"};
+                                  "stretch", "buildings_crs", "extent_crs", "extent_of", "offline", "web_cache_mb"};
     for (const auto& item : j.items()) {
         const std::string& k = item.key();
         if (std::find_if(std::begin(known), std::end(known), [&](const char* n) { return k == n; }) == std::end(known))
@@ -129,6 +130,17 @@ Result<SceneSources> manifestFromJson(const json& j, const std::filesystem::path
     if (auto st = string("resampling", s.resampling); !st) return st.error();
     if (auto st = string("stretch", s.stretch); !st) return st.error();
     if (auto st = string("buildings_crs", s.buildingsCrs); !st) return st.error();
+    if (auto st = string("extent_crs", s.grid.extentCrs); !st) return st.error();
+    if (auto st = string("extent_of", s.grid.extentOf); !st) return st.error();
+    if (auto it = j.find("offline"); it != j.end() && !it->is_null()) {
+        if (!it->is_boolean()) return fileError(name, "'offline' must be true or false");
+        s.offline = it->get<bool>();
+    }
+    if (auto it = j.find("web_cache_mb"); it != j.end() && !it->is_null()) {
+        if (!it->is_number() || !(it->get<double>() > 0.0) || !std::isfinite(it->get<double>()))
+            return fileError(name, "'web_cache_mb' must be a positive number of MiB");
+        s.webCacheMb = it->get<double>();
+    }
     if (auto it = j.find("grid_res"); it != j.end() && !it->is_null()) {
         if (!it->is_number() || !(it->get<double>() > 0.0) || !std::isfinite(it->get<double>()))
             return fileError(name, "'grid_res' must be a positive number (grid CRS units per pixel)");
@@ -137,7 +149,7 @@ Result<SceneSources> manifestFromJson(const json& j, const std::filesystem::path
     if (auto it = j.find("extent"); it != j.end() && !it->is_null()) {
         if (!it->is_array() || it->size() != 4 ||
             !std::all_of(it->begin(), it->end(), [](const json& v) { return v.is_number(); }))
-            return fileError(name, "'extent' must be [xmin, ymin, xmax, ymax] in the grid's CRS");
+            return fileError(name, "'extent' must be [W, S, E, N] (degrees, or in 'extent_crs')");
         s.grid.extent = std::array<double, 4>{(*it)[0].get<double>(), (*it)[1].get<double>(), (*it)[2].get<double>(),
                                               (*it)[3].get<double>()};
     }
@@ -160,6 +172,25 @@ Result<GridOptions> parseGridOptions(const SceneSources& sources) {
         o.resolution = sources.grid.resolution;
     }
     o.extent = sources.grid.extent;
+    const std::string& in = sources.grid.extentCrs;
+    if (!sources.grid.extent) {
+        if (!in.empty()) return Error{"--extent-crs: given without --extent"};
+    } else if (!sources.grid.extentOf.empty()) {
+        return Error{"--extent and --extent-of: give one of them"};
+    } else if (in.empty()) {
+        // Degrees when the four numbers read as longitudes and latitudes; else (a projected extent, as --extent
+        // was before it took degrees) the grid's CRS.
+        const auto& e = *sources.grid.extent;
+        const bool degrees = std::abs(e[0]) <= 180.0 && std::abs(e[2]) <= 180.0 && std::abs(e[1]) <= 90.0 &&
+                             std::abs(e[3]) <= 90.0;
+        if (degrees) o.extentCrs = Crs::geographic();
+    } else if (in != "grid") {
+        auto crs = Crs::fromUserInput(in);
+        if (!crs) return Error{"--extent-crs: " + crs.message()};
+        o.extentCrs = *crs;
+    }
+    if (const std::string& of = sources.grid.extentOf; !of.empty() && of != "leafon" && of != "leafoff" && of != "dem")
+        return Error{"--extent-of '" + of + "': expected leafon, leafoff or dem"};
     return o;
 }
 
@@ -204,45 +235,45 @@ void placeOnGrid(ImageryLayer& layer, const WorkingGrid& grid) {
 
 bool isTileService(const SourceList& s) { return s.items.size() == 1 && web::isTileTemplate(s.items.front().string()); }
 
-/// Where a tile service is read (WebSource.h): over the other season's footprint at its pixel size (`other`, opened
-/// already), or, when both are services, over --extent in --grid-crs at --grid-res.
-Result<web::TileArea> tileArea(const SceneSources& sources, const RasterMosaic* other) {
+/// Where a tile service is read (WebSource.h): over the scene's extent (--extent in its CRS, or --extent-of) when
+/// given, else over the other season's footprint (`other`, opened already); at --grid-res in the grid's CRS
+/// (`gridCrs`) when given, else at the other season's pixel size; both measured in Web Mercator at the area's centre.
+Result<web::TileArea> tileArea(const GridOptions& options, const RasterMosaic* other, const Crs& gridCrs) {
     auto mercator = Crs::fromEpsg(3857);
     if (!mercator) return mercator.error();
-    std::optional<Crs> crs;
+    Crs crs;
     glm::dvec2 lo{0.0}, hi{0.0};
-    double res = 0;
-    if (other) {
+    if (options.extent) {
+        crs = options.extentCrs ? *options.extentCrs : gridCrs;
+        lo = {(*options.extent)[0], (*options.extent)[1]};
+        hi = {(*options.extent)[2], (*options.extent)[3]};
+    } else if (other) {
         crs = other->crs;
         lo = other->min;
         hi = other->max;
-        res = other->finest().georef->pixelSize.x;
-    } else if (sources.grid.extent && !sources.grid.crs.empty() && sources.grid.resolution) {
-        auto c = Crs::fromUserInput(sources.grid.crs);
-        if (!c) return Error{"--grid-crs: " + c.message()};
-        crs = *c;
-        lo = {(*sources.grid.extent)[0], (*sources.grid.extent)[1]};
-        hi = {(*sources.grid.extent)[2], (*sources.grid.extent)[3]};
-        res = *sources.grid.resolution;
     } else {
-        return Error{"scene: both seasons are tile services, which cover the world: give --extent with --grid-crs and "
-                     "--grid-res"};
+        return Error{"scene: both seasons are tile services, which cover the world: give --extent W,S,E,N (degrees) "
+                     "or --extent-of dem, and --grid-res"};
     }
-    std::vector<glm::dvec2> pts;
-    for (int i = 0; i <= 4; ++i)
-        for (int k = 0; k <= 4; ++k) pts.push_back(lo + (hi - lo) * glm::dvec2(i / 4.0, k / 4.0));
-    const glm::dvec2 c = 0.5 * (lo + hi);
-    pts.push_back(c);
-    pts.push_back(c + glm::dvec2(res, 0.0));
-    convert(*crs, *mercator, pts);
+    Crs resCrs;
+    double res = 0;
+    if (options.resolution) {
+        resCrs = gridCrs;
+        res = *options.resolution;
+    } else if (other) {
+        resCrs = other->finest().georef->crs;
+        res = other->finest().georef->pixelSize.x;
+    } else {
+        return Error{"scene: both seasons are tile services: give --grid-res (the pixel size to read them at)"};
+    }
+    const auto [mlo, mhi] = boxIn(lo, hi, crs, *mercator);
+    glm::dvec2 p[2];
+    p[0] = convert(crs, resCrs, 0.5 * (lo + hi));
+    p[1] = p[0] + glm::dvec2(res, 0.0);
+    convert(resCrs, *mercator, std::span<glm::dvec2>(p, 2));
     web::TileArea a;
-    a.minX = a.minY = 1e300;
-    a.maxX = a.maxY = -1e300;
-    for (size_t i = 0; i + 2 < pts.size(); ++i) {
-        a.minX = std::min(a.minX, pts[i].x), a.maxX = std::max(a.maxX, pts[i].x);
-        a.minY = std::min(a.minY, pts[i].y), a.maxY = std::max(a.maxY, pts[i].y);
-    }
-    a.pixelSize = glm::length(pts[pts.size() - 1] - pts[pts.size() - 2]);
+    a.minX = mlo.x, a.minY = mlo.y, a.maxX = mhi.x, a.maxY = mhi.y;
+    a.pixelSize = glm::length(p[1] - p[0]);
     if (!std::isfinite(a.minX + a.maxX + a.minY + a.maxY + a.pixelSize))
         return Error{"scene: the area to read the tile service over does not map to Web Mercator"};
     return a;
@@ -283,28 +314,71 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
     if (!stretch) return stretch.error();
 
     // A season from a tile service (WebSource.h) is read as a GDAL WMS description of the part of the service the
-    // scene covers, written into the cache: over the other season's footprint, so that one is opened first.
+    // scene covers, written into the cache: over the scene's extent or the other season's footprint, so the seasons
+    // from files (and the DEM for --extent-of dem) are opened first.
+    if (sources.offline)
+        for (const SourceList* l : {&sources.leafon, &sources.leafoff, &sources.elevation})
+            for (const auto& item : l->items)
+                if (web::isUrl(item.string()) && !web::isTileTemplate(item.string()))
+                    return fileError(item.string(), "--offline reads tile services from the disk cache; a raster by "
+                                                    "URL is read over the network");
     const SourceList* given[2] = {&sources.leafon, &sources.leafoff};
     const char* roles[2] = {"leaf-on", "leaf-off"};
     const bool service[2] = {isTileService(sources.leafon), isTileService(sources.leafoff)};
     ImageryLayer* layers[2] = {&scene.leafon, &scene.leafoff};
-    bool opened[2] = {false, false};
-    for (int pass = 0; pass < 2; ++pass)
+    std::optional<RasterMosaic> demMosaic;
+    const auto openDem = [&]() -> Result<Ok> {
+        if (demMosaic || sources.elevation.empty()) return Ok{};
+        auto dem = openMosaic(sources.elevation, "DEM", assumed);
+        if (!dem) return dem.error();
+        demMosaic = std::move(*dem);
+        return Ok{};
+    };
+    for (int pass = 0; pass < 2; ++pass) {
+        if (pass == 1) {
+            // The footprint --extent-of names, as an extent in its CRS.
+            if (const std::string& of = sources.grid.extentOf; !of.empty()) {
+                const RasterMosaic* m = nullptr;
+                if (of == "dem") {
+                    if (sources.elevation.empty()) return Error{"--extent-of dem: no DEM given (--dem)"};
+                    if (auto st = openDem(); !st) return st.error();
+                    m = &*demMosaic;
+                } else {
+                    const int i = of == "leafon" ? 0 : 1;
+                    if (service[i])
+                        return Error{"--extent-of " + of + ": the " + roles[i] +
+                                     " is a tile service, which covers the world"};
+                    m = &layers[i]->source;
+                }
+                options->extent = std::array<double, 4>{m->min.x, m->min.y, m->max.x, m->max.y};
+                options->extentCrs = m->crs;
+            }
+        }
         for (int i = 0; i < 2; ++i) {
             if (service[i] != (pass == 1)) continue;
             SourceList s = *given[i];
             if (service[i]) {
-                auto area = tileArea(sources, opened[1 - i] ? &layers[1 - i]->source : nullptr);
+                const RasterMosaic* other = service[1 - i] ? nullptr : &layers[1 - i]->source;
+                auto mercator = Crs::fromEpsg(3857);
+                if (!mercator) return mercator.error();
+                const Crs gridCrs = options->crs ? *options->crs
+                                    : service[0]  ? *mercator
+                                                  : defaultGridCrs(scene.leafon.source.crs, scene.leafon.source.min,
+                                                                   scene.leafon.source.max);
+                auto area = tileArea(*options, other, gridCrs);
                 if (!area) return area.error();
-                auto xml = web::describeTileService(s.items.front().string(), *area, cacheDir);
+                web::ServiceOptions run;
+                run.offline = sources.offline;
+                if (sources.webCacheMb > 0) run.cacheMb = sources.webCacheMb;
+                auto xml = web::describeTileService(s.items.front().string(), *area, cacheDir, run);
                 if (!xml) return xml.error();
                 s.items = {*xml};
             }
             auto layer = openImagery(s, roles[i], assumed, cacheDir, *stretch);
             if (!layer) return layer.error();
             *layers[i] = std::move(*layer);
-            opened[i] = true;
         }
+    }
     auto grid = chooseWorkingGrid(scene.leafon.source, scene.leafoff.source, *options, sources.leafon.describe(),
                                   sources.leafoff.describe());
     if (!grid) return grid.error();
@@ -337,9 +411,8 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
     }
 
     if (!sources.elevation.empty()) {
-        auto dem = openMosaic(sources.elevation, "DEM", assumed);
-        if (!dem) return dem.error();
-        auto hf = loadHeightfield(*dem, scene.grid);
+        if (auto st = openDem(); !st) return st.error();
+        auto hf = loadHeightfield(*demMosaic, scene.grid);
         if (!hf) return hf.error();
         if (hf->filledSamples > 0)
             scene.notes.push_back(sources.elevation.describe() + ": filled " + std::to_string(hf->filledSamples) +

@@ -27,7 +27,10 @@ namespace seasonview {
 struct GridOptionsText {
     std::string crs;                              // --grid-crs
     std::optional<double> resolution;             // --grid-res
-    std::optional<std::array<double, 4>> extent;  // --extent xmin,ymin,xmax,ymax
+    std::optional<std::array<double, 4>> extent;  // --extent W,S,E,N / xmin,ymin,xmax,ymax
+    std::string extentCrs; // --extent-crs: the CRS of --extent, "grid" for the working grid's; empty: degrees
+                           // (WGS 84 longitude, latitude) when the four numbers read as such, else the grid's CRS
+    std::string extentOf;  // --extent-of leafon|leafoff|dem: the extent is that input's footprint
 };
 
 /// Where a scene's files are (absolute or relative to the working directory) and its parameters.
@@ -41,7 +44,11 @@ struct SceneSources {
     std::filesystem::path truthDeciduous, truthConifer, truthTrees;
     double treeHeightM = 15.0;      // parameters.tree_height_m: canopy height used by the foliage layers
     std::string crs;                // --crs / "crs": the CRS of rasters that carry none (PROJ user input)
-    GridOptionsText grid;           // --grid-crs, --grid-res, --extent / "grid_crs", "grid_res", "extent"
+    GridOptionsText grid;           // --grid-crs, --grid-res, --extent, --extent-crs, --extent-of / "grid_crs",
+                                    // "grid_res", "extent", "extent_crs", "extent_of"
+    bool offline = false;           // --offline / "offline": web sources from the disk cache only (WebSource.h)
+    double webCacheMb = 0.0;       // --web-cache-mb / "web_cache_mb": the tile services' disk cache bound in MiB
+                                    // (0: web::kDefaultWebCacheMb)
     std::string resampling = "auto"; // --resampling / "resampling"
     std::string stretch = "auto";    // --stretch / "stretch": StretchMode
     std::vector<std::string> warnings; // e.g. unknown manifest keys
@@ -49,7 +56,8 @@ struct SceneSources {
 
 /// Parses a manifest: {"leafon": P, "leafoff": P, "elevation"?: P, "buildings"?: path,
 /// "truth"?: {"deciduous"?, "conifer"?, "trees"?}, "parameters"?: {"tree_height_m"?: number}, "name"?: string,
-/// "crs"?: string, "grid_crs"?: string, "grid_res"?: number, "extent"?: [xmin, ymin, xmax, ymax],
+/// "crs"?: string, "grid_crs"?: string, "grid_res"?: number, "extent"?: [W, S, E, N], "extent_crs"?: string,
+/// "extent_of"?: "leafon"|"leafoff"|"dem", "offline"?: bool, "web_cache_mb"?: number,
 /// "resampling"?: string, "stretch"?: string, "buildings_crs"?: string}, where P is a path (a file, a folder, a glob, a VRT) or a list of them. Paths are relative
 /// to the manifest's folder. Errors name the manifest and the key.
 Result<SceneSources> parseManifest(const std::filesystem::path& manifest);
@@ -108,7 +116,8 @@ Result<ImageryLayer> openImageryLayer(const SourceList& sources, const std::stri
                                       Resampling resampling = Resampling::Auto,
                                       StretchMode stretch = StretchMode::Auto);
 
-/// The grid options of `sources` parsed: errors name the flag (--grid-crs, --grid-res, --extent, --crs).
+/// The grid options of `sources` parsed: errors name the flag (--grid-crs, --grid-res, --extent, --extent-crs, --crs).
+/// --extent-of is resolved by loadScene (it needs the inputs opened).
 Result<GridOptions> parseGridOptions(const SceneSources& sources);
 
 } // namespace seasonview
