@@ -174,7 +174,8 @@ void HttpTestServer::handle(int fd) {
         answer(200, "text/html", body, (long long)body.size(), "");
         return;
     }
-    const std::filesystem::path file = m_root / r.path.substr(r.path.find_first_not_of('/'));
+    const std::string local = r.path.substr(0, r.path.find('?')); // a query string names the same file
+    const std::filesystem::path file = m_root / local.substr(local.find_first_not_of('/'));
     std::error_code ec;
     if (r.path.find("..") != std::string::npos || !std::filesystem::is_regular_file(file, ec)) {
         answer(404, "text/plain", "not found\n", 10, "");

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <fstream>
 
 using namespace seasonview;
 using namespace seasonview::test;
@@ -63,6 +64,8 @@ void expectSameRender(const fs::path& disk, const fs::path& web) {
     ASSERT_TRUE(d.sameSize);
     EXPECT_GE(d.psnr, 45.0) << "max delta " << d.maxDelta;
 }
+
+void writeText(const fs::path& p, const std::string& text) { std::ofstream(p) << text; }
 
 bool hasPyramid(const fs::path& cache) {
     std::error_code ec;
@@ -394,4 +397,83 @@ TEST(WebSourceCliTest, TmsRowsAndAnExtentInDegreesDrawAsTheSamePixelsOnDisk) {
     const CliResult g = render(of, "twoextents");
     EXPECT_EQ(g.exitCode, 1);
     EXPECT_NE(g.err.find("--extent and --extent-of"), std::string::npos) << g.err;
+}
+
+TEST(WebSourceCliTest, WmtsLayerDrawsAsTheSamePixelsOnDisk) {
+    // The same tiles served as a WMTS layer (RESTful, GoogleMapsCompatible, tile matrices 0 to 17): the capabilities
+    // fetched once, tile matrix 17 chosen by its scale, drawn as the same pixels on disk; a second run asks nothing.
+    // The scene's extent is the leaf-off's footprint (--extent-of), as the layer is read over it: the same grid.
+    ServedScene s("web-wmts");
+    const MercatorTiles m = makeTiles(s);
+    ASSERT_FALSE(m.merc.empty());
+    HttpTestServer server(s.dir.path());
+    std::string caps = R"(<?xml version="1.0" encoding="UTF-8"?>
+<Capabilities xmlns="http://www.opengis.net/wmts/1.0" xmlns:ows="http://www.opengis.net/ows/1.1" version="1.0.0">
+  <Contents>
+    <Layer><ows:Title>Leaf-on</ows:Title><ows:Identifier>leafon</ows:Identifier>
+      <Style isDefault="true"><ows:Identifier>default</ows:Identifier></Style><Format>image/png</Format>
+      <TileMatrixSetLink><TileMatrixSet>GoogleMapsCompatible</TileMatrixSet></TileMatrixSetLink>
+      <ResourceURL format="image/png" resourceType="tile" template=")" + server.url() +
+                       R"(/tiles/{TileMatrix}/{TileCol}/{TileRow}.png"/>
+    </Layer>
+    <TileMatrixSet><ows:Identifier>GoogleMapsCompatible</ows:Identifier>
+      <ows:SupportedCRS>urn:ogc:def:crs:EPSG::3857</ows:SupportedCRS>
+)";
+    for (int z = 0; z <= 17; ++z) {
+        char row[400];
+        std::snprintf(row, sizeof row,
+                      "      <TileMatrix><ows:Identifier>%d</ows:Identifier><ScaleDenominator>%.10f</ScaleDenominator>"
+                      "<TopLeftCorner>-20037508.3427892 20037508.3427892</TopLeftCorner><TileWidth>256</TileWidth>"
+                      "<TileHeight>256</TileHeight><MatrixWidth>%d</MatrixWidth><MatrixHeight>%d</MatrixHeight>"
+                      "</TileMatrix>\n",
+                      z, 559082264.0287178 / double(1 << z), 1 << z, 1 << z);
+        caps += row;
+    }
+    caps += "    </TileMatrixSet>\n  </Contents>\n</Capabilities>\n";
+    writeText(s.dir / "wmts.xml", caps);
+    writeText(s.dir / "page.html", "<html><body>Service unavailable</body></html>");
+    const auto render = [&](const std::string& leafon, const std::string& name, std::vector<std::string> more = {}) {
+        std::vector<std::string> args = {"render", "--leafon", leafon, "--leafoff", (s.scene / "leafoff.tif").string(),
+                                         "--dem", (s.scene / "dem.tif").string(), "--camera", "0,-150,+120,20,-40",
+                                         "--size", "320x240", "--view", "swipe", "--extent-of", "leafoff", "--cache",
+                                         (s.dir / ("cache_" + name)).string(), "--out", (s.dir / (name + ".png")).string()};
+        args.insert(args.end(), more.begin(), more.end());
+        return runCli(args);
+    };
+    const CliResult a = render(m.merc.string(), "disk");
+    ASSERT_EQ(a.exitCode, 0) << a.err;
+    const std::string wmts = server.url() + "/wmts.xml?layer=leafon&tilematrixset=GoogleMapsCompatible";
+    const CliResult b = render(wmts, "wmts");
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    expectSameRender(s.dir / "disk.png", s.dir / "wmts.png");
+    const auto first = server.requests();
+    EXPECT_EQ(std::count_if(first.begin(), first.end(), [](const auto& r) { return r.path == "/wmts.xml"; }), 1);
+    EXPECT_TRUE(std::any_of(first.begin(), first.end(), [](const auto& r) { return r.path.rfind("/tiles/17/", 0) == 0; }));
+    for (const auto& r : first) EXPECT_EQ(r.userAgent.rfind("seasonview/", 0), 0u) << r.path;
+    server.clearRequests();
+    const CliResult c = render(wmts, "wmts");
+    ASSERT_EQ(c.exitCode, 0) << c.err;
+    EXPECT_TRUE(server.requests().empty()) << server.requests().size() << " requests";
+    const CliResult d = render(wmts, "wmts", {"--offline"});
+    ASSERT_EQ(d.exitCode, 0) << d.err;
+    EXPECT_TRUE(server.requests().empty()) << server.requests().size() << " requests";
+
+    // Faults: one line naming the URL each, no picture.
+    struct Case {
+        std::string url, needle;
+    } cases[] = {
+        {server.url() + "/none/wmts.xml?layer=leafon", "HTTP 404"},
+        {server.url() + "/page.html?service=wmts&layer=leafon", "not a WMTS capabilities document"},
+        {server.url() + "/wmts.xml?layer=winter", "no layer 'winter' (it has: leafon)"},
+        {server.url() + "/wmts.xml?layer=leafon&tilematrixset=LAMB93", "no tile matrix set 'LAMB93'"},
+    };
+    int i = 0;
+    for (const Case& f : cases) {
+        const std::string name = "fault" + std::to_string(i++);
+        const CliResult r = render(f.url, name);
+        EXPECT_EQ(r.exitCode, 1) << f.url;
+        EXPECT_NE(r.err.find(f.needle), std::string::npos) << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+        EXPECT_FALSE(fs::exists(s.dir / (name + ".png")));
+    }
 }

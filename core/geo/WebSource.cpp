@@ -6,6 +6,7 @@
 
 #include <cpl_conv.h>
 #include <cpl_http.h>
+#include <cpl_minixml.h>
 #include <cpl_string.h>
 
 #include <algorithm>
@@ -14,6 +15,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iterator>
+#include <sstream>
 #include <vector>
 
 #ifndef SEASONVIEW_VERSION
@@ -258,6 +260,186 @@ long long trimTileCache(const std::filesystem::path& tilesDir, long long maxByte
         if (std::filesystem::remove(t.path, ec)) removed += t.bytes;
     }
     return removed;
+}
+
+bool isWmts(std::string_view input) {
+    if (!isUrl(input) || isTileTemplate(input)) return false;
+    const std::string l = lower(std::string(input));
+    const auto q = l.find('?');
+    if (q == std::string::npos || l.find("wmts") == std::string::npos) return false;
+    std::istringstream params(l.substr(q + 1));
+    for (std::string p; std::getline(params, p, '&');)
+        if (p.rfind("layer=", 0) == 0 && p.size() > 6) return true;
+    return false;
+}
+
+namespace {
+
+std::string urlDecode(const std::string& s) {
+    std::string o;
+    for (size_t i = 0; i < s.size(); ++i) {
+        if (s[i] == '%' && i + 2 < s.size() && std::isxdigit((unsigned char)s[i + 1]) &&
+            std::isxdigit((unsigned char)s[i + 2])) {
+            o += char(std::stoi(s.substr(i + 1, 2), nullptr, 16));
+            i += 2;
+        } else {
+            o += s[i] == '+' ? ' ' : s[i];
+        }
+    }
+    return o;
+}
+
+/// A WMTS input split: the capabilities document's URL (the other parameters kept) and the choices.
+struct WmtsUrl {
+    std::string capabilities, layer, tileMatrixSet, style;
+};
+
+WmtsUrl splitWmts(const std::string& url) {
+    WmtsUrl w;
+    const auto q = url.find('?');
+    std::string kept;
+    std::istringstream params(url.substr(q + 1));
+    for (std::string p; std::getline(params, p, '&');) {
+        const std::string key = lower(p.substr(0, p.find('=')));
+        const std::string value = p.find('=') == std::string::npos ? "" : urlDecode(p.substr(p.find('=') + 1));
+        if (key == "layer") w.layer = value;
+        else if (key == "tilematrixset") w.tileMatrixSet = value;
+        else if (key == "style") w.style = value;
+        else if (!p.empty()) kept += (kept.empty() ? "" : "&") + p;
+    }
+    w.capabilities = url.substr(0, q) + (kept.empty() ? "" : "?" + kept);
+    return w;
+}
+
+/// An XML document's nodes, freed with it.
+struct Xml {
+    CPLXMLNode* root = nullptr;
+    explicit Xml(const std::string& text) : root(CPLParseXMLString(text.c_str())) {
+        if (root) CPLStripXMLNamespace(root, nullptr, TRUE);
+    }
+    ~Xml() {
+        if (root) CPLDestroyXMLNode(root);
+    }
+    Xml(const Xml&) = delete;
+    Xml& operator=(const Xml&) = delete;
+};
+
+/// The element children of `parent` named `name`.
+std::vector<CPLXMLNode*> children(CPLXMLNode* parent, const char* name) {
+    std::vector<CPLXMLNode*> out;
+    for (CPLXMLNode* c = parent ? parent->psChild : nullptr; c; c = c->psNext)
+        if (c->eType == CXT_Element && std::string_view(c->pszValue) == name) out.push_back(c);
+    return out;
+}
+
+std::string joined(const std::vector<std::string>& v) {
+    std::string o;
+    for (const auto& s : v) o += (o.empty() ? "" : ", ") + s;
+    return o.empty() ? "none" : o;
+}
+
+CPLXMLNode* contentsOf(const Xml& x) { return x.root ? CPLGetXMLNode(x.root, "=Capabilities.Contents") : nullptr; }
+
+} // namespace
+
+Result<std::filesystem::path> describeWmts(const std::string& url,
+                                           const std::function<Result<TileArea>(const Crs&)>& areaIn,
+                                           const std::filesystem::path& cacheDir, const ServiceOptions& options) {
+    gdal::init();
+    const WmtsUrl w = splitWmts(url);
+    const std::filesystem::path dir = cacheDir / "web";
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    // The capabilities, fetched once: a second run asks the server for nothing.
+    const std::filesystem::path caps = dir / ("capabilities_" + cacheName(w.capabilities) + ".xml");
+    if (!std::filesystem::exists(caps, ec)) {
+        if (options.offline)
+            return fileError(url, "not in the cache (--offline): no earlier run read this service's capabilities");
+        auto a = fetch(w.capabilities, false);
+        if (!a) return a.error();
+        if (a->status != "200")
+            return fileError(w.capabilities, "HTTP " + a->status + (a->status == "404" ? " (not found on the server)" : ""));
+        if (a->contentType.rfind("text/html", 0) == 0)
+            return fileError(w.capabilities, "the server answers with a web page (text/html), not WMTS capabilities");
+        const std::string text(a->body.begin(), a->body.end());
+        if (!contentsOf(Xml(text))) return fileError(w.capabilities, "not a WMTS capabilities document");
+        std::string err;
+        if (!writeTextAtomic(caps, text, err)) return fileError(caps.string(), err);
+    }
+    std::ifstream in(caps, std::ios::binary);
+    const Xml doc(std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()));
+    CPLXMLNode* contents = contentsOf(doc);
+    if (!contents) return fileError(caps.string(), "not a WMTS capabilities document");
+    // The layer, its tile matrix set and style: as asked, else the first (the default style).
+    CPLXMLNode* layer = nullptr;
+    std::vector<std::string> names;
+    for (CPLXMLNode* l : children(contents, "Layer")) {
+        names.push_back(CPLGetXMLValue(l, "Identifier", ""));
+        if (names.back() == w.layer) layer = l;
+    }
+    if (!layer) return fileError(url, "the service has no layer '" + w.layer + "' (it has: " + joined(names) + ")");
+    std::vector<std::string> sets, styles;
+    for (CPLXMLNode* l : children(layer, "TileMatrixSetLink")) sets.push_back(CPLGetXMLValue(l, "TileMatrixSet", ""));
+    std::string style;
+    for (CPLXMLNode* st : children(layer, "Style")) {
+        styles.push_back(CPLGetXMLValue(st, "Identifier", ""));
+        if (style.empty() && CPLTestBool(CPLGetXMLValue(st, "isDefault", "false"))) style = styles.back();
+    }
+    const std::string set = w.tileMatrixSet.empty() && !sets.empty() ? sets.front() : w.tileMatrixSet;
+    if (std::find(sets.begin(), sets.end(), set) == sets.end())
+        return fileError(url, "layer '" + w.layer + "' has no tile matrix set '" + set + "' (it has: " + joined(sets) + ")");
+    if (!w.style.empty()) {
+        if (std::find(styles.begin(), styles.end(), w.style) == styles.end())
+            return fileError(url, "layer '" + w.layer + "' has no style '" + w.style + "' (it has: " + joined(styles) + ")");
+        style = w.style;
+    }
+    if (style.empty() && !styles.empty()) style = styles.front();
+    CPLXMLNode* matrixSet = nullptr;
+    for (CPLXMLNode* t : children(contents, "TileMatrixSet"))
+        if (std::string_view(CPLGetXMLValue(t, "Identifier", "")) == set) matrixSet = t;
+    if (!matrixSet) return fileError(url, "the capabilities do not describe tile matrix set '" + set + "'");
+    auto crs = Crs::fromUserInput(CPLGetXMLValue(matrixSet, "SupportedCRS", ""));
+    if (!crs) return fileError(url, "tile matrix set '" + set + "': " + crs.message());
+    auto area = areaIn(*crs);
+    if (!area) return area.error();
+    if (!(area->maxX > area->minX && area->maxY > area->minY && area->pixelSize > 0))
+        return fileError(url, "no area to read the service over");
+    // The tile matrix: the coarsest whose pixels (0.28 mm per pixel at its scale) are not larger than wanted.
+    const double metresPerUnit = crs->isGeographic() ? 6378137.0 * 2.0 * 3.14159265358979323846 / 360.0 : 1.0;
+    std::vector<std::pair<double, std::string>> matrices; // pixel size, identifier
+    for (CPLXMLNode* m : children(matrixSet, "TileMatrix"))
+        matrices.emplace_back(CPLAtof(CPLGetXMLValue(m, "ScaleDenominator", "0")) * 0.28e-3 / metresPerUnit,
+                              CPLGetXMLValue(m, "Identifier", ""));
+    std::sort(matrices.begin(), matrices.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    if (matrices.empty() || !(matrices.back().first > 0))
+        return fileError(url, "tile matrix set '" + set + "' lists no tile matrix with a scale");
+    auto chosen = matrices.back();
+    for (const auto& m : matrices)
+        if (m.first <= area->pixelSize * (1.0 + 1e-9)) {
+            chosen = m;
+            break;
+        }
+    const double w0 = (area->maxX - area->minX) / chosen.first, h0 = (area->maxY - area->minY) / chosen.first;
+    if (w0 > gdal::kMaxRasterSide || h0 > gdal::kMaxRasterSide)
+        return fileError(url, "the area is " + std::to_string((long long)w0) + "x" + std::to_string((long long)h0) +
+                                  " pixels at tile matrix " + chosen.second + ", over the limit of " +
+                                  std::to_string(gdal::kMaxRasterSide) + " a side (a smaller --extent)");
+    const std::string cache = "<Cache><Path>" + xmlEscape((dir / "tiles").string()) +
+                              "</Path><Expires>315360000</Expires><CleanTimeout>0</CleanTimeout></Cache>";
+    trimTileCache(dir / "tiles", (long long)(std::max(options.cacheMb, 0.0) * 1048576.0));
+    const std::string xml =
+        "<GDAL_WMTS>\n  <GetCapabilitiesUrl>" + xmlEscape(caps.string()) + "</GetCapabilitiesUrl><Layer>" +
+        xmlEscape(w.layer) + "</Layer><Style>" + xmlEscape(style) + "</Style><TileMatrixSet>" + xmlEscape(set) +
+        "</TileMatrixSet><TileMatrix>" + xmlEscape(chosen.second) + "</TileMatrix>\n  <DataWindow><UpperLeftX>" +
+        num(area->minX) + "</UpperLeftX><UpperLeftY>" + num(area->maxY) + "</UpperLeftY><LowerRightX>" +
+        num(area->maxX) + "</LowerRightX><LowerRightY>" + num(area->minY) + "</LowerRightY></DataWindow>\n" +
+        "  <BandsCount>4</BandsCount><ZeroBlockHttpCodes>204,404</ZeroBlockHttpCodes>\n"
+        "  <MaxConnections>4</MaxConnections><Timeout>30</Timeout><UserAgent>" + xmlEscape(userAgent()) +
+        "</UserAgent><OfflineMode>" + (options.offline ? "true" : "false") + "</OfflineMode>\n  " + cache +
+        "\n</GDAL_WMTS>\n";
+    const std::filesystem::path file = dir / (cacheName(withoutElements(xml)) + ".xml");
+    if (auto st = writeIfChanged(file, xml); !st) return st.error();
+    return file;
 }
 
 std::optional<std::string> serviceIdentity(const std::filesystem::path& file) {

@@ -5,9 +5,11 @@
 // Every request names seasonview in its User-Agent, times out, and is retried with backoff on 429 and 502–504.
 // Before the raster is opened, one HEAD request asks the server for the file: an HTTP error is one line naming the
 // URL and the status, and the answer's size, Last-Modified and ETag are the input's identity for the caches.
+#include "Crs.h"
 #include "Result.h"
 
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -47,8 +49,9 @@ struct ServiceOptions {
 /// (GDAL's own expiry and cleaner are off): the pyramids made from them do not expire either.
 long long trimTileCache(const std::filesystem::path& tilesDir, long long maxBytes);
 
-/// The part of a tile service a scene reads: a rectangle in Web Mercator (EPSG:3857) and the pixel size wanted
-/// there, in EPSG:3857 units (the zoom chosen is the coarsest whose pixels are not larger).
+/// The part of a tile service a scene reads: a rectangle in the service's CRS (Web Mercator, EPSG:3857, for XYZ and
+/// TMS templates; the tile matrix set's for a WMTS) and the pixel size wanted there, in that CRS's units (the zoom
+/// chosen is the coarsest whose pixels are not larger).
 struct TileArea {
     double minX = 0, minY = 0, maxX = 0, maxY = 0;
     double pixelSize = 1;
@@ -66,6 +69,21 @@ struct TileArea {
 Result<std::filesystem::path> describeTileService(const std::string& url, const TileArea& area,
                                                   const std::filesystem::path& cacheDir,
                                                   const ServiceOptions& options = {});
+
+/// Whether an input is a WMTS layer: an http(s) URL of a WMTS GetCapabilities document ("wmts" in it) with a
+/// `layer=NAME` query parameter, optionally `tilematrixset=ID` and `style=ID` (removed from the URL fetched).
+bool isWmts(std::string_view input);
+
+/// A GDAL WMTS description (GDAL_WMTS XML) of a WMTS layer over the area `areaIn` gives in the tile matrix set's CRS,
+/// written into cacheDir/web/ as describeTileService writes its own: the capabilities document fetched once and
+/// kept there (a second run, or --offline, asks the server for nothing), the tile matrix chosen by its scale (the
+/// coarsest whose pixels are not larger than the area's pixel size, else the finest), the same connections,
+/// User-Agent, timeout, tile cache and bound. Errors, one line naming the URL: HTTP errors, a web page or another
+/// document instead of WMTS capabilities, a layer, tile matrix set or style the service does not list (naming those
+/// it does).
+Result<std::filesystem::path> describeWmts(const std::string& url,
+                                           const std::function<Result<TileArea>(const Crs&)>& areaIn,
+                                           const std::filesystem::path& cacheDir, const ServiceOptions& options = {});
 
 /// The identity caches key a GDAL service description on (a GDAL_WMS or GDAL_WMTS XML file, written by
 /// describeTileService or by the user): its content less the elements that do not change its pixels (OfflineMode,

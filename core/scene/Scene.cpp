@@ -233,14 +233,16 @@ void placeOnGrid(ImageryLayer& layer, const WorkingGrid& grid) {
     i.driver = layer.direct ? t.driver : "warped";
 }
 
-bool isTileService(const SourceList& s) { return s.items.size() == 1 && web::isTileTemplate(s.items.front().string()); }
+bool isTileService(const SourceList& s) {
+    return s.items.size() == 1 && (web::isTileTemplate(s.items.front().string()) || web::isWmts(s.items.front().string()));
+}
 
 /// Where a tile service is read (WebSource.h): over the scene's extent (--extent in its CRS, or --extent-of) when
 /// given, else over the other season's footprint (`other`, opened already); at --grid-res in the grid's CRS
-/// (`gridCrs`) when given, else at the other season's pixel size; both measured in Web Mercator at the area's centre.
-Result<web::TileArea> tileArea(const GridOptions& options, const RasterMosaic* other, const Crs& gridCrs) {
-    auto mercator = Crs::fromEpsg(3857);
-    if (!mercator) return mercator.error();
+/// (`gridCrs`) when given, else at the other season's pixel size; both measured in the service's CRS at the area's
+/// centre.
+Result<web::TileArea> tileArea(const GridOptions& options, const RasterMosaic* other, const Crs& gridCrs,
+                               const Crs& serviceCrs) {
     Crs crs;
     glm::dvec2 lo{0.0}, hi{0.0};
     if (options.extent) {
@@ -266,16 +268,16 @@ Result<web::TileArea> tileArea(const GridOptions& options, const RasterMosaic* o
     } else {
         return Error{"scene: both seasons are tile services: give --grid-res (the pixel size to read them at)"};
     }
-    const auto [mlo, mhi] = boxIn(lo, hi, crs, *mercator);
+    const auto [mlo, mhi] = boxIn(lo, hi, crs, serviceCrs);
     glm::dvec2 p[2];
     p[0] = convert(crs, resCrs, 0.5 * (lo + hi));
     p[1] = p[0] + glm::dvec2(res, 0.0);
-    convert(resCrs, *mercator, std::span<glm::dvec2>(p, 2));
+    convert(resCrs, serviceCrs, std::span<glm::dvec2>(p, 2));
     web::TileArea a;
     a.minX = mlo.x, a.minY = mlo.y, a.maxX = mhi.x, a.maxY = mhi.y;
     a.pixelSize = glm::length(p[1] - p[0]);
     if (!std::isfinite(a.minX + a.maxX + a.minY + a.maxY + a.pixelSize))
-        return Error{"scene: the area to read the tile service over does not map to Web Mercator"};
+        return Error{"scene: the area to read the tile service over does not map to its CRS " + serviceCrs.name()};
     return a;
 }
 
@@ -319,7 +321,7 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
     if (sources.offline)
         for (const SourceList* l : {&sources.leafon, &sources.leafoff, &sources.elevation})
             for (const auto& item : l->items)
-                if (web::isUrl(item.string()) && !web::isTileTemplate(item.string()))
+                if (web::isUrl(item.string()) && !web::isTileTemplate(item.string()) && !web::isWmts(item.string()))
                     return fileError(item.string(), "--offline reads tile services from the disk cache; a raster by "
                                                     "URL is read over the network");
     const SourceList* given[2] = {&sources.leafon, &sources.leafoff};
@@ -359,18 +361,30 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
             SourceList s = *given[i];
             if (service[i]) {
                 const RasterMosaic* other = service[1 - i] ? nullptr : &layers[1 - i]->source;
-                auto mercator = Crs::fromEpsg(3857);
-                if (!mercator) return mercator.error();
-                const Crs gridCrs = options->crs ? *options->crs
-                                    : service[0]  ? *mercator
-                                                  : defaultGridCrs(scene.leafon.source.crs, scene.leafon.source.min,
-                                                                   scene.leafon.source.max);
-                auto area = tileArea(*options, other, gridCrs);
-                if (!area) return area.error();
+                // The grid's CRS, for --grid-res: as chooseWorkingGrid picks it from the leaf-on (this service's
+                // when the leaf-on is this service).
+                const bool leafonOpened = !service[0] || i == 1;
+                const auto areaIn = [&](const Crs& serviceCrs) {
+                    const Crs gridCrs = options->crs    ? *options->crs
+                                        : leafonOpened ? defaultGridCrs(scene.leafon.source.crs, scene.leafon.source.min,
+                                                                        scene.leafon.source.max)
+                                                       : serviceCrs;
+                    return tileArea(*options, other, gridCrs, serviceCrs);
+                };
                 web::ServiceOptions run;
                 run.offline = sources.offline;
                 if (sources.webCacheMb > 0) run.cacheMb = sources.webCacheMb;
-                auto xml = web::describeTileService(s.items.front().string(), *area, cacheDir, run);
+                const std::string url = s.items.front().string();
+                Result<std::filesystem::path> xml = Error{""};
+                if (web::isWmts(url)) {
+                    xml = web::describeWmts(url, areaIn, cacheDir, run);
+                } else {
+                    auto mercator = Crs::fromEpsg(3857);
+                    if (!mercator) return mercator.error();
+                    auto area = areaIn(*mercator);
+                    if (!area) return area.error();
+                    xml = web::describeTileService(url, *area, cacheDir, run);
+                }
                 if (!xml) return xml.error();
                 s.items = {*xml};
             }
