@@ -177,6 +177,48 @@ TEST(WebSourceCliTest, RealSaclayCogByUrlDrawsAsTheFile) {
                 (long long)fs::file_size(s / "leafon_3857_cog.tif"));
 }
 
+TEST(WebSourceCliTest, RealSaclayXyzTilesDrawAsTheSameTilesOnDisk) {
+    // The delivered leaf-on as an XYZ pyramid (gdal2tiles, zoom 10-15) served, read over the Lambert-93 leaf-off's
+    // footprint at its 8 m (zoom 14), against the zoom-14 tiles on disk, each georeferenced as its tile: a mosaic.
+    const auto data = realDataDir();
+    const fs::path s = data ? *data / "seasons/saclay_w_delivered" : fs::path();
+    if (!data || !fs::exists(s / "leafon_xyz/14"))
+        GTEST_SKIP() << "real data not found (../shared/data/seasons/saclay_w_delivered/leafon_xyz)";
+    TempDir dir("web-saclay-xyz");
+    const double half = 20037508.342789244, t = 2.0 * half / double(1 << 14);
+    const auto num = [](double v) {
+        char b[40];
+        std::snprintf(b, sizeof b, "%.10f", v);
+        return std::string(b);
+    };
+    int tiles = 0;
+    for (const auto& e : fs::recursive_directory_iterator(s / "leafon_xyz/14")) {
+        if (e.path().extension() != ".png") continue;
+        const long long x = std::atoll(e.path().parent_path().filename().c_str()), y = std::atoll(e.path().stem().c_str());
+        fs::create_directories(dir / "disk");
+        gdalTranslate(e.path(), dir / "disk" / (std::to_string(x) + "_" + std::to_string(y) + ".tif"),
+                      {"-a_srs", "EPSG:3857", "-a_ullr", num(-half + double(x) * t), num(half - double(y) * t),
+                       num(-half + double(x + 1) * t), num(half - double(y + 1) * t)});
+        ++tiles;
+    }
+    ASSERT_GT(tiles, 4);
+    HttpTestServer server(s / "leafon_xyz");
+    const auto render = [&](const std::string& leafon, const std::string& out) {
+        return runCli({"render", "--leafon", leafon, "--leafoff", (s / "leafoff_L93_tiles").string(), "--extent-of",
+                       "leafoff", "--view", "swipe", "--size", "320x320", "--cache", (dir / ("cache_" + out)).string(),
+                       "--out", (dir / (out + ".png")).string()});
+    };
+    const CliResult a = render((dir / "disk").string(), "disk");
+    ASSERT_EQ(a.exitCode, 0) << a.err;
+    const CliResult b = render(server.url() + "/{z}/{x}/{y}.png", "web");
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    expectSameRender(dir / "disk.png", dir / "web.png");
+    const auto requests = server.requests();
+    EXPECT_TRUE(std::any_of(requests.begin(), requests.end(), [](const auto& r) { return r.path.rfind("/14/", 0) == 0; }));
+    EXPECT_FALSE(std::any_of(requests.begin(), requests.end(), [](const auto& r) { return r.path.rfind("/15/", 0) == 0; }))
+        << "zoom 15 is finer than the leaf-off's 8 m";
+}
+
 namespace {
 
 /// The synthetic leaf-on cut into 256² PNG tiles of Web Mercator at zoom 17 under dir/tiles/17/x/y.png (XYZ rows)
