@@ -31,10 +31,11 @@ void SceneArgs::addTo(CLI::App& cmd, bool withDem) {
     cmd.add_option("scene", manifest, "Scene manifest (scene.json); or give --leafon/--leafoff");
     cmd.add_option("--leafon", leafon,
                    "Leaf-on (summer) imagery, 8- or 16-bit RGB(A) in any format and CRS GDAL reads: a file, a folder "
-                   "of tiles, a glob, a VRT (several for a mosaic) an http(s):// URL read by range requests (a "
-                   "Cloud-Optimized GeoTIFF), or an XYZ tile service's URL template with {z}, {x} and {y} ({-y}: TMS "
-                   "rows; read over --extent, else the other season's footprint, at --grid-res, else the other "
-                   "season's pixel size)")
+                   "of tiles, a glob, a VRT (several for a mosaic), an http(s):// URL read by range requests (a "
+                   "Cloud-Optimized GeoTIFF), an XYZ tile service's URL template with {z}, {x} and {y} ({-y}: TMS "
+                   "rows), or a WMTS capabilities URL with ?layer=NAME (&tilematrixset=ID, &style=ID); a service is "
+                   "read over --extent, else the other season's footprint, at --grid-res, else the other season's "
+                   "pixel size")
         ->expected(1, -1);
     cmd.add_option("--leafoff", leafoff,
                    "Leaf-off (winter) imagery, as --leafon; any grid, resolution and CRS (warped onto the working "
