@@ -4,6 +4,7 @@
 
 #include "AtomicFile.h"
 #include "StableHash.h"
+#include "WebSource.h"
 #include "PyramidBuilder.h"
 
 #include <OpenImageIO/imageio.h>
@@ -77,8 +78,13 @@ Result<PyramidSource> imagerySource(const ImageryLayer& layer) {
     s.width = grid.width;
     s.height = grid.height;
     s.format = TexelFormat::Rgba8;
-    s.build = [&layer](const fs::path& folder, int tileSize, const ProgressFn& progress) {
-        return buildPyramidLevels(layer, folder, tileSize, progress);
+    s.build = [&layer](const fs::path& folder, int tileSize,
+                        const ProgressFn& progress) -> Result<std::vector<PyramidLevel>> {
+        auto levels = buildPyramidLevels(layer, folder, tileSize, progress);
+        // A tile service's tile failed: name its URL and status (GDAL's words leave them out).
+        if (!levels && layer.source.tiles.size() == 1)
+            if (auto tile = web::tileFailure(layer.source.tiles.front().path, levels.message())) return *tile;
+        return levels;
     };
     return s;
 }

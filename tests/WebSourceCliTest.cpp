@@ -322,14 +322,13 @@ TEST(WebSourceCliTest, XyzTileServiceDrawsAsTheSamePixelsOnDisk) {
     EXPECT_NE(e.err.find("HTTP 500"), std::string::npos) << e.err;
     EXPECT_EQ(std::count(e.err.begin(), e.err.end(), '\n'), 1) << e.err;
 
-    // One tile failing while the season is read: one line and no picture (the line names the service's description
-    // in the cache, not yet the tile's URL).
+    // One tile failing while the season is read: one line naming the tile's URL and the status, and no picture.
     tiles.clearFaults();
     const std::string corner = "/17/" + std::to_string(x0) + "/" + std::to_string(y0) + ".png";
     tiles.setFault(corner, down);
     const CliResult f = render(tiles.url() + "/{z}/{x}/{y}.png", "tile");
     EXPECT_EQ(f.exitCode, 1);
-    EXPECT_NE(f.err.find("truncated or corrupt image data"), std::string::npos) << f.err;
+    EXPECT_NE(f.err.find(tiles.url() + corner + ": HTTP 500"), std::string::npos) << f.err;
     EXPECT_EQ(std::count(f.err.begin(), f.err.end(), '\n'), 1) << f.err;
     EXPECT_FALSE(fs::exists(s.dir / "tile.png"));
     tiles.clearFaults();
@@ -408,6 +407,16 @@ TEST(WebSourceCliTest, TmsRowsAndAnExtentInDegreesDrawAsTheSamePixelsOnDisk) {
         if (r.path.rfind("/17/", 0) == 0) {
             EXPECT_TRUE(fs::exists(s.dir / "tms" / r.path.substr(1))) << r.path;
         }
+    // A tile failing while read: one line naming it, its row counted from the bottom.
+    const std::string corner = "/17/" + std::to_string(m.x1) + "/" + std::to_string((1LL << 17) - 1 - m.y1) + ".png";
+    HttpTestServer::Fault down;
+    down.status = 500;
+    tms.setFault(corner, down);
+    const CliResult bad = render({"--leafon", tms.url() + "/{z}/{x}/{-y}.png", "--leafoff", leafoff}, "tmsdown");
+    EXPECT_EQ(bad.exitCode, 1);
+    EXPECT_NE(bad.err.find(tms.url() + corner + ": HTTP 500"), std::string::npos) << bad.err;
+    EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
+    tms.clearFaults();
 
     // Both seasons from services: the area is --extent in degrees (the leaf-off's footprint), the pixel size
     // --grid-res in the grid's CRS (Web Mercator, the leaf-on's). The same on disk: the same pixels as GeoTIFFs.

@@ -16,7 +16,7 @@ void init() {
         CPLSetConfigOption("GDAL_PAM_ENABLED", "NO");
         // JPEG-in-TIFF (YCbCr) decoded to RGB by libjpeg, as every orthophoto reader does.
         CPLSetConfigOption("CONVERT_YCBCR_TO_RGB", "YES");
-        // Inputs on the web (WebSource.h): requests that name us, time out, and are retried with backoff on 429 and
+        // Inputs on the web (WebSource.h): requests that name us, time out, and are retried with backoff on 429, 500 and
         // 502-504 (GDAL's retry set). A URL's side files are not asked for: web::RemoteOpen.
         CPLSetConfigOption("GDAL_HTTP_USERAGENT", web::userAgent().c_str());
         CPLSetConfigOption("GDAL_HTTP_TIMEOUT", "30");
@@ -52,8 +52,17 @@ ErrorCapture::ErrorCapture() {
             auto* self = static_cast<ErrorCapture*>(CPLGetErrorHandlerUserData());
             (void)code;
             if (!self) return;
-            const std::string line = firstLine(text ? text : "");
+            std::string line = firstLine(text ? text : "");
             if (level >= CE_Failure) {
+                // A tile service's failed tile: this one says which (its block; the status from the lines GDAL adds,
+                // the URL it leaves empty), not the missing cache file GDAL reports first (web::tileFailure).
+                const std::string all = text ? text : "";
+                const bool download = line.find("Unable to download block") != std::string::npos;
+                if (download) {
+                    if (const auto st = all.find("HTTP status code: "); st != std::string::npos)
+                        line += " (HTTP " + all.substr(st + 18, all.find_first_not_of("0123456789", st + 18) - st - 18) + ")";
+                    if (self->m_failure.find("Unable to download block") == std::string::npos) self->m_failure = line;
+                }
                 if (self->m_failure.empty()) self->m_failure = line;
             } else if (level == CE_Warning) {
                 if (self->m_warning.empty()) self->m_warning = line;

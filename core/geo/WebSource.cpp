@@ -56,11 +56,12 @@ struct Answer {
     std::vector<std::uint8_t> body;
 };
 
-Result<Answer> fetch(const std::string& url, bool headOnly) {
+Result<Answer> fetch(const std::string& url, bool headOnly, bool retry = true) {
     gdal::init();
     gdal::ErrorCapture quiet;
     const std::string agent = "USERAGENT=" + userAgent();
-    std::vector<const char*> options = {agent.c_str(), "TIMEOUT=30", "MAX_RETRY=3", "RETRY_DELAY=1"};
+    std::vector<const char*> options = {agent.c_str(), "TIMEOUT=30", retry ? "MAX_RETRY=3" : "MAX_RETRY=0",
+                                        "RETRY_DELAY=1"};
     if (headOnly) options.insert(options.end(), {"CUSTOMREQUEST=HEAD", "NO_BODY=YES"});
     options.push_back(nullptr);
     CPLHTTPResult* r = CPLHTTPFetch(url.c_str(), options.data());
@@ -145,9 +146,10 @@ std::string fillTemplate(std::string t, const std::string& z, const std::string&
 
 enum class Probe { Image, Missing };
 
-/// GET of one tile: an image, missing (404, 204), or an error naming its URL.
-Result<Probe> probeTile(const std::string& url) {
-    auto a = fetch(url, false);
+/// GET of one tile: an image, missing (404, 204), or an error naming its URL. `retry`: as every request (GDAL's
+/// retries with backoff on 5xx), else once (a diagnosis of a failure GDAL retried already).
+Result<Probe> probeTile(const std::string& url, bool retry = true) {
+    auto a = fetch(url, false, retry);
     if (!a) return a.error();
     if (a->status == "404") return Probe::Missing;
     if (a->status != "200") return fileError(url, "HTTP " + a->status);
@@ -440,6 +442,62 @@ Result<std::filesystem::path> describeWmts(const std::string& url,
     const std::filesystem::path file = dir / (cacheName(withoutElements(xml)) + ".xml");
     if (auto st = writeIfChanged(file, xml); !st) return st.error();
     return file;
+}
+
+namespace {
+
+/// The text of element `name` in `xml` ("" when absent).
+std::string elementText(const std::string& xml, const std::string& name) {
+    const auto a = xml.find("<" + name + ">");
+    if (a == std::string::npos) return {};
+    const auto b = xml.find("</" + name + ">", a);
+    return b == std::string::npos ? std::string() : xml.substr(a + name.size() + 2, b - a - name.size() - 2);
+}
+
+std::string readSmall(const std::filesystem::path& p) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(p, ec) || std::filesystem::file_size(p, ec) > (1u << 20)) return {};
+    std::ifstream in(p, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+std::string xmlUnescape(std::string s) {
+    for (const auto& [from, to] : {std::pair<std::string, std::string>{"&lt;", "<"}, {"&gt;", ">"}, {"&amp;", "&"}})
+        for (size_t at = 0; (at = s.find(from, at)) != std::string::npos; at += to.size()) s.replace(at, from.size(), to);
+    return s;
+}
+
+} // namespace
+
+std::optional<Error> tileFailure(const std::filesystem::path& description, const std::string& message) {
+    std::string xml = readSmall(description);
+    if (xml.rfind("<VRTDataset", 0) == 0) { // a TMS description's cut: the first source is the description
+        const auto a = xml.find("<SourceFilename relativeToVRT=\"0\">"), b = xml.find("</SourceFilename>");
+        if (a == std::string::npos || b == std::string::npos || b < a) return std::nullopt;
+        xml = readSmall(xmlUnescape(xml.substr(a + 34, b - a - 34)));
+    }
+    if (xml.rfind("<GDAL_WMS>", 0) != 0) return std::nullopt;
+    const auto at = message.find("download block ");
+    if (at == std::string::npos) return std::nullopt;
+    long long bx = -1, by = -1;
+    if (std::sscanf(message.c_str() + at + 15, "%lld, %lld", &bx, &by) != 2 || bx < 0 || by < 0) return std::nullopt;
+    const std::string server = xmlUnescape(elementText(xml, "ServerUrl"));
+    const int z = std::atoi(elementText(xml, "TileLevel").c_str());
+    const long long tx = std::atoll(elementText(xml, "TileX").c_str()), ty = std::atoll(elementText(xml, "TileY").c_str());
+    const bool bottom = elementText(xml, "YOrigin") == "bottom";
+    for (int k = 0; k <= 3 && k <= z; ++k) {
+        const int zoom = z - k;
+        const long long x = (tx >> k) + bx, row = (ty >> k) + by;
+        if (x >= (1LL << zoom) || row >= (1LL << zoom)) continue;
+        std::string tile = server;
+        for (const auto& [key, v] : {std::pair<std::string, std::string>{"${z}", std::to_string(zoom)},
+                                     {"${x}", std::to_string(x)},
+                                     {"${y}", std::to_string(bottom ? (1LL << zoom) - 1 - row : row)}})
+            for (size_t p = 0; (p = tile.find(key, p)) != std::string::npos; p += v.size()) tile.replace(p, key.size(), v);
+        auto probe = probeTile(tile, false);
+        if (!probe) return Error{probe.message() + " (reading " + description.string() + ")"};
+    }
+    return std::nullopt;
 }
 
 std::optional<std::string> serviceIdentity(const std::filesystem::path& file) {

@@ -2,7 +2,7 @@
 // Scene inputs on the web. A URL (http:// or https://) given for a season or the DEM is read through GDAL's
 // /vsicurl/ file system: HTTP range requests for the headers and the tiles a read touches, as a Cloud-Optimized
 // GeoTIFF is meant to be read (any raster GDAL reads by ranges works; a COG's layout keeps the requests few).
-// Every request names seasonview in its User-Agent, times out, and is retried with backoff on 429 and 502–504.
+// Every request names seasonview in its User-Agent, times out, and is retried with backoff on 429, 500 and 502–504.
 // Before the raster is opened, one HEAD request asks the server for the file: an HTTP error is one line naming the
 // URL and the status, and the answer's size, Last-Modified and ETag are the input's identity for the caches.
 #include "Crs.h"
@@ -62,7 +62,7 @@ struct TileArea {
 /// none. The zoom: the coarsest not coarser than area.pixelSize, or, where the service has no tile at the area's
 /// centre at that zoom (404 or 204), the finest it has (at most 23 requests). Tiles missing when read (404, 204)
 /// are no data; other HTTP errors, a web page instead of an image and failed transfers are errors naming the tile's
-/// URL. At most 4 connections, seasonview's User-Agent, 30 s timeout, retries on 429 and 502-504. The tile cache is
+/// URL. At most 4 connections, seasonview's User-Agent, 30 s timeout, retries on 429, 500 and 502-504. The tile cache is
 /// bounded to options.cacheMb (trimTileCache) before the service is read. A TMS template
 /// ({-y}) is described over the whole world (GDAL counts TMS rows from its window's bottom) and cut to the area by a
 /// VRT next to it, which is what is returned then.
@@ -84,6 +84,12 @@ bool isWmts(std::string_view input);
 Result<std::filesystem::path> describeWmts(const std::string& url,
                                            const std::function<Result<TileArea>(const Crs&)>& areaIn,
                                            const std::filesystem::path& cacheDir, const ServiceOptions& options = {});
+
+/// A read of a tile service's description (describeTileService's XML or VRT) failed with GDAL's words `message`
+/// ("... Unable to download block X, Y ..."; GDAL 3.6 leaves the URL out): the tile's URL and status, found by asking
+/// the server again for the tiles that block can be at its zoom and the three coarser (at most 4 requests), as the
+/// one line "TILE_URL: HTTP 500 (reading DESCRIPTION)". Nothing when `description` is no such file or no tile fails.
+std::optional<Error> tileFailure(const std::filesystem::path& description, const std::string& message);
 
 /// The identity caches key a GDAL service description on (a GDAL_WMS or GDAL_WMTS XML file, written by
 /// describeTileService or by the user): its content less the elements that do not change its pixels (OfflineMode,
