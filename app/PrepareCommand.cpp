@@ -40,13 +40,16 @@ Runner addPrepareCommand(CLI::App& app) {
                                                                       {"leafoff", &scene->leafoff}};
         std::vector<ImagePyramid> pyramids;
         for (const auto& [name, layer] : layers) {
-            options.progress = terminalProgress(name);
+            const LayerPrepareProgress progress(name, *layer, options.cacheDir);
+            options.progress = progress.fn();
             auto report = preparePyramid(*layer, options);
             if (!report) return fail(report.message());
             const ImagePyramid& p = report->pyramid;
+            const std::string fetched = report->built ? progress.note() : std::string();
             if (report->built)
-                std::printf("%s: built in %.2f s (%s): %dx%d, %zu levels, %s\n", name, report->seconds,
-                            report->reason.c_str(), p.width(), p.height(), p.levels.size(), p.folder.c_str());
+                std::printf("%s: built in %.2f s (%s): %dx%d, %zu levels, %s%s%s\n", name, report->seconds,
+                            report->reason.c_str(), p.width(), p.height(), p.levels.size(), p.folder.c_str(),
+                            fetched.empty() ? "" : "; ", fetched.c_str());
             else
                 std::printf("%s: up to date: %dx%d, %zu levels, %s\n", name, p.width(), p.height(), p.levels.size(),
                             p.folder.c_str());

@@ -11,12 +11,14 @@
 
 #include "AtomicFile.h"
 #include "Commands.h"
+#include "WebSource.h"
 #include "gl/GlDebug.h"
 
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -77,6 +79,58 @@ bool rebuildingDamaged(const std::string& message, const std::filesystem::path& 
     return false;
 }
 
+struct LayerPrepareProgress::State {
+    std::string name;
+    ProgressFn bar;
+    bool service = false;
+    std::optional<long long> total;
+    std::optional<web::TileFetchCounter> counter;
+    std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now(), lastScan{};
+    web::TileFetchCounter::Count count;
+};
+
+LayerPrepareProgress::LayerPrepareProgress(const char* name, const ImageryLayer& layer,
+                                           const std::filesystem::path& cacheDir)
+    : m(std::make_shared<State>()) {
+    m->name = name;
+    m->bar = terminalProgress(name);
+    if (layer.source.tiles.size() == 1) {
+        const std::filesystem::path& p = layer.source.tiles.front().path;
+        m->total = web::serviceTileCount(p);
+        m->service = m->total || web::serviceIdentity(p);
+    }
+    if (m->service) m->counter.emplace(cacheDir / "web" / "tiles");
+}
+
+ProgressFn LayerPrepareProgress::fn() const {
+    if (!m->bar || !m->service) return m->bar;
+    return [s = m](double f, const char* stage) {
+        // The tile cache scanned at most twice a second: the tiles fetched so far, and the time left at this rate.
+        const auto now = std::chrono::steady_clock::now();
+        if (now - s->lastScan > std::chrono::milliseconds(500) || f >= 1.0) {
+            s->count = s->counter->fetched();
+            s->lastScan = now;
+        }
+        const double elapsed = std::chrono::duration<double>(now - s->start).count();
+        char text[160];
+        std::snprintf(text, sizeof text, "%lld%s%s tiles, %.1f MB, ETA %s", s->count.tiles, s->total ? " of " : "",
+                      s->total ? std::to_string(*s->total).c_str() : "", double(s->count.bytes) / 1e6,
+                      f > 0.01 && f < 1.0 ? (std::to_string(int(elapsed * (1.0 - f) / f + 0.5)) + " s").c_str() : "-");
+        (void)stage;
+        s->bar(f, text);
+    };
+}
+
+std::string LayerPrepareProgress::note() const {
+    if (!m->service) return {};
+    m->count = m->counter->fetched();
+    char text[160];
+    std::snprintf(text, sizeof text, "fetched %lld%s%s tiles (%.2f MB) from the service", m->count.tiles,
+                  m->total ? " of " : "", m->total ? std::to_string(*m->total).c_str() : "",
+                  double(m->count.bytes) / 1e6);
+    return text;
+}
+
 namespace {
 
 Result<std::vector<ImagePyramid>> preparePyramidsOnce(const Scene& scene, const std::filesystem::path& cacheDir,
@@ -86,11 +140,14 @@ Result<std::vector<ImagePyramid>> preparePyramidsOnce(const Scene& scene, const 
     for (const auto& [name, layer] : layers) {
         PrepareOptions o;
         o.cacheDir = cacheDir;
-        o.progress = terminalProgress(name);
+        const LayerPrepareProgress progress(name, *layer, cacheDir);
+        o.progress = progress.fn();
         auto report = preparePyramid(*layer, o);
         if (!report) return report.error();
         if (report->built) {
-            std::printf("prepared %s pyramid in %.2f s (%s)\n", name, report->seconds, report->reason.c_str());
+            const std::string fetched = progress.note();
+            std::printf("prepared %s pyramid in %.2f s (%s)%s%s\n", name, report->seconds, report->reason.c_str(),
+                        fetched.empty() ? "" : ": ", fetched.c_str());
             std::fflush(stdout);
         }
         out.push_back(std::move(report->pyramid));

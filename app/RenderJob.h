@@ -68,6 +68,20 @@ struct RenderSettings {
 /// leaf-on, leaf-off.
 Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std::filesystem::path& cacheDir);
 
+/// Preparing one imagery layer: terminalProgress's bar, and for a tile service (web::serviceTileCount) the tiles
+/// fetched so far of how many, their megabytes and the time left; note() says after the build what was fetched.
+class LayerPrepareProgress {
+public:
+    LayerPrepareProgress(const char* name, const ImageryLayer& layer, const std::filesystem::path& cacheDir);
+    ProgressFn fn() const;
+    /// "fetched 9 of 12 tiles (0.26 MB) from the service"; "" for a layer that is no tile service.
+    std::string note() const;
+
+private:
+    struct State;
+    std::shared_ptr<State> m;
+};
+
 /// When `message` names a file of a pyramid in the cache (a tile that did not decode), invalidates that pyramid and
 /// says so on stdout; returns whether it did (the caller then prepares and runs again, once). A damaged atlas tree
 /// in the cache is removed (and said so) to be built again on the next run; false then.

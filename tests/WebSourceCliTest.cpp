@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <set>
 
 using namespace seasonview;
 using namespace seasonview::test;
@@ -527,4 +528,41 @@ TEST(WebSourceCliTest, WmtsLayerDrawsAsTheSamePixelsOnDisk) {
         EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
         EXPECT_FALSE(fs::exists(s.dir / (name + ".png")));
     }
+}
+
+TEST(WebSourceCliTest, PrepareFetchesTheAreaOnceAndResumesAfterAFailure) {
+    // `prepare` of a tile service stopped by a failing tile (one line naming it), then run again: it fetches what it
+    // lacks, never a tile it has, and says how many tiles (of the area's) and bytes it fetched.
+    ServedScene s("web-prepare");
+    const MercatorTiles m = makeTiles(s);
+    ASSERT_FALSE(m.merc.empty());
+    HttpTestServer tiles(s.dir / "tiles");
+    const std::vector<std::string> args = {"prepare", "--leafon", tiles.url() + "/{z}/{x}/{y}.png", "--leafoff",
+                                           (s.scene / "leafoff.tif").string(), "--cache", (s.dir / "cache").string()};
+    const std::string corner = "/17/" + std::to_string(m.x1) + "/" + std::to_string(m.y1) + ".png";
+    HttpTestServer::Fault down;
+    down.status = 500;
+    tiles.setFault(corner, down);
+    const CliResult a = runCli(args);
+    EXPECT_EQ(a.exitCode, 1);
+    EXPECT_NE(a.err.find(tiles.url() + corner + ": HTTP 500"), std::string::npos) << a.err;
+    std::set<std::string> fetched;
+    for (const auto& r : tiles.requests())
+        if (r.path.rfind("/17/", 0) == 0 && r.path != corner) fetched.insert(r.path);
+    tiles.clearFaults();
+    tiles.clearRequests();
+    const CliResult b = runCli(args);
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    int again = 0;
+    bool cornerAsked = false;
+    for (const auto& r : tiles.requests()) {
+        EXPECT_EQ(fetched.count(r.path), 0u) << r.path << " fetched twice";
+        cornerAsked = cornerAsked || r.path == corner;
+        again += r.path.rfind("/17/", 0) == 0;
+    }
+    EXPECT_TRUE(cornerAsked);
+    const long long area = (m.x1 - m.x0 + 1) * (m.y1 - m.y0 + 1);
+    EXPECT_NE(b.out.find("fetched " + std::to_string(again) + " of " + std::to_string(area) + " tiles ("),
+              std::string::npos)
+        << b.out;
 }

@@ -13,6 +13,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <sstream>
@@ -498,6 +499,45 @@ std::optional<Error> tileFailure(const std::filesystem::path& description, const
         if (!probe) return Error{probe.message() + " (reading " + description.string() + ")"};
     }
     return std::nullopt;
+}
+
+std::optional<long long> serviceTileCount(const std::filesystem::path& description) {
+    const std::string text = readSmall(description);
+    std::string w, h;
+    if (text.rfind("<VRTDataset", 0) == 0) { // a TMS cut: its size
+        const auto num = [&](const char* attr) {
+            const auto a = text.find(attr);
+            return a == std::string::npos ? std::string() : text.substr(a + std::strlen(attr), text.find('"', a + std::strlen(attr)) - a - std::strlen(attr));
+        };
+        w = num("rasterXSize=\""), h = num("rasterYSize=\"");
+        if (readSmall(xmlUnescape(text.substr(text.find("relativeToVRT=\"0\">") + 18,
+                                              text.find("</SourceFilename>") - text.find("relativeToVRT=\"0\">") - 18)))
+                .rfind("<GDAL_WMS>", 0) != 0)
+            return std::nullopt;
+    } else if (text.rfind("<GDAL_WMS>", 0) == 0) {
+        w = elementText(text, "SizeX"), h = elementText(text, "SizeY");
+    }
+    const long long x = std::atoll(w.c_str()), y = std::atoll(h.c_str());
+    if (x <= 0 || y <= 0) return std::nullopt;
+    return ((x + kTileSize - 1) / kTileSize) * ((y + kTileSize - 1) / kTileSize);
+}
+
+TileFetchCounter::TileFetchCounter(std::filesystem::path tilesDir)
+    : m_dir(std::move(tilesDir)), m_start(std::filesystem::file_time_type::clock::now()) {}
+
+TileFetchCounter::Count TileFetchCounter::fetched() const {
+    Count c;
+    std::error_code ec;
+    for (std::filesystem::recursive_directory_iterator it(m_dir, ec), end; !ec && it != end; it.increment(ec)) {
+        std::error_code e;
+        if (!it->is_regular_file(e)) continue;
+        const auto time = it->last_write_time(e);
+        const auto size = it->file_size(e);
+        if (e || time < m_start) continue;
+        ++c.tiles;
+        c.bytes += (long long)size;
+    }
+    return c;
 }
 
 std::optional<std::string> serviceIdentity(const std::filesystem::path& file) {

@@ -91,6 +91,25 @@ Result<std::filesystem::path> describeWmts(const std::string& url,
 /// one line "TILE_URL: HTTP 500 (reading DESCRIPTION)". Nothing when `description` is no such file or no tile fails.
 std::optional<Error> tileFailure(const std::filesystem::path& description, const std::string& message);
 
+/// The tiles a service description covers at its zoom (describeTileService's XYZ window or TMS cut: what a read of
+/// the whole area fetches); nothing for other files (a WMTS description: GDAL chooses its tiles).
+std::optional<long long> serviceTileCount(const std::filesystem::path& description);
+
+/// What a tile cache folder gained since this was made (the tiles reads fetched from the service): the files written
+/// since, and their bytes. Scans the folder on each call.
+class TileFetchCounter {
+public:
+    explicit TileFetchCounter(std::filesystem::path tilesDir);
+    struct Count {
+        long long tiles = 0, bytes = 0;
+    };
+    Count fetched() const;
+
+private:
+    std::filesystem::path m_dir;
+    std::filesystem::file_time_type m_start;
+};
+
 /// The identity caches key a GDAL service description on (a GDAL_WMS or GDAL_WMTS XML file, written by
 /// describeTileService or by the user): its content less the elements that do not change its pixels (OfflineMode,
 /// Cache, MaxConnections, Timeout, UserAgent), so that an offline run or another cache bound finds the same pyramid.
