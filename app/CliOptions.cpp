@@ -44,8 +44,12 @@ void SceneArgs::addTo(CLI::App& cmd, bool withDem) {
     if (withDem) {
         cmd.add_option("--dem", dem,
                        "Elevation (metres or feet) in any format and CRS: a file, folder, glob or VRT of tiles, "
-                       "or a URL as --leafon; flat without")
+                       "or a URL as --leafon (a tile service with --dem-encoding); flat without")
             ->expected(1, -1);
+        cmd.add_option("--dem-encoding", demEncoding,
+                       "How the DEM's samples hold heights: value (default), terrarium or mapbox (Terrain-RGB): "
+                       "8-bit RGB tiles of an elevation tile service")
+            ->check(CLI::IsMember({"value", "terrarium", "mapbox"}));
         cmd.add_option("--buildings", buildings, "City model (CityGML or OBJ) for --city, when no manifest names one");
         cmd.add_option("--city-crs", cityCrs,
                        "CRS of a city model that names none (an OBJ in real coordinates), e.g. EPSG:25833; without it "
@@ -127,6 +131,7 @@ Result<SceneSources> SceneArgs::sources() const {
         src.grid.extentOf = extentOf;
         if (extent.empty()) src.grid.extent.reset(), src.grid.extentCrs.clear();
     }
+    if (!demEncoding.empty()) src.elevationEncoding = demEncoding;
     if (offline) src.offline = true;
     if (webCacheMb > 0) src.webCacheMb = webCacheMb;
     if (!resampling.empty()) src.resampling = resampling;

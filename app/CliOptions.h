@@ -36,7 +36,7 @@ struct SceneArgs {
     std::string manifest;
     std::vector<std::string> leafon, leafoff, dem;
     std::string cache;
-    std::string crs, gridCrs, extent, extentCrs, extentOf, resampling, stretch, buildings, cityCrs;
+    std::string crs, gridCrs, extent, extentCrs, extentOf, resampling, stretch, buildings, cityCrs, demEncoding;
     double gridRes = 0.0;
     bool offline = false;
     double webCacheMb = 0.0;

@@ -4,6 +4,7 @@
 #include "TestUtil.h"
 #include "WebSource.h"
 
+#include <gdal.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -463,4 +464,56 @@ TEST(SceneTest, TileCacheTrimRemovesTheOldestTilesBeyondTheBound) {
     EXPECT_TRUE(std::filesystem::exists(dir / "a1/t3.png"));
     EXPECT_TRUE(std::filesystem::exists(dir / "a0/t4.png"));
     EXPECT_EQ(web::trimTileCache(dir / "none", 0), 0);
+}
+
+// Heights in the colour of 8-bit RGB tiles: Mapbox Terrain-RGB and Terrarium decode exactly, alpha 0 is no data
+// (filled); a DEM of other samples is refused for them.
+TEST(SceneTest, HeightsEncodedInColourDecodeExactly) {
+    TempDir dir("dem-rgb");
+    const int w = 32, h = 24;
+    const Georef g = testGeoref(1.0);
+    const auto write = [&](const std::filesystem::path& p, bool terrarium) {
+        GDALAllRegister();
+        GDALDatasetH ds = GDALCreate(GDALGetDriverByName("GTiff"), p.c_str(), w, h, 4, GDT_Byte, nullptr);
+        ASSERT_TRUE(ds);
+        double gt[6] = {g.origin.x, g.pixelSize.x, 0, g.origin.y, 0, -g.pixelSize.y};
+        GDALSetGeoTransform(ds, gt);
+        GDALSetProjection(ds, g.crs.wkt().c_str());
+        std::vector<std::uint8_t> px(size_t(w) * h * 4);
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) {
+                const double height = 100.0 + 3.5 * x - 2.5 * y; // exact in both encodings
+                std::uint8_t* p4 = &px[(size_t(y) * w + x) * 4];
+                if (terrarium) {
+                    const double v = height + 32768.0;
+                    p4[0] = std::uint8_t(std::floor(v / 256.0));
+                    p4[1] = std::uint8_t(int(std::floor(v)) % 256);
+                    p4[2] = std::uint8_t(std::floor((v - std::floor(v)) * 256.0));
+                } else {
+                    const long long v = std::llround((height + 10000.0) * 10.0);
+                    p4[0] = std::uint8_t(v >> 16), p4[1] = std::uint8_t((v >> 8) & 255), p4[2] = std::uint8_t(v & 255);
+                }
+                p4[3] = (x == 5 && y == 5) ? 0 : 255;
+            }
+        ASSERT_EQ(GDALDatasetRasterIO(ds, GF_Write, 0, 0, w, h, px.data(), w, h, GDT_Byte, 4, nullptr, 4, w * 4, 1),
+                  CE_None);
+        GDALSetRasterColorInterpretation(GDALGetRasterBand(ds, 4), GCI_AlphaBand);
+        GDALClose(ds);
+    };
+    write(dir / "mapbox.tif", false);
+    write(dir / "terrarium.tif", true);
+    ASSERT_FALSE(HasFailure());
+    WorkingGrid area{g, w, h};
+    for (const auto& [file, enc] : {std::pair{"mapbox.tif", HeightEncoding::Mapbox}, {"terrarium.tif", HeightEncoding::Terrarium}}) {
+        auto m = openMosaic(SourceList{dir / file}, "DEM");
+        ASSERT_TRUE(m.ok()) << m.message();
+        auto hf = loadHeightfield(*m, area, enc);
+        ASSERT_TRUE(hf.ok()) << hf.message();
+        EXPECT_EQ(hf->filledSamples, 1) << file;
+        const glm::dvec2 at = hf->georef.crsToPixel(g.pixelToCrs({10.5, 7.5}));
+        const float v = hf->heights.pixels[size_t(at.y) * hf->heights.width + size_t(at.x)];
+        EXPECT_FLOAT_EQ(v, float(100.0 + 3.5 * 10 - 2.5 * 7)) << file;
+    }
+    EXPECT_FALSE(parseHeightEncoding("terrain").ok());
+    EXPECT_EQ(*parseHeightEncoding("mapbox"), HeightEncoding::Mapbox);
 }

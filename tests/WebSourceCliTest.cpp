@@ -5,6 +5,7 @@
 #include "HttpTestServer.h"
 #include "TestUtil.h"
 
+#include <gdal.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -565,4 +566,93 @@ TEST(WebSourceCliTest, PrepareFetchesTheAreaOnceAndResumesAfterAFailure) {
     EXPECT_NE(b.out.find("fetched " + std::to_string(again) + " of " + std::to_string(area) + " tiles ("),
               std::string::npos)
         << b.out;
+}
+
+TEST(WebSourceCliTest, DemFromATerrariumTileServiceDrawsAsTheHeightsOnDisk) {
+    // The synthetic DEM warped onto Web Mercator at zoom 15 and served as Terrarium PNG tiles (heights in colour:
+    // R·256 + G + B/256 − 32768 m), against the same heights as a float GeoTIFF on disk; without --dem-encoding the
+    // service is one line asking for it.
+    ServedScene s("web-dem");
+    auto info = readRasterInfo(s.scene / "leafoff.tif");
+    ASSERT_TRUE(info.ok() && info->georef) << info.message();
+    const Georef& g = *info->georef;
+    auto mercator = Crs::fromEpsg(3857);
+    ASSERT_TRUE(mercator.ok());
+    const glm::dvec2 lo(g.origin.x, g.origin.y - g.pixelSize.y * info->height);
+    const glm::dvec2 hi(g.origin.x + g.pixelSize.x * info->width, g.origin.y);
+    std::vector<glm::dvec2> pts = {lo - (hi - lo), hi + (hi - lo), glm::dvec2(lo.x - (hi.x - lo.x), hi.y + (hi.y - lo.y)),
+                                   glm::dvec2(hi.x + (hi.x - lo.x), lo.y - (hi.y - lo.y))};
+    convert(g.crs, *mercator, pts);
+    const int z = 15;
+    const double half = 20037508.342789244, t = 2.0 * half / double(1 << z);
+    double minX = 1e300, maxX = -1e300, minY = 1e300, maxY = -1e300;
+    for (const auto& p : pts) minX = std::min(minX, p.x), maxX = std::max(maxX, p.x), minY = std::min(minY, p.y), maxY = std::max(maxY, p.y);
+    const long long x0 = (long long)std::floor((minX + half) / t), x1 = (long long)std::floor((maxX + half) / t);
+    const long long y0 = (long long)std::floor((half - maxY) / t), y1 = (long long)std::floor((half - minY) / t);
+    const auto num = [](double v) {
+        char b[40];
+        std::snprintf(b, sizeof b, "%.10f", v);
+        return std::string(b);
+    };
+    const fs::path merc = s.dir / "dem_3857.tif";
+    gdalWarp(s.scene / "dem.tif", merc,
+             {"-t_srs", "EPSG:3857", "-tr", num(t / 256), num(t / 256), "-te", num(-half + double(x0) * t),
+              num(half - double(y1 + 1) * t), num(-half + double(x1 + 1) * t), num(half - double(y0) * t), "-r",
+              "bilinear", "-ot", "Float32", "-dstnodata", "-32768"});
+    ASSERT_FALSE(HasFailure());
+    GDALDatasetH src = GDALOpen(merc.c_str(), GA_ReadOnly);
+    ASSERT_TRUE(src);
+    std::vector<float> h(256 * 256);
+    std::vector<std::uint8_t> rgb(256 * 256 * 3);
+    for (long long x = x0; x <= x1; ++x)
+        for (long long y = y0; y <= y1; ++y) {
+            ASSERT_EQ(GDALRasterIO(GDALGetRasterBand(src, 1), GF_Read, int((x - x0) * 256), int((y - y0) * 256), 256,
+                                   256, h.data(), 256, 256, GDT_Float32, 0, 0),
+                      CE_None);
+            for (size_t i = 0; i < h.size(); ++i) {
+                const double v = double(h[i]) + 32768.0;
+                rgb[3 * i] = std::uint8_t(std::floor(v / 256.0));
+                rgb[3 * i + 1] = std::uint8_t(int(std::floor(v)) % 256);
+                rgb[3 * i + 2] = std::uint8_t(std::floor((v - std::floor(v)) * 256.0));
+            }
+            GDALDatasetH mem = GDALCreate(GDALGetDriverByName("MEM"), "", 256, 256, 3, GDT_Byte, nullptr);
+            ASSERT_EQ(GDALDatasetRasterIO(mem, GF_Write, 0, 0, 256, 256, rgb.data(), 256, 256, GDT_Byte, 3, nullptr, 3,
+                                          256 * 3, 1),
+                      CE_None);
+            const fs::path tile = s.dir / "terrarium" / std::to_string(z) / std::to_string(x) / (std::to_string(y) + ".png");
+            fs::create_directories(tile.parent_path());
+            GDALClose(GDALCreateCopy(GDALGetDriverByName("PNG"), tile.c_str(), mem, FALSE, nullptr, nullptr, nullptr));
+            GDALClose(mem);
+        }
+    GDALClose(src);
+    HttpTestServer server(s.dir / "terrarium");
+    const auto render = [&](std::vector<std::string> dem, const std::string& name) {
+        std::vector<std::string> args = {"render", "--leafon", (s.scene / "leafon.tif").string(), "--leafoff",
+                                         (s.scene / "leafoff.tif").string(), "--camera", "0,-100,+80,0,-35", "--size",
+                                         "320x240", "--view", "relief", "--cache", (s.dir / ("cache_" + name)).string(),
+                                         "--out", (s.dir / (name + ".png")).string()};
+        args.insert(args.end(), dem.begin(), dem.end());
+        return runCli(args);
+    };
+    const CliResult a = render({"--dem", merc.string()}, "disk");
+    ASSERT_EQ(a.exitCode, 0) << a.err;
+    const std::string url = server.url() + "/{z}/{x}/{y}.png";
+    const CliResult b = render({"--dem", url, "--dem-encoding", "terrarium"}, "web");
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    expectSameRender(s.dir / "disk.png", s.dir / "web.png");
+    const auto requests = server.requests();
+    EXPECT_TRUE(std::any_of(requests.begin(), requests.end(),
+                            [&](const auto& r) { return r.path.rfind("/" + std::to_string(z) + "/", 0) == 0; }));
+    // The same tiles decoded as Mapbox's encoding are other heights (800 km: not valid, filled): another picture.
+    const CliResult c = render({"--dem", url, "--dem-encoding", "mapbox"}, "mapbox");
+    ASSERT_EQ(c.exitCode, 0) << c.err;
+    auto da = readImageU8(s.dir / "disk.png", 3), dc = readImageU8(s.dir / "mapbox.png", 3);
+    ASSERT_TRUE(da.ok() && dc.ok());
+    const double psnr = compareRgb(da->pixels, dc->pixels, da->width, da->height, 3).psnr;
+    std::printf("Terrarium tiles decoded as Mapbox's: PSNR %.1f dB against the heights\n", psnr);
+    EXPECT_LT(psnr, 35.0) << "the encoding changed nothing";
+    const CliResult d = render({"--dem", url}, "plain");
+    EXPECT_EQ(d.exitCode, 1);
+    EXPECT_NE(d.err.find("needs --dem-encoding terrarium|mapbox"), std::string::npos) << d.err;
+    EXPECT_EQ(std::count(d.err.begin(), d.err.end(), '\n'), 1) << d.err;
 }

@@ -101,11 +101,21 @@ std::optional<double> metresPerHeightUnit(const std::string& unit) {
 
 } // namespace
 
-Result<Heightfield> loadHeightfield(const RasterMosaic& dem, const WorkingGrid& area) {
+Result<HeightEncoding> parseHeightEncoding(std::string_view text) {
+    if (text.empty() || text == "value") return HeightEncoding::Value;
+    if (text == "terrarium") return HeightEncoding::Terrarium;
+    if (text == "mapbox") return HeightEncoding::Mapbox;
+    return Error{"--dem-encoding '" + std::string(text) + "': expected value, terrarium or mapbox"};
+}
+
+Result<Heightfield> loadHeightfield(const RasterMosaic& dem, const WorkingGrid& area, HeightEncoding encoding) {
     const RasterInfo& first = dem.tiles.front();
     const std::string name = first.path.string();
     double unit = 1.0;
-    {
+    if (encoding != HeightEncoding::Value && (dem.bands < 3 || dem.type != SampleType::U8))
+        return fileError(name, "heights encoded in colour need 8-bit RGB tiles, not " + std::to_string(dem.bands) +
+                                   " band(s) of " + sampleTypeName(dem.type));
+    if (encoding == HeightEncoding::Value) {
         auto ds = gdal::openRaster(first.path);
         if (!ds) return ds.error();
         const char* u = (*ds)->GetRasterBand(1)->GetUnitType();
@@ -147,21 +157,35 @@ Result<Heightfield> loadHeightfield(const RasterMosaic& dem, const WorkingGrid& 
     Heightfield hf;
     hf.georef = g.georef;
     hf.sourceName = std::filesystem::weakly_canonical(std::filesystem::absolute(first.path)).string();
-    hf.sourceKey = dem.key + "|" + g.key() + "|unit " + std::to_string(unit);
+    hf.sourceKey = dem.key + "|" + g.key() + "|unit " + std::to_string(unit) +
+                   (encoding == HeightEncoding::Value ? "" : encoding == HeightEncoding::Terrarium ? "|terrarium" : "|mapbox");
     hf.heights.width = g.width;
     hf.heights.height = g.height;
     hf.heights.channels = 1;
     hf.heights.pixels.resize(size_t(g.width) * size_t(g.height));
     std::vector<std::uint8_t> coverage(size_t(g.width) * size_t(reader->bandRows()));
+    std::vector<std::uint8_t> rgb;
     const float nan = std::numeric_limits<float>::quiet_NaN();
     for (int y = 0; y < g.height; y += reader->bandRows()) {
         const int y1b = std::min(g.height, y + reader->bandRows());
         float* rows = hf.heights.pixels.data() + size_t(y) * size_t(g.width);
-        if (auto st = reader->read(y, y1b, 1, SampleType::F32, rows, coverage.data()); !st) return st.error();
+        if (encoding == HeightEncoding::Value) {
+            if (auto st = reader->read(y, y1b, 1, SampleType::F32, rows, coverage.data()); !st) return st.error();
+        } else {
+            // Heights in colour: decoded exactly from the three bytes (read on the DEM's own lattice: not blended).
+            const size_t n = size_t(y1b - y) * size_t(g.width);
+            rgb.resize(n * 3);
+            if (auto st = reader->read(y, y1b, 3, SampleType::U8, rgb.data(), coverage.data()); !st) return st.error();
+            for (size_t i = 0; i < n; ++i) {
+                const double r = rgb[3 * i], gr = rgb[3 * i + 1], b = rgb[3 * i + 2];
+                rows[i] = encoding == HeightEncoding::Terrarium ? float(r * 256.0 + gr + b / 256.0 - 32768.0)
+                                                                : float(-10000.0 + (r * 65536.0 + gr * 256.0 + b) * 0.1);
+            }
+        }
         for (size_t i = 0, n = size_t(y1b - y) * size_t(g.width); i < n; ++i) {
             float& v = rows[i];
             // -32768: SRTM void; |h| > 100 km: garbage (no terrain on Earth is there).
-            if (!coverage[i] || !std::isfinite(v) || (first.nodata && double(v) == *first.nodata) || v <= -32767.0f ||
+            if (!coverage[i] || !std::isfinite(v) || (encoding == HeightEncoding::Value && first.nodata && double(v) == *first.nodata) || v <= -32767.0f ||
                 std::fabs(v) > 1.0e5f)
                 v = nan;
             else

@@ -9,6 +9,7 @@
 #include <glm/vec2.hpp>
 
 #include <filesystem>
+#include <string_view>
 
 namespace seasonview {
 
@@ -38,7 +39,14 @@ struct Heightfield {
 /// converted. Samples that are NaN, infinite, nodata (value, mask), outside every tile or -32768 (SRTM voids) are
 /// filled from their neighbours. Errors name the file: a DEM that does not cover the area's centre, one with no
 /// valid sample, a vertical unit other than metres or feet.
-Result<Heightfield> loadHeightfield(const RasterMosaic& dem, const WorkingGrid& area);
+/// `encoding`: how the DEM's samples hold heights: values (the first band, in its unit), or the colour of 8-bit RGB
+/// tiles as elevation tile services serve them: Terrarium (h = R·256 + G + B/256 − 32768 m) or Mapbox Terrain-RGB
+/// (h = −10000 + (R·65536 + G·256 + B) · 0.1 m); pixels without alpha are no data.
+enum class HeightEncoding { Value, Terrarium, Mapbox };
+/// "value", "terrarium", "mapbox" (errors name the flag --dem-encoding).
+Result<HeightEncoding> parseHeightEncoding(std::string_view text);
+Result<Heightfield> loadHeightfield(const RasterMosaic& dem, const WorkingGrid& area,
+                                    HeightEncoding encoding = HeightEncoding::Value);
 
 /// Fills NaN samples of `img` from their valid neighbours (push-pull over a mip pyramid); returns how many were
 /// filled. Returns -1 when no sample is valid.

@@ -89,7 +89,8 @@ Result<SceneSources> manifestFromJson(const json& j, const std::filesystem::path
     };
     static const char* known[] = {"name", "leafon", "leafoff", "elevation", "buildings", "truth", "parameters",
                                   "generator", "description", "crs", "grid_crs", "grid_res", "extent", "resampling",
-                                  "stretch", "buildings_crs", "extent_crs", "extent_of", "offline", "web_cache_mb"};
+                                  "stretch", "buildings_crs", "extent_crs", "extent_of", "offline", "web_cache_mb",
+                                  "elevation_encoding"};
     for (const auto& item : j.items()) {
         const std::string& k = item.key();
         if (std::find_if(std::begin(known), std::end(known), [&](const char* n) { return k == n; }) == std::end(known))
@@ -132,6 +133,7 @@ Result<SceneSources> manifestFromJson(const json& j, const std::filesystem::path
     if (auto st = string("buildings_crs", s.buildingsCrs); !st) return st.error();
     if (auto st = string("extent_crs", s.grid.extentCrs); !st) return st.error();
     if (auto st = string("extent_of", s.grid.extentOf); !st) return st.error();
+    if (auto st = string("elevation_encoding", s.elevationEncoding); !st) return st.error();
     if (auto it = j.find("offline"); it != j.end() && !it->is_null()) {
         if (!it->is_boolean()) return fileError(name, "'offline' must be true or false");
         s.offline = it->get<bool>();
@@ -329,9 +331,49 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
     const bool service[2] = {isTileService(sources.leafon), isTileService(sources.leafoff)};
     ImageryLayer* layers[2] = {&scene.leafon, &scene.leafoff};
     std::optional<RasterMosaic> demMosaic;
+    const bool demService = isTileService(sources.elevation);
+    web::ServiceOptions run;
+    run.offline = sources.offline;
+    if (sources.webCacheMb > 0) run.cacheMb = sources.webCacheMb;
+    auto encoding = parseHeightEncoding(sources.elevationEncoding);
+    if (!encoding) return encoding.error();
+    if (demService && *encoding == HeightEncoding::Value)
+        return fileError(sources.elevation.items.front().string(),
+                         "a DEM from a tile service needs --dem-encoding terrarium|mapbox (how its tiles' colours "
+                         "encode heights)");
     const auto openDem = [&]() -> Result<Ok> {
         if (demMosaic || sources.elevation.empty()) return Ok{};
-        auto dem = openMosaic(sources.elevation, "DEM", assumed);
+        SourceList list = sources.elevation;
+        if (demService) {
+            // A DEM service is read over the grid with a quarter's margin each side (as loadHeightfield reads a
+            // DEM), at the grid's pixel size or coarser, so that it is at most 4096 samples a side.
+            const std::string url = list.items.front().string();
+            const auto areaIn = [&](const Crs& serviceCrs) -> Result<web::TileArea> {
+                const glm::dvec2 lo = scene.grid.min(), hi = scene.grid.max(), m = 0.25 * (hi - lo);
+                const auto [a, b] = boxIn(lo - m, hi + m, scene.grid.georef.crs, serviceCrs);
+                glm::dvec2 p[2] = {0.5 * (lo + hi), 0.5 * (lo + hi) + glm::dvec2(scene.grid.georef.pixelSize.x, 0.0)};
+                convert(scene.grid.georef.crs, serviceCrs, std::span<glm::dvec2>(p, 2));
+                web::TileArea t;
+                t.minX = a.x, t.minY = a.y, t.maxX = b.x, t.maxY = b.y;
+                t.pixelSize = std::max(glm::length(p[1] - p[0]), std::max(b.x - a.x, b.y - a.y) / 4096.0);
+                if (!std::isfinite(t.minX + t.maxX + t.minY + t.maxY + t.pixelSize))
+                    return Error{"scene: the area to read the DEM service over does not map to its CRS " + serviceCrs.name()};
+                return t;
+            };
+            Result<std::filesystem::path> xml = Error{""};
+            if (web::isWmts(url)) {
+                xml = web::describeWmts(url, areaIn, cacheDir, run);
+            } else {
+                auto mercator = Crs::fromEpsg(3857);
+                if (!mercator) return mercator.error();
+                auto area = areaIn(*mercator);
+                if (!area) return area.error();
+                xml = web::describeTileService(url, *area, cacheDir, run);
+            }
+            if (!xml) return xml.error();
+            list.items = {*xml};
+        }
+        auto dem = openMosaic(list, "DEM", assumed);
         if (!dem) return dem.error();
         demMosaic = std::move(*dem);
         return Ok{};
@@ -343,6 +385,7 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
                 const RasterMosaic* m = nullptr;
                 if (of == "dem") {
                     if (sources.elevation.empty()) return Error{"--extent-of dem: no DEM given (--dem)"};
+                    if (demService) return Error{"--extent-of dem: the DEM is a tile service, which covers the world"};
                     if (auto st = openDem(); !st) return st.error();
                     m = &*demMosaic;
                 } else {
@@ -371,9 +414,6 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
                                                        : serviceCrs;
                     return tileArea(*options, other, gridCrs, serviceCrs);
                 };
-                web::ServiceOptions run;
-                run.offline = sources.offline;
-                if (sources.webCacheMb > 0) run.cacheMb = sources.webCacheMb;
                 const std::string url = s.items.front().string();
                 Result<std::filesystem::path> xml = Error{""};
                 if (web::isWmts(url)) {
@@ -426,7 +466,7 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
 
     if (!sources.elevation.empty()) {
         if (auto st = openDem(); !st) return st.error();
-        auto hf = loadHeightfield(*demMosaic, scene.grid);
+        auto hf = loadHeightfield(*demMosaic, scene.grid, *encoding);
         if (!hf) return hf.error();
         if (hf->filledSamples > 0)
             scene.notes.push_back(sources.elevation.describe() + ": filled " + std::to_string(hf->filledSamples) +

@@ -46,6 +46,7 @@ struct SceneSources {
     std::string crs;                // --crs / "crs": the CRS of rasters that carry none (PROJ user input)
     GridOptionsText grid;           // --grid-crs, --grid-res, --extent, --extent-crs, --extent-of / "grid_crs",
                                     // "grid_res", "extent", "extent_crs", "extent_of"
+    std::string elevationEncoding;  // --dem-encoding / "elevation_encoding": value|terrarium|mapbox (HeightEncoding)
     bool offline = false;           // --offline / "offline": web sources from the disk cache only (WebSource.h)
     double webCacheMb = 0.0;       // --web-cache-mb / "web_cache_mb": the tile services' disk cache bound in MiB
                                     // (0: web::kDefaultWebCacheMb)
@@ -57,7 +58,7 @@ struct SceneSources {
 /// Parses a manifest: {"leafon": P, "leafoff": P, "elevation"?: P, "buildings"?: path,
 /// "truth"?: {"deciduous"?, "conifer"?, "trees"?}, "parameters"?: {"tree_height_m"?: number}, "name"?: string,
 /// "crs"?: string, "grid_crs"?: string, "grid_res"?: number, "extent"?: [W, S, E, N], "extent_crs"?: string,
-/// "extent_of"?: "leafon"|"leafoff"|"dem", "offline"?: bool, "web_cache_mb"?: number,
+/// "extent_of"?: "leafon"|"leafoff"|"dem", "offline"?: bool, "web_cache_mb"?: number, "elevation_encoding"?: string,
 /// "resampling"?: string, "stretch"?: string, "buildings_crs"?: string}, where P is a path (a file, a folder, a glob, a VRT) or a list of them. Paths are relative
 /// to the manifest's folder. Errors name the manifest and the key.
 Result<SceneSources> parseManifest(const std::filesystem::path& manifest);
