@@ -87,6 +87,7 @@ std::vector<HttpTestServer::Request> HttpTestServer::requests() const {
 void HttpTestServer::clearRequests() {
     std::lock_guard lock(m_mutex);
     m_requests.clear();
+    m_maxActive = 0;
 }
 
 void HttpTestServer::stop() {
@@ -105,8 +106,12 @@ void HttpTestServer::serve() {
         const int fd = ::accept(m_listen, nullptr, nullptr);
         if (fd < 0) continue;
         m_workers.emplace_back([this, fd] {
+            const int now = ++m_active;
+            for (int seen = m_maxActive; now > seen && !m_maxActive.compare_exchange_weak(seen, now);) {
+            }
             handle(fd);
             ::close(fd);
+            --m_active;
         });
     }
 }

@@ -37,6 +37,8 @@ public:
     void setFault(const std::string& path, Fault f);
     void clearFaults();
     std::vector<Request> requests() const;
+    /// The most connections open at once since the start or clearRequests() (one request per connection).
+    int maxConcurrent() const { return m_maxActive; }
     void clearRequests();
     void stop();
 
@@ -48,6 +50,7 @@ private:
     int m_listen = -1;
     int m_port = 0;
     std::atomic<bool> m_stop{false};
+    std::atomic<int> m_active{0}, m_maxActive{0};
     mutable std::mutex m_mutex;
     std::map<std::string, Fault> m_faults;
     std::vector<Request> m_requests;

@@ -100,6 +100,7 @@ TEST(WebSourceCliTest, SeasonsAndDemByUrlDrawAsTheFilesOnDisk) {
         EXPECT_TRUE(r.method == "HEAD" || !r.range.empty()) << r.method << " " << r.path << " without a range";
     }
     EXPECT_TRUE(std::any_of(requests.begin(), requests.end(), [](const auto& r) { return r.method == "HEAD"; }));
+    EXPECT_LE(s.server->maxConcurrent(), 4) << "connections open at once to one host";
 
     // The seasons' pyramids are cached: the same render again asks whether the files changed (HEAD) and reads their
     // headers and tile directories, not their tiles. (The DEM, like a DEM on disk, is read onto the scene's area
@@ -174,9 +175,15 @@ TEST(WebSourceCliTest, RealSaclayCogByUrlDrawsAsTheFile) {
     const CliResult b = render(server.url() + "/leafon_3857_cog.tif", "web");
     ASSERT_EQ(b.exitCode, 0) << b.err;
     expectSameRender(dir / "disk.png", dir / "web.png");
-    std::printf("Saclay COG by URL: %zu requests, %lld bytes of %lld\n", server.requests().size(),
-                rangeBytes(server.requests()),
-                (long long)fs::file_size(s / "leafon_3857_cog.tif"));
+    std::printf("Saclay COG by URL: %zu requests, %lld bytes of %lld, at most %d at once\n", server.requests().size(),
+                rangeBytes(server.requests()), (long long)fs::file_size(s / "leafon_3857_cog.tif"),
+                server.maxConcurrent());
+    EXPECT_LE(server.maxConcurrent(), 4) << "connections open at once to one host";
+    // Each tile fetched once (its colour and alpha in one read).
+    std::set<std::string> ranges;
+    for (const auto& r : server.requests())
+        if (!r.range.empty()) EXPECT_TRUE(ranges.insert(r.range).second) << r.range << " fetched twice";
+    EXPECT_LE(rangeBytes(server.requests()), (long long)fs::file_size(s / "leafon_3857_cog.tif"));
 }
 
 TEST(WebSourceCliTest, RealSaclayXyzTilesDrawAsTheSameTilesOnDisk) {
@@ -307,6 +314,7 @@ TEST(WebSourceCliTest, XyzTileServiceDrawsAsTheSamePixelsOnDisk) {
     EXPECT_TRUE(std::any_of(first.begin(), first.end(), [](const auto& r) { return r.path.rfind("/18/", 0) == 0; }))
         << "zoom 18 asked for first";
     for (const auto& r : first) EXPECT_EQ(r.userAgent.rfind("seasonview/", 0), 0u) << r.path;
+    EXPECT_LE(tiles.maxConcurrent(), 4) << "connections open at once to one host";
 
     // Tiles are cached: the same render again fetches none.
     tiles.clearRequests();

@@ -105,11 +105,29 @@ Status ownWarpTyped(const WarpTile& t, const WorkingGrid& grid, int y0, int y1, 
     gdal::ErrorCapture errors;
     GDALDataset& ds = *t.ds;
     const GSpacing bytes = GSpacing(sizeof(T));
-    CPLErr err = ds.RasterIO(GF_Read, sx0, sy0, src.width, src.height, src.samples.data(), src.width, src.height,
-                             gdal::gdalTypeOf(sizeof(T) == 1 ? SampleType::U8 : sizeof(T) == 2 ? SampleType::U16
-                                                                                            : SampleType::F32),
-                             channels, bands.data(), bytes * channels, bytes * channels * src.width, bytes, nullptr);
-    if (err == CE_None && (info.nodataKind == NodataKind::Alpha || info.nodataKind == NodataKind::Mask)) {
+    const GDALDataType type =
+        gdal::gdalTypeOf(sizeof(T) == 1 ? SampleType::U8 : sizeof(T) == 2 ? SampleType::U16 : SampleType::F32);
+    CPLErr err = CE_None;
+    // An 8-bit alpha band is its own mask band (GDAL's): read with the colour.
+    const bool alphaRead = info.nodataKind == NodataKind::Alpha && info.alphaBand > 0 && sizeof(T) == 1;
+    if (alphaRead) {
+        // The alpha band in the same read as the colour: each tile decoded (and, for a URL, fetched) once, not again
+        // through the mask band. Data where alpha is 128 or more, as from the mask band below.
+        std::vector<int> withAlpha = bands;
+        withAlpha.push_back(info.alphaBand);
+        const int c1 = channels + 1;
+        std::vector<T> all(n * size_t(c1));
+        err = ds.RasterIO(GF_Read, sx0, sy0, src.width, src.height, all.data(), src.width, src.height, type, c1,
+                          withAlpha.data(), bytes * c1, bytes * c1 * src.width, bytes, nullptr);
+        for (size_t i = 0; i < n; ++i) {
+            for (int c = 0; c < channels; ++c) src.samples[i * size_t(channels) + size_t(c)] = all[i * size_t(c1) + size_t(c)];
+            src.valid[i] = all[i * size_t(c1) + size_t(channels)] >= 128 ? 1 : 0;
+        }
+    } else {
+        err = ds.RasterIO(GF_Read, sx0, sy0, src.width, src.height, src.samples.data(), src.width, src.height, type,
+                          channels, bands.data(), bytes * channels, bytes * channels * src.width, bytes, nullptr);
+    }
+    if (err == CE_None && !alphaRead && (info.nodataKind == NodataKind::Alpha || info.nodataKind == NodataKind::Mask)) {
         // Alpha and masks through GDAL's mask band: 0 no data, 255 data (alpha scaled to a byte).
         err = ds.GetRasterBand(bands.front())
                   ->GetMaskBand()
