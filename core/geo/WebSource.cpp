@@ -16,6 +16,8 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <map>
+#include <mutex>
 #include <sstream>
 #include <vector>
 
@@ -116,6 +118,13 @@ RemoteOpen::~RemoteOpen() {
 std::string userAgent() { return std::string("seasonview/") + SEASONVIEW_VERSION; }
 
 Result<std::string> identity(const std::string& url) {
+    // Asked once per process: the scene's opening and the pyramid's key ask for the same file.
+    static std::mutex mutex;
+    static std::map<std::string, std::string> known;
+    {
+        std::lock_guard lock(mutex);
+        if (auto it = known.find(url); it != known.end()) return it->second;
+    }
     auto a = fetch(url, true);
     if (!a) return a.error();
     if (a->status != "200") return fileError(url, "HTTP " + a->status + (a->status == "404" ? " (not found on the server)" : ""));
@@ -124,7 +133,10 @@ Result<std::string> identity(const std::string& url) {
     const std::string& size = a->contentLength;
     if (size.empty() || size.find_first_not_of("0123456789") != std::string::npos || size == "0")
         return fileError(url, "the server gives no size for it (a web raster is read by ranges: a file, e.g. a COG)");
-    return url + "|" + size + "|" + a->lastModified + "|" + a->etag;
+    std::string id = url + "|" + size + "|" + a->lastModified + "|" + a->etag;
+    std::lock_guard lock(mutex);
+    known[url] = id;
+    return id;
 }
 
 bool isTileTemplate(std::string_view s) {

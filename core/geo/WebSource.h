@@ -25,7 +25,8 @@ bool isRemote(const std::filesystem::path& path);
 /// The URL of such a name (itself for any other path).
 std::string urlOf(const std::filesystem::path& path);
 /// What caches key a URL on: "URL|size|Last-Modified|ETag", from a HEAD request. Errors, one line naming the URL:
-/// an HTTP status of 400 or more ("HTTP 404"), no answer (the transfer library's words), no size.
+/// an HTTP status of 400 or more ("HTTP 404"), no answer (the transfer library's words), no size. Asked once per
+/// process (the answer is kept).
 Result<std::string> identity(const std::string& url);
 /// The User-Agent every request sends ("seasonview/VERSION").
 std::string userAgent();
