@@ -128,6 +128,7 @@ Result<SceneSources> SceneArgs::sources() const {
         src.grid.extentCrs = extentCrs;
     }
     if (!extentOf.empty()) {
+        if (!extentCrs.empty()) return Error{"--extent-crs: the CRS of --extent, not of --extent-of"};
         src.grid.extentOf = extentOf;
         if (extent.empty()) src.grid.extent.reset(), src.grid.extentCrs.clear();
     }

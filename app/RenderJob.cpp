@@ -105,9 +105,9 @@ LayerPrepareProgress::LayerPrepareProgress(const char* name, const ImageryLayer&
 ProgressFn LayerPrepareProgress::fn() const {
     if (!m->bar || !m->service) return m->bar;
     return [s = m](double f, const char* stage) {
-        // The tile cache scanned at most twice a second: the tiles fetched so far, and the time left at this rate.
+        // The tile cache scanned at most once a second: the tiles fetched so far, and the time left at this rate.
         const auto now = std::chrono::steady_clock::now();
-        if (now - s->lastScan > std::chrono::milliseconds(500) || f >= 1.0) {
+        if (now - s->lastScan > std::chrono::seconds(1) || f >= 1.0) {
             s->count = s->counter->fetched();
             s->lastScan = now;
         }
@@ -117,7 +117,9 @@ ProgressFn LayerPrepareProgress::fn() const {
                       s->total ? std::to_string(*s->total).c_str() : "", double(s->count.bytes) / 1e6,
                       f > 0.01 && f < 1.0 ? (std::to_string(int(elapsed * (1.0 - f) / f + 0.5)) + " s").c_str() : "-");
         (void)stage;
-        s->bar(f, text);
+        std::string line = text;
+        line.resize(std::max<size_t>(line.size(), 48), ' '); // a fixed width: a shorter line covers a longer one
+        s->bar(f, line.c_str());
     };
 }
 

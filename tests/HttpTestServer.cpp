@@ -180,7 +180,8 @@ void HttpTestServer::handle(int fd) {
         return;
     }
     const std::string local = r.path.substr(0, r.path.find('?')); // a query string names the same file
-    const std::filesystem::path file = m_root / local.substr(local.find_first_not_of('/'));
+    const size_t name = local.find_first_not_of('/');
+    const std::filesystem::path file = name == std::string::npos ? m_root : m_root / local.substr(name);
     std::error_code ec;
     if (r.path.find("..") != std::string::npos || !std::filesystem::is_regular_file(file, ec)) {
         answer(404, "text/plain", "not found\n", 10, "");

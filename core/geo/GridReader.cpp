@@ -108,8 +108,10 @@ Status ownWarpTyped(const WarpTile& t, const WorkingGrid& grid, int y0, int y1, 
     const GDALDataType type =
         gdal::gdalTypeOf(sizeof(T) == 1 ? SampleType::U8 : sizeof(T) == 2 ? SampleType::U16 : SampleType::F32);
     CPLErr err = CE_None;
-    // An 8-bit alpha band is its own mask band (GDAL's): read with the colour.
-    const bool alphaRead = info.nodataKind == NodataKind::Alpha && info.alphaBand > 0 && sizeof(T) == 1;
+    // An 8-bit alpha band that is GDAL's mask (no nodata value or internal mask before it) is read with the colour.
+    const bool alphaRead = info.nodataKind == NodataKind::Alpha && info.alphaBand > 0 && sizeof(T) == 1 &&
+                           ds.GetRasterBand(info.alphaBand)->GetRasterDataType() == GDT_Byte &&
+                           ds.GetRasterBand(bands.front())->GetMaskFlags() == (GMF_ALPHA | GMF_PER_DATASET);
     if (alphaRead) {
         // The alpha band in the same read as the colour: each tile decoded (and, for a URL, fetched) once, not again
         // through the mask band. Data where alpha is 128 or more, as from the mask band below.

@@ -518,13 +518,15 @@ std::optional<long long> serviceTileCount(const std::filesystem::path& descripti
     std::string w, h;
     if (text.rfind("<VRTDataset", 0) == 0) { // a TMS cut: its size
         const auto num = [&](const char* attr) {
-            const auto a = text.find(attr);
-            return a == std::string::npos ? std::string() : text.substr(a + std::strlen(attr), text.find('"', a + std::strlen(attr)) - a - std::strlen(attr));
+            const auto at = text.find(attr);
+            if (at == std::string::npos) return std::string();
+            const auto from = at + std::strlen(attr), to = text.find('"', from);
+            return to == std::string::npos ? std::string() : text.substr(from, to - from);
         };
         w = num("rasterXSize=\""), h = num("rasterYSize=\"");
-        if (readSmall(xmlUnescape(text.substr(text.find("relativeToVRT=\"0\">") + 18,
-                                              text.find("</SourceFilename>") - text.find("relativeToVRT=\"0\">") - 18)))
-                .rfind("<GDAL_WMS>", 0) != 0)
+        const auto a = text.find("<SourceFilename relativeToVRT=\"0\">"), b = text.find("</SourceFilename>");
+        if (a == std::string::npos || b == std::string::npos || b < a ||
+            readSmall(xmlUnescape(text.substr(a + 34, b - a - 34))).rfind("<GDAL_WMS>", 0) != 0)
             return std::nullopt;
     } else if (text.rfind("<GDAL_WMS>", 0) == 0) {
         w = elementText(text, "SizeX"), h = elementText(text, "SizeY");

@@ -85,7 +85,10 @@ std::pair<glm::dvec2, glm::dvec2> boxIn(glm::dvec2 lo, glm::dvec2 hi, const Crs&
     }
     convert(from, to, std::span<glm::dvec2>(pts));
     glm::dvec2 a(std::numeric_limits<double>::max()), b(std::numeric_limits<double>::lowest());
-    for (const glm::dvec2& p : pts) a = glm::min(a, p), b = glm::max(b, p);
+    int converted = 0;
+    for (const glm::dvec2& p : pts)
+        if (std::isfinite(p.x) && std::isfinite(p.y)) a = glm::min(a, p), b = glm::max(b, p), ++converted;
+    if (converted == 0) return {glm::dvec2(std::nan("")), glm::dvec2(std::nan(""))}; // not expressible in `to`
     return {a, b};
 }
 

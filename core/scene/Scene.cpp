@@ -241,14 +241,26 @@ bool isTileService(const SourceList& s) {
 
 /// Where a tile service is read (WebSource.h): over the scene's extent (--extent in its CRS, or --extent-of) when
 /// given, else over the other season's footprint (`other`, opened already); at --grid-res in the grid's CRS
-/// (`gridCrs`) when given, else at the other season's pixel size; both measured in the service's CRS at the area's
-/// centre.
-Result<web::TileArea> tileArea(const GridOptions& options, const RasterMosaic* other, const Crs& gridCrs,
-                               const Crs& serviceCrs) {
+/// (`knownGridCrs`, or when the leaf-on is this service chooseWorkingGrid's rule on the service's CRS) when given,
+/// else at the other season's pixel size; both measured in the service's CRS at the area's centre.
+Result<web::TileArea> tileArea(const GridOptions& options, const RasterMosaic* other,
+                               const std::optional<Crs>& knownGridCrs, const Crs& serviceCrs) {
+    // The grid's CRS when the leaf-on is this service: chooseWorkingGrid's rule on the service's CRS (a geographic
+    // one: the UTM zone of the area's centre).
+    const auto gridCrsAt = [&](const Crs& crs, glm::dvec2 centre) {
+        if (knownGridCrs) return *knownGridCrs;
+        if (!serviceCrs.isGeographic()) return serviceCrs;
+        const glm::dvec2 c = convert(crs, Crs::geographic(), centre);
+        return Crs::utmAt(c.x, c.y);
+    };
     Crs crs;
     glm::dvec2 lo{0.0}, hi{0.0};
     if (options.extent) {
-        crs = options.extentCrs ? *options.extentCrs : gridCrs;
+        if (options.extentCrs) crs = *options.extentCrs;
+        else if (knownGridCrs) crs = *knownGridCrs;
+        else if (!serviceCrs.isGeographic()) crs = serviceCrs;
+        else // the grid's CRS would follow from the area the extent gives
+            return Error{"--extent: give its CRS with --extent-crs (the grid's follows from a geographic service's area)"};
         lo = {(*options.extent)[0], (*options.extent)[1]};
         hi = {(*options.extent)[2], (*options.extent)[3]};
     } else if (other) {
@@ -262,7 +274,7 @@ Result<web::TileArea> tileArea(const GridOptions& options, const RasterMosaic* o
     Crs resCrs;
     double res = 0;
     if (options.resolution) {
-        resCrs = gridCrs;
+        resCrs = gridCrsAt(crs, 0.5 * (lo + hi));
         res = *options.resolution;
     } else if (other) {
         resCrs = other->finest().georef->crs;
@@ -408,10 +420,10 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
                 // when the leaf-on is this service).
                 const bool leafonOpened = !service[0] || i == 1;
                 const auto areaIn = [&](const Crs& serviceCrs) {
-                    const Crs gridCrs = options->crs    ? *options->crs
-                                        : leafonOpened ? defaultGridCrs(scene.leafon.source.crs, scene.leafon.source.min,
-                                                                        scene.leafon.source.max)
-                                                       : serviceCrs;
+                    std::optional<Crs> gridCrs; // none: the leaf-on is this service, the grid's CRS follows from it
+                    if (options->crs) gridCrs = *options->crs;
+                    else if (leafonOpened)
+                        gridCrs = defaultGridCrs(scene.leafon.source.crs, scene.leafon.source.min, scene.leafon.source.max);
                     return tileArea(*options, other, gridCrs, serviceCrs);
                 };
                 const std::string url = s.items.front().string();
@@ -433,6 +445,9 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
             *layers[i] = std::move(*layer);
         }
     }
+    if (sources.grid.extent && sources.grid.extentCrs.empty() && options->extentCrs)
+        scene.notes.push_back("--extent read as degrees (WGS 84 longitudes, latitudes); --extent-crs grid reads it in "
+                              "the grid's CRS");
     auto grid = chooseWorkingGrid(scene.leafon.source, scene.leafoff.source, *options, sources.leafon.describe(),
                                   sources.leafoff.describe());
     if (!grid) return grid.error();
@@ -467,6 +482,8 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
     if (!sources.elevation.empty()) {
         if (auto st = openDem(); !st) return st.error();
         auto hf = loadHeightfield(*demMosaic, scene.grid, *encoding);
+        if (!hf && demService)
+            if (auto tile = web::tileFailure(demMosaic->tiles.front().path, hf.message())) return *tile;
         if (!hf) return hf.error();
         if (hf->filledSamples > 0)
             scene.notes.push_back(sources.elevation.describe() + ": filled " + std::to_string(hf->filledSamples) +
