@@ -519,6 +519,17 @@ TEST(WebSourceCliTest, WmtsLayerDrawsAsTheSamePixelsOnDisk) {
     ASSERT_EQ(d.exitCode, 0) << d.err;
     EXPECT_TRUE(server.requests().empty()) << server.requests().size() << " requests";
 
+    // A tile failing while the layer is read: one line naming its URL and status.
+    const std::string corner = "/tiles/17/" + std::to_string(m.x0) + "/" + std::to_string(m.y0) + ".png";
+    HttpTestServer::Fault down;
+    down.status = 500;
+    server.setFault(corner, down);
+    const CliResult t = render(wmts, "wmtsdown");
+    EXPECT_EQ(t.exitCode, 1);
+    EXPECT_NE(t.err.find(server.url() + corner + ": HTTP 500"), std::string::npos) << t.err;
+    EXPECT_EQ(std::count(t.err.begin(), t.err.end(), '\n'), 1) << t.err;
+    server.clearFaults();
+
     // Faults: one line naming the URL each, no picture.
     struct Case {
         std::string url, needle;

@@ -482,6 +482,69 @@ std::string xmlUnescape(std::string s) {
 
 } // namespace
 
+namespace {
+
+/// The tiles a failed block of a WMTS description can be (its tile matrix and the three coarser), as URLs from the
+/// layer's RESTful template; empty when the capabilities give none (a KVP-only service).
+std::vector<std::string> wmtsTileCandidates(const std::string& xml, long long bx, long long by) {
+    std::vector<std::string> urls;
+    const Xml doc(readSmall(xmlUnescape(elementText(xml, "GetCapabilitiesUrl"))));
+    CPLXMLNode* contents = contentsOf(doc);
+    const std::string layerId = xmlUnescape(elementText(xml, "Layer")), style = xmlUnescape(elementText(xml, "Style"));
+    const std::string setId = xmlUnescape(elementText(xml, "TileMatrixSet"));
+    const std::string matrixId = xmlUnescape(elementText(xml, "TileMatrix"));
+    const double minX = CPLAtof(elementText(xml, "UpperLeftX").c_str()), maxY = CPLAtof(elementText(xml, "UpperLeftY").c_str());
+    std::string pattern;
+    for (CPLXMLNode* l : children(contents, "Layer"))
+        if (CPLGetXMLValue(l, "Identifier", "") == layerId)
+            for (CPLXMLNode* r : children(l, "ResourceURL"))
+                if (pattern.empty() && EQUAL(CPLGetXMLValue(r, "resourceType", ""), "tile"))
+                    pattern = CPLGetXMLValue(r, "template", "");
+    CPLXMLNode* set = nullptr;
+    for (CPLXMLNode* t : children(contents, "TileMatrixSet"))
+        if (CPLGetXMLValue(t, "Identifier", "") == setId) set = t;
+    if (pattern.empty() || !set) return urls;
+    const std::string crsName = CPLGetXMLValue(set, "SupportedCRS", "");
+    auto crs = Crs::fromUserInput(crsName);
+    if (!crs) return urls;
+    const bool latFirst = crs->isGeographic() && crsName.find("CRS84") == std::string::npos; // EPSG:4326's axis order
+    const double metresPerUnit = crs->isGeographic() ? 6378137.0 * 2.0 * 3.14159265358979323846 / 360.0 : 1.0;
+    struct Matrix {
+        double pixel, left, top;
+        long long tileW, tileH, cols, rows;
+        std::string id;
+    };
+    std::vector<Matrix> matrices;
+    for (CPLXMLNode* m : children(set, "TileMatrix")) {
+        double a = 0, b = 0;
+        std::sscanf(CPLGetXMLValue(m, "TopLeftCorner", ""), "%lf %lf", &a, &b);
+        matrices.push_back({CPLAtof(CPLGetXMLValue(m, "ScaleDenominator", "0")) * 0.28e-3 / metresPerUnit, latFirst ? b : a,
+                            latFirst ? a : b, std::atoll(CPLGetXMLValue(m, "TileWidth", "256")),
+                            std::atoll(CPLGetXMLValue(m, "TileHeight", "256")), std::atoll(CPLGetXMLValue(m, "MatrixWidth", "0")),
+                            std::atoll(CPLGetXMLValue(m, "MatrixHeight", "0")), CPLGetXMLValue(m, "Identifier", "")});
+    }
+    std::sort(matrices.begin(), matrices.end(), [](const Matrix& a, const Matrix& b) { return a.pixel < b.pixel; });
+    auto chosen = std::find_if(matrices.begin(), matrices.end(), [&](const Matrix& m) { return m.id == matrixId; });
+    for (int k = 0; k <= 3 && chosen != matrices.end(); ++k, ++chosen) { // coarser: larger pixels
+        const Matrix& m = *chosen;
+        if (!(m.pixel > 0)) continue;
+        const long long col = (long long)std::floor((minX - m.left) / (m.pixel * double(m.tileW)) + 1e-9) + bx;
+        const long long row = (long long)std::floor((m.top - maxY) / (m.pixel * double(m.tileH)) + 1e-9) + by;
+        if (col < 0 || row < 0 || (m.cols > 0 && col >= m.cols) || (m.rows > 0 && row >= m.rows)) continue;
+        std::string url = pattern;
+        for (const auto& [key, v] : {std::pair<std::string, std::string>{"{TileMatrix}", m.id},
+                                     {"{TileCol}", std::to_string(col)},
+                                     {"{TileRow}", std::to_string(row)},
+                                     {"{Style}", style},
+                                     {"{TileMatrixSet}", setId}})
+            for (size_t p = 0; (p = url.find(key, p)) != std::string::npos; p += v.size()) url.replace(p, key.size(), v);
+        urls.push_back(url);
+    }
+    return urls;
+}
+
+} // namespace
+
 std::optional<Error> tileFailure(const std::filesystem::path& description, const std::string& message) {
     std::string xml = readSmall(description);
     if (xml.rfind("<VRTDataset", 0) == 0) { // a TMS description's cut: the first source is the description
@@ -489,11 +552,17 @@ std::optional<Error> tileFailure(const std::filesystem::path& description, const
         if (a == std::string::npos || b == std::string::npos || b < a) return std::nullopt;
         xml = readSmall(xmlUnescape(xml.substr(a + 34, b - a - 34)));
     }
-    if (xml.rfind("<GDAL_WMS>", 0) != 0) return std::nullopt;
     const auto at = message.find("download block ");
     if (at == std::string::npos) return std::nullopt;
     long long bx = -1, by = -1;
     if (std::sscanf(message.c_str() + at + 15, "%lld, %lld", &bx, &by) != 2 || bx < 0 || by < 0) return std::nullopt;
+    if (xml.rfind("<GDAL_WMTS>", 0) == 0) {
+        for (const std::string& tile : wmtsTileCandidates(xml, bx, by))
+            if (auto probe = probeTile(tile, false); !probe)
+                return Error{probe.message() + " (reading " + description.string() + ")"};
+        return std::nullopt;
+    }
+    if (xml.rfind("<GDAL_WMS>", 0) != 0) return std::nullopt;
     const std::string server = xmlUnescape(elementText(xml, "ServerUrl"));
     const int z = std::atoi(elementText(xml, "TileLevel").c_str());
     const long long tx = std::atoll(elementText(xml, "TileX").c_str()), ty = std::atoll(elementText(xml, "TileY").c_str());

@@ -86,7 +86,8 @@ Result<std::filesystem::path> describeWmts(const std::string& url,
                                            const std::function<Result<TileArea>(const Crs&)>& areaIn,
                                            const std::filesystem::path& cacheDir, const ServiceOptions& options = {});
 
-/// A read of a tile service's description (describeTileService's XML or VRT) failed with GDAL's words `message`
+/// A read of a tile service's description (describeTileService's XML or VRT, describeWmts's XML with a RESTful
+/// template) failed with GDAL's words `message`
 /// ("... Unable to download block X, Y ..."; GDAL 3.6 leaves the URL out): the tile's URL and status, found by asking
 /// the server again for the tiles that block can be at its zoom and the three coarser (at most 4 requests), as the
 /// one line "TILE_URL: HTTP 500 (reading DESCRIPTION)". Nothing when `description` is no such file or no tile fails.
