@@ -145,11 +145,16 @@ void HttpTestServer::handle(int fd) {
         if (name == "user-agent") r.userAgent = value;
     }
     Fault f;
+    r.at = std::chrono::steady_clock::now();
     {
         std::lock_guard lock(m_mutex);
         m_requests.push_back(r);
-        if (auto it = m_faults.find(r.path); it != m_faults.end()) f = it->second;
-        else if (auto all = m_faults.find("*"); all != m_faults.end()) f = all->second;
+        auto it = m_faults.find(r.path);
+        if (it == m_faults.end()) it = m_faults.find("*");
+        if (it != m_faults.end() && it->second.times != 0) {
+            f = it->second;
+            if (it->second.times > 0) --it->second.times;
+        }
     }
     if (f.latencyMs > 0) std::this_thread::sleep_for(std::chrono::milliseconds(f.latencyMs));
     if (f.reset) {
@@ -171,7 +176,8 @@ void HttpTestServer::handle(int fd) {
     };
     if (f.status) {
         const std::string body = "error " + std::to_string(f.status) + "\n";
-        answer(f.status, "text/plain", body, (long long)body.size(), "");
+        answer(f.status, "text/plain", body, (long long)body.size(),
+               f.retryAfterS >= 0 ? "Retry-After: " + std::to_string(f.retryAfterS) + "\r\n" : std::string());
         return;
     }
     if (f.html) {

@@ -4,6 +4,7 @@
 // page instead of the file, a body cut short, a connection reset. It logs every request. Started by the
 // constructor on a free port, stopped by stop() or the destructor.
 #include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -21,9 +22,12 @@ public:
         bool html = false;       // 200 with an HTML error page instead of the file
         long long cutAt = -1;    // send only this many bytes of the body (Content-Length says the whole)
         bool reset = false;      // close the connection without answering
+        int retryAfterS = -1;    // with `status`: a Retry-After header of this many seconds
+        int times = -1;          // the fault applies to this many requests, then the file is served (-1: always)
     };
     struct Request {
         std::string method, path, range, userAgent;
+        std::chrono::steady_clock::time_point at; // when its head arrived
     };
 
     explicit HttpTestServer(std::filesystem::path root);

@@ -156,6 +156,24 @@ TEST(WebSourceCliTest, ServerFaultsAreOneLineNamingTheUrl) {
     EXPECT_TRUE(hasPyramid(s.dir / "cache_ok"));
 }
 
+TEST(WebSourceCliTest, TooManyRequestsWaitsAsTheServerSays) {
+    // 429 with Retry-After: 3 to the first HEAD: asked again after the 3 s the server names (not the 1 s of the
+    // default backoff), then read as usual.
+    ServedScene s("web-429");
+    HttpTestServer::Fault busy;
+    busy.status = 429;
+    busy.retryAfterS = 3;
+    busy.times = 1;
+    s.server->setFault("/leafon.tif", busy);
+    const CliResult r = s.run({"render", "--size", "160x120", "--out", (s.dir / "web.png").string()}, s.urls(), "cache");
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::vector<std::chrono::steady_clock::time_point> heads;
+    for (const auto& q : s.server->requests())
+        if (q.path == "/leafon.tif" && q.method == "HEAD") heads.push_back(q.at);
+    ASSERT_GE(heads.size(), 2u);
+    EXPECT_GE(std::chrono::duration<double>(heads[1] - heads[0]).count(), 2.5) << "Retry-After not waited for";
+}
+
 TEST(WebSourceCliTest, RealSaclayCogByUrlDrawsAsTheFile) {
     const auto data = realDataDir();
     const fs::path s = data ? *data / "seasons/saclay_w_delivered" : fs::path();

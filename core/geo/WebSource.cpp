@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -19,6 +20,7 @@
 #include <map>
 #include <mutex>
 #include <sstream>
+#include <thread>
 #include <vector>
 
 #ifndef SEASONVIEW_VERSION
@@ -55,16 +57,16 @@ std::string header(char** headers, const std::string& name) {
 struct Answer {
     std::string status = "200";
     std::string contentType;
-    std::string contentLength, lastModified, etag;
+    std::string contentLength, lastModified, etag, retryAfter;
     std::vector<std::uint8_t> body;
 };
 
-Result<Answer> fetch(const std::string& url, bool headOnly, bool retry = true) {
+/// One request, no retry.
+Result<Answer> fetchOnce(const std::string& url, bool headOnly) {
     gdal::init();
     gdal::ErrorCapture quiet;
     const std::string agent = "USERAGENT=" + userAgent();
-    std::vector<const char*> options = {agent.c_str(), "TIMEOUT=30", retry ? "MAX_RETRY=3" : "MAX_RETRY=0",
-                                        "RETRY_DELAY=1"};
+    std::vector<const char*> options = {agent.c_str(), "TIMEOUT=30", "MAX_RETRY=0"};
     if (headOnly) options.insert(options.end(), {"CUSTOMREQUEST=HEAD", "NO_BODY=YES"});
     options.push_back(nullptr);
     CPLHTTPResult* r = CPLHTTPFetch(url.c_str(), options.data());
@@ -74,6 +76,7 @@ Result<Answer> fetch(const std::string& url, bool headOnly, bool retry = true) {
         ~Free() { CPLHTTPDestroyResult(r); }
     } freeing{r};
     Answer a;
+    a.retryAfter = header(r->papszHeaders, "retry-after");
     const std::string err = r->pszErrBuf ? r->pszErrBuf : "";
     if (const auto at = err.find("HTTP error code"); at != std::string::npos) {
         const auto digits = err.find_first_of("0123456789", at);
@@ -88,6 +91,29 @@ Result<Answer> fetch(const std::string& url, bool headOnly, bool retry = true) {
     a.etag = header(r->papszHeaders, "etag");
     if (r->pabyData && r->nDataLen > 0) a.body.assign(r->pabyData, r->pabyData + r->nDataLen);
     return a;
+}
+
+/// A request with retries (`retry`): up to 3 more on 429, 500 and 502-504 and on transfers that timed out or were
+/// reset, after 1, 2 and 4 s, or after what the server's Retry-After says (seconds, at most 60) on 429 and 503.
+Result<Answer> fetch(const std::string& url, bool headOnly, bool retry = true) {
+    double delay = 1.0;
+    for (int attempt = 1;; ++attempt) {
+        auto a = fetchOnce(url, headOnly);
+        bool again = false;
+        double wait = delay;
+        if (!a) {
+            again = a.message().find("timed out") != std::string::npos || a.message().find("reset") != std::string::npos;
+        } else {
+            const std::string& st = a->status;
+            again = st == "429" || st == "500" || st == "502" || st == "503" || st == "504";
+            if ((st == "429" || st == "503") && !a->retryAfter.empty() &&
+                a->retryAfter.find_first_not_of("0123456789") == std::string::npos && a->retryAfter.size() < 6)
+                wait = std::min(60.0, double(std::stoi(a->retryAfter)));
+        }
+        if (!retry || !again || attempt == 4) return a;
+        std::this_thread::sleep_for(std::chrono::duration<double>(wait));
+        delay *= 2.0;
+    }
 }
 } // namespace
 

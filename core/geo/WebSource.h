@@ -2,7 +2,9 @@
 // Scene inputs on the web. A URL (http:// or https://) given for a season or the DEM is read through GDAL's
 // /vsicurl/ file system: HTTP range requests for the headers and the tiles a read touches, as a Cloud-Optimized
 // GeoTIFF is meant to be read (any raster GDAL reads by ranges works; a COG's layout keeps the requests few).
-// Every request names seasonview in its User-Agent, times out, and is retried with backoff on 429, 500 and 502–504.
+// Every request names seasonview in its User-Agent, times out, and is retried with backoff on 429, 500 and 502–504
+// (GDAL's reads of tiles and ranges by GDAL's backoff; seasonview's own requests, the HEADs, tile probes and
+// capabilities, also on timeouts and resets, waiting as long as a 429's or 503's Retry-After says).
 // Before the raster is opened, one HEAD request asks the server for the file: an HTTP error is one line naming the
 // URL and the status, and the answer's size, Last-Modified and ETag are the input's identity for the caches.
 #include "Crs.h"
