@@ -80,7 +80,6 @@ bool rebuildingDamaged(const std::string& message, const std::filesystem::path& 
 }
 
 struct LayerPrepareProgress::State {
-    std::string name;
     ProgressFn bar;
     bool service = false;
     std::optional<long long> total;
@@ -92,7 +91,6 @@ struct LayerPrepareProgress::State {
 LayerPrepareProgress::LayerPrepareProgress(const char* name, const ImageryLayer& layer,
                                            const std::filesystem::path& cacheDir)
     : m(std::make_shared<State>()) {
-    m->name = name;
     m->bar = terminalProgress(name);
     if (layer.source.tiles.size() == 1) {
         const std::filesystem::path& p = layer.source.tiles.front().path;

@@ -275,6 +275,27 @@ Result<Ok> writeIfChanged(const std::filesystem::path& file, const std::string& 
 
 } // namespace
 
+namespace {
+
+/// Calls fn(path, modification time, bytes) for every file under a tile cache folder (none when it is missing).
+template <typename Fn>
+void forEachTile(const std::filesystem::path& dir, Fn&& fn) {
+    std::error_code ec;
+    for (std::filesystem::recursive_directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+        std::error_code e;
+        if (!it->is_regular_file(e)) continue;
+        const auto size = it->file_size(e);
+        const auto time = it->last_write_time(e);
+        if (!e) fn(it->path(), time, (long long)size);
+    }
+}
+
+/// The GDAL <Cache> element of a service description over dir/tiles, that folder first bounded to options.cacheMb.
+/// Tiles do not expire (10 years) and GDAL's cleaner is off (CleanTimeout 0): trimTileCache bounds the folder.
+std::string tileCache(const std::filesystem::path& dir, const ServiceOptions& options);
+
+} // namespace
+
 long long trimTileCache(const std::filesystem::path& tilesDir, long long maxBytes) {
     struct Tile {
         std::filesystem::path path;
@@ -283,25 +304,30 @@ long long trimTileCache(const std::filesystem::path& tilesDir, long long maxByte
     };
     std::vector<Tile> tiles;
     long long total = 0;
-    std::error_code ec;
-    for (std::filesystem::recursive_directory_iterator it(tilesDir, ec), end; !ec && it != end; it.increment(ec)) {
-        std::error_code e;
-        if (!it->is_regular_file(e)) continue;
-        const auto size = it->file_size(e);
-        const auto time = it->last_write_time(e);
-        if (e) continue;
-        tiles.push_back({it->path(), time, (long long)size});
-        total += (long long)size;
-    }
+    forEachTile(tilesDir, [&](const std::filesystem::path& p, std::filesystem::file_time_type time, long long bytes) {
+        tiles.push_back({p, time, bytes});
+        total += bytes;
+    });
     if (total <= maxBytes) return 0;
     std::sort(tiles.begin(), tiles.end(), [](const Tile& a, const Tile& b) { return a.time < b.time; });
     long long removed = 0;
+    std::error_code ec;
     for (const Tile& t : tiles) {
         if (total - removed <= maxBytes) break;
         if (std::filesystem::remove(t.path, ec)) removed += t.bytes;
     }
     return removed;
 }
+
+namespace {
+
+std::string tileCache(const std::filesystem::path& dir, const ServiceOptions& options) {
+    trimTileCache(dir / "tiles", (long long)(std::max(options.cacheMb, 0.0) * 1048576.0));
+    return "<Cache><Path>" + xmlEscape((dir / "tiles").string()) +
+           "</Path><Expires>315360000</Expires><CleanTimeout>0</CleanTimeout></Cache>";
+}
+
+} // namespace
 
 bool isWmts(std::string_view input) {
     if (!isUrl(input) || isTileTemplate(input)) return false;
@@ -465,9 +491,7 @@ Result<std::filesystem::path> describeWmts(const std::string& url,
         return fileError(url, "the area is " + std::to_string((long long)w0) + "x" + std::to_string((long long)h0) +
                                   " pixels at tile matrix " + chosen.second + ", over the limit of " +
                                   std::to_string(gdal::kMaxRasterSide) + " a side (a smaller --extent)");
-    const std::string cache = "<Cache><Path>" + xmlEscape((dir / "tiles").string()) +
-                              "</Path><Expires>315360000</Expires><CleanTimeout>0</CleanTimeout></Cache>";
-    trimTileCache(dir / "tiles", (long long)(std::max(options.cacheMb, 0.0) * 1048576.0));
+    const std::string cache = tileCache(dir, options);
     const std::string xml =
         "<GDAL_WMTS>\n  <GetCapabilitiesUrl>" + xmlEscape(caps.string()) + "</GetCapabilitiesUrl><Layer>" +
         xmlEscape(w.layer) + "</Layer><Style>" + xmlEscape(style) + "</Style><TileMatrixSet>" + xmlEscape(set) +
@@ -636,16 +660,11 @@ TileFetchCounter::TileFetchCounter(std::filesystem::path tilesDir)
 
 TileFetchCounter::Count TileFetchCounter::fetched() const {
     Count c;
-    std::error_code ec;
-    for (std::filesystem::recursive_directory_iterator it(m_dir, ec), end; !ec && it != end; it.increment(ec)) {
-        std::error_code e;
-        if (!it->is_regular_file(e)) continue;
-        const auto time = it->last_write_time(e);
-        const auto size = it->file_size(e);
-        if (e || time < m_start) continue;
+    forEachTile(m_dir, [&](const std::filesystem::path&, std::filesystem::file_time_type time, long long bytes) {
+        if (time < m_start) return;
         ++c.tiles;
-        c.bytes += (long long)size;
-    }
+        c.bytes += bytes;
+    });
     return c;
 }
 
@@ -723,10 +742,7 @@ Result<std::filesystem::path> describeTileService(const std::string& url, const 
                   "</SizeX><SizeY>" + std::to_string(h) + "</SizeY><TileLevel>" + std::to_string(z) +
                   "</TileLevel><TileX>" + std::to_string(x0) + "</TileX><TileY>" + std::to_string(y0) +
                   "</TileY><YOrigin>top</YOrigin>";
-    // Tiles do not expire (10 years) and GDAL's cleaner is off (CleanTimeout 0): trimTileCache bounds the folder.
-    const std::string cache = "<Cache><Path>" + xmlEscape((dir / "tiles").string()) +
-                              "</Path><Expires>315360000</Expires><CleanTimeout>0</CleanTimeout></Cache>";
-    trimTileCache(dir / "tiles", (long long)(std::max(options.cacheMb, 0.0) * 1048576.0));
+    const std::string cache = tileCache(dir, options);
     const std::string xml =
         "<GDAL_WMS>\n  <Service name=\"TMS\"><ServerUrl>" + xmlEscape(server) + "</ServerUrl></Service>\n" +
         "  <DataWindow>" + window + "</DataWindow>\n" +

@@ -295,6 +295,19 @@ Result<web::TileArea> tileArea(const GridOptions& options, const RasterMosaic* o
     return a;
 }
 
+/// A tile service's GDAL description over the area `areaIn` gives in the service's CRS: a WMTS layer's
+/// (describeWmts), else an XYZ/TMS template's in Web Mercator (describeTileService).
+Result<std::filesystem::path> describeService(const std::string& url,
+                                              const std::function<Result<web::TileArea>(const Crs&)>& areaIn,
+                                              const std::filesystem::path& cacheDir, const web::ServiceOptions& run) {
+    if (web::isWmts(url)) return web::describeWmts(url, areaIn, cacheDir, run);
+    auto mercator = Crs::fromEpsg(3857);
+    if (!mercator) return mercator.error();
+    auto area = areaIn(*mercator);
+    if (!area) return area.error();
+    return web::describeTileService(url, *area, cacheDir, run);
+}
+
 } // namespace
 
 Result<ImageryLayer> openImageryLayer(const SourceList& sources, const std::string& role,
@@ -372,16 +385,7 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
                     return Error{"scene: the area to read the DEM service over does not map to its CRS " + serviceCrs.name()};
                 return t;
             };
-            Result<std::filesystem::path> xml = Error{""};
-            if (web::isWmts(url)) {
-                xml = web::describeWmts(url, areaIn, cacheDir, run);
-            } else {
-                auto mercator = Crs::fromEpsg(3857);
-                if (!mercator) return mercator.error();
-                auto area = areaIn(*mercator);
-                if (!area) return area.error();
-                xml = web::describeTileService(url, *area, cacheDir, run);
-            }
+            auto xml = describeService(url, areaIn, cacheDir, run);
             if (!xml) return xml.error();
             list.items = {*xml};
         }
@@ -427,16 +431,7 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
                     return tileArea(*options, other, gridCrs, serviceCrs);
                 };
                 const std::string url = s.items.front().string();
-                Result<std::filesystem::path> xml = Error{""};
-                if (web::isWmts(url)) {
-                    xml = web::describeWmts(url, areaIn, cacheDir, run);
-                } else {
-                    auto mercator = Crs::fromEpsg(3857);
-                    if (!mercator) return mercator.error();
-                    auto area = areaIn(*mercator);
-                    if (!area) return area.error();
-                    xml = web::describeTileService(url, *area, cacheDir, run);
-                }
+                auto xml = describeService(url, areaIn, cacheDir, run);
                 if (!xml) return xml.error();
                 s.items = {*xml};
             }
