@@ -199,8 +199,11 @@ TEST(WebSourceCliTest, RealSaclayCogByUrlDrawsAsTheFile) {
     EXPECT_LE(server.maxConcurrent(), 4) << "connections open at once to one host";
     // Each tile fetched once (its colour and alpha in one read).
     std::set<std::string> ranges;
-    for (const auto& r : server.requests())
-        if (!r.range.empty()) EXPECT_TRUE(ranges.insert(r.range).second) << r.range << " fetched twice";
+    for (const auto& r : server.requests()) {
+        if (!r.range.empty()) {
+            EXPECT_TRUE(ranges.insert(r.range).second) << r.range << " fetched twice";
+        }
+    }
     EXPECT_LE(rangeBytes(server.requests()), (long long)fs::file_size(s / "leafon_3857_cog.tif"));
 }
 
@@ -383,8 +386,8 @@ TEST(WebSourceCliTest, XyzTileServiceDrawsAsTheSamePixelsOnDisk) {
     // The tile cache's bound (--web-cache-mb), kept from the start of a run: the pyramid made from the tiles stays.
     const auto tileBytes = [&] {
         long long bytes = 0;
-        for (const auto& e : fs::recursive_directory_iterator(s.dir / "cache_web/web/tiles"))
-            if (e.is_regular_file()) bytes += (long long)e.file_size();
+        for (const auto& entry : fs::recursive_directory_iterator(s.dir / "cache_web/web/tiles"))
+            if (entry.is_regular_file()) bytes += (long long)entry.file_size();
         return bytes;
     };
     const long long before = tileBytes();
