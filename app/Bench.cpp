@@ -1,6 +1,7 @@
 // The frame benchmark: per-frame counters along a camera path, a summary, an interleaved comparison of modes and a
 // plot of frame time and coverage over the path.
 #include "Bench.h"
+#include "StreamedPyramid.h"
 #include "CityJob.h"
 #include "Plot.h"
 #include "RenderJob.h"
@@ -386,6 +387,7 @@ Status BenchRun::createRenderers(const std::vector<ImagePyramid>& pyramids,
         if (m.renderer == RendererKind::Reference) {
             ReferenceOptions ro;
             ro.anisotropy = m.anisotropy;
+            if (auto st = refuseStreamed(pyramids, "the reference renderer"); !st) return st;
             ro.levelZero = levelZeroOf(m_scene, pyramids);
             auto r = ReferenceRendererGL::create(m_scene, ro);
             if (!r) return r.error();
@@ -784,7 +786,10 @@ ModeFigures modeFigures(const Mode& m) {
                    {"elevation_reported_texels_uploaded",
                     m.clipRenderer ? m.clipRenderer->geometry().totalTexelsUploaded() - m.elevationTotalAtStart : 0},
                    {"canopy_blocks_derived", canopyBlocks},
-                   {"trunk_searches", trunkSearches}}}};
+                   {"trunk_searches", trunkSearches},
+                   // Streamed seasons (--stream): blocks whose tiles failed (drawn from coarser levels, asked again).
+                   {"stream_errors", m.clipmap ? m.clipmap->streamErrors() : 0},
+                   {"last_stream_error", m.clipmap ? m.clipmap->lastStreamError() : std::string()}}}};
     return f;
 }
 

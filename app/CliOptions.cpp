@@ -70,6 +70,9 @@ void SceneArgs::addTo(CLI::App& cmd, bool withDem) {
         ->check(CLI::IsMember({"leafon", "leafoff", "dem"}));
     cmd.add_flag("--offline", offline,
                  "Tile services from the disk cache only (no request; tiles never fetched are no data)");
+    cmd.add_flag("--stream", stream,
+                 "Seasons from tile services streamed into the clipmaps as the view needs them (each clip level at "
+                 "its zoom) instead of prepared at full resolution first");
     cmd.add_option("--web-cache-mb", webCacheMb,
                    "Bound of the tile services' disk cache in MiB (least recently fetched tiles go; default 1024)")
         ->check(CLI::PositiveNumber);
@@ -134,6 +137,7 @@ Result<SceneSources> SceneArgs::sources() const {
     }
     if (!demEncoding.empty()) src.elevationEncoding = demEncoding;
     if (offline) src.offline = true;
+    if (stream) src.stream = true;
     if (webCacheMb > 0) src.webCacheMb = webCacheMb;
     if (!resampling.empty()) src.resampling = resampling;
     if (!buildings.empty()) src.buildings = buildings;

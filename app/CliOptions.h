@@ -39,6 +39,7 @@ struct SceneArgs {
     std::string crs, gridCrs, extent, extentCrs, extentOf, resampling, stretch, buildings, cityCrs, demEncoding;
     double gridRes = 0.0;
     bool offline = false;
+    bool stream = false;
     double webCacheMb = 0.0;
     /// Adds the options to `cmd` (`withDem` false: commands that read no DEM).
     void addTo(CLI::App& cmd, bool withDem = true);

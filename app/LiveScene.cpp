@@ -58,6 +58,14 @@ void LiveScene::reportDamage() {
                                  "the source on the next start)\n", e->message.c_str());
         }
     }
+    // A streamed tile that failed (a service's fault): said once a new error comes, and on the HUD.
+    if (clip->streamErrors() > streamErrorsReported) {
+        if (streamErrorsReported == 0 || clip->lastStreamError() != lastStreamErrorReported)
+            std::fprintf(stderr, "seasonview view: %s (streamed: drawn from coarser levels, asked again in a few "
+                                 "seconds)\n", clip->lastStreamError().c_str());
+        streamErrorsReported = clip->streamErrors();
+        lastStreamErrorReported = clip->lastStreamError();
+    }
     if (city && !cityDamageReported)
         if (const std::string e = city->readError(); !e.empty()) {
             cityDamageReported = true;

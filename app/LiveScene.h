@@ -65,6 +65,8 @@ struct LiveScene {
     ClipmapFrameStats lastLoad;
     std::int64_t texelsTotal = 0;
     bool damagedReported = false, cityDamageReported = false;
+    std::int64_t streamErrorsReported = 0; // streamed tiles that failed, as last said on stderr
+    std::string lastStreamErrorReported;
     std::unique_ptr<city::CityRendererGL> city;
     city::CityFrameStats cityStats;
 

@@ -4,6 +4,7 @@
 #include "ElevationPyramid.h"
 #include "ImagePyramid.h"
 #include "PairStats.h"
+#include "StreamedPyramid.h"
 #include "RenderJob.h"
 
 #include <cstdio>
@@ -42,22 +43,25 @@ Runner addPrepareCommand(CLI::App& app) {
         for (const auto& [name, layer] : layers) {
             const LayerPrepareProgress progress(name, *layer, options.cacheDir);
             options.progress = progress.fn();
-            auto report = preparePyramid(*layer, options);
+            auto report = prepareSeasonPyramid(*scene, name, options);
             if (!report) return fail(report.message());
             const ImagePyramid& p = report->pyramid;
             const std::string fetched = report->built ? progress.note() : std::string();
+            const std::string streamed =
+                p.streamedLevels > 0 ? " (levels 0-" + std::to_string(p.streamedLevels - 1) + " streamed)" : "";
             if (report->built)
-                std::printf("%s: built in %.2f s (%s): %dx%d, %zu levels, %s%s%s\n", name, report->seconds,
-                            report->reason.c_str(), p.width(), p.height(), p.levels.size(), p.folder.c_str(),
-                            fetched.empty() ? "" : "; ", fetched.c_str());
+                std::printf("%s: built in %.2f s (%s): %dx%d, %zu levels%s, %s%s%s\n", name, report->seconds,
+                            report->reason.c_str(), p.width(), p.height(), p.levels.size(), streamed.c_str(),
+                            p.folder.c_str(), fetched.empty() ? "" : "; ", fetched.c_str());
             else
-                std::printf("%s: up to date: %dx%d, %zu levels, %s\n", name, p.width(), p.height(), p.levels.size(),
-                            p.folder.c_str());
+                std::printf("%s: up to date: %dx%d, %zu levels%s, %s\n", name, p.width(), p.height(), p.levels.size(),
+                            streamed.c_str(), p.folder.c_str());
             std::fflush(stdout);
             pyramids.push_back(report->pyramid);
         }
         {
             // The histograms behind the segmentation's equalisation tables and drop threshold, from level 0.
+            pyramids = preparedPart(pyramids); // streamed seasons: from the first level both have on disk
             if (args->force) {
                 std::error_code ec;
                 std::filesystem::remove(pairHistogramsFile(pyramids[0], pyramids[1], options.cacheDir), ec);

@@ -1,5 +1,7 @@
 #include "RenderJob.h"
 
+#include "StreamedPyramid.h"
+
 #include "CityJob.h"
 
 #include "CanopyClipmapGL.h"
@@ -142,7 +144,7 @@ Result<std::vector<ImagePyramid>> preparePyramidsOnce(const Scene& scene, const 
         o.cacheDir = cacheDir;
         const LayerPrepareProgress progress(name, *layer, cacheDir);
         o.progress = progress.fn();
-        auto report = preparePyramid(*layer, o);
+        auto report = prepareSeasonPyramid(scene, name, o);
         if (!report) return report.error();
         if (report->built) {
             const std::string fetched = progress.note();
@@ -171,7 +173,8 @@ Result<std::vector<ImagePyramid>> preparePyramids(const Scene& scene, const std:
 std::optional<std::array<std::filesystem::path, 2>> levelZeroOf(const Scene& scene,
                                                                const std::vector<ImagePyramid>& pyramids) {
     if (!scene.warped()) return std::nullopt;
-    assert(pyramids.size() == 2 && "levelZeroOf(): the scene's two prepared pyramids");
+    assert(pyramids.size() == 2 && pyramids[0].streamedLevels == 0 && pyramids[1].streamedLevels == 0 &&
+           "levelZeroOf(): the scene's two prepared pyramids (streamed scenes are refused by refuseStreamed)");
     return std::array<std::filesystem::path, 2>{pyramids[0].levels[0].file, pyramids[1].levels[0].file};
 }
 
@@ -182,7 +185,10 @@ Result<SegmentationHistograms> preparePairStats(const Scene& scene, const std::v
            "preparePairStats(): the leaf-on and leaf-off pyramids of the scene");
     (void)scene; // only checked: the pyramids' source keys already name both layers and their stretches
     PairHistogramsReport report;
-    auto histograms = preparePairHistograms(pyramids[0], pyramids[1], cacheDir, terminalProgress("pair stats"), &report);
+    // Streamed seasons: the statistics of the first level both have on disk (their colours' distribution, a little
+    // narrowed by the box filter), not of texels never fetched.
+    const std::vector<ImagePyramid> prepared = preparedPart(pyramids);
+    auto histograms = preparePairHistograms(prepared[0], prepared[1], cacheDir, terminalProgress("pair stats"), &report);
     if (!histograms) return histograms.error();
     if (report.built) {
         std::printf("prepared pair statistics in %.2f s (%s)\n", report.seconds, report.reason.c_str());

@@ -1,6 +1,7 @@
 // renderStills (RenderJob.h): stills through the reference renderer, or through the clipmaps with the canopy view and
 // the city, each written atomically with its optional accuracy and statistics files.
 #include "RenderJob.h"
+#include "StreamedPyramid.h"
 
 #include "CanopyClipmapGL.h"
 #include "CanopyRendererGL.h"
@@ -62,6 +63,7 @@ Status renderReferenceStills(const Scene& scene, const std::vector<ImagePyramid>
                              const std::vector<StillRequest>& stills, StillContext& c) {
     ReferenceOptions options;
     options.anisotropy = c.settings.referenceAnisotropy;
+    if (auto st = refuseStreamed(pyramids, "the reference renderer"); !st) return st;
     options.levelZero = levelZeroOf(scene, pyramids);
     auto renderer = ReferenceRendererGL::create(scene, options);
     if (!renderer) return renderer.error();
@@ -160,6 +162,7 @@ Status ClipmapStills::render(const StillRequest& s) {
     // A block that could not be read would be drawn from a coarser level: the still is not written, the damaged
     // pyramid is rebuilt.
     if (const auto& e = m_clipmap->readError()) return Error{e->message};
+    if (m_clipmap->streamErrors() > 0) return Error{m_clipmap->lastStreamError()}; // a streamed tile failed
     if (m_canopy) m_canopy->completeSynchronously();
     if (m_trunks && s.imagery.view == ImageryView::Canopy) m_trunks->find();
     m_renderer->updateGeometry(s.camera, m_c.height);
@@ -260,6 +263,7 @@ Status ClipmapStills::writeAccuracy(const StillRequest& s, const GeometryFrameSt
     if (!m_reference) {
         ReferenceOptions ro;
         ro.anisotropy = s.imagery.anisotropy;
+        if (auto st = refuseStreamed(m_pyramids, "the accuracy check (--accuracy)"); !st) return st;
         ro.levelZero = levelZeroOf(m_scene, m_pyramids);
         auto r = ReferenceRendererGL::create(m_scene, ro);
         if (!r) return r.error();

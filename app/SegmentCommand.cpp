@@ -191,6 +191,9 @@ Runner addSegmentCommand(CLI::App& app) {
         auto scene = loadScene(src, cacheDir);
         if (!scene) return fail(scene.message());
         printSceneNotes(*scene);
+        if (scene->sources.stream)
+            return fail("--stream: segment reads every full-resolution texel of both seasons; run it without --stream "
+                        "(the seasons are then prepared whole)");
         std::vector<ImagePyramid> pyramids;
         if (scene->warped()) {
             // Seasons on other grids, in mosaics or with nodata: segmented on the working grid, from the pyramids

@@ -389,6 +389,9 @@ void Viewer::hud(const Camera& cam, const GeometryFrameStats& drawn) {
                 double(m_live.texelsTotal) / 1e6);
     ImGui::Text("resident %.1f MB, loader queue %d blocks", double(m_live.residentBytes()) / 1048576.0,
                 m_live.lastLoad.blocksMissing);
+    if (m_live.clip->streaming())
+        ImGui::Text("streamed: %lld tile errors%s%s", (long long)m_live.clip->streamErrors(),
+                    m_live.clip->streamErrors() ? ", last: " : "", m_live.clip->lastStreamError().c_str());
     ImGui::Text("camera %.1f, %.1f, %.1f m, yaw %.1f, pitch %.1f (%s)", cam.position.x, cam.position.y, cam.position.z,
                 cam.yawDeg, cam.pitchDeg, navModeName(m_nav.mode()));
     ImGui::Text("%.2f m above ground", cam.position.z - m_ground(cam.position.x, cam.position.y));

@@ -5,6 +5,7 @@
 #include <OpenImageIO/imagecache.h>
 
 #include <algorithm>
+#include <cassert>
 #include <cstring>
 
 namespace seasonview {
@@ -49,6 +50,39 @@ std::int64_t PyramidBlockSource::cacheBytes() const {
     long long bytes = 0;
     m_cache->cache->getattribute("stat:cache_memory_used", OIIO::TypeDesc::INT64, &bytes);
     return bytes;
+}
+
+namespace {
+std::vector<std::vector<std::filesystem::path>> levelFiles(const std::vector<ImagePyramid>& layers) {
+    std::vector<std::vector<std::filesystem::path>> files;
+    for (const ImagePyramid& p : layers) {
+        std::vector<std::filesystem::path> f;
+        for (const PyramidLevel& lv : p.levels) f.push_back(lv.file);
+        files.push_back(std::move(f));
+    }
+    return files;
+}
+} // namespace
+
+MixedBlockSource::MixedBlockSource(const std::vector<ImagePyramid>& layers, int cacheMegabytes, TexelFormat format)
+    : m_files(levelFiles(layers), cacheMegabytes, format) {
+    for (const ImagePyramid& p : layers) {
+        assert((p.streamedLevels == 0 || p.openStreamedLevel) && "MixedBlockSource: streamed levels need a reader");
+        m_streamed.push_back(p.streamedLevels);
+        m_open.push_back(p.openStreamedLevel);
+        m_readers.emplace_back(size_t(p.streamedLevels));
+    }
+}
+
+Status MixedBlockSource::read(int layer, int level, const TexelRect& texels, std::uint8_t* rgba) {
+    if (!streamed(layer, level)) return m_files.read(layer, level, texels, rgba);
+    LevelTexelReader& reader = m_readers[size_t(layer)][size_t(level)];
+    if (!reader) {
+        auto opened = m_open[size_t(layer)](level);
+        if (!opened) return opened.error(); // asked again with the next block
+        reader = std::move(*opened);
+    }
+    return reader(texels, rgba);
 }
 
 namespace {
@@ -148,6 +182,7 @@ void BlockLoader::run() {
             if (Status st = m_source.read(layer, job.key.level, job.texels, px.data()); !st) {
                 block.error = st.message();
                 block.errorLayer = layer;
+                block.streamed = m_source.streamed(layer, job.key.level);
             }
         }
         ++m_read;

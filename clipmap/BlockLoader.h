@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <deque>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -29,6 +30,12 @@ public:
     virtual Status read(int layer, int level, const TexelRect& texels, std::uint8_t* rgba) = 0;
     /// Bytes the source holds in its own cache (0 when it has none).
     virtual std::int64_t cacheBytes() const { return 0; }
+    /// Whether `level` of `layer` is streamed from the network: its read errors are a service's faults (counted and
+    /// shown, asked again later), not a damaged cache.
+    virtual bool streamed(int layer, int level) const {
+        (void)layer, (void)level;
+        return false;
+    }
 };
 
 /// Pyramid level files (one per level, per layer) read through one OpenImageIO ImageCache of bounded size.
@@ -50,6 +57,23 @@ private:
     std::unique_ptr<Cache> m_cache;
 };
 
+/// Pyramids whose finest levels may be streamed (ImagePyramid::streamedLevels): those levels through the layer's
+/// LevelTexelReader (made at the level's first read), the others from their files (PyramidBlockSource).
+class MixedBlockSource final : public BlockSource {
+public:
+    MixedBlockSource(const std::vector<ImagePyramid>& layers, int cacheMegabytes, TexelFormat format);
+    int layers() const override { return m_files.layers(); }
+    Status read(int layer, int level, const TexelRect& texels, std::uint8_t* rgba) override;
+    std::int64_t cacheBytes() const override { return m_files.cacheBytes(); }
+    bool streamed(int layer, int level) const override { return level < m_streamed[size_t(layer)]; }
+
+private:
+    PyramidBlockSource m_files;
+    std::vector<int> m_streamed;
+    std::vector<std::function<Result<LevelTexelReader>(int level)>> m_open;
+    std::vector<std::vector<LevelTexelReader>> m_readers; // [layer][level], empty until first read
+};
+
 /// A loaded block: 4-byte texels of every layer, rows of `texels.width()`.
 struct LoadedBlock {
     BlockKey key;
@@ -57,6 +81,7 @@ struct LoadedBlock {
     std::vector<std::vector<std::uint8_t>> layers;
     std::string error; // non-empty: the read failed (the block stays missing; the shader keeps falling back)
     int errorLayer = -1; // the layer whose read failed
+    bool streamed = false; // the failed read was of a streamed level (BlockSource::streamed)
 };
 
 class BlockLoader {

@@ -43,14 +43,9 @@ Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyra
     const int arrayLayers = std::max({1, clipLevels, options.minClipLevels});
     const int slots = c->m_schedule.slotsPerSide();
 
-    std::vector<std::vector<std::filesystem::path>> files;
-    for (const ImagePyramid& p : layers) {
-        std::vector<std::filesystem::path> f;
-        for (const PyramidLevel& lv : p.levels) f.push_back(lv.file);
-        files.push_back(std::move(f));
-    }
+    for (const ImagePyramid& p : layers) c->m_streaming = c->m_streaming || p.streamedLevels > 0;
     if (source) c->m_source = std::move(source);
-    else c->m_source = std::make_unique<PyramidBlockSource>(std::move(files), options.cacheMegabytes, c->m_format);
+    else c->m_source = std::make_unique<MixedBlockSource>(layers, options.cacheMegabytes, c->m_format);
 
     c->m_tags = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
     glTextureStorage3D(c->m_tags.id(), 1, GL_R32I, slots, slots, arrayLayers);
@@ -101,6 +96,16 @@ Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyra
         glTextureStorage3D(c->m_coarse.id(), c->m_coarseLevels, GL_RGBA8, c->m_coarseSize.x, c->m_coarseSize.y, n);
         for (int i = 0; i < n; ++i) {
             const PyramidLevel& lv = layers[size_t(i)].levels[size_t(clipLevels)];
+            if (clipLevels < layers[size_t(i)].streamedLevels) {
+                // A streamed level (a clipmap narrower than the levels a streamed season has on disk): read whole,
+                // through the loader's source, before the first frame.
+                std::vector<std::uint8_t> texels(size_t(lv.width) * size_t(lv.height) * 4);
+                if (auto st = c->m_source->read(i, clipLevels, TexelRect{0, 0, lv.width, lv.height}, texels.data()); !st)
+                    return st.error();
+                glTextureSubImage3D(c->m_coarse.id(), 0, 0, 0, i, lv.width, lv.height, 1, GL_RGBA, GL_UNSIGNED_BYTE,
+                                    texels.data());
+                continue;
+            }
             if (auto st = residentCheck.check(lv.file, 0, 0, kWhole, kWhole); !st) return st.error();
             auto base = readImageU8(lv.file, 4);
             if (!base) return base.error();
@@ -126,7 +131,12 @@ int ClipmapGL::uploadReady(std::int64_t budget, ClipmapFrameStats& stats) {
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
     for (LoadedBlock& blk : m_loader->take(budget)) {
         if (!blk.error.empty()) { // stays missing, never drawn; the shader keeps using a coarser level
-            if (!m_readError) m_readError = ReadError{blk.error, blk.errorLayer};
+            if (blk.streamed) { // a service's fault: counted, shown, and the block asked again later
+                ++m_streamErrors;
+                m_lastStreamError = blk.error;
+            } else if (!m_readError) {
+                m_readError = ReadError{blk.error, blk.errorLayer};
+            }
             continue;
         }
         // A block of an older window (the view moved on while it loaded) would evict a wanted one: drop it.

@@ -64,6 +64,13 @@ public:
         int layer = -1;
     };
     const std::optional<ReadError>& readError() const { return m_readError; }
+    /// Blocks of streamed levels whose read failed so far (a service's fault, not the cache's: not a readError();
+    /// each failure counted, the block asked again later), and the last failure's line (a tile's URL and HTTP
+    /// status). The viewer's HUD and the bench show them; a still is not written with one.
+    std::int64_t streamErrors() const { return m_streamErrors; }
+    const std::string& lastStreamError() const { return m_lastStreamError; }
+    /// Whether any layer streams its finest levels (ImagePyramid::streamedLevels).
+    bool streaming() const { return m_streaming; }
 
     /// Binds the toroidal levels of every layer (uClip, a sampler2DArray: layer i's level l at array layer
     /// i · uClipLayerStride + l) to unit firstUnit, the coarse pyramids (uCoarse, a sampler2DArray: Rgba8, layer i
@@ -108,6 +115,9 @@ private:
     int m_coarseLevels = 0; // mip levels (Rgba8) or array layers (R32F) of each coarse texture
     glm::ivec2 m_coarseSize{0};
     std::int64_t m_totalUploaded = 0;
+    std::int64_t m_streamErrors = 0;
+    std::string m_lastStreamError;
+    bool m_streaming = false;
 };
 
 } // namespace seasonview

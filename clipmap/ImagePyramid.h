@@ -9,6 +9,7 @@
 #include "Result.h"
 #include "Scene.h"
 #include "Progress.h"
+#include "ToroidalWindow.h"
 
 #include <cstdint>
 #include <filesystem>
@@ -27,12 +28,21 @@ struct PyramidLevel {
 /// terrain/ElevationPyramid.h).
 enum class TexelFormat { Rgba8, R32F };
 
+/// Reads texels of a level that has no file (a streamed level, app/StreamedPyramid.h): `texels` (level texel
+/// coordinates) as rows of premultiplied RGBA8 into `rgba`, (0, 0, 0, 0) where the season has no data. Errors are one
+/// line naming what failed (a tile's URL and its HTTP status). Called from the block loader's thread only.
+using LevelTexelReader = std::function<Status(const TexelRect& texels, std::uint8_t* rgba)>;
+
 struct ImagePyramid {
     std::filesystem::path folder;   // <cache>/pyramids/<key hash>
     std::string sourceKey;          // the sources' files (paths, sizes, mtimes), grid, stretch: what the cache belongs to
     int tileSize = 256;
     TexelFormat format = TexelFormat::Rgba8;
     std::vector<PyramidLevel> levels;
+    /// Levels [0, streamedLevels) have no file (their `file` is empty): the clipmap's loader reads them through
+    /// openStreamedLevel(level), made on the loader's thread at the level's first read. 0 for a prepared pyramid.
+    int streamedLevels = 0;
+    std::function<Result<LevelTexelReader>(int level)> openStreamedLevel;
     int width() const { return levels.empty() ? 0 : levels[0].width; }
     int height() const { return levels.empty() ? 0 : levels[0].height; }
 };

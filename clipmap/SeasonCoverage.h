@@ -20,7 +20,8 @@ struct SeasonCoverage {
 
 class SeasonCoverageProbe {
 public:
-    /// Opens level 0 of both pyramids (leaf-on, leaf-off, as preparePyramids returns them). Errors name the file.
+    /// Opens level 0 of both pyramids (leaf-on, leaf-off, as preparePyramids returns them), or the first level both
+    /// have on disk when a season is streamed. Errors name the file.
     static Result<SeasonCoverageProbe> open(const std::vector<ImagePyramid>& pyramids);
     /// Coverage at grid pixel coordinates (top-left origin, any fraction: the pixel containing them); nothing
     /// outside the grid.
@@ -28,6 +29,7 @@ public:
 
 private:
     std::vector<PixelProbe> m_levels;
+    int m_level = 0; // the pyramid level probed
 };
 
 } // namespace seasonview

@@ -249,6 +249,68 @@ TEST(WebSourceCliTest, RealSaclayXyzTilesDrawAsTheSameTilesOnDisk) {
         << "zoom 15 is finer than the leaf-off's 8 m";
 }
 
+TEST(WebSourceCliTest, StreamedSeasonDrawsAsThePreparedOne) {
+    // --stream: the Saclay leaf-on service read over the leaf-off's footprint at 2 m (4531x6286: levels 0 and 1 wider
+    // than the 2048 texels prepared, so streamed block by block from the loader's thread, each at its own zoom), drawn
+    // as the same season prepared whole.
+    const auto data = realDataDir();
+    const fs::path s = data ? *data / "seasons/saclay_w_delivered" : fs::path();
+    if (!data || !fs::exists(s / "leafon_xyz/15"))
+        GTEST_SKIP() << "real data not found (../shared/data/seasons/saclay_w_delivered/leafon_xyz)";
+    TempDir dir("web-stream");
+    HttpTestServer server(s / "leafon_xyz");
+    const std::string service = server.url() + "/{z}/{x}/{y}.png";
+    const auto render = [&](const std::string& out, const std::string& cache, std::vector<std::string> extra) {
+        std::vector<std::string> args = {"render", "--leafon", service, "--leafoff", (s / "leafoff_L93_tiles").string(),
+                                         "--extent-of", "leafoff", "--grid-res", "2", "--view", "leafon", "--size",
+                                         "480x360", "--camera", "0,-2500,+1500,0,-35", "--cache",
+                                         (dir.path() / cache).string(), "--out", (dir.path() / (out + ".png")).string()};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return runCli(args);
+    };
+    const CliResult prepared = render("prepared", "cache_prepared", {});
+    ASSERT_EQ(prepared.exitCode, 0) << prepared.err;
+    server.clearRequests();
+    const CliResult streamed = render("streamed", "cache_streamed", {"--stream"});
+    ASSERT_EQ(streamed.exitCode, 0) << streamed.err;
+    expectSameRender(dir.path() / "prepared.png", dir.path() / "streamed.png");
+    EXPECT_FALSE(server.requests().empty());
+    EXPECT_LE(server.maxConcurrent(), 4) << "connections open at once to one host";
+
+    // What it fetched is cached: the same view again, and offline, asks for nothing.
+    server.clearRequests();
+    const CliResult again = render("again", "cache_streamed", {"--stream"});
+    ASSERT_EQ(again.exitCode, 0) << again.err;
+    EXPECT_TRUE(server.requests().empty()) << server.requests().size() << " requests, the first "
+                                           << server.requests().front().path;
+    const CliResult offline = render("offline", "cache_streamed", {"--stream", "--offline"});
+    ASSERT_EQ(offline.exitCode, 0) << offline.err;
+    EXPECT_TRUE(server.requests().empty()) << server.requests().size() << " requests";
+    expectSameRender(dir.path() / "prepared.png", dir.path() / "offline.png");
+
+    // A tile of a streamed level failing (the tile cache emptied at the start: --web-cache-mb bounds it; the prepared
+    // coarse levels stay): the still is not written, and the one line names the tile's URL and status.
+    HttpTestServer::Fault down;
+    down.status = 500;
+    server.setFault("*", down);
+    const CliResult failed = render("failed", "cache_streamed", {"--stream", "--web-cache-mb", "0.001"});
+    EXPECT_EQ(failed.exitCode, 1);
+    EXPECT_NE(failed.err.find(server.url() + "/15/"), std::string::npos) << failed.err;
+    EXPECT_NE(failed.err.find("HTTP 500"), std::string::npos) << failed.err;
+    EXPECT_EQ(std::count(failed.err.begin(), failed.err.end(), '\n'), 1) << failed.err;
+    EXPECT_FALSE(fs::exists(dir.path() / "failed.png"));
+    server.clearFaults();
+
+    // What reads every full-resolution texel refuses a streamed season, in one line.
+    const CliResult segment = runCli({"segment", "--leafon", service, "--leafoff", (s / "leafoff_L93_tiles").string(),
+                                      "--extent-of", "leafoff", "--stream", "--cache",
+                                      (dir.path() / "cache_streamed").string(), "--out",
+                                      (dir.path() / "mask.png").string()});
+    EXPECT_EQ(segment.exitCode, 1);
+    EXPECT_NE(segment.err.find("--stream"), std::string::npos) << segment.err;
+    EXPECT_EQ(std::count(segment.err.begin(), segment.err.end(), '\n'), 1) << segment.err;
+}
+
 namespace {
 
 /// The synthetic leaf-on cut into 256² PNG tiles of Web Mercator at zoom 17 under dir/tiles/17/x/y.png (XYZ rows)

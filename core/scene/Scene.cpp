@@ -90,7 +90,7 @@ Result<SceneSources> manifestFromJson(const json& j, const std::filesystem::path
     static const char* known[] = {"name", "leafon", "leafoff", "elevation", "buildings", "truth", "parameters",
                                   "generator", "description", "crs", "grid_crs", "grid_res", "extent", "resampling",
                                   "stretch", "buildings_crs", "extent_crs", "extent_of", "offline", "web_cache_mb",
-                                  "elevation_encoding"};
+                                  "elevation_encoding", "stream"};
     for (const auto& item : j.items()) {
         const std::string& k = item.key();
         if (std::find_if(std::begin(known), std::end(known), [&](const char* n) { return k == n; }) == std::end(known))
@@ -137,6 +137,10 @@ Result<SceneSources> manifestFromJson(const json& j, const std::filesystem::path
     if (auto it = j.find("offline"); it != j.end() && !it->is_null()) {
         if (!it->is_boolean()) return fileError(name, "'offline' must be true or false");
         s.offline = it->get<bool>();
+    }
+    if (auto it = j.find("stream"); it != j.end() && !it->is_null()) {
+        if (!it->is_boolean()) return fileError(name, "'stream' must be true or false");
+        s.stream = it->get<bool>();
     }
     if (auto it = j.find("web_cache_mb"); it != j.end() && !it->is_null()) {
         if (!it->is_number() || !(it->get<double>() > 0.0) || !std::isfinite(it->get<double>()))
@@ -235,10 +239,6 @@ void placeOnGrid(ImageryLayer& layer, const WorkingGrid& grid) {
     i.driver = layer.direct ? t.driver : "warped";
 }
 
-bool isTileService(const SourceList& s) {
-    return s.items.size() == 1 && (web::isTileTemplate(s.items.front().string()) || web::isWmts(s.items.front().string()));
-}
-
 /// Where a tile service is read (WebSource.h): over the scene's extent (--extent in its CRS, or --extent-of) when
 /// given, else over the other season's footprint (`other`, opened already); at --grid-res in the grid's CRS
 /// (`knownGridCrs`, or when the leaf-on is this service chooseWorkingGrid's rule on the service's CRS) when given,
@@ -309,6 +309,48 @@ Result<std::filesystem::path> describeService(const std::string& url,
 }
 
 } // namespace
+
+bool isTileService(const SourceList& s) {
+    return s.items.size() == 1 && (web::isTileTemplate(s.items.front().string()) || web::isWmts(s.items.front().string()));
+}
+
+Result<ImageryLayer> serviceLayerOnGrid(const Scene& scene, const std::string& role, const WorkingGrid& grid,
+                                        const std::filesystem::path& cacheDir) {
+    const bool on = role == "leafon";
+    assert((on || role == "leafoff") && "serviceLayerOnGrid(): leafon or leafoff");
+    const SourceList& given = on ? scene.sources.leafon : scene.sources.leafoff;
+    assert(isTileService(given) && "serviceLayerOnGrid(): a season from a tile service");
+    web::ServiceOptions run;
+    run.offline = scene.sources.offline;
+    if (scene.sources.webCacheMb > 0) run.cacheMb = scene.sources.webCacheMb;
+    // The grid's box and pixel size in the service's CRS (the pixel measured at the grid's centre).
+    const auto areaIn = [&](const Crs& serviceCrs) -> Result<web::TileArea> {
+        const glm::dvec2 lo = grid.min(), hi = grid.max();
+        const auto [a, b] = boxIn(lo, hi, grid.georef.crs, serviceCrs);
+        glm::dvec2 p[2] = {0.5 * (lo + hi), 0.5 * (lo + hi) + glm::dvec2(grid.georef.pixelSize.x, 0.0)};
+        convert(grid.georef.crs, serviceCrs, std::span<glm::dvec2>(p, 2));
+        web::TileArea t;
+        t.minX = a.x, t.minY = a.y, t.maxX = b.x, t.maxY = b.y;
+        t.pixelSize = glm::length(p[1] - p[0]);
+        if (!std::isfinite(t.minX + t.maxX + t.minY + t.maxY + t.pixelSize))
+            return Error{"scene: the area to stream the tile service over does not map to its CRS " + serviceCrs.name()};
+        return t;
+    };
+    auto xml = describeService(given.items.front().string(), areaIn, cacheDir, run);
+    if (!xml) return xml.error();
+    SourceList list;
+    list.items = {*xml};
+    std::optional<Crs> assumed;
+    if (!scene.sources.crs.empty())
+        if (auto crs = Crs::fromUserInput(scene.sources.crs)) assumed = *crs;
+    const ImageryLayer& full = on ? scene.leafon : scene.leafoff;
+    auto layer = openImagery(list, on ? "leaf-on" : "leaf-off", assumed, cacheDir, StretchMode::Auto);
+    if (!layer) return layer.error();
+    layer->stretch = full.stretch; // the colours of the full-resolution season, whatever the zoom's statistics
+    placeOnGrid(*layer, grid);
+    layer->resampling = full.resampling;
+    return layer;
+}
 
 Result<ImageryLayer> openImageryLayer(const SourceList& sources, const std::string& role,
                                       const std::filesystem::path& cacheDir, const WorkingGrid* grid,

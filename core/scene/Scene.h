@@ -48,6 +48,8 @@ struct SceneSources {
                                     // "grid_res", "extent", "extent_crs", "extent_of"
     std::string elevationEncoding;  // --dem-encoding / "elevation_encoding": value|terrarium|mapbox (HeightEncoding)
     bool offline = false;           // --offline / "offline": web sources from the disk cache only (WebSource.h)
+    bool stream = false;            // --stream / "stream": seasons from tile services are streamed into the clipmaps
+                                    // level by level instead of prepared at full resolution (StreamedPyramid.h)
     double webCacheMb = 0.0;       // --web-cache-mb / "web_cache_mb": the tile services' disk cache bound in MiB
                                     // (0: web::kDefaultWebCacheMb)
     std::string resampling = "auto"; // --resampling / "resampling"
@@ -58,7 +60,7 @@ struct SceneSources {
 /// Parses a manifest: {"leafon": P, "leafoff": P, "elevation"?: P, "buildings"?: path,
 /// "truth"?: {"deciduous"?, "conifer"?, "trees"?}, "parameters"?: {"tree_height_m"?: number}, "name"?: string,
 /// "crs"?: string, "grid_crs"?: string, "grid_res"?: number, "extent"?: [W, S, E, N], "extent_crs"?: string,
-/// "extent_of"?: "leafon"|"leafoff"|"dem", "offline"?: bool, "web_cache_mb"?: number, "elevation_encoding"?: string,
+/// "extent_of"?: "leafon"|"leafoff"|"dem", "offline"?: bool, "stream"?: bool, "web_cache_mb"?: number, "elevation_encoding"?: string,
 /// "resampling"?: string, "stretch"?: string, "buildings_crs"?: string}, where P is a path (a file, a folder, a glob, a VRT) or a list of them. Paths are relative
 /// to the manifest's folder. Errors name the manifest and the key.
 Result<SceneSources> parseManifest(const std::filesystem::path& manifest);
@@ -108,6 +110,16 @@ struct Scene {
 /// mosaics too) read over the grid's area with at least one valid sample. Computes (or reads from `cacheDir`) each
 /// season's 16-bit stretch.
 Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path& cacheDir);
+
+/// Whether a season or DEM input is a tile service (an XYZ/TMS template or a WMTS layer).
+bool isTileService(const SourceList& s);
+
+/// The scene's season `role` ("leafon" or "leafoff") read from its tile service on `grid` (the working grid, or a
+/// coarser one on its lattice): the service described over the grid's area at the grid's pixel size (the zoom that
+/// matches it), opened and placed on `grid` as loadScene places the full-resolution season, with the scene's
+/// stretch. What streaming reads each clip level through, and what the resident coarse levels are prepared from.
+Result<ImageryLayer> serviceLayerOnGrid(const Scene& scene, const std::string& role, const WorkingGrid& grid,
+                                        const std::filesystem::path& cacheDir);
 
 /// One season opened as loadScene opens it (a mosaic of 8- or 16-bit rasters of 3 or more bands, its stretch), placed
 /// on `grid` (default: its first file's own grid). For tools and tests that need one layer without a pair.

@@ -1,0 +1,218 @@
+#include "StreamedPyramid.h"
+
+#include "GridReader.h"
+#include "PyramidBuilder.h"
+#include "WebSource.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <utility>
+
+namespace seasonview {
+
+WorkingGrid levelGrid(const WorkingGrid& grid, int level) {
+    const auto sizes = pyramidLevelSizes(grid.width, grid.height);
+    assert(level >= 0 && level < int(sizes.size()) && "levelGrid(): a level of the grid's pyramid");
+    WorkingGrid g = grid;
+    g.georef.pixelSize *= std::ldexp(1.0, level);
+    g.width = sizes[size_t(level)].first;
+    g.height = sizes[size_t(level)].second;
+    return g;
+}
+
+namespace {
+
+/// One streamed level of one season: the service read at the level's zoom onto the level's grid, in regions of
+/// kRegion² texels (a 256-pixel service tile's worth: the tiles a region touches are fetched in parallel, and the
+/// clipmap's 64-texel blocks inside it are answered from memory), the last kRegions kept.
+class StreamedLevel {
+public:
+    static constexpr int kRegion = 256;
+    static constexpr size_t kRegions = 16;
+    // A region whose read failed (a service's fault) is not asked again for this long: the loader asks for a
+    // missing block every frame, and a service that is down must not be asked 60 times a second.
+    static constexpr std::chrono::seconds kRetryAfter{5};
+
+    StreamedLevel(ImageryLayer layer, WorkingGrid grid) : m_layer(std::move(layer)), m_grid(std::move(grid)) {
+        m_sixteen = m_layer.source.type == SampleType::U16;
+        for (int c = 0; c < 3; ++c) {
+            m_lut[c].resize(m_sixteen ? 65536 : 256);
+            for (size_t v = 0; v < m_lut[c].size(); ++v) m_lut[c][v] = m_layer.stretch.apply(c, float(v));
+        }
+    }
+
+    Status read(const TexelRect& t, std::uint8_t* rgba) {
+        for (int ry = t.y0 / kRegion; ry * kRegion < t.y1; ++ry)
+            for (int rx = t.x0 / kRegion; rx * kRegion < t.x1; ++rx) {
+                auto region = this->region(rx, ry);
+                if (!region) return region.error();
+                const Region& r = **region;
+                const TexelRect part = intersect(t, r.rect);
+                for (int y = part.y0; y < part.y1; ++y)
+                    std::memcpy(rgba + (size_t(y - t.y0) * size_t(t.width()) + size_t(part.x0 - t.x0)) * 4,
+                                r.rgba.data() + (size_t(y - r.rect.y0) * size_t(r.rect.width()) +
+                                                 size_t(part.x0 - r.rect.x0)) * 4,
+                                size_t(part.width()) * 4);
+            }
+        return Ok{};
+    }
+
+private:
+    struct Region {
+        TexelRect rect;
+        std::vector<std::uint8_t> rgba;
+        std::uint64_t used = 0;
+    };
+
+    Result<const Region*> region(int rx, int ry) {
+        const auto key = std::make_pair(rx, ry);
+        if (auto it = m_regions.find(key); it != m_regions.end()) {
+            it->second.used = ++m_clock;
+            return &it->second;
+        }
+        const auto now = std::chrono::steady_clock::now();
+        if (auto f = m_failed.find(key); f != m_failed.end()) {
+            if (now - f->second.first < kRetryAfter) return Error{f->second.second};
+            m_failed.erase(f);
+        }
+        Region r;
+        r.rect = {rx * kRegion, ry * kRegion, std::min(m_grid.width, (rx + 1) * kRegion),
+                  std::min(m_grid.height, (ry + 1) * kRegion)};
+        if (auto st = load(r); !st) {
+            m_failed[key] = {now, st.message()};
+            return st.error();
+        }
+        if (m_regions.size() >= kRegions) {
+            auto oldest = std::min_element(m_regions.begin(), m_regions.end(),
+                                           [](const auto& a, const auto& b) { return a.second.used < b.second.used; });
+            m_regions.erase(oldest);
+        }
+        r.used = ++m_clock;
+        return &(m_regions[key] = std::move(r));
+    }
+
+    /// The region's texels: the service's tiles at the level's zoom warped onto the region's part of the level's
+    /// grid (GridReader), stretched, premultiplied by coverage (0, 0, 0, 0 where the service has no data), as
+    /// buildPyramidLevels makes a prepared level 0.
+    Status load(Region& r) {
+        const TexelRect& R = r.rect;
+        WorkingGrid sub = m_grid;
+        sub.georef.origin = m_grid.georef.pixelToCrs({double(R.x0), double(R.y0)});
+        sub.width = R.width();
+        sub.height = R.height();
+        const std::filesystem::path description = m_layer.source.tiles.front().path;
+        auto reader = GridReader::open(m_layer.source, sub, m_layer.resampling, sub.height);
+        if (!reader) return reader.error();
+        const size_t n = size_t(R.area());
+        std::vector<std::uint16_t> samples(n * 3);
+        std::vector<std::uint8_t> coverage(n);
+        const SampleType type = m_sixteen ? SampleType::U16 : SampleType::U8;
+        if (Status st = reader->read(0, sub.height, 3, type, samples.data(), coverage.data()); !st) {
+            if (auto tile = web::tileFailure(description, st.message())) return *tile;
+            return st;
+        }
+        r.rgba.resize(n * 4);
+        const auto* bytes = reinterpret_cast<const std::uint8_t*>(samples.data());
+        for (size_t i = 0; i < n; ++i) {
+            std::uint8_t* out = &r.rgba[i * 4];
+            if (!coverage[i]) {
+                out[0] = out[1] = out[2] = out[3] = 0;
+                continue;
+            }
+            for (size_t c = 0; c < 3; ++c) out[c] = m_lut[c][m_sixteen ? samples[i * 3 + c] : bytes[i * 3 + c]];
+            out[3] = 255;
+        }
+        return Ok{};
+    }
+
+    ImageryLayer m_layer;
+    WorkingGrid m_grid;
+    bool m_sixteen = false;
+    std::vector<std::uint8_t> m_lut[3];
+    std::map<std::pair<int, int>, Region> m_regions;
+    std::map<std::pair<int, int>, std::pair<std::chrono::steady_clock::time_point, std::string>> m_failed;
+    std::uint64_t m_clock = 0;
+};
+
+} // namespace
+
+Result<PrepareReport> prepareStreamedPyramid(const Scene& scene, const std::string& role,
+                                             const PrepareOptions& options) {
+    const bool on = role == "leafon";
+    assert((on || role == "leafoff") && "prepareStreamedPyramid(): leafon or leafoff");
+    const ImageryLayer& full = on ? scene.leafon : scene.leafoff;
+    const auto sizes = pyramidLevelSizes(scene.grid.width, scene.grid.height);
+    int prepared = 0;
+    while (prepared + 1 < int(sizes.size()) &&
+           std::max(sizes[size_t(prepared)].first, sizes[size_t(prepared)].second) > kStreamPreparedSide)
+        ++prepared;
+    if (prepared == 0) return preparePyramid(full, options); // small enough to prepare whole
+
+    // The coarse levels: the season read at their first level's zoom, on that level's grid.
+    auto coarse = serviceLayerOnGrid(scene, role, levelGrid(scene.grid, prepared), options.cacheDir);
+    if (!coarse) return coarse.error();
+    auto report = preparePyramid(*coarse, options);
+    if (!report) return report;
+
+    // What the loader's thread needs to open a finer level: the scene's sources and the season's colours.
+    auto light = std::make_shared<Scene>();
+    light->sources = scene.sources;
+    light->grid = scene.grid;
+    for (ImageryLayer* l : {&light->leafon, &light->leafoff}) {
+        const ImageryLayer& from = l == &light->leafon ? scene.leafon : scene.leafoff;
+        l->stretch = from.stretch;
+        l->resampling = from.resampling;
+    }
+    ImagePyramid& p = report->pyramid;
+    std::vector<PyramidLevel> levels;
+    for (int l = 0; l < prepared; ++l) levels.push_back(PyramidLevel{{}, sizes[size_t(l)].first, sizes[size_t(l)].second});
+    levels.insert(levels.end(), p.levels.begin(), p.levels.end());
+    p.levels = std::move(levels);
+    p.streamedLevels = prepared;
+    p.openStreamedLevel = [light, role, cacheDir = options.cacheDir](int level) -> Result<LevelTexelReader> {
+        const WorkingGrid grid = levelGrid(light->grid, level);
+        auto layer = serviceLayerOnGrid(*light, role, grid, cacheDir);
+        if (!layer) return layer.error();
+        auto reader = std::make_shared<StreamedLevel>(std::move(*layer), grid);
+        return LevelTexelReader([reader](const TexelRect& t, std::uint8_t* rgba) { return reader->read(t, rgba); });
+    };
+    return report;
+}
+
+Result<PrepareReport> prepareSeasonPyramid(const Scene& scene, const std::string& role, const PrepareOptions& options) {
+    const bool on = role == "leafon";
+    if (scene.sources.stream && isTileService(on ? scene.sources.leafon : scene.sources.leafoff))
+        return prepareStreamedPyramid(scene, role, options);
+    return preparePyramid(on ? scene.leafon : scene.leafoff, options);
+}
+
+std::vector<ImagePyramid> preparedPart(const std::vector<ImagePyramid>& pyramids, int* level) {
+    int first = 0;
+    for (const ImagePyramid& p : pyramids) first = std::max(first, p.streamedLevels);
+    if (level) *level = first;
+    if (first == 0) return pyramids;
+    std::vector<ImagePyramid> out;
+    for (const ImagePyramid& p : pyramids) {
+        ImagePyramid q = p;
+        q.levels.erase(q.levels.begin(), q.levels.begin() + first);
+        q.sourceKey += "|from level " + std::to_string(first); // what is cached from it is not the full pyramid's
+        q.streamedLevels = 0;
+        q.openStreamedLevel = nullptr;
+        out.push_back(std::move(q));
+    }
+    return out;
+}
+
+Status refuseStreamed(const std::vector<ImagePyramid>& pyramids, const std::string& what) {
+    for (const ImagePyramid& p : pyramids)
+        if (p.streamedLevels > 0)
+            return Error{"--stream: " + what + " reads every full-resolution texel, which a streamed season does not "
+                         "have; run it without --stream (the season is then prepared whole)"};
+    return Ok{};
+}
+
+} // namespace seasonview
