@@ -71,6 +71,7 @@ struct Mode {
     bool cityOcclusion = true;
     bool drawTerrain = true;      // terrain=off: the city drawn alone (the imagery clipmap still streams for roofs)
     TerrainShading terrainShading = TerrainShading::Deferred;
+    std::optional<bool> streamed; // source=prepared|stream: the seasons' pyramids (unset: as the scene says, --stream)
     std::unique_ptr<city::CityRendererGL> city;
     std::unique_ptr<ClipmapGL> clipmap;
     std::unique_ptr<CanopyClipmapGL> canopy;
@@ -208,6 +209,10 @@ Status applyCompareValue(const BenchSettings& a, const std::string& key, const s
         if (v != "on" && v != "off") return Error{"--compare: city-occlusion '" + v + "' (expected on|off)"};
         if (!m.cityMode) m.cityMode = city::CityMode::Atlas;
         m.cityOcclusion = v == "on";
+    } else if (key == "source") {
+        // Seasons from tile services prepared whole vs streamed level by level (--stream), over the same path.
+        if (v != "prepared" && v != "stream") return Error{"--compare: source '" + v + "' (expected prepared|stream)"};
+        m.streamed = v == "stream";
     } else if (key == "terrain-shading") {
         auto t = parseTerrainShading(v);
         if (!t) return Error{"--compare: terrain-shading '" + v + "' (expected forward|deferred)"};
@@ -295,12 +300,12 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
                                     key != "canopy-draw" && key != "segmentation" && key != "canopy-levels" && key != "scene" &&
                                     key != "city" &&
                                     key != "city-upload" && key != "city-occlusion" && key != "terrain" &&
-                                    key != "terrain-shading"))
+                                    key != "terrain-shading" && key != "source"))
         return Error{"--compare '" + a.compare +
                      "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
                      "canopy-draw=layers,march, segmentation=upload,perframe, canopy-levels=all,read, scene=terrain,full or "
                      "city=atlas,original,flat,off, city-upload=compressed,decoded,auto, city-occlusion=off,on, "
-                     "terrain=on,off or terrain-shading=forward,deferred"};
+                     "terrain=on,off, terrain-shading=forward,deferred or source=prepared,stream"};
     std::stringstream list(a.compare.substr(eq + 1));
     std::string v;
     while (std::getline(list, v, ',')) {
@@ -331,10 +336,13 @@ public:
     }
 
     // Before the context: both seasons' pyramids and the elevation, when a mode streams them.
+    // pyramids[0]: prepared whole; pyramids[1]: streamed (--stream, compare source=stream); each when a mode uses it.
     static Status prepareInputs(const Scene& scene, const std::vector<Mode>& modes, const std::filesystem::path& cache,
-                                std::vector<ImagePyramid>& pyramids, std::optional<ImagePyramid>& elevation);
+                                std::array<std::vector<ImagePyramid>, 2>& pyramids,
+                                std::optional<ImagePyramid>& elevation);
     // Every mode's renderers (reference, or clipmaps, terrain, canopy and trunks), then the city's.
-    Status createRenderers(const std::vector<ImagePyramid>& pyramids, const std::optional<ImagePyramid>& elevation);
+    Status createRenderers(const std::array<std::vector<ImagePyramid>, 2>& pyramids,
+                           const std::optional<ImagePyramid>& elevation);
     // The warm-up at the path's start, a fully loaded view, then the measured frames; a damaged cache tile stops it.
     Status run(const CameraPath& path, const std::filesystem::path& out);
     double seconds() const { return m_seconds; }
@@ -368,22 +376,33 @@ private:
 };
 
 Status BenchRun::prepareInputs(const Scene& scene, const std::vector<Mode>& modes, const std::filesystem::path& cache,
-                               std::vector<ImagePyramid>& pyramids, std::optional<ImagePyramid>& elevation) {
+                               std::array<std::vector<ImagePyramid>, 2>& pyramids,
+                               std::optional<ImagePyramid>& elevation) {
     const bool anyClipmap =
         std::any_of(modes.begin(), modes.end(), [](const Mode& m) { return m.renderer == RendererKind::Clipmap; });
     if (!anyClipmap && !scene.warped()) return Ok{}; // the reference reads warped seasons' level 0
-    auto p = preparePyramids(scene, cache);
-    if (!p) return p.error();
-    pyramids = std::move(*p);
+    for (int streamed = 0; streamed < 2; ++streamed) {
+        if (std::none_of(modes.begin(), modes.end(),
+                         [&](const Mode& m) { return m.streamed.value_or(scene.sources.stream) == bool(streamed); }))
+            continue;
+        if (streamed && !isTileService(scene.sources.leafon) && !isTileService(scene.sources.leafoff))
+            return Error{"--stream / --compare source=stream: neither season is a tile service"};
+        Scene s = scene;
+        s.sources.stream = bool(streamed);
+        auto p = preparePyramids(s, cache);
+        if (!p) return p.error();
+        pyramids[size_t(streamed)] = std::move(*p);
+    }
     auto e = prepareElevation(scene, cache);
     if (!e) return e.error();
     elevation = std::move(*e);
     return Ok{};
 }
 
-Status BenchRun::createRenderers(const std::vector<ImagePyramid>& pyramids,
+Status BenchRun::createRenderers(const std::array<std::vector<ImagePyramid>, 2>& sources,
                                  const std::optional<ImagePyramid>& elevation) {
     for (Mode& m : m_modes) {
+        const std::vector<ImagePyramid>& pyramids = sources[m.streamed.value_or(m_scene.sources.stream) ? 1 : 0];
         if (m.renderer == RendererKind::Reference) {
             ReferenceOptions ro;
             ro.anisotropy = m.anisotropy;
@@ -856,7 +875,7 @@ Result<BenchResult> runBench(const Scene& scene, const BenchSettings& a, const s
     std::filesystem::create_directories(out, ec);
     if (ec) return Error{out.string() + ": cannot create folder (" + ec.message() + ")"};
     const std::filesystem::path cache = a.cacheDir.empty() ? defaultCacheDir() : a.cacheDir;
-    std::vector<ImagePyramid> pyramids;
+    std::array<std::vector<ImagePyramid>, 2> pyramids;
     std::optional<ImagePyramid> elevation;
     if (auto st = BenchRun::prepareInputs(scene, *modes, cache, pyramids, elevation); !st) return st.error();
 

@@ -45,8 +45,9 @@ Runner addBenchCommand(CLI::App& app) {
                         "\"scene=terrain,full\" (the "
                         "relief alone vs both seasons, canopy layers and trunks), \"city=atlas,original,flat,off\", "
                         "\"city-upload=compressed,decoded\", \"city-occlusion=off,on\", \"terrain=on,off\" "
-                        "(with a city: the city over the terrain vs alone) or \"terrain-shading=forward,deferred\" "
-                        "(the terrain's fragments shaded as rasterised vs once per pixel from a G-buffer)")
+                        "(with a city: the city over the terrain vs alone), \"terrain-shading=forward,deferred\" "
+                        "(the terrain's fragments shaded as rasterised vs once per pixel from a G-buffer) or "
+                        "\"source=prepared,stream\" (seasons from tile services prepared whole vs streamed, --stream)")
         ->group(benchGroup);
     cmd->add_option("--upload-budget", a->b.uploadBudget, "Clipmap texels uploaded per frame and layer")
         ->capture_default_str()

@@ -7,6 +7,7 @@
 
 #include <gdal.h>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -300,6 +301,27 @@ TEST(WebSourceCliTest, StreamedSeasonDrawsAsThePreparedOne) {
     EXPECT_EQ(std::count(failed.err.begin(), failed.err.end(), '\n'), 1) << failed.err;
     EXPECT_FALSE(fs::exists(dir.path() / "failed.png"));
     server.clearFaults();
+
+    // The bench draws the same path from both, interleaved, in one run: the figures of each, no stream error.
+    const CliResult bench = runCli({"bench", "--leafon", service, "--leafoff", (s / "leafoff_L93_tiles").string(),
+                                    "--extent-of", "leafoff", "--grid-res", "2", "--compare", "source=prepared,stream",
+                                    "--size", "160x120", "--frames", "4", "--warmup", "1", "--cache",
+                                    (dir.path() / "cache_bench").string(), "--out", (dir.path() / "bench").string()});
+    ASSERT_EQ(bench.exitCode, 0) << bench.err;
+    std::ifstream summaryFile(dir.path() / "bench/summary.json");
+    const auto summary = nlohmann::json::parse(summaryFile, nullptr, false);
+    ASSERT_TRUE(summary.is_object() && summary.contains("modes"));
+    for (const char* mode : {"source=prepared", "source=stream"}) {
+        ASSERT_TRUE(summary["modes"].contains(mode)) << mode;
+        EXPECT_EQ(summary["modes"][mode]["totals"]["stream_errors"], 0) << mode;
+        EXPECT_GT(summary["modes"][mode]["coverage_mean"].get<double>(), 0.5) << mode;
+    }
+    const CliResult noService = runCli({"bench", "--leafon", (s / "leafoff_L93_tiles").string(), "--leafoff",
+                                        (s / "leafoff_L93_tiles").string(), "--compare", "source=prepared,stream",
+                                        "--frames", "2", "--cache", (dir.path() / "cache_bench").string(), "--out",
+                                        (dir.path() / "bench2").string()});
+    EXPECT_EQ(noService.exitCode, 1);
+    EXPECT_NE(noService.err.find("neither season is a tile service"), std::string::npos) << noService.err;
 
     // What reads every full-resolution texel refuses a streamed season, in one line.
     const CliResult segment = runCli({"segment", "--leafon", service, "--leafoff", (s / "leafoff_L93_tiles").string(),
