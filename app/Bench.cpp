@@ -1,6 +1,7 @@
 // The frame benchmark: per-frame counters along a camera path, a summary, an interleaved comparison of modes and a
 // plot of frame time and coverage over the path.
 #include "Bench.h"
+#include "WebSource.h"
 #include "StreamedPyramid.h"
 #include "CityJob.h"
 #include "Plot.h"
@@ -890,7 +891,23 @@ Result<BenchResult> runBench(const Scene& scene, const BenchSettings& a, const s
     const int glErrors = gl::debugErrorCount();
     BenchRun run(scene, a, *modes, *canopy, *view, cache);
     if (auto st = run.createRenderers(pyramids, elevation); !st) return st.error();
+    // Streamed seasons: the tiles fetched during the run against the tiles the blocks asked for needed.
+    const bool streams = !pyramids[1].empty();
+    resetStreamTileCount();
+    const web::TileFetchCounter fetched(cache / "web" / "tiles");
     if (auto st = run.run(*path, out); !st) return st.error(); // a damaged tile: the command rebuilds and runs again
+    nlohmann::json streamFigures = nullptr;
+    if (streams) {
+        const StreamTileCount need = streamTileCount();
+        const web::TileFetchCounter::Count got = fetched.fetched();
+        streamFigures = {{"tiles_needed", need.tilesNeeded},
+                         {"regions_read", need.regionsRead},
+                         {"tiles_fetched", got.tiles},
+                         {"bytes_fetched", got.bytes},
+                         {"fetched_over_needed",
+                          need.tilesNeeded > 0 ? nlohmann::json(double(got.tiles) / double(need.tilesNeeded))
+                                               : nlohmann::json(nullptr)}};
+    }
     if (const std::string e = gl::drainErrors(); !e.empty() || gl::debugErrorCount() != glErrors)
         return Error{"OpenGL error during the benchmark " + e};
 
@@ -898,7 +915,11 @@ Result<BenchResult> runBench(const Scene& scene, const BenchSettings& a, const s
     BenchResult result;
     result.device = (*ctx)->info().platform + ": " + (*ctx)->info().renderer;
     result.seconds = run.seconds();
-    if (auto st = writeSummary(out, summaryHead((*ctx)->info(), scene, a, run.seconds()), *modes, result); !st)
+    nlohmann::json head = summaryHead((*ctx)->info(), scene, a, run.seconds());
+    // The streamed levels over the run (warm-up included): the service tiles the blocks read needed (the geometric
+    // minimum), the regions read, and the tiles and bytes the disk cache gained (fetched from the service).
+    head["stream"] = std::move(streamFigures);
+    if (auto st = writeSummary(out, std::move(head), *modes, result); !st)
         return st.error();
     return result;
 }

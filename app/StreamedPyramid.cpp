@@ -1,5 +1,6 @@
 #include "StreamedPyramid.h"
 
+#include "Crs.h"
 #include "GridReader.h"
 #include "PyramidBuilder.h"
 #include "WebSource.h"
@@ -9,7 +10,11 @@
 #include <cmath>
 #include <cstring>
 #include <map>
+#include <optional>
 #include <memory>
+#include <mutex>
+#include <set>
+#include <tuple>
 #include <utility>
 
 namespace seasonview {
@@ -25,6 +30,17 @@ WorkingGrid levelGrid(const WorkingGrid& grid, int level) {
 }
 
 namespace {
+
+/// streamTileCount()'s state: every loader thread's streamed reads add to it.
+struct TileLedger {
+    std::mutex mutex;
+    std::set<std::tuple<std::string, long long, long long>> needed; // (service description, tile column, tile row)
+    long long regions = 0;
+};
+TileLedger& ledger() {
+    static TileLedger l;
+    return l;
+}
 
 /// One streamed level of one season: the service read at the level's zoom onto the level's grid, in regions of
 /// kRegion² texels (a 256-pixel service tile's worth: the tiles a region touches are fetched in parallel, and the
@@ -46,6 +62,7 @@ public:
     }
 
     Status read(const TexelRect& t, std::uint8_t* rgba) {
+        noteNeededTiles(t);
         for (int ry = t.y0 / kRegion; ry * kRegion < t.y1; ++ry)
             for (int rx = t.x0 / kRegion; rx * kRegion < t.x1; ++rx) {
                 auto region = this->region(rx, ry);
@@ -62,6 +79,46 @@ public:
     }
 
 private:
+    /// Adds the service tiles under `t` to the ledger: its outline (16 points) mapped to the service's pixels, whose
+    /// 256-pixel tiles are the service's (an XYZ/TMS description's window starts at a tile; a WMTS one's nearly).
+    void noteNeededTiles(const TexelRect& t) {
+        const auto px = sourcePixels(t);
+        if (!px) return;
+        constexpr double kTile = 256.0;
+        const long long x0 = (long long)std::floor(double(px->x0) / kTile);
+        const long long x1 = (long long)std::floor((double(px->x1) - 1e-9) / kTile);
+        const long long y0 = (long long)std::floor(double(px->y0) / kTile);
+        const long long y1 = (long long)std::floor((double(px->y1) - 1e-9) / kTile);
+        const RasterInfo& src = m_layer.source.tiles.front();
+        TileLedger& l = ledger();
+        std::lock_guard lock(l.mutex);
+        for (long long y = y0; y <= y1; ++y)
+            for (long long x = x0; x <= x1; ++x) l.needed.emplace(src.path.string(), x, y);
+    }
+
+    /// The service description's pixels under level texels `t` (its outline, 16 points, mapped there), clipped to
+    /// the description; nothing when they miss it.
+    std::optional<TexelRect> sourcePixels(const TexelRect& t) const {
+        const RasterInfo& src = m_layer.source.tiles.front();
+        std::vector<glm::dvec2> pts;
+        for (int i = 0; i <= 4; ++i)
+            for (const glm::dvec2 f : {glm::dvec2(i / 4.0, 0.0), glm::dvec2(i / 4.0, 1.0), glm::dvec2(0.0, i / 4.0),
+                                       glm::dvec2(1.0, i / 4.0)})
+                pts.push_back(m_grid.georef.pixelToCrs(glm::dvec2(t.x0, t.y0) + f * glm::dvec2(t.width(), t.height())));
+        convert(m_grid.georef.crs, src.georef->crs, pts);
+        glm::dvec2 lo(1e300), hi(-1e300);
+        for (const glm::dvec2& p : pts) {
+            const glm::dvec2 px = src.georef->crsToPixel(p);
+            lo = glm::min(lo, px), hi = glm::max(hi, px);
+        }
+        if (!(lo.x <= hi.x && lo.y <= hi.y)) return std::nullopt;
+        const TexelRect r{int(std::max(0.0, std::floor(lo.x))), int(std::max(0.0, std::floor(lo.y))),
+                          int(std::min(double(src.width), std::ceil(hi.x))),
+                          int(std::min(double(src.height), std::ceil(hi.y)))};
+        if (r.empty()) return std::nullopt;
+        return r;
+    }
+
     struct Region {
         TexelRect rect;
         std::vector<std::uint8_t> rgba;
@@ -82,6 +139,11 @@ private:
         Region r;
         r.rect = {rx * kRegion, ry * kRegion, std::min(m_grid.width, (rx + 1) * kRegion),
                   std::min(m_grid.height, (ry + 1) * kRegion)};
+        {
+            TileLedger& l = ledger();
+            std::lock_guard lock(l.mutex);
+            ++l.regions;
+        }
         if (auto st = load(r); !st) {
             m_failed[key] = {now, st.message()};
             return st.error();
@@ -112,7 +174,11 @@ private:
         std::vector<std::uint8_t> coverage(n);
         const SampleType type = m_sixteen ? SampleType::U16 : SampleType::U8;
         if (Status st = reader->read(0, sub.height, 3, type, samples.data(), coverage.data()); !st) {
+            // The failing tile's URL and status: from GDAL's block number when it gives one, else by asking the
+            // server again for the tiles under the region (a tile that did not decode).
             if (auto tile = web::tileFailure(description, st.message())) return *tile;
+            if (const auto px = sourcePixels(R))
+                if (auto tile = web::tileFailureIn(description, px->x0, px->y0, px->x1, px->y1)) return *tile;
             return st;
         }
         r.rgba.resize(n * 4);
@@ -205,6 +271,19 @@ std::vector<ImagePyramid> preparedPart(const std::vector<ImagePyramid>& pyramids
         out.push_back(std::move(q));
     }
     return out;
+}
+
+StreamTileCount streamTileCount() {
+    TileLedger& l = ledger();
+    std::lock_guard lock(l.mutex);
+    return {(long long)l.needed.size(), l.regions};
+}
+
+void resetStreamTileCount() {
+    TileLedger& l = ledger();
+    std::lock_guard lock(l.mutex);
+    l.needed.clear();
+    l.regions = 0;
 }
 
 Status refuseStreamed(const std::vector<ImagePyramid>& pyramids, const std::string& what) {

@@ -39,6 +39,16 @@ Result<PrepareReport> prepareSeasonPyramid(const Scene& scene, const std::string
 /// pyramid from the first level that all have on disk (`level` set to it), or the pyramids as they are (0).
 std::vector<ImagePyramid> preparedPart(const std::vector<ImagePyramid>& pyramids, int* level = nullptr);
 
+/// The service tiles under the blocks streamed levels were asked for since the last reset: the geometric minimum of
+/// what streaming must fetch (each tile counted once, whichever level or season asked), and the regions read (each
+/// a service request of its tiles, or their disk cache's).
+struct StreamTileCount {
+    long long tilesNeeded = 0;
+    long long regionsRead = 0;
+};
+StreamTileCount streamTileCount();
+void resetStreamTileCount();
+
 /// An error for `what` (a renderer or command that reads every full-resolution texel: the reference renderer, the
 /// segmentation) when any of `pyramids` is streamed; Ok otherwise.
 Status refuseStreamed(const std::vector<ImagePyramid>& pyramids, const std::string& what);

@@ -82,8 +82,16 @@ Result<PyramidSource> imagerySource(const ImageryLayer& layer) {
                         const ProgressFn& progress) -> Result<std::vector<PyramidLevel>> {
         auto levels = buildPyramidLevels(layer, folder, tileSize, progress);
         // A tile service's tile failed: name its URL and status (GDAL's words leave them out).
-        if (!levels && layer.source.tiles.size() == 1)
-            if (auto tile = web::tileFailure(layer.source.tiles.front().path, levels.message())) return *tile;
+        if (!levels && layer.source.tiles.size() == 1) {
+            const RasterInfo& service = layer.source.tiles.front();
+            if (auto tile = web::tileFailure(service.path, levels.message())) return *tile;
+            // A tile that did not decode (a body cut short): GDAL names the rows of the description it was reading.
+            long long r0 = -1, r1 = -1;
+            const std::string& said = levels.message();
+            if (const auto at = said.find(" in rows ");
+                at != std::string::npos && std::sscanf(said.c_str() + at, " in rows %lld-%lld", &r0, &r1) == 2)
+                if (auto tile = web::tileFailureIn(service.path, 0, r0, service.width, r1)) return *tile;
+        }
         return levels;
     };
     return s;

@@ -291,15 +291,23 @@ TEST(WebSourceCliTest, StreamedSeasonDrawsAsThePreparedOne) {
 
     // A tile of a streamed level failing (the tile cache emptied at the start: --web-cache-mb bounds it; the prepared
     // coarse levels stay): the still is not written, and the one line names the tile's URL and status.
-    HttpTestServer::Fault down;
+    HttpTestServer::Fault down, html, cut;
     down.status = 500;
-    server.setFault("*", down);
-    const CliResult failed = render("failed", "cache_streamed", {"--stream", "--web-cache-mb", "0.001"});
-    EXPECT_EQ(failed.exitCode, 1);
-    EXPECT_NE(failed.err.find(server.url() + "/15/"), std::string::npos) << failed.err;
-    EXPECT_NE(failed.err.find("HTTP 500"), std::string::npos) << failed.err;
-    EXPECT_EQ(std::count(failed.err.begin(), failed.err.end(), '\n'), 1) << failed.err;
-    EXPECT_FALSE(fs::exists(dir.path() / "failed.png"));
+    html.html = true;
+    cut.cutAt = 100;
+    const std::pair<HttpTestServer::Fault, std::string> faults[] = {
+        {down, "HTTP 500"}, {html, "web page"}, {cut, ""}};
+    for (const auto& [fault, expect] : faults) {
+        SCOPED_TRACE(expect.empty() ? "bodies cut short" : expect);
+        server.clearFaults();
+        server.setFault("*", fault);
+        const CliResult failed = render("failed", "cache_streamed", {"--stream", "--web-cache-mb", "0.001"});
+        EXPECT_EQ(failed.exitCode, 1);
+        EXPECT_NE(failed.err.find(server.url() + "/15/"), std::string::npos) << failed.err;
+        EXPECT_NE(failed.err.find(expect), std::string::npos) << failed.err;
+        EXPECT_EQ(std::count(failed.err.begin(), failed.err.end(), '\n'), 1) << failed.err;
+        EXPECT_FALSE(fs::exists(dir.path() / "failed.png"));
+    }
     server.clearFaults();
 
     // The bench draws the same path from both, interleaved, in one run: the figures of each, no stream error.
@@ -446,6 +454,16 @@ TEST(WebSourceCliTest, XyzTileServiceDrawsAsTheSamePixelsOnDisk) {
     EXPECT_NE(f.err.find(tiles.url() + corner + ": HTTP 500"), std::string::npos) << f.err;
     EXPECT_EQ(std::count(f.err.begin(), f.err.end(), '\n'), 1) << f.err;
     EXPECT_FALSE(fs::exists(s.dir / "tile.png"));
+    tiles.clearFaults();
+    // A tile whose body is cut short (GDAL names only the rows it could not decode): the same, naming the tile.
+    HttpTestServer::Fault cut;
+    cut.cutAt = 100;
+    tiles.setFault(corner, cut);
+    const CliResult g = render(tiles.url() + "/{z}/{x}/{y}.png", "cut");
+    EXPECT_EQ(g.exitCode, 1);
+    EXPECT_NE(g.err.find(tiles.url() + corner + ": "), std::string::npos) << g.err;
+    EXPECT_EQ(std::count(g.err.begin(), g.err.end(), '\n'), 1) << g.err;
+    EXPECT_FALSE(fs::exists(s.dir / "cut.png"));
     tiles.clearFaults();
 
     // Offline: the same render from the disk cache alone, no request; a cache that never saw the service is one line.

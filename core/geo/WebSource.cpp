@@ -595,17 +595,29 @@ std::vector<std::string> wmtsTileCandidates(const std::string& xml, long long bx
 
 } // namespace
 
-std::optional<Error> tileFailure(const std::filesystem::path& description, const std::string& message) {
+namespace {
+
+/// A service description's GDAL_WMS or GDAL_WMTS XML (a TMS cut's VRT: the description it cuts), and where the
+/// file's pixel (0, 0) is in the XML's blocks (a TMS cut starts at its area's first tile).
+std::string describedXml(const std::filesystem::path& description, long long& blockX, long long& blockY) {
     std::string xml = readSmall(description);
+    blockX = blockY = 0;
     if (xml.rfind("<VRTDataset", 0) == 0) { // a TMS description's cut: the first source is the description
         const auto a = xml.find("<SourceFilename relativeToVRT=\"0\">"), b = xml.find("</SourceFilename>");
-        if (a == std::string::npos || b == std::string::npos || b < a) return std::nullopt;
+        if (a == std::string::npos || b == std::string::npos || b < a) return {};
+        long long xOff = 0, yOff = 0;
+        if (const auto r = xml.find("<SrcRect xOff=\""); r != std::string::npos)
+            std::sscanf(xml.c_str() + r, "<SrcRect xOff=\"%lld\" yOff=\"%lld\"", &xOff, &yOff);
+        blockX = xOff / kTileSize, blockY = yOff / kTileSize;
         xml = readSmall(xmlUnescape(xml.substr(a + 34, b - a - 34)));
     }
-    const auto at = message.find("download block ");
-    if (at == std::string::npos) return std::nullopt;
-    long long bx = -1, by = -1;
-    if (std::sscanf(message.c_str() + at + 15, "%lld, %lld", &bx, &by) != 2 || bx < 0 || by < 0) return std::nullopt;
+    return xml;
+}
+
+/// Asks the server again for the tile of block (bx, by) of a description's XML, at its zoom and the `coarser` zooms
+/// above (GDAL may have been reading an overview): the first that fails, as one line naming its URL.
+std::optional<Error> probeBlock(const std::string& xml, const std::filesystem::path& description, long long bx,
+                                long long by, int coarser) {
     if (xml.rfind("<GDAL_WMTS>", 0) == 0) {
         for (const std::string& tile : wmtsTileCandidates(xml, bx, by))
             if (auto probe = probeTile(tile, false); !probe)
@@ -617,7 +629,7 @@ std::optional<Error> tileFailure(const std::filesystem::path& description, const
     const int z = std::atoi(elementText(xml, "TileLevel").c_str());
     const long long tx = std::atoll(elementText(xml, "TileX").c_str()), ty = std::atoll(elementText(xml, "TileY").c_str());
     const bool bottom = elementText(xml, "YOrigin") == "bottom";
-    for (int k = 0; k <= 3 && k <= z; ++k) {
+    for (int k = 0; k <= coarser && k <= z; ++k) {
         const int zoom = z - k;
         const long long x = (tx >> k) + bx, row = (ty >> k) + by;
         if (x >= (1LL << zoom) || row >= (1LL << zoom)) continue;
@@ -629,6 +641,32 @@ std::optional<Error> tileFailure(const std::filesystem::path& description, const
         auto probe = probeTile(tile, false);
         if (!probe) return Error{probe.message() + " (reading " + description.string() + ")"};
     }
+    return std::nullopt;
+}
+
+} // namespace
+
+std::optional<Error> tileFailure(const std::filesystem::path& description, const std::string& message) {
+    long long ox = 0, oy = 0;
+    const std::string xml = describedXml(description, ox, oy);
+    const auto at = message.find("download block ");
+    if (at == std::string::npos) return std::nullopt;
+    long long bx = -1, by = -1;
+    if (std::sscanf(message.c_str() + at + 15, "%lld, %lld", &bx, &by) != 2 || bx < 0 || by < 0) return std::nullopt;
+    return probeBlock(xml, description, bx, by, 3); // GDAL's block numbers are the XML's own
+}
+
+std::optional<Error> tileFailureIn(const std::filesystem::path& description, long long x0, long long y0, long long x1,
+                                   long long y1) {
+    long long ox = 0, oy = 0;
+    const std::string xml = describedXml(description, ox, oy);
+    if (xml.empty() || x1 <= x0 || y1 <= y0) return std::nullopt;
+    int asked = 0;
+    for (long long by = y0 / kTileSize; by * kTileSize < y1; ++by)
+        for (long long bx = x0 / kTileSize; bx * kTileSize < x1; ++bx) {
+            if (++asked > 64) return std::nullopt;
+            if (auto e = probeBlock(xml, description, ox + bx, oy + by, 0)) return e;
+        }
     return std::nullopt;
 }
 

@@ -95,6 +95,12 @@ Result<std::filesystem::path> describeWmts(const std::string& url,
 /// one line "TILE_URL: HTTP 500 (reading DESCRIPTION)". Nothing when `description` is no such file or no tile fails.
 std::optional<Error> tileFailure(const std::filesystem::path& description, const std::string& message);
 
+/// A read of pixels [x0, x1) × [y0, y1) of a service description failed in a way GDAL does not tie to a tile (a tile
+/// that does not decode: a body cut short, garbage): the first of the tiles under them (at most 64) that the server
+/// now answers with an error or garbage, as tileFailure's one line. Nothing when none does.
+std::optional<Error> tileFailureIn(const std::filesystem::path& description, long long x0, long long y0, long long x1,
+                                   long long y1);
+
 /// The tiles a service description covers at its zoom (describeTileService's XYZ window or TMS cut: what a read of
 /// the whole area fetches); nothing for other files (a WMTS description: GDAL chooses its tiles).
 std::optional<long long> serviceTileCount(const std::filesystem::path& description);
