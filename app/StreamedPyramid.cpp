@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <condition_variable>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -61,6 +62,7 @@ public:
         }
     }
 
+    /// Thread-safe: the block loader's workers read regions of one level at once (each region loaded once).
     Status read(const TexelRect& t, std::uint8_t* rgba) {
         noteNeededTiles(t);
         for (int ry = t.y0 / kRegion; ry * kRegion < t.y1; ++ry)
@@ -124,37 +126,51 @@ private:
         std::vector<std::uint8_t> rgba;
         std::uint64_t used = 0;
     };
+    using Key = std::pair<int, int>;
 
-    Result<const Region*> region(int rx, int ry) {
-        const auto key = std::make_pair(rx, ry);
-        if (auto it = m_regions.find(key); it != m_regions.end()) {
-            it->second.used = ++m_clock;
-            return &it->second;
+    /// The region (rx, ry): kept, else loaded (outside the lock: other workers read other regions meanwhile; one
+    /// asking for a region being loaded waits for it), else the error of a recent failure.
+    Result<std::shared_ptr<const Region>> region(int rx, int ry) {
+        const Key key{rx, ry};
+        std::unique_lock lock(m_mutex);
+        while (true) {
+            if (auto it = m_regions.find(key); it != m_regions.end()) {
+                it->second->used = ++m_clock;
+                return std::shared_ptr<const Region>(it->second);
+            }
+            if (auto f = m_failed.find(key); f != m_failed.end()) {
+                if (std::chrono::steady_clock::now() - f->second.first < kRetryAfter) return Error{f->second.second};
+                m_failed.erase(f);
+            }
+            if (!m_loading.count(key)) break;
+            m_loaded.wait(lock);
         }
-        const auto now = std::chrono::steady_clock::now();
-        if (auto f = m_failed.find(key); f != m_failed.end()) {
-            if (now - f->second.first < kRetryAfter) return Error{f->second.second};
-            m_failed.erase(f);
-        }
-        Region r;
-        r.rect = {rx * kRegion, ry * kRegion, std::min(m_grid.width, (rx + 1) * kRegion),
-                  std::min(m_grid.height, (ry + 1) * kRegion)};
+        m_loading.insert(key);
+        lock.unlock();
         {
             TileLedger& l = ledger();
-            std::lock_guard lock(l.mutex);
+            std::lock_guard ledgerLock(l.mutex);
             ++l.regions;
         }
-        if (auto st = load(r); !st) {
-            m_failed[key] = {now, st.message()};
+        auto r = std::make_shared<Region>();
+        r->rect = {rx * kRegion, ry * kRegion, std::min(m_grid.width, (rx + 1) * kRegion),
+                   std::min(m_grid.height, (ry + 1) * kRegion)};
+        const Status st = load(*r);
+        lock.lock();
+        m_loading.erase(key);
+        m_loaded.notify_all();
+        if (!st) {
+            m_failed[key] = {std::chrono::steady_clock::now(), st.message()};
             return st.error();
         }
         if (m_regions.size() >= kRegions) {
             auto oldest = std::min_element(m_regions.begin(), m_regions.end(),
-                                           [](const auto& a, const auto& b) { return a.second.used < b.second.used; });
-            m_regions.erase(oldest);
+                                           [](const auto& a, const auto& b) { return a.second->used < b.second->used; });
+            m_regions.erase(oldest); // a reader copying from it keeps it alive (shared_ptr)
         }
-        r.used = ++m_clock;
-        return &(m_regions[key] = std::move(r));
+        r->used = ++m_clock;
+        m_regions[key] = r;
+        return std::shared_ptr<const Region>(r);
     }
 
     /// The region's texels: the service's tiles at the level's zoom warped onto the region's part of the level's
@@ -199,8 +215,11 @@ private:
     WorkingGrid m_grid;
     bool m_sixteen = false;
     std::vector<std::uint8_t> m_lut[3];
-    std::map<std::pair<int, int>, Region> m_regions;
-    std::map<std::pair<int, int>, std::pair<std::chrono::steady_clock::time_point, std::string>> m_failed;
+    std::mutex m_mutex; // the maps and the clock
+    std::condition_variable m_loaded;
+    std::map<Key, std::shared_ptr<Region>> m_regions;
+    std::set<Key> m_loading;
+    std::map<Key, std::pair<std::chrono::steady_clock::time_point, std::string>> m_failed;
     std::uint64_t m_clock = 0;
 };
 
@@ -241,7 +260,9 @@ Result<PrepareReport> prepareStreamedPyramid(const Scene& scene, const std::stri
     p.streamedLevels = prepared;
     p.openStreamedLevel = [light, role, cacheDir = options.cacheDir](int level) -> Result<LevelTexelReader> {
         const WorkingGrid grid = levelGrid(light->grid, level);
-        auto layer = serviceLayerOnGrid(*light, role, grid, cacheDir);
+        // Each of the loader's workers reads with its share of the connections to the service.
+        auto layer = serviceLayerOnGrid(*light, role, grid, cacheDir,
+                                        std::max(1, web::kDefaultConnections / kStreamWorkers));
         if (!layer) return layer.error();
         auto reader = std::make_shared<StreamedLevel>(std::move(*layer), grid);
         return LevelTexelReader([reader](const TexelRect& t, std::uint8_t* rgba) { return reader->read(t, rgba); });

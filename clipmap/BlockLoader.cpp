@@ -76,11 +76,16 @@ MixedBlockSource::MixedBlockSource(const std::vector<ImagePyramid>& layers, int 
 
 Status MixedBlockSource::read(int layer, int level, const TexelRect& texels, std::uint8_t* rgba) {
     if (!streamed(layer, level)) return m_files.read(layer, level, texels, rgba);
-    LevelTexelReader& reader = m_readers[size_t(layer)][size_t(level)];
-    if (!reader) {
-        auto opened = m_open[size_t(layer)](level);
-        if (!opened) return opened.error(); // asked again with the next block
-        reader = std::move(*opened);
+    LevelTexelReader reader;
+    {
+        std::lock_guard lock(m_openMutex); // workers open a level once; readers are thread-safe
+        LevelTexelReader& kept = m_readers[size_t(layer)][size_t(level)];
+        if (!kept) {
+            auto opened = m_open[size_t(layer)](level);
+            if (!opened) return opened.error(); // asked again with the next block
+            kept = std::move(*opened);
+        }
+        reader = kept;
     }
     return reader(texels, rgba);
 }
@@ -93,9 +98,11 @@ std::int64_t blockBytes(const LoadedBlock& b) {
 }
 } // namespace
 
-BlockLoader::BlockLoader(BlockSource& source, const ClipmapSchedule& schedule, std::int64_t maxFinishedBytes)
-    : m_source(source), m_schedule(schedule), m_maxDoneBytes(std::max<std::int64_t>(1, maxFinishedBytes)),
-      m_worker([this] { run(); }) {}
+BlockLoader::BlockLoader(BlockSource& source, const ClipmapSchedule& schedule, std::int64_t maxFinishedBytes,
+                         int workers)
+    : m_source(source), m_schedule(schedule), m_maxDoneBytes(std::max<std::int64_t>(1, maxFinishedBytes)) {
+    for (int i = 0; i < std::max(1, workers); ++i) m_workers.emplace_back([this] { run(); });
+}
 
 BlockLoader::~BlockLoader() {
     {
@@ -103,7 +110,7 @@ BlockLoader::~BlockLoader() {
         m_stop = true;
     }
     m_wake.notify_all();
-    m_worker.join();
+    for (std::thread& w : m_workers) w.join();
 }
 
 bool BlockLoader::isPending(const BlockKey& k) const {
@@ -126,7 +133,7 @@ void BlockLoader::want(const std::vector<BlockKey>& blocks) {
         for (const BlockKey& k : blocks)
             if (!isPending(k)) m_queue.push_back({k, m_schedule.blockTexels(k)});
     }
-    m_wake.notify_one();
+    m_wake.notify_all();
 }
 
 std::vector<LoadedBlock> BlockLoader::take(std::int64_t maxTexels) {
@@ -141,7 +148,7 @@ std::vector<LoadedBlock> BlockLoader::take(std::int64_t maxTexels) {
         out.push_back(std::move(m_done.front()));
         m_done.pop_front();
     }
-    if (!out.empty()) m_wake.notify_one(); // room again below the cap
+    if (!out.empty()) m_wake.notify_all(); // room again below the cap
     return out;
 }
 

@@ -58,7 +58,7 @@ private:
 };
 
 /// Pyramids whose finest levels may be streamed (ImagePyramid::streamedLevels): those levels through the layer's
-/// LevelTexelReader (made at the level's first read), the others from their files (PyramidBlockSource).
+/// LevelTexelReader (made at the level's first read), the others from their files (PyramidBlockSource). Thread-safe.
 class MixedBlockSource final : public BlockSource {
 public:
     MixedBlockSource(const std::vector<ImagePyramid>& layers, int cacheMegabytes, TexelFormat format);
@@ -71,7 +71,8 @@ private:
     PyramidBlockSource m_files;
     std::vector<int> m_streamed;
     std::vector<std::function<Result<LevelTexelReader>(int level)>> m_open;
-    std::vector<std::vector<LevelTexelReader>> m_readers; // [layer][level], empty until first read
+    std::mutex m_openMutex;
+    std::vector<std::vector<LevelTexelReader>> m_readers; // [layer][level], empty until first read (m_openMutex)
 };
 
 /// A loaded block: 4-byte texels of every layer, rows of `texels.width()`.
@@ -88,8 +89,11 @@ class BlockLoader {
 public:
     /// `maxFinishedBytes`: back-pressure. The worker stops reading while the finished blocks not yet taken hold
     /// this many bytes, so a loader faster than the render thread's upload budget cannot pile up memory.
-    BlockLoader(BlockSource& source, const ClipmapSchedule& schedule, std::int64_t maxFinishedBytes = 64 << 20);
-    ~BlockLoader(); // stops and joins the worker
+    /// `workers`: threads reading at once (the source must then be thread-safe): more than one for a source whose
+    /// reads wait on a network rather than on a disk or a core.
+    BlockLoader(BlockSource& source, const ClipmapSchedule& schedule, std::int64_t maxFinishedBytes = 64 << 20,
+                int workers = 1);
+    ~BlockLoader(); // stops and joins the workers
     BlockLoader(const BlockLoader&) = delete;
     BlockLoader& operator=(const BlockLoader&) = delete;
 
@@ -128,7 +132,7 @@ private:
     std::int64_t m_doneBytes = 0, m_maxDoneBytes;
     bool m_stop = false;
     std::atomic<std::int64_t> m_read{0}, m_errors{0};
-    std::thread m_worker;
+    std::vector<std::thread> m_workers;
 };
 
 } // namespace seasonview

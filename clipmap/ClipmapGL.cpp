@@ -119,7 +119,9 @@ Result<std::unique_ptr<ClipmapGL>> ClipmapGL::create(const std::vector<ImagePyra
         glTextureParameteri(c->m_coarse.id(), GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
         glTextureParameteri(c->m_coarse.id(), GL_TEXTURE_MAG_FILTER, GL_LINEAR);
     }
-    c->m_loader = std::make_unique<BlockLoader>(*c->m_source, c->m_schedule);
+    // Streamed levels wait on a service's round trips: several workers keep several regions in flight.
+    c->m_loader = std::make_unique<BlockLoader>(*c->m_source, c->m_schedule, std::int64_t(64) << 20,
+                                                c->m_streaming ? options.streamWorkers : 1);
     return c;
 }
 

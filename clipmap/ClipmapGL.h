@@ -30,6 +30,7 @@ struct ClipmapOptions {
     // fixed stack makes GPU memory identical for every image up to N · 2^levels; smaller images leave the extra
     // layers unused.
     int minClipLevels = 0;
+    int streamWorkers = kStreamWorkers; // loader threads when a layer streams its finest levels (ImagePyramid.h)
 };
 
 struct ClipmapFrameStats {

@@ -30,8 +30,13 @@ enum class TexelFormat { Rgba8, R32F };
 
 /// Reads texels of a level that has no file (a streamed level, app/StreamedPyramid.h): `texels` (level texel
 /// coordinates) as rows of premultiplied RGBA8 into `rgba`, (0, 0, 0, 0) where the season has no data. Errors are one
-/// line naming what failed (a tile's URL and its HTTP status). Called from the block loader's thread only.
+/// line naming what failed (a tile's URL and its HTTP status). Called from the block loader's workers at once: must
+/// be thread-safe.
 using LevelTexelReader = std::function<Status(const TexelRect& texels, std::uint8_t* rgba)>;
+
+/// The clipmap loader's workers when a layer streams (a streamed read waits on a service's round trips, so several
+/// are in flight; app/StreamedPyramid.h gives each an equal share of the connections to the service).
+inline constexpr int kStreamWorkers = 4;
 
 struct ImagePyramid {
     std::filesystem::path folder;   // <cache>/pyramids/<key hash>

@@ -499,10 +499,16 @@ Result<std::filesystem::path> describeWmts(const std::string& url,
         num(area->minX) + "</UpperLeftX><UpperLeftY>" + num(area->maxY) + "</UpperLeftY><LowerRightX>" +
         num(area->maxX) + "</LowerRightX><LowerRightY>" + num(area->minY) + "</LowerRightY></DataWindow>\n" +
         "  <BandsCount>4</BandsCount><ZeroBlockHttpCodes>204,404</ZeroBlockHttpCodes>\n"
-        "  <MaxConnections>4</MaxConnections><Timeout>30</Timeout><UserAgent>" + xmlEscape(userAgent()) +
+        "  <MaxConnections>" + std::to_string(options.maxConnections) + "</MaxConnections><Timeout>30</Timeout><UserAgent>" + xmlEscape(userAgent()) +
         "</UserAgent><OfflineMode>" + (options.offline ? "true" : "false") + "</OfflineMode>\n  " + cache +
         "\n</GDAL_WMTS>\n";
-    const std::filesystem::path file = dir / (cacheName(withoutElements(xml)) + ".xml");
+    // Another connection bound (a streaming worker's) is another file: one description is never rewritten while
+    // another reader has it open.
+    const std::filesystem::path file =
+        dir / (cacheName(withoutElements(xml) + (options.maxConnections == kDefaultConnections
+                                                     ? std::string()
+                                                     : "|connections " + std::to_string(options.maxConnections))) +
+               ".xml");
     if (auto st = writeIfChanged(file, xml); !st) return st.error();
     return file;
 }
@@ -786,12 +792,18 @@ Result<std::filesystem::path> describeTileService(const std::string& url, const 
         "  <DataWindow>" + window + "</DataWindow>\n" +
         "  <Projection>EPSG:3857</Projection><BlockSizeX>256</BlockSizeX><BlockSizeY>256</BlockSizeY>"
         "<BandsCount>4</BandsCount><ZeroBlockHttpCodes>204,404</ZeroBlockHttpCodes>\n"
-        "  <MaxConnections>4</MaxConnections><Timeout>30</Timeout><UserAgent>" + xmlEscape(userAgent()) +
+        "  <MaxConnections>" + std::to_string(options.maxConnections) + "</MaxConnections><Timeout>30</Timeout><UserAgent>" + xmlEscape(userAgent()) +
         "</UserAgent><OfflineMode>" + (options.offline ? "true" : "false") + "</OfflineMode>\n  " + cache +
         "\n</GDAL_WMS>\n";
     std::filesystem::create_directories(dir, ec);
     // Named by what it describes (the run's options left out: serviceIdentity), rewritten when they change.
-    const std::filesystem::path file = dir / (cacheName(withoutElements(xml)) + ".xml");
+    // Another connection bound (a streaming worker's) is another file: one description is never rewritten while
+    // another reader has it open.
+    const std::filesystem::path file =
+        dir / (cacheName(withoutElements(xml) + (options.maxConnections == kDefaultConnections
+                                                     ? std::string()
+                                                     : "|connections " + std::to_string(options.maxConnections))) +
+               ".xml");
     if (auto st = writeIfChanged(file, xml); !st) return st.error();
     if (!tms) return file;
     const double px = t / kTileSize;

@@ -40,11 +40,16 @@ bool isTileTemplate(std::string_view input);
 /// The tile cache's default bound (--web-cache-mb).
 inline constexpr double kDefaultWebCacheMb = 1024.0;
 
+/// Connections to a service's host at once, per reader (GDAL dataset) of a description.
+inline constexpr int kDefaultConnections = 4;
+
 /// How a run uses tile services. `offline`: only the disk cache (GDAL's OfflineMode: a tile not cached is no data,
-/// the zoom must have been found by an earlier run); `cacheMb`: the bound of the on-disk tile cache, in MiB.
+/// the zoom must have been found by an earlier run); `cacheMb`: the bound of the on-disk tile cache, in MiB;
+/// `maxConnections`: per reader of the description (streaming runs several readers, each with a share of the bound).
 struct ServiceOptions {
     bool offline = false;
     double cacheMb = kDefaultWebCacheMb;
+    int maxConnections = kDefaultConnections;
 };
 
 /// Bounds a tile cache folder to `maxBytes`: removes the least recently fetched tiles (oldest modification time

@@ -315,7 +315,7 @@ bool isTileService(const SourceList& s) {
 }
 
 Result<ImageryLayer> serviceLayerOnGrid(const Scene& scene, const std::string& role, const WorkingGrid& grid,
-                                        const std::filesystem::path& cacheDir) {
+                                        const std::filesystem::path& cacheDir, int maxConnections) {
     const bool on = role == "leafon";
     assert((on || role == "leafoff") && "serviceLayerOnGrid(): leafon or leafoff");
     const SourceList& given = on ? scene.sources.leafon : scene.sources.leafoff;
@@ -323,6 +323,7 @@ Result<ImageryLayer> serviceLayerOnGrid(const Scene& scene, const std::string& r
     web::ServiceOptions run;
     run.offline = scene.sources.offline;
     if (scene.sources.webCacheMb > 0) run.cacheMb = scene.sources.webCacheMb;
+    run.maxConnections = maxConnections;
     // The grid's box and pixel size in the service's CRS (the pixel measured at the grid's centre).
     const auto areaIn = [&](const Crs& serviceCrs) -> Result<web::TileArea> {
         const glm::dvec2 lo = grid.min(), hi = grid.max();

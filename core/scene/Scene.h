@@ -118,8 +118,9 @@ bool isTileService(const SourceList& s);
 /// coarser one on its lattice): the service described over the grid's area at the grid's pixel size (the zoom that
 /// matches it), opened and placed on `grid` as loadScene places the full-resolution season, with the scene's
 /// stretch. What streaming reads each clip level through, and what the resident coarse levels are prepared from.
+/// `maxConnections`: the reader's share of the connections to the service (web::ServiceOptions).
 Result<ImageryLayer> serviceLayerOnGrid(const Scene& scene, const std::string& role, const WorkingGrid& grid,
-                                        const std::filesystem::path& cacheDir);
+                                        const std::filesystem::path& cacheDir, int maxConnections = 4);
 
 /// One season opened as loadScene opens it (a mosaic of 8- or 16-bit rasters of 3 or more bands, its stretch), placed
 /// on `grid` (default: its first file's own grid). For tools and tests that need one layer without a pair.
