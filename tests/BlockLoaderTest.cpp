@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
@@ -168,4 +169,60 @@ TEST(BlockLoaderTest, FinishedBlocksTheViewLeftAreDroppedAtTheNextWant) {
     EXPECT_LT(loader.finishedBytes(), before);
     for (const LoadedBlock& b : loader.take(1 << 30))
         EXPECT_EQ(intersect(schedule.window(b.key.level), b.texels), b.texels) << "a block outside its window";
+}
+
+namespace {
+
+// A source whose reads wait `delayMs` (a network's round trip) and count how many run at once.
+class ConcurrentSource final : public BlockSource {
+public:
+    int layers() const override { return 1; }
+    Status read(int, int level, const TexelRect& t, std::uint8_t* rgba) override {
+        const int now = ++m_running;
+        int seen = m_most.load();
+        while (now > seen && !m_most.compare_exchange_weak(seen, now)) {
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        for (size_t i = 0; i < size_t(t.area()); ++i) {
+            rgba[i * 4 + 0] = std::uint8_t(t.x0 / 64);
+            rgba[i * 4 + 1] = std::uint8_t(t.y0 / 64);
+            rgba[i * 4 + 2] = std::uint8_t(level);
+            rgba[i * 4 + 3] = 255;
+        }
+        --m_running;
+        return Ok{};
+    }
+    int most() const { return m_most.load(); }
+
+private:
+    std::atomic<int> m_running{0}, m_most{0};
+};
+
+} // namespace
+
+TEST(BlockLoaderTest, SeveralWorkersReadAtOnceEachBlockOnce) {
+    // Streamed levels (a service's round trips): 4 workers keep several reads in flight, and every wanted block
+    // still arrives once, with its own texels.
+    ConcurrentSource source;
+    ClipmapSchedule schedule(makeClipmapLayout(2048, 2048, 256, 64));
+    schedule.setCenters(std::vector<glm::dvec2>(size_t(schedule.layout().clipLevels()), glm::dvec2(1024, 1024)));
+    BlockLoader loader(source, schedule, std::int64_t(64) << 20, 4);
+    const auto wanted = schedule.missingBlocks(1000);
+    loader.want(wanted);
+    loader.want(wanted); // again: nothing asked twice
+    loader.waitIdle();
+    EXPECT_EQ(loader.pending(), 0u);
+    const auto done = loader.take(std::int64_t(1) << 30);
+    ASSERT_EQ(done.size(), wanted.size());
+    for (size_t i = 0; i < done.size(); ++i) {
+        ASSERT_TRUE(done[i].error.empty());
+        const auto& px = done[i].layers[0];
+        EXPECT_EQ(px[0], std::uint8_t(done[i].texels.x0 / 64));
+        EXPECT_EQ(px[1], std::uint8_t(done[i].texels.y0 / 64));
+        EXPECT_EQ(px[2], std::uint8_t(done[i].key.level));
+        for (size_t j = i + 1; j < done.size(); ++j) EXPECT_FALSE(done[i].key == done[j].key);
+    }
+    EXPECT_EQ(loader.blocksRead(), std::int64_t(wanted.size()));
+    EXPECT_GE(source.most(), 2) << "reads in flight at once";
+    EXPECT_LE(source.most(), 4);
 }
