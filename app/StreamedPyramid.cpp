@@ -173,29 +173,41 @@ private:
         return std::shared_ptr<const Region>(r);
     }
 
-    /// The region's texels: the service's tiles at the level's zoom warped onto the region's part of the level's
-    /// grid (GridReader), stretched, premultiplied by coverage (0, 0, 0, 0 where the service has no data), as
-    /// buildPyramidLevels makes a prepared level 0.
+    /// The region's texels: the service's tiles at the level's zoom warped onto the region of the level's grid
+    /// (GridReader::readWindow, through a reader kept open between regions: its service description opened and its
+    /// transformation made once), stretched, premultiplied by coverage (0, 0, 0, 0 where the service has no data),
+    /// as buildPyramidLevels makes a prepared level 0.
     Status load(Region& r) {
         const TexelRect& R = r.rect;
-        WorkingGrid sub = m_grid;
-        sub.georef.origin = m_grid.georef.pixelToCrs({double(R.x0), double(R.y0)});
-        sub.width = R.width();
-        sub.height = R.height();
         const std::filesystem::path description = m_layer.source.tiles.front().path;
-        auto reader = GridReader::open(m_layer.source, sub, m_layer.resampling, sub.height);
-        if (!reader) return reader.error();
+        std::unique_ptr<GridReader> reader;
+        {
+            std::lock_guard lock(m_mutex);
+            if (!m_idleReaders.empty()) {
+                reader = std::move(m_idleReaders.back());
+                m_idleReaders.pop_back();
+            }
+        }
+        if (!reader) {
+            auto opened = GridReader::open(m_layer.source, m_grid, m_layer.resampling, kRegion);
+            if (!opened) return opened.error();
+            reader = std::make_unique<GridReader>(std::move(*opened));
+        }
         const size_t n = size_t(R.area());
         std::vector<std::uint16_t> samples(n * 3);
         std::vector<std::uint8_t> coverage(n);
         const SampleType type = m_sixteen ? SampleType::U16 : SampleType::U8;
-        if (Status st = reader->read(0, sub.height, 3, type, samples.data(), coverage.data()); !st) {
+        if (Status st = reader->readWindow(R.x0, R.y0, R.x1, R.y1, 3, type, samples.data(), coverage.data()); !st) {
             // The failing tile's URL and status: from GDAL's block number when it gives one, else by asking the
-            // server again for the tiles under the region (a tile that did not decode).
+            // server again for the tiles under the region (a tile that did not decode). The reader is dropped.
             if (auto tile = web::tileFailure(description, st.message())) return *tile;
             if (const auto px = sourcePixels(R))
                 if (auto tile = web::tileFailureIn(description, px->x0, px->y0, px->x1, px->y1)) return *tile;
             return st;
+        }
+        {
+            std::lock_guard lock(m_mutex);
+            m_idleReaders.push_back(std::move(reader));
         }
         r.rgba.resize(n * 4);
         const auto* bytes = reinterpret_cast<const std::uint8_t*>(samples.data());
@@ -219,6 +231,7 @@ private:
     std::condition_variable m_loaded;
     std::map<Key, std::shared_ptr<Region>> m_regions;
     std::set<Key> m_loading;
+    std::vector<std::unique_ptr<GridReader>> m_idleReaders; // open readers no worker is using (one per worker)
     std::map<Key, std::pair<std::chrono::steady_clock::time_point, std::string>> m_failed;
     std::uint64_t m_clock = 0;
 };

@@ -68,18 +68,26 @@ GDALResampleAlg gdalAlg(Resampling r) {
 
 int bytesOf(SampleType t) { return t == SampleType::U8 ? 1 : t == SampleType::F32 ? 4 : 2; }
 
-/// A tile's part of a band of rows through WarpKernel: the lattice of where grid pixels sample the tile (PROJ), the
+/// Grid pixels [x0, x1) × [y0, y1): what one read fills.
+struct TexelWindow {
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+
+/// A tile's part of a window of the grid through WarpKernel: the lattice of where grid pixels sample the tile (PROJ), the
 /// window of the tile it reaches with its validity (alpha, mask or nodata value), then nearest or bilinear.
 template <typename T>
-Status ownWarpTyped(const WarpTile& t, const WorkingGrid& grid, int y0, int y1, int channels, T* out,
-                    std::uint8_t* coverage, int width) {
+Status ownWarpTyped(const WarpTile& t, const WorkingGrid& grid, const TexelWindow& w, int channels, T* out,
+                    std::uint8_t* coverage) {
     const RasterInfo& info = t.info;
     const std::string name = info.path.string();
-    const int r0 = std::max(t.row0, y0), r1 = std::min(t.row1, y1);
+    const int y0 = w.y0;
+    const int r0 = std::max(t.row0, w.y0), r1 = std::min(t.row1, w.y1);
+    const int col0 = std::max(t.col0, w.x0), col1 = std::min(t.col1, w.x1);
+    if (r0 >= r1 || col0 >= col1) return Ok{};
     const Georef& gg = grid.georef;
     const Georef& tg = *info.georef;
     const Crs gridCrs = gg.crs, tileCrs = tg.crs;
-    const SourceLattice lattice = SourceLattice::build(t.col0, r0, t.col1, r1, [&](std::span<glm::dvec2> pts) {
+    const SourceLattice lattice = SourceLattice::build(col0, r0, col1, r1, [&](std::span<glm::dvec2> pts) {
         for (glm::dvec2& p : pts) p = gg.pixelToCrs(p);
         convert(gridCrs, tileCrs, pts);
         for (glm::dvec2& p : pts) p = tg.crsToPixel(p);
@@ -147,18 +155,17 @@ Status ownWarpTyped(const WarpTile& t, const WorkingGrid& grid, int y0, int y1, 
     }
     if (err != CE_None || errors.lostData()) return gdal::readFailure(name, errors, sy0, sy0 + src.height);
     const int threads = std::max(1, int(std::thread::hardware_concurrency()));
-    resampleWindow(lattice, src, t.alg == GRA_Bilinear, t.col0, r0, t.col1, r1, out, coverage, width, y0, threads);
+    resampleWindow(lattice, src, t.alg == GRA_Bilinear, col0, r0, col1, r1, out, coverage, w.x1 - w.x0, y0, w.x0,
+                   threads);
     return Ok{};
 }
 
-Status ownWarp(const WarpTile& t, const WorkingGrid& grid, int y0, int y1, int channels, SampleType type, void* out,
-               std::uint8_t* coverage, int width) {
+Status ownWarp(const WarpTile& t, const WorkingGrid& grid, const TexelWindow& w, int channels, SampleType type,
+               void* out, std::uint8_t* coverage) {
     switch (type) {
-    case SampleType::U8:
-        return ownWarpTyped(t, grid, y0, y1, channels, static_cast<std::uint8_t*>(out), coverage, width);
-    case SampleType::U16:
-        return ownWarpTyped(t, grid, y0, y1, channels, static_cast<std::uint16_t*>(out), coverage, width);
-    default: return ownWarpTyped(t, grid, y0, y1, channels, static_cast<float*>(out), coverage, width);
+    case SampleType::U8: return ownWarpTyped(t, grid, w, channels, static_cast<std::uint8_t*>(out), coverage);
+    case SampleType::U16: return ownWarpTyped(t, grid, w, channels, static_cast<std::uint16_t*>(out), coverage);
+    default: return ownWarpTyped(t, grid, w, channels, static_cast<float*>(out), coverage);
     }
 }
 
@@ -257,13 +264,47 @@ Status GridReader::read(int y0, int y1, int channels, SampleType type, void* sam
     assert(y0 % m_bandRows == 0 && y0 < y1 && y1 - y0 <= m_bandRows && y1 <= m_height && channels >= 1 &&
            channels <= m_impl->bands && "GridReader::read(): whole bands of existing rows and bands");
     Impl& impl = *m_impl;
-    const int rows = y1 - y0;
-    const size_t pixels = size_t(rows) * size_t(m_width);
     if (impl.direct) {
         assert(type != SampleType::F32 && "GridReader::read(): the direct path reads 8- or 16-bit");
-        if (coverage) std::memset(coverage, 255, pixels);
+        if (coverage) std::memset(coverage, 255, size_t(y1 - y0) * size_t(m_width));
         return impl.direct->read(y0, y1, channels, type, samples);
     }
+    // Bands come top-down: tiles the bands have passed are closed.
+    for (WarpTile& t : impl.tiles)
+        if (t.row1 <= y0) t.close();
+    return readWarped(0, y0, m_width, y1, channels, type, samples, coverage);
+}
+
+Status GridReader::readWindow(int x0, int y0, int x1, int y1, int channels, SampleType type, void* samples,
+                              std::uint8_t* coverage) {
+    assert(x0 >= 0 && y0 >= 0 && x0 < x1 && y0 < y1 && x1 <= m_width && y1 <= m_height && channels >= 1 &&
+           channels <= m_impl->bands && "GridReader::readWindow(): a window of the grid, existing bands");
+    Impl& impl = *m_impl;
+    if (impl.direct) {
+        // The file's rows, whole bands of them, cut to the window.
+        const int sample = bytesOf(type), rows = m_bandRows;
+        const size_t pixel = size_t(channels) * size_t(sample);
+        std::vector<std::uint8_t> band(size_t(m_width) * size_t(rows) * pixel);
+        for (int b0 = y0 / rows * rows; b0 < y1; b0 += rows) {
+            const int b1 = std::min(m_height, b0 + rows);
+            if (auto st = impl.direct->read(b0, b1, channels, type, band.data()); !st) return st;
+            for (int y = std::max(y0, b0); y < std::min(y1, b1); ++y)
+                std::memcpy(static_cast<std::uint8_t*>(samples) + size_t(y - y0) * size_t(x1 - x0) * pixel,
+                            band.data() + (size_t(y - b0) * size_t(m_width) + size_t(x0)) * pixel,
+                            size_t(x1 - x0) * pixel);
+        }
+        if (coverage) std::memset(coverage, 255, size_t(x1 - x0) * size_t(y1 - y0));
+        return Ok{};
+    }
+    return readWarped(x0, y0, x1, y1, channels, type, samples, coverage);
+}
+
+Status GridReader::readWarped(int x0, int y0, int x1, int y1, int channels, SampleType type, void* samples,
+                              std::uint8_t* coverage) {
+    Impl& impl = *m_impl;
+    const int rows = y1 - y0, cols = x1 - x0;
+    const TexelWindow window{x0, y0, x1, y1};
+    const size_t pixels = size_t(rows) * size_t(cols);
     const int sample = bytesOf(type);
     std::memset(samples, 0, pixels * size_t(channels) * size_t(sample));
     std::vector<std::uint8_t> ownCoverage;
@@ -274,14 +315,15 @@ Status GridReader::read(int y0, int y1, int channels, SampleType type, void* sam
     std::memset(coverage, 0, pixels);
 
     const Georef& g = impl.grid.georef;
-    double geo[6] = {g.origin.x, g.pixelSize.x, 0.0, g.origin.y - g.pixelSize.y * y0, 0.0, -g.pixelSize.y};
-    // For GDAL's warper (average, cubic, lanczos): the band as a GDAL dataset over our buffers, bands 1..channels the
-    // samples, band channels+1 the coverage; made when a tile needs it.
+    double geo[6] = {g.origin.x + g.pixelSize.x * x0, g.pixelSize.x, 0.0, g.origin.y - g.pixelSize.y * y0, 0.0,
+                     -g.pixelSize.y};
+    // For GDAL's warper (average, cubic, lanczos): the window as a GDAL dataset over our buffers, bands 1..channels
+    // the samples, band channels+1 the coverage; made when a tile needs it.
     gdal::Dataset band;
     auto memBand = [&]() -> Status {
         if (band) return Ok{};
         GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
-        band.reset(mem->Create("", m_width, rows, 0, GDT_Byte, nullptr));
+        band.reset(mem->Create("", cols, rows, 0, GDT_Byte, nullptr));
         if (!band) return Error{"cannot create the warp's band of rows (out of memory?)"};
         auto addBand = [&](void* data, GDALDataType t, int pixelBytes, int lineBytes) {
             char ptr[64], pix[32], line[32];
@@ -294,19 +336,15 @@ Status GridReader::read(int y0, int y1, int channels, SampleType type, void* sam
         const GDALDataType gt = gdal::gdalTypeOf(type);
         for (int c = 0; c < channels; ++c)
             if (!addBand(static_cast<std::uint8_t*>(samples) + size_t(c) * size_t(sample), gt, sample * channels,
-                         sample * channels * m_width))
+                         sample * channels * cols))
                 return Error{"cannot create the warp's band of rows"};
-        if (!addBand(coverage, GDT_Byte, 1, m_width)) return Error{"cannot create the warp's band of rows"};
+        if (!addBand(coverage, GDT_Byte, 1, cols)) return Error{"cannot create the warp's band of rows"};
         band->SetGeoTransform(geo);
         return Ok{};
     };
 
     for (WarpTile& t : impl.tiles) {
-        if (t.row1 <= y0) {
-            t.close(); // the bands have passed it
-            continue;
-        }
-        if (t.row0 >= y1) continue;
+        if (t.row1 <= y0 || t.row0 >= y1 || t.col1 <= x0 || t.col0 >= x1) continue;
         const std::string name = t.info.path.string();
         gdal::ErrorCapture errors;
         if (!t.ds) {
@@ -324,7 +362,7 @@ Status GridReader::read(int y0, int y1, int channels, SampleType type, void* sam
             t.approx = GDALCreateApproxTransformer(GDALGenImgProjTransform, t.transform, 0.125);
         }
         if (t.ownKernel) {
-            if (auto st = ownWarp(t, impl.grid, y0, y1, channels, type, samples, coverage, m_width); !st) return st;
+            if (auto st = ownWarp(t, impl.grid, window, channels, type, samples, coverage); !st) return st;
             continue;
         }
         if (auto st = memBand(); !st) return st;
@@ -356,7 +394,8 @@ Status GridReader::read(int y0, int y1, int channels, SampleType type, void* sam
         GDALWarpOperation op;
         CPLErr err = op.Initialize(o);
         const int r0 = std::max(t.row0, y0) - y0, r1 = std::min(t.row1, y1) - y0;
-        if (err == CE_None) err = op.ChunkAndWarpImage(t.col0, r0, t.col1 - t.col0, r1 - r0);
+        const int c0 = std::max(t.col0, x0) - x0, c1 = std::min(t.col1, x1) - x0;
+        if (err == CE_None) err = op.ChunkAndWarpImage(c0, r0, c1 - c0, r1 - r0);
         GDALDestroyWarpOptions(o);
         if (err != CE_None || errors.lostData()) return gdal::readFailure(name, errors, -1, -1);
     }

@@ -46,8 +46,14 @@ public:
     /// none (outside every tile, or nodata there); samples are 0 where coverage is 0. Errors name the tile and what
     /// GDAL said. Not thread-safe: one reader per thread.
     Status read(int y0, int y1, int channels, SampleType type, void* samples, std::uint8_t* coverage);
+    /// Reads the window [x0, x1) × [y0, y1) of the grid as read() reads rows (rows of x1 - x0 pixels), in any order:
+    /// the tiles it reaches stay open for the next window (a streamed clip level's regions). Not thread-safe.
+    Status readWindow(int x0, int y0, int x1, int y1, int channels, SampleType type, void* samples,
+                      std::uint8_t* coverage);
 
 private:
+    Status readWarped(int x0, int y0, int x1, int y1, int channels, SampleType type, void* samples,
+                      std::uint8_t* coverage);
     GridReader();
     struct Impl;
     std::unique_ptr<Impl> m_impl;

@@ -76,7 +76,7 @@ glm::dvec2 SourceLattice::at(int x, int y) const {
 
 template <typename T>
 void resampleWindow(const SourceLattice& lattice, const SourceWindow<T>& src, bool bilinear, int x0, int y0, int x1,
-                    int y1, T* out, std::uint8_t* coverage, int outWidth, int outRow0, int threads) {
+                    int y1, T* out, std::uint8_t* coverage, int outWidth, int outRow0, int outCol0, int threads) {
     const int n = src.channels;
     const int rows = y1 - y0;
     parallelIndices((rows + 15) / 16, threads, [&](int chunk, int) {
@@ -86,14 +86,14 @@ void resampleWindow(const SourceLattice& lattice, const SourceWindow<T>& src, bo
             for (int x = x0; x < x1; ++x) {
                 const glm::dvec2 s = lattice.at(x, y) - glm::dvec2(src.x0, src.y0);
                 if (!finite(s)) continue;
-                T* o = out + (row + size_t(x)) * size_t(n);
+                T* o = out + (row + size_t(x - outCol0)) * size_t(n);
                 if (!bilinear) {
                     const int sx = int(std::floor(s.x)), sy = int(std::floor(s.y));
                     if (sx < 0 || sy < 0 || sx >= src.width || sy >= src.height) continue;
                     const size_t i = size_t(sy) * size_t(src.width) + size_t(sx);
                     if (!src.valid[i]) continue;
                     for (int c = 0; c < n; ++c) o[c] = src.samples[i * size_t(n) + size_t(c)];
-                    coverage[row + size_t(x)] = 255;
+                    coverage[row + size_t(x - outCol0)] = 255;
                     continue;
                 }
                 const double px = s.x - 0.5, py = s.y - 0.5; // pixel centres
@@ -122,17 +122,17 @@ void resampleWindow(const SourceLattice& lattice, const SourceWindow<T>& src, bo
                     if constexpr (std::is_floating_point_v<T>) o[c] = T(v);
                     else o[c] = T(std::clamp(v + 0.5, 0.0, double(std::numeric_limits<T>::max())));
                 }
-                coverage[row + size_t(x)] = 255;
+                coverage[row + size_t(x - outCol0)] = 255;
             }
         }
     });
 }
 
 template void resampleWindow<std::uint8_t>(const SourceLattice&, const SourceWindow<std::uint8_t>&, bool, int, int, int,
-                                           int, std::uint8_t*, std::uint8_t*, int, int, int);
+                                           int, std::uint8_t*, std::uint8_t*, int, int, int, int);
 template void resampleWindow<std::uint16_t>(const SourceLattice&, const SourceWindow<std::uint16_t>&, bool, int, int,
-                                            int, int, std::uint16_t*, std::uint8_t*, int, int, int);
+                                            int, int, std::uint16_t*, std::uint8_t*, int, int, int, int);
 template void resampleWindow<float>(const SourceLattice&, const SourceWindow<float>&, bool, int, int, int, int, float*,
-                                    std::uint8_t*, int, int, int);
+                                    std::uint8_t*, int, int, int, int);
 
 } // namespace seasonview

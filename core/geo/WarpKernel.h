@@ -45,17 +45,17 @@ template <typename T> struct SourceWindow {
 
 /// Resamples output rows [y0, y1), columns [x0, x1) from `src` (nearest, or bilinear weighted by validity: the mean of
 /// the valid taps' weights must reach one half) into `out` (rows of `outWidth` pixels × src.channels samples, row 0
-/// of `out` is output row `outRow0`) and sets `coverage` to 255 where the source had data, over whatever an earlier
+/// of `out` is output row `outRow0`, its column 0 output column `outCol0`) and sets `coverage` to 255 where the source had data, over whatever an earlier
 /// source wrote there; elsewhere both are left as they are. Parallel over rows on `threads` threads.
 template <typename T>
 void resampleWindow(const SourceLattice& lattice, const SourceWindow<T>& src, bool bilinear, int x0, int y0, int x1,
-                    int y1, T* out, std::uint8_t* coverage, int outWidth, int outRow0, int threads);
+                    int y1, T* out, std::uint8_t* coverage, int outWidth, int outRow0, int outCol0, int threads);
 
 extern template void resampleWindow<std::uint8_t>(const SourceLattice&, const SourceWindow<std::uint8_t>&, bool, int,
-                                                  int, int, int, std::uint8_t*, std::uint8_t*, int, int, int);
+                                                  int, int, int, std::uint8_t*, std::uint8_t*, int, int, int, int);
 extern template void resampleWindow<std::uint16_t>(const SourceLattice&, const SourceWindow<std::uint16_t>&, bool, int,
-                                                   int, int, int, std::uint16_t*, std::uint8_t*, int, int, int);
+                                                   int, int, int, std::uint16_t*, std::uint8_t*, int, int, int, int);
 extern template void resampleWindow<float>(const SourceLattice&, const SourceWindow<float>&, bool, int, int, int, int,
-                                           float*, std::uint8_t*, int, int, int);
+                                           float*, std::uint8_t*, int, int, int, int);
 
 } // namespace seasonview
