@@ -3,6 +3,7 @@
 // and the bad input of each; the default working grid of geographic and Web Mercator leaf-ons. Fixtures are made from
 // a small synthetic scene with GDAL's own utilities, the way data providers make deliveries.
 #include "GridReader.h"
+#include "ToroidalWindow.h"
 #include "ImagePyramid.h"
 #include "SeasonCoverage.h"
 #include "RasterMosaic.h"
@@ -451,6 +452,43 @@ TEST(IngestionTest, OwnBilinearKernelMatchesGdalsWarper) {
     EXPECT_LT(sum / n, 0.05);
     EXPECT_LE(worst, 2) << "rounding, and GDAL's 1/8-pixel approximation against our 1/20";
     EXPECT_LT(coverageDiffers, 40) << "a few pixels of the collar's edge";
+}
+
+TEST(IngestionTest, WindowsReadAsTheRowsDo) {
+    // GridReader::readWindow (a streamed clip level's regions, in any order) gives the pixels and coverage read() gives
+    // in bands of rows: warped by our kernel, by GDAL's warper (average), and a file that is the grid as it is.
+    TempDir dir("ingest-windows");
+    const fs::path scene = smallScene(dir, {2.18, 48.70});
+    const WorkingGrid grid = gridOf(scene / "leafon.tif");
+    gdalWarp(scene / "leafon.tif", dir / "l93.tif", {"-t_srs", "EPSG:2154", "-tr", "0.6", "0.6", "-r", "bilinear",
+                                                     "-dstnodata", "0"});
+    const int w = grid.width, h = grid.height;
+    const TexelRect windows[] = {{100, 50, 356, 306}, {0, 0, 64, 64}, {w - 70, h - 33, w, h}, {5, 7, 6, 300}};
+    const std::pair<fs::path, Resampling> cases[] = {{dir / "l93.tif", Resampling::Bilinear},
+                                                     {dir / "l93.tif", Resampling::Average},
+                                                     {scene / "leafon.tif", Resampling::Auto}};
+    for (const auto& [file, resampling] : cases) {
+        SCOPED_TRACE(file.filename().string() + " " + resamplingName(resampling));
+        const RasterMosaic mosaic = mosaicOf(SourceList(file));
+        const GridPixels rows = readOnGrid(mosaic, grid, resampling);
+        auto reader = GridReader::open(mosaic, grid, resampling, 64);
+        ASSERT_TRUE(reader.ok()) << reader.message();
+        for (const TexelRect& t : windows) {
+            std::vector<std::uint8_t> rgb(size_t(t.area()) * 3), coverage(size_t(t.area()));
+            ASSERT_TRUE(reader->readWindow(t.x0, t.y0, t.x1, t.y1, 3, SampleType::U8, rgb.data(), coverage.data()).ok());
+            int differ = 0;
+            for (int y = t.y0; y < t.y1; ++y)
+                for (int x = t.x0; x < t.x1; ++x) {
+                    const size_t i = size_t(y - t.y0) * size_t(t.width()) + size_t(x - t.x0);
+                    const size_t j = size_t(y) * size_t(w) + size_t(x);
+                    differ += coverage[i] != rows.coverage[j] || rgb[i * 3] != rows.rgb[j * 3] ||
+                              rgb[i * 3 + 1] != rows.rgb[j * 3 + 1] || rgb[i * 3 + 2] != rows.rgb[j * 3 + 2];
+                }
+            // GDAL's warper chunks and approximates per call: a window's edge may round differently.
+            EXPECT_LE(differ, resampling == Resampling::Average ? int(t.area() / 100) : 0)
+                << t.x0 << "," << t.y0 << " " << t.width() << "x" << t.height();
+        }
+    }
 }
 
 TEST(IngestionTest, DefaultGridOfAGeographicOrWebMercatorLeafOn) {
