@@ -15,6 +15,7 @@
 #include <memory>
 #include <mutex>
 #include <set>
+#include <thread>
 #include <tuple>
 #include <utility>
 
@@ -46,6 +47,10 @@ TileLedger& ledger() {
 /// One streamed level of one season: the service read at the level's zoom onto the level's grid, in regions of
 /// kRegion² texels (a 256-pixel service tile's worth: the tiles a region touches are fetched in parallel, and the
 /// clipmap's 64-texel blocks inside it are answered from memory), the last kRegions kept.
+/// Where GDAL keeps fetched tiles (cacheDir/web/tiles/, WebSource.h): a read error naming a file there is a tile
+/// another worker is still writing.
+constexpr const char* kTileCacheFolder = "/web/tiles/";
+
 class StreamedLevel {
 public:
     static constexpr int kRegion = 256;
@@ -197,7 +202,14 @@ private:
         std::vector<std::uint16_t> samples(n * 3);
         std::vector<std::uint8_t> coverage(n);
         const SampleType type = m_sixteen ? SampleType::U16 : SampleType::U8;
-        if (Status st = reader->readWindow(R.x0, R.y0, R.x1, R.y1, 3, type, samples.data(), coverage.data()); !st) {
+        Status st = reader->readWindow(R.x0, R.y0, R.x1, R.y1, 3, type, samples.data(), coverage.data());
+        // GDAL 3.6 writes a fetched tile into its disk cache in place: another worker reading the same tile (a
+        // neighbouring region, or a level at the same zoom) may find it half written. Read again, a few times.
+        for (int again = 0; !st && again < 5 && st.message().find(kTileCacheFolder) != std::string::npos; ++again) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(20 << again));
+            st = reader->readWindow(R.x0, R.y0, R.x1, R.y1, 3, type, samples.data(), coverage.data());
+        }
+        if (!st) {
             // The failing tile's URL and status: from GDAL's block number when it gives one, else by asking the
             // server again for the tiles under the region (a tile that did not decode). The reader is dropped.
             if (auto tile = web::tileFailure(description, st.message())) return *tile;
