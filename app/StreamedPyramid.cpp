@@ -47,6 +47,69 @@ TileLedger& ledger() {
 /// One streamed level of one season: the service read at the level's zoom onto the level's grid, in regions of
 /// kRegion² texels (a 256-pixel service tile's worth: the tiles a region touches are fetched in parallel, and the
 /// clipmap's 64-texel blocks inside it are answered from memory), the last kRegions kept.
+/// The open readers of every streamed level (GridReader, each a GDAL dataset of a service description with one
+/// connection that curl keeps alive): at most kStreamWorkers, whatever the levels and seasons, so that the service's
+/// host never sees more connections than the workers. Idle readers are kept for their level's next region and closed
+/// when another level needs a reader. Shared by the streamed levels alive (and gone with the last).
+class ReaderPool {
+public:
+    static std::shared_ptr<ReaderPool> shared() {
+        static std::mutex mutex;
+        static std::weak_ptr<ReaderPool> current;
+        std::lock_guard lock(mutex);
+        auto pool = current.lock();
+        if (!pool) current = pool = std::make_shared<ReaderPool>();
+        return pool;
+    }
+
+    /// An idle reader of `level`, or nothing (then the caller opens one): room made for it by closing another
+    /// level's idle reader when kStreamWorkers are open. Waits while all are in use.
+    std::unique_ptr<GridReader> acquire(const void* level) {
+        std::unique_ptr<GridReader> closing; // closed outside the lock
+        std::unique_lock lock(m_mutex);
+        m_free.wait(lock, [&] { return m_inUse < kStreamWorkers; });
+        ++m_inUse;
+        for (auto it = m_idle.begin(); it != m_idle.end(); ++it)
+            if (it->first == level) {
+                auto r = std::move(it->second);
+                m_idle.erase(it);
+                return r;
+            }
+        if (m_inUse + int(m_idle.size()) > kStreamWorkers && !m_idle.empty()) {
+            closing = std::move(m_idle.front().second);
+            m_idle.erase(m_idle.begin());
+        }
+        return nullptr;
+    }
+    /// Gives a reader back after a read (`reader` null: it was dropped after a failure).
+    void release(const void* level, std::unique_ptr<GridReader> reader) {
+        {
+            std::lock_guard lock(m_mutex);
+            --m_inUse;
+            if (reader) m_idle.emplace_back(level, std::move(reader));
+        }
+        m_free.notify_one();
+    }
+    /// Closes the idle readers of a level that goes.
+    void forget(const void* level) {
+        std::vector<std::unique_ptr<GridReader>> closing;
+        std::lock_guard lock(m_mutex);
+        for (auto it = m_idle.begin(); it != m_idle.end();)
+            if (it->first == level) {
+                closing.push_back(std::move(it->second));
+                it = m_idle.erase(it);
+            } else {
+                ++it;
+            }
+    }
+
+private:
+    std::mutex m_mutex;
+    std::condition_variable m_free;
+    int m_inUse = 0;
+    std::vector<std::pair<const void*, std::unique_ptr<GridReader>>> m_idle;
+};
+
 /// Where GDAL keeps fetched tiles (cacheDir/web/tiles/, WebSource.h): a read error naming a file there is a tile
 /// another worker is still writing.
 constexpr const char* kTileCacheFolder = "/web/tiles/";
@@ -59,6 +122,9 @@ public:
     // missing block every frame, and a service that is down must not be asked 60 times a second.
     static constexpr std::chrono::seconds kRetryAfter{5};
 
+    ~StreamedLevel() { m_pool->forget(this); }
+    StreamedLevel(const StreamedLevel&) = delete;
+    StreamedLevel& operator=(const StreamedLevel&) = delete;
     StreamedLevel(ImageryLayer layer, WorkingGrid grid) : m_layer(std::move(layer)), m_grid(std::move(grid)) {
         m_sixteen = m_layer.source.type == SampleType::U16;
         for (int c = 0; c < 3; ++c) {
@@ -185,14 +251,14 @@ private:
     Status load(Region& r) {
         const TexelRect& R = r.rect;
         const std::filesystem::path description = m_layer.source.tiles.front().path;
-        std::unique_ptr<GridReader> reader;
-        {
-            std::lock_guard lock(m_mutex);
-            if (!m_idleReaders.empty()) {
-                reader = std::move(m_idleReaders.back());
-                m_idleReaders.pop_back();
-            }
-        }
+        std::unique_ptr<GridReader> reader = m_pool->acquire(this);
+        struct Release { // the reader back to the pool however this returns (dropped after a failed read)
+            ReaderPool& pool;
+            const void* level;
+            std::unique_ptr<GridReader>& reader;
+            bool keep = false;
+            ~Release() { pool.release(level, keep ? std::move(reader) : nullptr); }
+        } release{*m_pool, this, reader};
         if (!reader) {
             auto opened = GridReader::open(m_layer.source, m_grid, m_layer.resampling, kRegion);
             if (!opened) return opened.error();
@@ -217,10 +283,7 @@ private:
                 if (auto tile = web::tileFailureIn(description, px->x0, px->y0, px->x1, px->y1)) return *tile;
             return st;
         }
-        {
-            std::lock_guard lock(m_mutex);
-            m_idleReaders.push_back(std::move(reader));
-        }
+        release.keep = true;
         r.rgba.resize(n * 4);
         const auto* bytes = reinterpret_cast<const std::uint8_t*>(samples.data());
         for (size_t i = 0; i < n; ++i) {
@@ -243,7 +306,7 @@ private:
     std::condition_variable m_loaded;
     std::map<Key, std::shared_ptr<Region>> m_regions;
     std::set<Key> m_loading;
-    std::vector<std::unique_ptr<GridReader>> m_idleReaders; // open readers no worker is using (one per worker)
+    std::shared_ptr<ReaderPool> m_pool = ReaderPool::shared();
     std::map<Key, std::pair<std::chrono::steady_clock::time_point, std::string>> m_failed;
     std::uint64_t m_clock = 0;
 };
