@@ -109,14 +109,15 @@ void HttpTestServer::serve() {
             const int now = ++m_active;
             for (int seen = m_maxActive; now > seen && !m_maxActive.compare_exchange_weak(seen, now);) {
             }
-            handle(fd);
+            bool answered = false;
+            handle(fd, answered);
             ::close(fd);
-            --m_active;
+            if (!answered) --m_active;
         });
     }
 }
 
-void HttpTestServer::handle(int fd) {
+void HttpTestServer::handle(int fd, bool& answered) {
     // The request's head (bounded: 64 KiB, 5 s).
     std::string head;
     char buf[4096];
@@ -168,6 +169,12 @@ void HttpTestServer::handle(int fd) {
         std::string h = "HTTP/1.1 " + std::to_string(status) + " " + reason(status) + "\r\nContent-Type: " + type +
                         "\r\nContent-Length: " + std::to_string(total) + "\r\nAccept-Ranges: bytes\r\n" +
                         "Last-Modified: Wed, 25 Nov 2026 10:00:00 GMT\r\n" + extra + "Connection: close\r\n\r\n";
+        // No longer counted as open from here: the client may start its next request as soon as it has read this
+        // answer, before this thread has closed the socket (a count until the close would see one too many).
+        if (!answered) {
+            answered = true;
+            --m_active;
+        }
         sendAll(fd, h.data(), h.size());
         if (!headOnly) {
             const size_t n = f.cutAt >= 0 ? std::min(body.size(), size_t(f.cutAt)) : body.size();

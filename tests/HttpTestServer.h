@@ -41,14 +41,15 @@ public:
     void setFault(const std::string& path, Fault f);
     void clearFaults();
     std::vector<Request> requests() const;
-    /// The most connections open at once since the start or clearRequests() (one request per connection).
+    /// The most connections open at once since the start or clearRequests() (one request per connection), each counted
+    /// from its accept to the start of its answer.
     int maxConcurrent() const { return m_maxActive; }
     void clearRequests();
     void stop();
 
 private:
     void serve();
-    void handle(int fd);
+    void handle(int fd, bool& answered); // answered: no longer counted in maxConcurrent()
 
     std::filesystem::path m_root;
     int m_listen = -1;
