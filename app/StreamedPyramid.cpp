@@ -6,6 +6,7 @@
 #include "WebSource.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cmath>
@@ -36,6 +37,7 @@ namespace {
 /// streamTileCount()'s state: every loader thread's streamed reads add to it.
 struct TileLedger {
     std::mutex mutex;
+    std::atomic<bool> counting{false}; // from the first resetStreamTileCount() (a bench): nothing costs before
     std::set<std::tuple<std::string, long long, long long>> needed; // (service description, tile column, tile row)
     long long regions = 0;
 };
@@ -155,6 +157,7 @@ private:
     /// Adds the service tiles under `t` to the ledger: its outline (16 points) mapped to the service's pixels, whose
     /// 256-pixel tiles are the service's (an XYZ/TMS description's window starts at a tile; a WMTS one's nearly).
     void noteNeededTiles(const TexelRect& t) {
+        if (!ledger().counting.load()) return; // a PROJ transform per block, kept only for a bench's figures
         const auto px = sourcePixels(t);
         if (!px) return;
         constexpr double kTile = 256.0;
@@ -393,6 +396,7 @@ void resetStreamTileCount() {
     std::lock_guard lock(l.mutex);
     l.needed.clear();
     l.regions = 0;
+    l.counting = true;
 }
 
 Status refuseStreamed(const std::vector<ImagePyramid>& pyramids, const std::string& what) {

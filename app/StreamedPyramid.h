@@ -41,7 +41,8 @@ std::vector<ImagePyramid> preparedPart(const std::vector<ImagePyramid>& pyramids
 
 /// The service tiles under the blocks streamed levels were asked for since the last reset: the geometric minimum of
 /// what streaming must fetch (each tile counted once, whichever level or season asked), and the regions read (each
-/// a service request of its tiles, or their disk cache's).
+/// a service request of its tiles, or their disk cache's). Counted from the first resetStreamTileCount() on (a bench;
+/// the viewer and stills pay nothing for it).
 struct StreamTileCount {
     long long tilesNeeded = 0;
     long long regionsRead = 0;

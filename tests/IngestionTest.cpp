@@ -68,6 +68,13 @@ WorkingGrid gridOf(const fs::path& file) {
     return WorkingGrid{*info->georef, info->width, info->height};
 }
 
+/// The scene's leaf-on re-delivered in Lambert-93 at 0.6 m with a nodata collar (dir/l93.tif).
+fs::path lambert93Delivery(const fs::path& scene, const TempDir& dir) {
+    gdalWarp(scene / "leafon.tif", dir / "l93.tif", {"-t_srs", "EPSG:2154", "-tr", "0.6", "0.6", "-r", "bilinear",
+                                                     "-dstnodata", "0"});
+    return dir / "l93.tif";
+}
+
 RasterMosaic mosaicOf(const SourceList& s) {
     auto m = openMosaic(s, "test");
     EXPECT_TRUE(m.ok()) << m.message();
@@ -421,11 +428,10 @@ TEST(IngestionTest, OwnBilinearKernelMatchesGdalsWarper) {
     TempDir dir("ingest-kernel");
     const fs::path scene = smallScene(dir, {2.18, 48.70});
     const WorkingGrid grid = gridOf(scene / "leafon.tif");
-    gdalWarp(scene / "leafon.tif", dir / "l93.tif", {"-t_srs", "EPSG:2154", "-tr", "0.6", "0.6", "-r", "bilinear",
-                                                     "-dstnodata", "0"});
-    const GridPixels own = readOnGrid(mosaicOf(SourceList(dir / "l93.tif")), grid, Resampling::Bilinear);
+    const fs::path l93 = lambert93Delivery(scene, dir);
+    const GridPixels own = readOnGrid(mosaicOf(SourceList(l93)), grid, Resampling::Bilinear);
     const glm::dvec2 lo = grid.min(), hi = grid.max();
-    gdalWarp(dir / "l93.tif", dir / "back.tif",
+    gdalWarp(l93, dir / "back.tif",
              {"-t_srs", "EPSG:32631", "-tr", "0.5", "0.5", "-te", std::to_string(lo.x), std::to_string(lo.y),
               std::to_string(hi.x), std::to_string(hi.y), "-r", "bilinear", "-dstalpha"});
     auto gdal = readImageU8(dir / "back.tif", 4);
@@ -460,12 +466,11 @@ TEST(IngestionTest, WindowsReadAsTheRowsDo) {
     TempDir dir("ingest-windows");
     const fs::path scene = smallScene(dir, {2.18, 48.70});
     const WorkingGrid grid = gridOf(scene / "leafon.tif");
-    gdalWarp(scene / "leafon.tif", dir / "l93.tif", {"-t_srs", "EPSG:2154", "-tr", "0.6", "0.6", "-r", "bilinear",
-                                                     "-dstnodata", "0"});
+    const fs::path l93 = lambert93Delivery(scene, dir);
     const int w = grid.width, h = grid.height;
     const TexelRect windows[] = {{100, 50, 356, 306}, {0, 0, 64, 64}, {w - 70, h - 33, w, h}, {5, 7, 6, 300}};
-    const std::pair<fs::path, Resampling> cases[] = {{dir / "l93.tif", Resampling::Bilinear},
-                                                     {dir / "l93.tif", Resampling::Average},
+    const std::pair<fs::path, Resampling> cases[] = {{l93, Resampling::Bilinear},
+                                                     {l93, Resampling::Average},
                                                      {scene / "leafon.tif", Resampling::Auto}};
     for (const auto& [file, resampling] : cases) {
         SCOPED_TRACE(file.filename().string() + " " + resamplingName(resampling));

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <fstream>
 #include <span>
@@ -295,6 +296,24 @@ Result<web::TileArea> tileArea(const GridOptions& options, const RasterMosaic* o
     return a;
 }
 
+/// The part of a service over `grid`'s box widened by `margin` of its size each side, at the grid's pixel (measured at
+/// its centre in the service's CRS) or coarser so that the area is at most `maxSide` pixels a side. `what` names the
+/// input in the error when they do not map to the service's CRS.
+Result<web::TileArea> areaOverGrid(const WorkingGrid& grid, double margin, double maxSide, const Crs& serviceCrs,
+                                   const char* what) {
+    const glm::dvec2 lo = grid.min(), hi = grid.max(), m = margin * (hi - lo);
+    const auto [a, b] = boxIn(lo - m, hi + m, grid.georef.crs, serviceCrs);
+    glm::dvec2 p[2] = {0.5 * (lo + hi), 0.5 * (lo + hi) + glm::dvec2(grid.georef.pixelSize.x, 0.0)};
+    convert(grid.georef.crs, serviceCrs, std::span<glm::dvec2>(p, 2));
+    web::TileArea t;
+    t.minX = a.x, t.minY = a.y, t.maxX = b.x, t.maxY = b.y;
+    t.pixelSize = std::max(glm::length(p[1] - p[0]), std::max(b.x - a.x, b.y - a.y) / maxSide);
+    if (!std::isfinite(t.minX + t.maxX + t.minY + t.maxY + t.pixelSize))
+        return Error{std::string("scene: the area to read the ") + what + " over does not map to its CRS " +
+                     serviceCrs.name()};
+    return t;
+}
+
 /// A tile service's GDAL description over the area `areaIn` gives in the service's CRS: a WMTS layer's
 /// (describeWmts), else an XYZ/TMS template's in Web Mercator (describeTileService).
 Result<std::filesystem::path> describeService(const std::string& url,
@@ -325,17 +344,8 @@ Result<ImageryLayer> serviceLayerOnGrid(const Scene& scene, const std::string& r
     if (scene.sources.webCacheMb > 0) run.cacheMb = scene.sources.webCacheMb;
     run.maxConnections = maxConnections;
     // The grid's box and pixel size in the service's CRS (the pixel measured at the grid's centre).
-    const auto areaIn = [&](const Crs& serviceCrs) -> Result<web::TileArea> {
-        const glm::dvec2 lo = grid.min(), hi = grid.max();
-        const auto [a, b] = boxIn(lo, hi, grid.georef.crs, serviceCrs);
-        glm::dvec2 p[2] = {0.5 * (lo + hi), 0.5 * (lo + hi) + glm::dvec2(grid.georef.pixelSize.x, 0.0)};
-        convert(grid.georef.crs, serviceCrs, std::span<glm::dvec2>(p, 2));
-        web::TileArea t;
-        t.minX = a.x, t.minY = a.y, t.maxX = b.x, t.maxY = b.y;
-        t.pixelSize = glm::length(p[1] - p[0]);
-        if (!std::isfinite(t.minX + t.maxX + t.minY + t.maxY + t.pixelSize))
-            return Error{"scene: the area to stream the tile service over does not map to its CRS " + serviceCrs.name()};
-        return t;
+    const auto areaIn = [&](const Crs& serviceCrs) {
+        return areaOverGrid(grid, 0.0, std::numeric_limits<double>::infinity(), serviceCrs, "streamed tile service");
     };
     auto xml = describeService(given.items.front().string(), areaIn, cacheDir, run);
     if (!xml) return xml.error();
@@ -416,17 +426,8 @@ Result<Scene> loadScene(const SceneSources& sources, const std::filesystem::path
             // A DEM service is read over the grid with a quarter's margin each side (as loadHeightfield reads a
             // DEM), at the grid's pixel size or coarser, so that it is at most 4096 samples a side.
             const std::string url = list.items.front().string();
-            const auto areaIn = [&](const Crs& serviceCrs) -> Result<web::TileArea> {
-                const glm::dvec2 lo = scene.grid.min(), hi = scene.grid.max(), m = 0.25 * (hi - lo);
-                const auto [a, b] = boxIn(lo - m, hi + m, scene.grid.georef.crs, serviceCrs);
-                glm::dvec2 p[2] = {0.5 * (lo + hi), 0.5 * (lo + hi) + glm::dvec2(scene.grid.georef.pixelSize.x, 0.0)};
-                convert(scene.grid.georef.crs, serviceCrs, std::span<glm::dvec2>(p, 2));
-                web::TileArea t;
-                t.minX = a.x, t.minY = a.y, t.maxX = b.x, t.maxY = b.y;
-                t.pixelSize = std::max(glm::length(p[1] - p[0]), std::max(b.x - a.x, b.y - a.y) / 4096.0);
-                if (!std::isfinite(t.minX + t.maxX + t.minY + t.maxY + t.pixelSize))
-                    return Error{"scene: the area to read the DEM service over does not map to its CRS " + serviceCrs.name()};
-                return t;
+            const auto areaIn = [&](const Crs& serviceCrs) {
+                return areaOverGrid(scene.grid, 0.25, 4096.0, serviceCrs, "DEM service");
             };
             auto xml = describeService(url, areaIn, cacheDir, run);
             if (!xml) return xml.error();
