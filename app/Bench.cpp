@@ -13,6 +13,7 @@
 
 #include "AtomicFile.h"
 #include "CameraPath.h"
+#include "gl/FrameStages.h"
 #include "gl/GlDebug.h"
 
 #include <nlohmann/json.hpp>
@@ -39,7 +40,10 @@ struct FrameRow {
     int frame = 0;
     Camera camera;
     double cpuMs = 0, gpuMs = 0, frameMs = 0;
+    double streamMs = 0; // of cpuMs: the frame's streaming (clipmap uploads, the canopy's derivation, trunk search)
+    std::vector<gl::StageTime> stages; // --stages: the frame's stages, each issued then waited for
     double cityCpuMs = 0; // issuing the city's paging and draws (the per-call driver cost the atlas tree saves)
+    double cityUpdateMs = 0; // of which the paging (update(): requests, pager, uploads and deletes)
     int drawCalls = 1;
     std::int64_t triangles = 0, texelsUploaded = 0, exposedTexels = 0, residentBytes = 0, loaderCacheBytes = 0,
                  rssBytes = 0, heapInUseBytes = 0, heapMappedBytes = 0;
@@ -70,6 +74,7 @@ struct Mode {
     std::optional<city::CityMode> cityMode; // the city model drawn after the terrain (nullopt: none)
     city::AtlasUpload cityUpload = city::AtlasUpload::Auto;
     bool cityOcclusion = true;
+    bool cityFlush = true;        // city-flush=off,on: CitySettings::flushFirst
     bool drawTerrain = true;      // terrain=off: the city drawn alone (the imagery clipmap still streams for roofs)
     TerrainShading terrainShading = TerrainShading::Deferred;
     std::optional<bool> streamed; // source=prepared|stream: the seasons' pyramids (unset: as the scene says, --stream)
@@ -119,9 +124,14 @@ nlohmann::json figure(const std::vector<double>& v) {
 
 /// A city mode's figures: per-frame medians/maxima of its counters and the capacity they must stay under.
 nlohmann::json cityFigures(const Mode& m) {
-    std::vector<double> nodes, binds, calls, resident, queue, coarser, cpu, occluded, queries, waits;
+    std::vector<double> nodes, binds, calls, resident, queue, coarser, cpu, update, upload, uploaded, wait, occluded,
+        queries, waits;
     for (const FrameRow& r : m.rows) {
         cpu.push_back(r.cityCpuMs);
+        update.push_back(r.cityUpdateMs);
+        upload.push_back(r.city.uploadMs);
+        uploaded.push_back(double(r.city.uploadedBytes));
+        wait.push_back(r.city.waitMs);
         occluded.push_back(r.city.occludedNodes);
         queries.push_back(r.city.occlusionQueries);
         waits.push_back(r.city.occlusionWaits);
@@ -136,6 +146,7 @@ nlohmann::json cityFigures(const Mode& m) {
             {"upload", city::atlasUploadName(m.cityUpload)},
             {"atlases_decoded", m.city->decodesAtlases()},
             {"occlusion", m.city->settings().occlusion && *m.cityMode == city::CityMode::Atlas},
+            {"flush_first", m.city->settings().flushFirst},
             {"atlas_nodes", figure(nodes)},
             {"occluded_nodes", figure(occluded)},
             {"occlusion_queries", figure(queries)},
@@ -143,6 +154,10 @@ nlohmann::json cityFigures(const Mode& m) {
             {"texture_binds", figure(binds)},
             {"draw_calls", figure(calls)},
             {"cpu_ms", figure(cpu)},
+            {"update_ms", figure(update)},
+            {"upload_ms", figure(upload)},
+            {"uploaded_bytes", figure(uploaded)},
+            {"wait_ms", figure(wait)},
             {"resident_bytes", figure(resident)},
             {"capacity_bytes", m.city->settings().capacityBytes},
             {"loader_queue", figure(queue)},
@@ -210,6 +225,11 @@ Status applyCompareValue(const BenchSettings& a, const std::string& key, const s
         if (v != "on" && v != "off") return Error{"--compare: city-occlusion '" + v + "' (expected on|off)"};
         if (!m.cityMode) m.cityMode = city::CityMode::Atlas;
         m.cityOcclusion = v == "on";
+    } else if (key == "city-flush") {
+        // The city (--city's mode, default atlas) paged and issued after the terrain was handed to the GPU, or not.
+        if (v != "on" && v != "off") return Error{"--compare: city-flush '" + v + "' (expected on|off)"};
+        if (!m.cityMode) m.cityMode = city::CityMode::Atlas;
+        m.cityFlush = v == "on";
     } else if (key == "source") {
         // Seasons from tile services prepared whole vs streamed level by level (--stream), over the same path.
         if (v != "prepared" && v != "stream") return Error{"--compare: source '" + v + "' (expected prepared|stream)"};
@@ -300,13 +320,13 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso" && key != "canopy" &&
                                     key != "canopy-draw" && key != "segmentation" && key != "canopy-levels" && key != "scene" &&
                                     key != "city" &&
-                                    key != "city-upload" && key != "city-occlusion" && key != "terrain" &&
+                                    key != "city-upload" && key != "city-occlusion" && key != "city-flush" && key != "terrain" &&
                                     key != "terrain-shading" && key != "source"))
         return Error{"--compare '" + a.compare +
                      "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
                      "canopy-draw=layers,march, segmentation=upload,perframe, canopy-levels=all,read, scene=terrain,full or "
                      "city=atlas,original,flat,off, city-upload=compressed,decoded,auto, city-occlusion=off,on, "
-                     "terrain=on,off, terrain-shading=forward,deferred or source=prepared,stream"};
+                     "city-flush=off,on, terrain=on,off, terrain-shading=forward,deferred or source=prepared,stream"};
     std::stringstream list(a.compare.substr(eq + 1));
     std::string v;
     while (std::getline(list, v, ',')) {
@@ -486,6 +506,7 @@ Status BenchRun::createCities() {
         cs.anisotropy = m.anisotropy;
         cs.upload = m.cityUpload;
         cs.occlusion = m.cityOcclusion;
+        cs.flushFirst = m.cityFlush;
         auto c = city::CityRendererGL::create(m_scene, cityTree.string(), cs);
         if (!c) return c.error();
         m.city = std::move(*c);
@@ -552,9 +573,15 @@ void BenchRun::frame(Mode& m, const Camera& cam, int frame, bool record) {
     const auto t0 = Clock::now();
     // GPU time from here: the frame's texture uploads are part of it.
     glBeginQuery(GL_TIME_ELAPSED, m_timer.id());
+    if (record && !m_a.stages.empty()) gl::beginFrameStages(m_a.stages == "finish");
     ClipmapFrameStats cs, es;
     stream(m, cam, row, cs, es);
+    row.streamMs = ms(Clock::now() - t0);
     draw(m, cam, row);
+    if (record && !m_a.stages.empty()) {
+        gl::markStage("unmarked"); // what the frame issued after its last mark
+        row.stages = gl::endFrameStages();
+    }
     glEndQuery(GL_TIME_ELAPSED);
     const auto t1 = Clock::now();
     glFinish();
@@ -580,8 +607,10 @@ void BenchRun::stream(Mode& m, const Camera& cam, FrameRow& row, ClipmapFrameSta
         if (!m.terrainOnly || m.city) {
             const ClipmapGeometry g = clipmapGeometry(m_scene, m.clipmap->schedule().layout());
             cs = m.clipmap->update(clipmapCentres(m_scene, cam, m_w, m_h, m.centers, g));
+            gl::markStage("imagery_clipmap");
         }
         es = m.clipRenderer->updateGeometry(cam, m_h);
+        gl::markStage("elevation_clipmap");
         // A damaged cache tile is never drawn nor measured: the run stops, the pyramid is rebuilt next time.
         checkDamage(m);
     }
@@ -592,8 +621,10 @@ void BenchRun::stream(Mode& m, const Camera& cam, FrameRow& row, ClipmapFrameSta
         row.canopyBlocksPending = derived.blocksPending;
         row.canopyBlocksUnread = derived.blocksUnread;
         row.canopyBlocksOnDemand = derived.blocksOnDemand;
+        gl::markStage("canopy_derive");
         // Crown centres of the trunks: searched again when the searched level's derived blocks changed.
         if (m.trunks) row.trunkSearches = m.trunks->update() ? 1 : 0;
+        gl::markStage("trunk_search");
     }
 }
 
@@ -620,12 +651,16 @@ void BenchRun::draw(Mode& m, const Camera& cam, FrameRow& row) {
     const GeometryFrameStats drawn =
         stacked ? m.canopyRenderer->renderView(cam, *m.clipRenderer, im, *m.canopy, cd, m.trunks.get(), m_target)
                 : m.clipRenderer->render(cam, im, m_target);
+    if (!stacked) gl::markStage("terrain");
     row.drawCalls = drawn.drawCalls;
     row.triangles = drawn.triangles;
     if (m.city) {
         const auto c0 = Clock::now();
         m.city->update(cam, m_w, m_h);
+        row.cityUpdateMs = ms(Clock::now() - c0);
+        gl::markStage("city_paging");
         row.city = m.city->draw(cam, m.clipRenderer.get(), m_target);
+        gl::markStage("city_draw");
         checkDamage(m); // an atlas that did not decode is found when uploaded, in draw()
         row.cityCpuMs = ms(Clock::now() - c0);
         row.drawCalls += row.city.drawCalls;
@@ -652,6 +687,47 @@ void BenchRun::record(Mode& m, const Camera& cam, FrameRow& row, const ClipmapFr
     m.rows.push_back(row);
 }
 
+// --stages: each stage's CPU time and GPU wait per frame (a stage marked twice in a frame counted once, summed), in
+// the order the first frame marked them.
+nlohmann::json stageFigures(const Mode& m) {
+    std::vector<std::string> order;
+    std::map<std::string, std::pair<std::vector<double>, std::vector<double>>> per;
+    for (const FrameRow& r : m.rows) {
+        std::map<std::string, std::pair<double, double>> frame;
+        for (const gl::StageTime& t : r.stages) {
+            if (per.try_emplace(t.name).second) order.push_back(t.name);
+            frame[t.name].first += t.cpuMs;
+            frame[t.name].second += t.waitMs;
+        }
+        for (auto& [name, v] : frame) {
+            per[name].first.push_back(v.first);
+            per[name].second.push_back(v.second);
+        }
+    }
+    if (order.empty()) return nullptr;
+    nlohmann::json out = nlohmann::json::array();
+    for (const std::string& name : order)
+        out.push_back({{"stage", name}, {"cpu_ms", figure(per[name].first)}, {"wait_ms", figure(per[name].second)}});
+    return out;
+}
+
+// stages.csv (--stages): one row per stage of every measured frame of every mode.
+Status writeStagesCsv(const std::filesystem::path& file, const std::vector<Mode>& modes) {
+    std::ostringstream csv;
+    csv << "mode,frame,stage,cpu_ms,wait_ms\n";
+    for (const Mode& m : modes)
+        for (const FrameRow& r : m.rows)
+            for (const gl::StageTime& t : r.stages) {
+                char line[256];
+                std::snprintf(line, sizeof line, "%s,%d,%s,%.4f,%.4f\n", m.label.c_str(), r.frame, t.name.c_str(),
+                              t.cpuMs, t.waitMs);
+                csv << line;
+            }
+    std::string err;
+    if (!writeTextAtomic(file, csv.str(), err)) return Error{file.string() + ": " + err};
+    return Ok{};
+}
+
 // frames.csv: one row per measured frame of every mode.
 Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>& modes) {
     std::ostringstream csv;
@@ -661,13 +737,15 @@ Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>
            "city_loader_queue,city_coarser_than_wanted,heap_in_use_bytes,heap_mapped_bytes,canopy_blocks_derived,"
            "trunk_searches,city_cpu_ms,city_occluded_nodes,city_occlusion_queries,city_occlusion_waits,"
            "elevation_texels_uploaded,elevation_resident_bytes,run_order,city_allocated_bytes,city_evicted_blocks,"
-           "canopy_blocks_pending,canopy_blocks_unread,canopy_blocks_on_demand\n";
+           "canopy_blocks_pending,canopy_blocks_unread,canopy_blocks_on_demand,city_update_ms,city_upload_ms,"
+           "city_uploaded_bytes,city_wait_ms,stream_ms\n";
     for (const Mode& m : modes)
         for (const FrameRow& r : m.rows) {
-            char line[512];
+            char line[640];
             std::snprintf(line, sizeof line,
                           "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s,"
-                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f,%d,%d,%d,%lld,%lld,%d,%llu,%zu,%d,%d,%d\n",
+                          "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f,%d,%d,%d,%lld,%lld,%d,%llu,%zu,%d,%d,%d,%.4f,%.4f,"
+                          "%llu,%.4f,%.4f\n",
                           m.label.c_str(), r.frame, r.camera.position.x, r.camera.position.y, r.camera.position.z,
                           r.camera.yawDeg, r.camera.pitchDeg, r.cpuMs, r.gpuMs, r.frameMs, r.drawCalls,
                           (long long)r.triangles, (long long)r.texelsUploaded, (long long)r.exposedTexels,
@@ -680,7 +758,8 @@ Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>
                           r.city.occlusionQueries, r.city.occlusionWaits, (long long)r.elevationTexelsUploaded,
                           (long long)r.elevationResidentBytes, r.runOrder,
                           (unsigned long long)r.city.allocatedBytes, r.city.evictedBlocks, r.canopyBlocksPending,
-                          r.canopyBlocksUnread, r.canopyBlocksOnDemand);
+                          r.canopyBlocksUnread, r.canopyBlocksOnDemand, r.cityUpdateMs, r.city.uploadMs,
+                          (unsigned long long)r.city.uploadedBytes, r.city.waitMs, r.streamMs);
             csv << line;
         }
     std::string err;
@@ -740,7 +819,7 @@ struct ModeFigures {
 
 ModeFigures modeFigures(const Mode& m) {
     ModeFigures f;
-    std::vector<double> cpu, rss, resident, drawCalls, triangles, loaderCache, elevTexels, elevResident;
+    std::vector<double> cpu, streamCpu, rss, resident, drawCalls, triangles, loaderCache, elevTexels, elevResident;
     std::int64_t exposed = 0, elevUploaded = 0;
     int canopyBlocks = 0, trunkSearches = 0, covN = 0;
     double covSum = 0.0;
@@ -752,6 +831,7 @@ ModeFigures modeFigures(const Mode& m) {
         elevResident.push_back(double(r.elevationResidentBytes));
         elevUploaded += r.elevationTexelsUploaded;
         cpu.push_back(r.cpuMs);
+        streamCpu.push_back(r.streamMs);
         f.gpu.push_back(r.gpuMs);
         f.frame.push_back(r.frameMs);
         f.texels.push_back(double(r.texelsUploaded));
@@ -773,6 +853,7 @@ ModeFigures modeFigures(const Mode& m) {
     f.median = percentile(f.frame, 50);
     f.summary = {{"frame_ms", figure(f.frame)},
                  {"cpu_ms", figure(cpu)},
+                 {"stream_ms", figure(streamCpu)},
                  {"gpu_ms", figure(f.gpu)},
                  {"texels_uploaded", figure(f.texels)},
                  {"draw_calls", figure(drawCalls)},
@@ -793,6 +874,7 @@ ModeFigures modeFigures(const Mode& m) {
                  {"resident_texture_bytes_end", m.rows.back().residentBytes},
                  {"worst_frame_over_median", jsonNumber(percentile(f.frame, 100) / f.median)},
                  {"city", m.city ? cityFigures(m) : nlohmann::json(nullptr)},
+                 {"stages", stageFigures(m)},
                  {"totals",
                   {{"texels_uploaded", f.uploaded},
                    {"exposed_texels_per_layer", exposed},
@@ -912,6 +994,8 @@ Result<BenchResult> runBench(const Scene& scene, const BenchSettings& a, const s
         return Error{"OpenGL error during the benchmark " + e};
 
     if (auto st = writeFramesCsv(out / "frames.csv", *modes); !st) return st.error();
+    if (!a.stages.empty())
+        if (auto st = writeStagesCsv(out / "stages.csv", *modes); !st) return st.error();
     BenchResult result;
     result.device = (*ctx)->info().platform + ": " + (*ctx)->info().renderer;
     result.seconds = run.seconds();

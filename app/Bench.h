@@ -19,6 +19,8 @@ struct BenchSettings {
     std::string compare;          // "KEY=A,B,...": the modes run interleaved (BenchCommand.cpp lists the keys);
                                   // empty: one mode
     std::uint64_t seed = 1;       // of the random path
+    std::string stages;           // "finish" or "issue": each measured frame's stages timed (gl/FrameStages.h),
+                                  // stages.csv; empty: not
     std::int64_t uploadBudget = std::int64_t(1) << 20;
     std::filesystem::path cacheDir;
     // The options shared with render and view (CliOptions.h): what is shown, the clipmaps, the canopy view and the

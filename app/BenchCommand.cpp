@@ -44,7 +44,8 @@ Runner addBenchCommand(CLI::App& app) {
                         "arriving block of the canopy layer derived vs only those the view reads), "
                         "\"scene=terrain,full\" (the "
                         "relief alone vs both seasons, canopy layers and trunks), \"city=atlas,original,flat,off\", "
-                        "\"city-upload=compressed,decoded\", \"city-occlusion=off,on\", \"terrain=on,off\" "
+                        "\"city-upload=compressed,decoded\", \"city-occlusion=off,on\", \"city-flush=off,on\" "
+                        "(the city's paging with the terrain handed to the GPU first or not), \"terrain=on,off\" "
                         "(with a city: the city over the terrain vs alone), \"terrain-shading=forward,deferred\" "
                         "(the terrain's fragments shaded as rasterised vs once per pixel from a G-buffer) or "
                         "\"source=prepared,stream\" (seasons from tile services prepared whole vs streamed, --stream)")
@@ -52,6 +53,11 @@ Runner addBenchCommand(CLI::App& app) {
     cmd->add_option("--upload-budget", a->b.uploadBudget, "Clipmap texels uploaded per frame and layer")
         ->capture_default_str()
         ->group(benchGroup);
+    cmd->add_option("--stages", a->b.stages,
+                    "Time each frame's stages: finish (each stage's CPU issuing, then a wait for the GPU: the frames "
+                    "are slower) or issue (CPU time per stage of plain frames: shows where the CPU waits for the "
+                    "GPU); stages.csv and summary.json \"stages\"")
+        ->check(CLI::IsMember({"finish", "issue"}));
     cmd->add_option("--coverage-every", a->b.coverageEvery, "Measure coverage every K frames (0: never)")
         ->capture_default_str()
         ->group(benchGroup);

@@ -406,6 +406,7 @@ void CityRendererGL::uploadTexture(const LoadedBlock& b) {
 }
 
 void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
+    const auto t0 = std::chrono::steady_clock::now();
     m_frameEvicted += frame.evict.size();
     for (const auto& k : frame.evict) {
         if (k.kind == BlockKey::Kind::Atlas) {
@@ -437,6 +438,7 @@ void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
         else uploadTexture(b);
         m_frameUploaded += b.bytes;
     }
+    m_frameUploadMs += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 void CityRendererGL::resetOcclusion() {
@@ -493,9 +495,11 @@ void CityRendererGL::queryBoxes(std::size_t tree, const std::vector<std::uint32_
 }
 
 void CityRendererGL::update(const Camera& camera, int width, int height) {
+    if (m_settings.flushFirst) glFlush();
     ++m_frame;
     m_frameUploaded = 0;
     m_frameEvicted = 0;
+    m_frameUploadMs = 0;
     const AtlasView v = view(camera, width, height);
     if (m_settings.mode == CityMode::Atlas) {
         collectQueries(false); // the pager uses the answers if they are in, else the frame before's
@@ -566,7 +570,9 @@ struct CityRendererGL::AtlasPass {
 CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRendererGL* terrain,
                                     const gl::RenderTarget& target) {
     CityFrameStats st;
+    const auto w0 = std::chrono::steady_clock::now();
     collectQueries(true);
+    st.waitMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0).count();
     const bool occlusion = m_settings.occlusion && m_settings.mode == CityMode::Atlas;
     target.bind();
     glEnable(GL_DEPTH_TEST);
@@ -601,6 +607,7 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
     glBindVertexArray(0);
     glBindSampler(0, 0);
     st.uploadedBytes = m_frameUploaded;
+    st.uploadMs = m_frameUploadMs;
     st.evictedBlocks = std::size_t(m_frameEvicted);
     st.allocatedBytes = allocatedBytes();
     return st;
@@ -731,6 +738,7 @@ void CityRendererGL::drawAtlas(std::size_t t, DrawState& ds, bool occlusion) {
         queryBoxes(t, round.test, ds.viewProj, queries);
         ds.st.occlusionQueries += int(queries.size());
         if (!queries.empty()) ++ds.st.occlusionWaits;
+        const auto w0 = std::chrono::steady_clock::now();
         for (const PendingQuery& q : queries) {
             GLuint any = 0;
             glGetQueryObjectuiv(m_queries[q.query].id(), GL_QUERY_RESULT, &any);
@@ -740,6 +748,7 @@ void CityRendererGL::drawAtlas(std::size_t t, DrawState& ds, bool occlusion) {
                 ++ds.st.occludedNodes;
             }
         }
+        ds.st.waitMs += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0).count();
         glBindVertexArray(m_vao[t].id());
         pass.current = nullptr;
         bool drew = false;

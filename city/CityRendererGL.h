@@ -61,6 +61,7 @@ struct CitySettings {
     float anisotropy = 8.0f;                       // the samplers' maximum anisotropy (render/bench --aniso)
     AtlasUpload upload = AtlasUpload::Auto;        // BC atlases: compressed or decoded on upload
     bool occlusion = true;                         // atlas mode: occlusion queries on node boxes (draw())
+    bool flushFirst = true;                        // update() first hands the GPU what is queued (glFlush)
 };
 
 /// Per-frame counters (the issue's: nodes drawn, texture binds, draw calls, blocks resident, bytes, loader queue).
@@ -79,6 +80,8 @@ struct CityFrameStats {
     std::uint64_t residentBytes = 0;
     std::size_t loaderQueue = 0;
     std::uint64_t uploadedBytes = 0; // this frame
+    double uploadMs = 0;             // this frame's update(): GL uploads of arriving blocks and deletes of evicted ones
+    double waitMs = 0;               // draw(): waiting for occlusion query answers (the GPU catching up)
     std::size_t evictedBlocks = 0;   // this frame
     // GL texture storage held (atlases, original textures whole or while their parts arrive): what residentBytes
     // accounts for, so never above the capacity.
@@ -93,7 +96,10 @@ public:
                                                           const CitySettings& settings);
     ~CityRendererGL();
 
-    /// Paging for a view (call once per frame before draw): requests, evictions, uploads within the budget.
+    /// Paging for a view (call once per frame before draw): requests, evictions, uploads within the budget. With
+    /// settings().flushFirst it begins with glFlush, so that the GPU draws what was issued before (the terrain)
+    /// while the CPU pages and issues the city: a driver that keeps a frame's commands until the swap or glFinish
+    /// would run the two one after the other.
     void update(const Camera& camera, int width, int height);
     /// Loads everything the view wants before returning (stills).
     void complete(const Camera& camera, int width, int height);
@@ -182,6 +188,7 @@ private:
     gl::ShaderProgram m_atlasProgram, m_originalProgram, m_flatProgram, m_roofProgram, m_plainProgram;
     bool m_decodeBc = false; // BC atlases decoded to RGB(A)8 on upload
     std::uint64_t m_frame = 0, m_frameUploaded = 0, m_frameEvicted = 0;
+    double m_frameUploadMs = 0;
     std::string m_uploadError; // the first atlas whose blob did not decode on upload
     std::unique_ptr<AtlasPager> m_originalPager; // original mode: pages the originals the view shows
     // Occlusion culling (atlas mode): the answers and the policy per tree, the queries.

@@ -2,6 +2,7 @@
 
 #include "ReferenceRendererGL.h" // kBackgroundColor
 #include "TerrainMeshGL.h"       // kNearPlane, beginTerrainPass
+#include "gl/FrameStages.h"
 
 #include <algorithm>
 #include <cmath>
@@ -76,11 +77,15 @@ GeometryFrameStats CanopyRendererGL::renderView(const Camera& camera, const Clip
         beginTerrainPass(kBackgroundColor.r, kBackgroundColor.g, kBackgroundColor.b, kBackgroundColor.a);
         add(render(camera, terrain, canopy, s, target, CanopyPass::Marched));
         imagery.clear = false;
+        gl::markStage("canopy_marched");
     }
     add(terrain.render(camera, imagery, target));
+    gl::markStage("terrain");
     add(render(camera, terrain, canopy, s, target, CanopyPass::Rasterised));
+    gl::markStage("canopy_layers");
     // Up into the lowest layers, so no gap shows between a trunk and its crown.
     if (trunks) add(trunks->draw(camera, terrain, s.crownBase + 0.1 * (s.treeHeight - s.crownBase), target));
+    gl::markStage("trunks");
     return st;
 }
 

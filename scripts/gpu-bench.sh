@@ -6,9 +6,12 @@
 #      (median and p95 frame time of the full scene, goal ≤ 2 ms median)
 #   2. the canopy view against the leaf-on view (`--compare canopy=off,16`, goal ≤ 1.3) and the swipe view alone at
 #      $SIZE and 1280×720
+#      and the same with --stages finish and --stages issue (where each stage's time goes: stages.csv, summary.json
+#      "stages"; the city's too in step 3)
 #   3. the 10,000-building block city: its atlas tree, then `bench --compare city=atlas,original,flat` along the
 #      pedestrian-to-overview path at 1920×1080 (goals: atlas ÷ flat ≤ 1.1, original ÷ atlas ≥ 3 at the
-#      overview, nodes per frame), the same with `--terrain off` (the city alone, as the paper timed it) and
+#      overview, nodes per frame), the same with `--terrain off` (the city alone, as the paper timed it),
+#      `--compare city-flush=off,on` and
 #      `--compare city-occlusion=off,on`
 # Environment: OUT (default out/gpu), SIZE (1920x1080), FRAMES (300), CITY_FRAMES (240), WORK (work folder,
 # default /tmp/seasonview-gpu), CITY_TREE_WIDTH (the screen width the city's atlas tree is built for; default the
@@ -46,7 +49,7 @@ rm -rf "$RES" && mkdir -p "$RES"
 # Whatever happens, what was measured and logged comes back (a stub that was called names itself in a log).
 finish() {
     local rc=$?
-    tar czf "$OUT/gpu_results.tgz" -C "$WORK" results
+    tar czf "$OUT/gpu_results.tgz" --exclude="*.png" -C "$WORK" results
     if [[ $rc != 0 ]]; then
         for f in "$RES"/*.log; do [[ -f $f ]] && { echo "--- $f"; tail -5 "$f"; }; done
         echo "gpu-bench: failed (exit $rc); logs in $OUT/gpu_results.tgz" >&2
@@ -55,7 +58,7 @@ finish() {
 trap finish EXIT
 # Each step begins by archiving what the steps before it measured: a call cut off at its time limit still returns them.
 log() {
-    tar czf "$OUT/gpu_results.tgz" -C "$WORK" results
+    tar czf "$OUT/gpu_results.tgz" --exclude="*.png" -C "$WORK" results
     echo "== $(date -u +%H:%M:%S) $*"
 }
 { command -v nvidia-smi >/dev/null && nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv || true; } | tee "$RES/gpu.txt"
@@ -79,6 +82,13 @@ sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmu
     --view swipe --coverage-every 0 --out "$RES/swipe" 2>&1 | tee "$RES/swipe.log" | tail -2
 sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmup 20 --size 1280x720 \
     --view swipe --coverage-every 0 --out "$RES/swipe720" 2>&1 | tee "$RES/swipe720.log" | tail -2
+log "where the canopy view's time goes (--stages: each stage issued, then waited for), $SIZE, 60 frames"
+sv bench "$WORK/demo/scene/scene.json" --path flyover --frames 60 --warmup 20 --size "$SIZE" \
+    --view canopy --compare canopy=off,16 --coverage-every 0 --stages finish --out "$RES/canopy_stages" 2>&1 |
+    tee "$RES/canopy_stages.log" | tail -3
+sv bench "$WORK/demo/scene/scene.json" --path flyover --frames 60 --warmup 20 --size "$SIZE" \
+    --view canopy --compare canopy=off,16 --coverage-every 0 --stages issue --out "$RES/canopy_issue" 2>&1 |
+    tee "$RES/canopy_issue.log" | tail -3
 fi
 
 if [[ ${SKIP_CITY:-0} != 1 ]]; then
@@ -96,6 +106,19 @@ if [[ ${SKIP_CITY:-0} != 1 ]]; then
         --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
         --coverage-every 0 --terrain off --compare city=atlas,original,flat --out "$RES/city_alone" 2>&1 |
         tee "$RES/city_alone.log" | tail -5
+    log "where the city's time goes (--stages), atlas/flat, 60 frames"
+    sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
+        --path data/paths/blockcity_pedestrian_overview.json --frames 60 --warmup 5 --size "$SIZE" \
+        --coverage-every 0 --stages finish --compare city=atlas,flat --out "$RES/city_stages" 2>&1 |
+        tee "$RES/city_stages.log" | tail -3
+    sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
+        --path data/paths/blockcity_pedestrian_overview.json --frames 60 --warmup 5 --size "$SIZE" \
+        --coverage-every 0 --stages issue --compare city=atlas,flat --out "$RES/city_issue" 2>&1 |
+        tee "$RES/city_issue.log" | tail -3
+    log "the city paged with the terrain handed to the GPU first or not (city-flush=off,on)"
+    sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
+        --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
+        --coverage-every 0 --compare city-flush=off,on --out "$RES/flush" 2>&1 | tee "$RES/flush.log" | tail -4
     log "city occlusion culling off/on"
     sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
         --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \

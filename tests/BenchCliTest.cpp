@@ -109,8 +109,30 @@ TEST(BenchCli, CanopyCompareAddsLayersAndTrunks) {
         const CliResult r = runCli({"bench", (dir / "scene/scene.json").string(), "--path", "flyover", "--frames", "4",
                                     "--warmup", "1", "--size", "160x90", "--clip-size", "512", "--view", "canopy",
                                     "--compare", compare, "--coverage-every", "0", "--cache",
-                                    (dir / "cache").string(), "--out", out});
+                                    (dir / "cache").string(), "--stages", "issue", "--out", out});
         ASSERT_EQ(r.exitCode, 0) << r.err;
+        {
+            // --stages issue: the canopy view's stages of plain frames (no waits), in the order they run.
+            std::ifstream st(out + "/stages.csv");
+            std::map<std::string, std::vector<std::string>> order; // mode -> its first frame's stages
+            std::string line;
+            std::getline(st, line);
+            for (; std::getline(st, line);) {
+                std::vector<std::string> cells;
+                std::stringstream l(line);
+                for (std::string c; std::getline(l, c, ',');) cells.push_back(c);
+                ASSERT_EQ(cells.size(), 5u) << line;
+                EXPECT_EQ(std::stod(cells[4]), 0.0) << "issue mode waits for nothing: " << line;
+                if (cells[1] == "0") order[cells[0]].push_back(cells[2]);
+            }
+            if (std::string(with) == "canopy=16") {
+                const std::vector<std::string> want{"imagery_clipmap", "elevation_clipmap", "canopy_derive", "trunk_search",
+                                                    "canopy_marched", "terrain", "canopy_layers", "trunks", "unmarked"};
+                EXPECT_EQ(order[with], want);
+                EXPECT_EQ(order[without], (std::vector<std::string>{"imagery_clipmap", "elevation_clipmap", "terrain",
+                                                                    "unmarked"}));
+            }
+        }
         std::ifstream csv(out + "/frames.csv");
         std::string header;
         std::getline(csv, header);

@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -159,6 +160,88 @@ TEST(CityCliTest, AtlasUploadCompressedOrDecoded) {
     const CliResult bad = s.render("x.png", {"--city", "atlas", "--city-upload", "sideways"});
     EXPECT_NE(bad.exitCode, 0);
     EXPECT_NE(bad.err.find("--city-upload"), std::string::npos) << bad.err;
+}
+
+// `--compare city-flush=off,on` (the terrain handed to the GPU before the city's paging, or not) and `--stages
+// finish`: each frame's stages (streaming, terrain, the city's paging and draws) issued and waited for one by one,
+// their times within the frame's; the city's paging is a part of its CPU time.
+TEST(CityCliTest, FlushFirstAndStagesAreMeasured) {
+    const CliScene& s = scene();
+    std::ofstream(s.dir / "flush.json")
+        << R"([{"time":0,"x":195,"y":140,"z":"+18","yaw":35,"pitch":-18,"fov":60},)"
+        << R"({"time":1,"x":190,"y":130,"z":"+25","yaw":40,"pitch":-20,"fov":60}])";
+    const CliResult b = runCli({"bench", (s.dir / "s/scene.json").string(), "--path", (s.dir / "flush.json").string(),
+                                "--frames", "3", "--warmup", "1", "--size", "200x125", "--coverage-every", "0",
+                                "--compare", "city-flush=off,on", "--stages", "finish", "--out",
+                                (s.dir / "flushbench").string()});
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    std::ifstream sj(s.dir / "flushbench/summary.json");
+    const auto summary = nlohmann::json::parse(sj);
+    for (const char* m : {"city-flush=off", "city-flush=on"}) {
+        const auto& mode = summary["modes"][m];
+        ASSERT_TRUE(mode["city"].is_object()) << m << ": " << summary.dump();
+        EXPECT_EQ(mode["city"]["flush_first"], std::string(m) == "city-flush=on") << m;
+        EXPECT_EQ(mode["city"]["mode"], "atlas") << m;
+        std::set<std::string> names;
+        for (const auto& st : mode["stages"]) names.insert(st["stage"].get<std::string>());
+        for (const char* want : {"imagery_clipmap", "elevation_clipmap", "terrain", "city_paging", "city_draw"})
+            EXPECT_TRUE(names.count(want)) << m << " lacks stage " << want << ": " << mode["stages"].dump();
+    }
+    // frames.csv: per frame, the frame time and the city's times.
+    std::map<std::pair<std::string, int>, double> frameMs;
+    {
+        std::ifstream csv(s.dir / "flushbench/frames.csv");
+        std::string header;
+        std::getline(csv, header);
+        std::vector<std::string> cols;
+        std::stringstream h(header);
+        for (std::string c; std::getline(h, c, ',');) cols.push_back(c);
+        const auto col = [&](const std::string& n) {
+            return std::size_t(std::find(cols.begin(), cols.end(), n) - cols.begin());
+        };
+        for (const char* c : {"city_update_ms", "city_upload_ms", "city_wait_ms", "city_uploaded_bytes", "stream_ms"})
+            ASSERT_LT(col(c), cols.size()) << c << " missing from " << header;
+        int rows = 0;
+        for (std::string line; std::getline(csv, line); ++rows) {
+            std::vector<std::string> cells;
+            std::stringstream l(line);
+            for (std::string c; std::getline(l, c, ',');) cells.push_back(c);
+            ASSERT_EQ(cells.size(), cols.size()) << line;
+            const double cpu = std::stod(cells[col("city_cpu_ms")]), update = std::stod(cells[col("city_update_ms")]),
+                         upload = std::stod(cells[col("city_upload_ms")]);
+            EXPECT_LE(update, cpu) << "the paging is part of the city's CPU time: " << line;
+            EXPECT_LE(upload, update) << "the uploads are part of the paging: " << line;
+            EXPECT_LE(std::stod(cells[col("stream_ms")]), std::stod(cells[col("cpu_ms")])) << line;
+            frameMs[{cells[col("mode")], std::stoi(cells[col("frame")])}] = std::stod(cells[col("frame_ms")]);
+        }
+        EXPECT_EQ(rows, 6);
+    }
+    // stages.csv: every measured frame's stages, each issued then waited for within that frame.
+    std::ifstream st(s.dir / "flushbench/stages.csv");
+    std::string header;
+    std::getline(st, header);
+    EXPECT_EQ(header, "mode,frame,stage,cpu_ms,wait_ms");
+    std::map<std::pair<std::string, int>, double> stageSum;
+    for (std::string line; std::getline(st, line);) {
+        std::vector<std::string> cells;
+        std::stringstream l(line);
+        for (std::string c; std::getline(l, c, ',');) cells.push_back(c);
+        ASSERT_EQ(cells.size(), 5u) << line;
+        const double cpu = std::stod(cells[3]), wait = std::stod(cells[4]);
+        EXPECT_GE(cpu, 0.0) << line;
+        EXPECT_GE(wait, 0.0) << line;
+        stageSum[{cells[0], std::stoi(cells[1])}] += cpu + wait;
+    }
+    ASSERT_EQ(stageSum.size(), frameMs.size());
+    for (const auto& [key, sum] : stageSum) {
+        ASSERT_TRUE(frameMs.count(key)) << key.first << " frame " << key.second;
+        EXPECT_LE(sum, frameMs[key]) << key.first << " frame " << key.second << ": stages within the frame";
+        EXPECT_GT(sum, 0.0);
+    }
+    const CliResult bad = runCli({"bench", (s.dir / "s/scene.json").string(), "--stages", "sometimes", "--out",
+                                  (s.dir / "badstages").string()});
+    EXPECT_NE(bad.exitCode, 0);
+    EXPECT_NE(bad.err.find("--stages"), std::string::npos) << bad.err;
 }
 
 // Occlusion culling (atlas mode): at street level in a block city the nodes behind the first buildings are skipped
