@@ -3,7 +3,7 @@
 // found on the GPU in the derived canopy layer of one clip level (shaders/trunk_find.comp: maxima of the distance
 // to the nearest texel outside the canopy, as CrownCentres.h does offline), so they follow the clipmap's region
 // around the viewer; drawn as instanced cylinders
-// (shaders/trunk.vert) from the terrain to the crowns' base with one indirect draw, no readback needed for it.
+// (shaders/trunk.vert) from the terrain to the crowns' base with one instanced draw of the count the search read back.
 // The offline counterpart is `segment --trees` (CrownCentres.h: distance-transform maxima of the CPU mask).
 #include "CanopyClipmapGL.h"
 #include "ClipmapTerrainRendererGL.h"

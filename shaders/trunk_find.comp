@@ -5,7 +5,8 @@
 // over the row's columns; clamped at uMaxRadius; -1 where a texel not derived yet could be nearer), pass 2 keeps the
 // maxima of that distance
 // at least uMinRadius, each the largest within 0.75 × its distance (ties: the first in row order), and appends them
-// to the trunk buffer, whose head is a DrawArraysIndirectCommand: the draw takes them without a readback.
+// to the trunk buffer after its head (a DrawArraysIndirectCommand whose instance count is the number found; the CPU
+// reads it back and draws that many instances).
 
 // The imagery clipmap's layout (ClipmapGL::bind, its layoutDefines(); common_clipmap.glsl itself needs derivatives).
 #include "common_canopy.glsl"
