@@ -465,6 +465,23 @@ TEST(WebSourceCliTest, XyzTileServiceDrawsAsTheSamePixelsOnDisk) {
     EXPECT_EQ(std::count(g.err.begin(), g.err.end(), '\n'), 1) << g.err;
     EXPECT_FALSE(fs::exists(s.dir / "cut.png"));
     tiles.clearFaults();
+    // A busy server: 429 with Retry-After: 2 to GDAL's request for one tile and to the request asking why. GDAL fails
+    // the block at once; the read is made again after the 2 s the server names, and draws as from disk.
+    HttpTestServer::Fault busy;
+    busy.status = 429;
+    busy.retryAfterS = 2;
+    busy.times = 2;
+    tiles.clearRequests();
+    tiles.setFault(corner, busy);
+    const CliResult h = render(tiles.url() + "/{z}/{x}/{y}.png", "busy");
+    ASSERT_EQ(h.exitCode, 0) << h.err;
+    expectSameRender(s.dir / "disk.png", s.dir / "busy.png");
+    std::vector<std::chrono::steady_clock::time_point> gets;
+    for (const auto& q : tiles.requests())
+        if (q.path == corner && q.method == "GET") gets.push_back(q.at);
+    ASSERT_EQ(gets.size(), 3u) << "the tile, the question why, the tile again";
+    EXPECT_GE(std::chrono::duration<double>(gets[2] - gets[1]).count(), 1.8) << "Retry-After not waited for";
+    tiles.clearFaults();
 
     // Offline: the same render from the disk cache alone, no request; a cache that never saw the service is one line.
     tiles.clearRequests();

@@ -4,12 +4,14 @@
 #include "JpegSupport.h"
 #include "ParallelIndices.h"
 #include "TiffSupport.h"
+#include "WebSource.h"
 
 #include <libdeflate.h>
 #include <zstd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <csetjmp>
 #include <cstdio>
 #include <cstring>
@@ -404,15 +406,24 @@ Status BandReader::read(int y0, int y1, int channels, SampleType type, void* out
         for (int c = 0; c < channels; ++c) many[size_t(c)] = c + 1;
     }
     const GSpacing sample = type == SampleType::U16 ? 2 : 1;
-    gdal::ErrorCapture errors;
-    const CPLErr err = m_in->ds->RasterIO(GF_Read, 0, y0, m_width, y1 - y0, out, m_width, y1 - y0,
-                                          gdal::gdalTypeOf(type), channels, channels > 4 ? many.data() : bands,
-                                          sample * channels, sample * channels * m_width, sample, nullptr);
-    // A warning during a read is lost data too (libtiff reports some short reads as warnings).
-    if (err == CE_None && !errors.lostData()) return Ok{};
-    // The own decoder's words first when it tried.
-    return gdal::readFailure(m_path.string(), errors, y0, y1,
-                             m_in->raw && !m_in->raw->failure.empty() ? m_in->raw->failure : std::string());
+    // A tile service answering 429 or 5xx (GDAL 3.6's tile drivers fail the block at once, never reading
+    // Retry-After): read again after what web::busyWait learns from the server, at most 3 times.
+    for (int attempt = 0;; ++attempt) {
+        gdal::ErrorCapture errors;
+        const CPLErr err = m_in->ds->RasterIO(GF_Read, 0, y0, m_width, y1 - y0, out, m_width, y1 - y0,
+                                              gdal::gdalTypeOf(type), channels, channels > 4 ? many.data() : bands,
+                                              sample * channels, sample * channels * m_width, sample, nullptr);
+        // A warning during a read is lost data too (libtiff reports some short reads as warnings).
+        if (err == CE_None && !errors.lostData()) return Ok{};
+        if (attempt < 3)
+            if (const auto wait = web::busyWait(m_path, errors.message(), double(1 << attempt))) {
+                std::this_thread::sleep_for(std::chrono::duration<double>(*wait));
+                continue;
+            }
+        // The own decoder's words first when it tried.
+        return gdal::readFailure(m_path.string(), errors, y0, y1,
+                                 m_in->raw && !m_in->raw->failure.empty() ? m_in->raw->failure : std::string());
+    }
 }
 
 } // namespace seasonview

@@ -9,6 +9,7 @@
 #include <gdalwarper.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -301,6 +302,25 @@ Status GridReader::readWindow(int x0, int y0, int x1, int y1, int channels, Samp
 
 Status GridReader::readWarped(int x0, int y0, int x1, int y1, int channels, SampleType type, void* samples,
                               std::uint8_t* coverage) {
+    // A tile service answering 429 or 5xx: GDAL 3.6's tile drivers fail the block at once and never read Retry-After.
+    // The window is read again (it starts from nothing) after what web::busyWait learns from the server: its
+    // Retry-After, else 1, 2 and 4 s; at most 3 times.
+    for (int attempt = 0;; ++attempt) {
+        Status st = readWarpedOnce(x0, y0, x1, y1, channels, type, samples, coverage);
+        if (st || attempt == 3) return st;
+        std::optional<double> wait;
+        for (const WarpTile& t : m_impl->tiles)
+            if (st.message().rfind(t.info.path.string() + ":", 0) == 0) {
+                wait = web::busyWait(t.info.path, st.message(), double(1 << attempt));
+                break;
+            }
+        if (!wait) return st;
+        std::this_thread::sleep_for(std::chrono::duration<double>(*wait));
+    }
+}
+
+Status GridReader::readWarpedOnce(int x0, int y0, int x1, int y1, int channels, SampleType type, void* samples,
+                                  std::uint8_t* coverage) {
     Impl& impl = *m_impl;
     const int rows = y1 - y0, cols = x1 - x0;
     const TexelWindow window{x0, y0, x1, y1};

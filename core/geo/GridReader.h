@@ -54,6 +54,8 @@ public:
 private:
     Status readWarped(int x0, int y0, int x1, int y1, int channels, SampleType type, void* samples,
                       std::uint8_t* coverage);
+    Status readWarpedOnce(int x0, int y0, int x1, int y1, int channels, SampleType type, void* samples,
+                          std::uint8_t* coverage);
     GridReader();
     struct Impl;
     std::unique_ptr<Impl> m_impl;

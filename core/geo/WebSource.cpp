@@ -620,21 +620,16 @@ std::string describedXml(const std::filesystem::path& description, long long& bl
     return xml;
 }
 
-/// Asks the server again for the tile of block (bx, by) of a description's XML, at its zoom and the `coarser` zooms
-/// above (GDAL may have been reading an overview): the first that fails, as one line naming its URL.
-std::optional<Error> probeBlock(const std::string& xml, const std::filesystem::path& description, long long bx,
-                                long long by, int coarser) {
-    if (xml.rfind("<GDAL_WMTS>", 0) == 0) {
-        for (const std::string& tile : wmtsTileCandidates(xml, bx, by))
-            if (auto probe = probeTile(tile, false); !probe)
-                return Error{probe.message() + " (reading " + description.string() + ")"};
-        return std::nullopt;
-    }
-    if (xml.rfind("<GDAL_WMS>", 0) != 0) return std::nullopt;
+/// The URLs of the tile of block (bx, by) of a description's XML, at its zoom and the `coarser` zooms above (GDAL may
+/// have been reading an overview); a WMTS description's candidates.
+std::vector<std::string> blockTileUrls(const std::string& xml, long long bx, long long by, int coarser) {
+    if (xml.rfind("<GDAL_WMTS>", 0) == 0) return wmtsTileCandidates(xml, bx, by);
+    if (xml.rfind("<GDAL_WMS>", 0) != 0) return {};
     const std::string server = xmlUnescape(elementText(xml, "ServerUrl"));
     const int z = std::atoi(elementText(xml, "TileLevel").c_str());
     const long long tx = std::atoll(elementText(xml, "TileX").c_str()), ty = std::atoll(elementText(xml, "TileY").c_str());
     const bool bottom = elementText(xml, "YOrigin") == "bottom";
+    std::vector<std::string> urls;
     for (int k = 0; k <= coarser && k <= z; ++k) {
         const int zoom = z - k;
         const long long x = (tx >> k) + bx, row = (ty >> k) + by;
@@ -644,10 +639,28 @@ std::optional<Error> probeBlock(const std::string& xml, const std::filesystem::p
                                      {"${x}", std::to_string(x)},
                                      {"${y}", std::to_string(bottom ? (1LL << zoom) - 1 - row : row)}})
             for (size_t p = 0; (p = tile.find(key, p)) != std::string::npos; p += v.size()) tile.replace(p, key.size(), v);
-        auto probe = probeTile(tile, false);
-        if (!probe) return Error{probe.message() + " (reading " + description.string() + ")"};
+        urls.push_back(tile);
     }
+    return urls;
+}
+
+/// Asks the server again for the tile of block (bx, by) of a description's XML (blockTileUrls): the first that fails,
+/// as one line naming its URL.
+std::optional<Error> probeBlock(const std::string& xml, const std::filesystem::path& description, long long bx,
+                                long long by, int coarser) {
+    for (const std::string& tile : blockTileUrls(xml, bx, by, coarser))
+        if (auto probe = probeTile(tile, false); !probe)
+            return Error{probe.message() + " (reading " + description.string() + ")"};
     return std::nullopt;
+}
+
+/// GDAL's block numbers in "... Unable to download block X, Y ...".
+std::optional<std::pair<long long, long long>> failedBlock(const std::string& message) {
+    const auto at = message.find("download block ");
+    if (at == std::string::npos) return std::nullopt;
+    long long bx = -1, by = -1;
+    if (std::sscanf(message.c_str() + at + 15, "%lld, %lld", &bx, &by) != 2 || bx < 0 || by < 0) return std::nullopt;
+    return std::pair{bx, by};
 }
 
 } // namespace
@@ -655,11 +668,34 @@ std::optional<Error> probeBlock(const std::string& xml, const std::filesystem::p
 std::optional<Error> tileFailure(const std::filesystem::path& description, const std::string& message) {
     long long ox = 0, oy = 0;
     const std::string xml = describedXml(description, ox, oy);
-    const auto at = message.find("download block ");
-    if (at == std::string::npos) return std::nullopt;
-    long long bx = -1, by = -1;
-    if (std::sscanf(message.c_str() + at + 15, "%lld, %lld", &bx, &by) != 2 || bx < 0 || by < 0) return std::nullopt;
-    return probeBlock(xml, description, bx, by, 3); // GDAL's block numbers are the XML's own
+    const auto block = failedBlock(message);
+    if (!block) return std::nullopt;
+    return probeBlock(xml, description, block->first, block->second, 3); // GDAL's block numbers are the XML's own
+}
+
+std::optional<double> busyWait(const std::filesystem::path& description, const std::string& message, double fallback) {
+    // GDAL's words ("HTTP status code: 429"), or as ErrorCapture shortens them ("(HTTP 429)").
+    int code = 0;
+    if (const auto at = message.find("HTTP status code: "); at != std::string::npos) code = std::atoi(message.c_str() + at + 18);
+    else if (const auto at2 = message.find("(HTTP "); at2 != std::string::npos) code = std::atoi(message.c_str() + at2 + 6);
+    if (code != 429 && code != 502 && code != 503 && code != 504) return std::nullopt;
+    const auto block = failedBlock(message);
+    long long ox = 0, oy = 0;
+    const std::string xml = block ? describedXml(description, ox, oy) : std::string();
+    if (xml.empty()) return fallback;
+    // The block's tile (or the coarser ones GDAL may have been reading) asked once more: what it says now.
+    for (const std::string& tile : blockTileUrls(xml, block->first, block->second, 3)) {
+        auto a = fetchOnce(tile, false);
+        if (!a) return fallback; // no answer: a transfer fault, the fallback's backoff
+        const std::string& st = a->status;
+        if (st == "200" || st == "404" || st == "204") continue;
+        if ((st == "429" || st == "503") && !a->retryAfter.empty() &&
+            a->retryAfter.find_first_not_of("0123456789") == std::string::npos && a->retryAfter.size() < 6)
+            return std::min(60.0, double(std::stoi(a->retryAfter)));
+        if (st == "429" || st == "502" || st == "503" || st == "504") return fallback;
+        return std::nullopt; // another status now (500, 403, ...): not worth another read
+    }
+    return 0.0; // answered now: read again at once
 }
 
 std::optional<Error> tileFailureIn(const std::filesystem::path& description, long long x0, long long y0, long long x1,

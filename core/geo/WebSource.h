@@ -100,6 +100,14 @@ Result<std::filesystem::path> describeWmts(const std::string& url,
 /// one line "TILE_URL: HTTP 500 (reading DESCRIPTION)". Nothing when `description` is no such file or no tile fails.
 std::optional<Error> tileFailure(const std::filesystem::path& description, const std::string& message);
 
+/// A read of a tile service's description failed with GDAL's words `message`, which name an HTTP status of a busy
+/// server (429, 503) or gateway (502, 504); GDAL 3.6's tile drivers fail the block at once and never read
+/// Retry-After: how many seconds to wait before reading again. The failed block's tile is asked for once more: what
+/// its Retry-After says on 429 or 503 (at most 60 s), `fallback` when it names none or the server is still busy, 0
+/// when the tile now answers. Nothing when the message names no such status (a 500 is the server's fault: no wait
+/// makes it right) or the tile now answers otherwise.
+std::optional<double> busyWait(const std::filesystem::path& description, const std::string& message, double fallback);
+
 /// A read of pixels [x0, x1) × [y0, y1) of a service description failed in a way GDAL does not tie to a tile (a tile
 /// that does not decode: a body cut short, garbage): the first of the tiles under them (at most 64) that the server
 /// now answers with an error or garbage, as tileFailure's one line. Nothing when none does.
