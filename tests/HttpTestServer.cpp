@@ -92,6 +92,8 @@ void HttpTestServer::clearRequests() {
 
 void HttpTestServer::stop() {
     if (m_stop.exchange(true)) return;
+    // No connection is accepted from now on (a client's connect is refused), and requests in flight are cut.
+    if (m_listen >= 0) ::shutdown(m_listen, SHUT_RDWR);
     if (m_thread.joinable()) m_thread.join();
     for (std::thread& t : m_workers) t.join();
     m_workers.clear();
@@ -158,6 +160,7 @@ void HttpTestServer::handle(int fd, bool& answered) {
         }
     }
     if (f.latencyMs > 0) std::this_thread::sleep_for(std::chrono::milliseconds(f.latencyMs));
+    if (m_stop) return; // stopped while this request waited: cut without an answer
     if (f.reset) {
         linger l{1, 0}; // RST on close
         ::setsockopt(fd, SOL_SOCKET, SO_LINGER, &l, sizeof l);

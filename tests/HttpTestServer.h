@@ -2,7 +2,8 @@
 // A small HTTP/1.1 file server on 127.0.0.1 for the web-input tests: HEAD and GET with single byte ranges (what
 // GDAL's /vsicurl/ sends), one request per connection, and faults injected per path: a status, latency, an HTML
 // page instead of the file, a body cut short, a connection reset. It logs every request. Started by the
-// constructor on a free port, stopped by stop() or the destructor.
+// constructor on a free port, stopped by stop() (connections refused from then on, requests in flight cut without
+// an answer: a server that stops mid-flight) or the destructor.
 #include <atomic>
 #include <chrono>
 #include <filesystem>

@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <set>
+#include <thread>
 
 using namespace seasonview;
 using namespace seasonview::test;
@@ -147,10 +148,10 @@ TEST(WebSourceCliTest, ServerFaultsAreOneLineNamingTheUrl) {
         EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
         EXPECT_FALSE(hasPyramid(s.dir / cache)) << "a pyramid was written from a faulty answer";
     }
-    // The same server healthy again, if slow (every answer after 100 ms): prepared.
+    // The same server healthy again, if slow (every answer after 300 ms): prepared.
     s.server->clearFaults();
     HttpTestServer::Fault slow;
-    slow.latencyMs = 100;
+    slow.latencyMs = 300;
     s.server->setFault("*", slow);
     const CliResult ok = s.run({"prepare"}, s.urls(), "cache_ok");
     EXPECT_EQ(ok.exitCode, 0) << ok.err;
@@ -339,6 +340,14 @@ TEST(WebSourceCliTest, StreamedSeasonDrawsAsThePreparedOne) {
     EXPECT_EQ(segment.exitCode, 1);
     EXPECT_NE(segment.err.find("--stream"), std::string::npos) << segment.err;
     EXPECT_EQ(std::count(segment.err.begin(), segment.err.end(), '\n'), 1) << segment.err;
+
+    // The server gone (connections refused), the streamed tiles not in the cache: one line naming a tile, no picture.
+    server.stop();
+    const CliResult gone = render("gone", "cache_streamed", {"--stream", "--web-cache-mb", "0.001"});
+    EXPECT_EQ(gone.exitCode, 1);
+    EXPECT_NE(gone.err.find(server.url() + "/15/"), std::string::npos) << gone.err;
+    EXPECT_EQ(std::count(gone.err.begin(), gone.err.end(), '\n'), 1) << gone.err;
+    EXPECT_FALSE(fs::exists(dir.path() / "gone.png"));
 }
 
 namespace {
@@ -725,6 +734,45 @@ TEST(WebSourceCliTest, PrepareFetchesTheAreaOnceAndResumesAfterAFailure) {
     EXPECT_NE(b.out.find("fetched " + std::to_string(again) + " of " + std::to_string(area) + " tiles ("),
               std::string::npos)
         << b.out;
+}
+
+TEST(WebSourceCliTest, ServerStoppingMidFlightIsOneLineAndNoPyramid) {
+    // `prepare` of a tile service whose server stops after a few tiles (the ones in flight are answered, then every
+    // connection is refused): one line naming a tile's URL, exit 1, no pyramid; run again against a server that is
+    // back, it completes.
+    ServedScene s("web-stop");
+    const MercatorTiles m = makeTiles(s);
+    ASSERT_FALSE(m.merc.empty());
+    auto tiles = std::make_unique<HttpTestServer>(s.dir / "tiles");
+    const std::string url = tiles->url();
+    const auto args = [&](const std::string& base) {
+        return std::vector<std::string>{"prepare", "--leafon", base + "/{z}/{x}/{y}.png", "--leafoff",
+                                        (s.scene / "leafoff.tif").string(), "--cache", (s.dir / "cache").string()};
+    };
+    HttpTestServer::Fault slow;
+    slow.latencyMs = 50;
+    tiles->setFault("*", slow);
+    std::thread stopper([&] {
+        // Bounded: at most 30 s of 10 ms polls for the fourth tile request, then the server stops.
+        for (int i = 0; i < 3000; ++i) {
+            int gets = 0;
+            for (const auto& r : tiles->requests()) gets += r.path.rfind("/17/", 0) == 0;
+            if (gets >= 4) break;
+            std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        }
+        tiles->stop();
+    });
+    const CliResult a = runCli(args(url));
+    stopper.join();
+    EXPECT_EQ(a.exitCode, 1) << a.out;
+    EXPECT_NE(a.err.find(url + "/17/"), std::string::npos) << a.err;
+    EXPECT_EQ(std::count(a.err.begin(), a.err.end(), '\n'), 1) << a.err;
+    EXPECT_FALSE(hasPyramid(s.dir / "cache")) << "a pyramid was written without the tiles";
+    // A server back (on another port: the URL, and so the service, is another one) prepares it.
+    HttpTestServer back(s.dir / "tiles");
+    const CliResult b = runCli(args(back.url()));
+    EXPECT_EQ(b.exitCode, 0) << b.err;
+    EXPECT_TRUE(hasPyramid(s.dir / "cache"));
 }
 
 TEST(WebSourceCliTest, DemFromATerrariumTileServiceDrawsAsTheHeightsOnDisk) {
