@@ -988,6 +988,13 @@ Result<BenchResult> runBench(const Scene& scene, const BenchSettings& a, const s
                          {"bytes_fetched", got.bytes},
                          {"fetched_over_needed",
                           need.tilesNeeded > 0 ? nlohmann::json(double(got.tiles) / double(need.tilesNeeded))
+                                               : nlohmann::json(nullptr)},
+                         // The measure in bytes: fetched against the bytes of the tiles needed (those in
+                         // the disk cache; the others counted apart).
+                         {"bytes_needed", need.bytesNeeded},
+                         {"tiles_needed_not_cached", need.tilesNotCached},
+                         {"bytes_fetched_over_needed",
+                          need.bytesNeeded > 0 ? nlohmann::json(double(got.bytes) / double(need.bytesNeeded))
                                                : nlohmann::json(nullptr)}};
     }
     if (const std::string e = gl::drainErrors(); !e.empty() || gl::debugErrorCount() != glErrors)

@@ -388,7 +388,12 @@ std::vector<ImagePyramid> preparedPart(const std::vector<ImagePyramid>& pyramids
 StreamTileCount streamTileCount() {
     TileLedger& l = ledger();
     std::lock_guard lock(l.mutex);
-    return {(long long)l.needed.size(), l.regions};
+    StreamTileCount c{(long long)l.needed.size(), l.regions};
+    for (const auto& [description, col, row] : l.needed) {
+        if (const auto bytes = web::cachedTileBytes(description, col, row)) c.bytesNeeded += *bytes;
+        else ++c.tilesNotCached;
+    }
+    return c;
 }
 
 void resetStreamTileCount() {

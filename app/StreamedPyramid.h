@@ -46,6 +46,10 @@ std::vector<ImagePyramid> preparedPart(const std::vector<ImagePyramid>& pyramids
 struct StreamTileCount {
     long long tilesNeeded = 0;
     long long regionsRead = 0;
+    /// The bytes of those tiles in the disk tile cache now (web::cachedTileBytes), and how many of them are not there
+    /// (no data, 404; or trimmed by --web-cache-mb).
+    long long bytesNeeded = 0;
+    long long tilesNotCached = 0;
 };
 StreamTileCount streamTileCount();
 void resetStreamTileCount();

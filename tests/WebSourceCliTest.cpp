@@ -320,6 +320,13 @@ TEST(WebSourceCliTest, StreamedSeasonDrawsAsThePreparedOne) {
     std::ifstream summaryFile(dir.path() / "bench/summary.json");
     const auto summary = nlohmann::json::parse(summaryFile, nullptr, false);
     ASSERT_TRUE(summary.is_object() && summary.contains("modes"));
+    // The streamed tiles: those under the blocks read, their bytes in the disk cache, against what was fetched.
+    const auto& stream = summary["stream"];
+    ASSERT_TRUE(stream.is_object()) << summary.dump();
+    EXPECT_GT(stream["tiles_needed"].get<long long>(), 0);
+    EXPECT_GT(stream["bytes_needed"].get<long long>(), 0);
+    EXPECT_LT(stream["tiles_needed_not_cached"].get<long long>(), stream["tiles_needed"].get<long long>());
+    EXPECT_GT(stream["bytes_fetched_over_needed"].get<double>(), 0.0);
     for (const char* mode : {"source=prepared", "source=stream"}) {
         ASSERT_TRUE(summary["modes"].contains(mode)) << mode;
         EXPECT_EQ(summary["modes"][mode]["totals"]["stream_errors"], 0) << mode;

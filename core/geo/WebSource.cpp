@@ -23,6 +23,10 @@
 #include <thread>
 #include <vector>
 
+// GDAL's MD5 of a text as 32 hex digits (exported by libgdal, not in its installed headers): the name its WMS file
+// cache gives a tile (cachedTileBytes).
+extern "C" const char* CPLMD5String(const char* text);
+
 #ifndef SEASONVIEW_VERSION
 #define SEASONVIEW_VERSION "0"
 #endif
@@ -709,6 +713,26 @@ std::optional<Error> tileFailureIn(const std::filesystem::path& description, lon
             if (++asked > 64) return std::nullopt;
             if (auto e = probeBlock(xml, description, ox + bx, oy + by, 0)) return e;
         }
+    return std::nullopt;
+}
+
+std::optional<long long> cachedTileBytes(const std::filesystem::path& description, long long col, long long row) {
+    long long ox = 0, oy = 0;
+    const std::string xml = describedXml(description, ox, oy);
+    const auto cache = xml.find("<Cache>");
+    if (xml.empty() || cache == std::string::npos) return std::nullopt;
+    const std::filesystem::path dir = xmlUnescape(elementText(xml.substr(cache), "Path"));
+    for (const std::string& url : blockTileUrls(xml, ox + col, oy + row, 0)) {
+        // GDAL's file cache (3.6, depth 2): PATH/<the service's folder>/h0/h1/h, h the MD5 of the tile's URL.
+        const std::string h = CPLMD5String(url.c_str());
+        std::error_code ec;
+        for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+            const std::filesystem::path f = it->path() / h.substr(0, 1) / h.substr(1, 1) / h;
+            std::error_code e;
+            const auto size = std::filesystem::file_size(f, e);
+            if (!e) return (long long)size;
+        }
+    }
     return std::nullopt;
 }
 

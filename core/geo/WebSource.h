@@ -114,6 +114,11 @@ std::optional<double> busyWait(const std::filesystem::path& description, const s
 std::optional<Error> tileFailureIn(const std::filesystem::path& description, long long x0, long long y0, long long x1,
                                    long long y1);
 
+/// The bytes in the disk tile cache of the tile of block (col, row) of a service description (describeTileService's
+/// XML or TMS cut, describeWmts's XML; blocks of 256 pixels from the description's first): GDAL keeps each tile as
+/// the file named by the MD5 of its URL under the description's cache path. Nothing when it is not in the cache.
+std::optional<long long> cachedTileBytes(const std::filesystem::path& description, long long col, long long row);
+
 /// The tiles a service description covers at its zoom (describeTileService's XYZ window or TMS cut: what a read of
 /// the whole area fetches); nothing for other files (a WMTS description: GDAL chooses its tiles).
 std::optional<long long> serviceTileCount(const std::filesystem::path& description);
