@@ -97,6 +97,17 @@ Result<Answer> fetchOnce(const std::string& url, bool headOnly) {
     return a;
 }
 
+/// 429, 502, 503, 504: a server (or its gateway) busy for now, worth asking again after a wait.
+bool isBusy(const std::string& status) { return status == "429" || status == "502" || status == "503" || status == "504"; }
+
+/// What a 429's or 503's Retry-After says, in seconds (at most 60); nothing when it names none (or a date).
+std::optional<double> retryAfter(const Answer& a) {
+    if ((a.status != "429" && a.status != "503") || a.retryAfter.empty() || a.retryAfter.size() >= 6 ||
+        a.retryAfter.find_first_not_of("0123456789") != std::string::npos)
+        return std::nullopt;
+    return std::min(60.0, double(std::stoi(a.retryAfter)));
+}
+
 /// A request with retries (`retry`): up to 3 more on 429, 500 and 502-504 and on transfers that timed out or were
 /// reset, after 1, 2 and 4 s, or after what the server's Retry-After says (seconds, at most 60) on 429 and 503.
 Result<Answer> fetch(const std::string& url, bool headOnly, bool retry = true) {
@@ -109,10 +120,8 @@ Result<Answer> fetch(const std::string& url, bool headOnly, bool retry = true) {
             again = a.message().find("timed out") != std::string::npos || a.message().find("reset") != std::string::npos;
         } else {
             const std::string& st = a->status;
-            again = st == "429" || st == "500" || st == "502" || st == "503" || st == "504";
-            if ((st == "429" || st == "503") && !a->retryAfter.empty() &&
-                a->retryAfter.find_first_not_of("0123456789") == std::string::npos && a->retryAfter.size() < 6)
-                wait = std::min(60.0, double(std::stoi(a->retryAfter)));
+            again = st == "500" || isBusy(st);
+            if (const auto named = retryAfter(*a)) wait = *named;
         }
         if (!retry || !again || attempt == 4) return a;
         std::this_thread::sleep_for(std::chrono::duration<double>(wait));
@@ -682,7 +691,7 @@ std::optional<double> busyWait(const std::filesystem::path& description, const s
     int code = 0;
     if (const auto at = message.find("HTTP status code: "); at != std::string::npos) code = std::atoi(message.c_str() + at + 18);
     else if (const auto at2 = message.find("(HTTP "); at2 != std::string::npos) code = std::atoi(message.c_str() + at2 + 6);
-    if (code != 429 && code != 502 && code != 503 && code != 504) return std::nullopt;
+    if (!isBusy(std::to_string(code))) return std::nullopt;
     const auto block = failedBlock(message);
     long long ox = 0, oy = 0;
     const std::string xml = block ? describedXml(description, ox, oy) : std::string();
@@ -693,11 +702,8 @@ std::optional<double> busyWait(const std::filesystem::path& description, const s
         if (!a) return fallback; // no answer: a transfer fault, the fallback's backoff
         const std::string& st = a->status;
         if (st == "200" || st == "404" || st == "204") continue;
-        if ((st == "429" || st == "503") && !a->retryAfter.empty() &&
-            a->retryAfter.find_first_not_of("0123456789") == std::string::npos && a->retryAfter.size() < 6)
-            return std::min(60.0, double(std::stoi(a->retryAfter)));
-        if (st == "429" || st == "502" || st == "503" || st == "504") return fallback;
-        return std::nullopt; // another status now (500, 403, ...): not worth another read
+        if (!isBusy(st)) return std::nullopt; // another status now (500, 403, ...): not worth another read
+        return retryAfter(*a).value_or(fallback);
     }
     return 0.0; // answered now: read again at once
 }
