@@ -127,7 +127,7 @@ GeometryFrameStats TrunksGL::draw(const Camera& camera, const ClipmapTerrainRend
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_buffer.id());
     // An instance per trunk found: the count is on the CPU since the search (find() reads it back). Drawn through the
     // buffer's DrawArraysIndirectCommand instead, this stage held the CPU for 6.4 of the canopy view's 12 ms on the
-    // lent H100 (`bench --stages issue`: the GPU's whole frame so far; 0.08 ms when the GPU had finished before it),
+    // NVIDIA H100 (`bench --stages issue`: the GPU's whole frame so far; 0.08 ms when the GPU had finished before it),
     // and the indirect draw was its one draw.
     glDrawArraysInstanced(GL_TRIANGLES, 0, kVerticesPerTrunk, m_count);
     glBindVertexArray(0);

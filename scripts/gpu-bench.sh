@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The GPU figures (frame time of the full scene; the city's atlas tree against its originals), on the machine the `device` tool lends (docs/gpu.md): runs the bundle that
+# The GPU figures (frame time of the full scene; the city's atlas tree against its originals), on a GPU machine (docs/gpu.md): runs the bundle that
 # scripts/gpu-bundle.py made (.gpu/, carried xz-compressed as .gpu-carry/bundle.tar.xz), on the EGL device platform, and leaves everything it measured in
 # one archive, $OUT/gpu_results.tgz, plus a summary on stdout.
 #   1. the demo scene (synth's 8192² scene, seed 1): `bench --compare scene=terrain,full` at 1920×1080, `flyover`

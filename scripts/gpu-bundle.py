@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Packs build/seasonview and the shared libraries it loads into one folder that runs on a bare machine.
 
-Why: the GPU machine the `device` tool lends (docs/gpu.md) is a bare CUDA image that cannot install packages, and
-its tool carries at most 64 MiB of working tree. seasonview's link closure is about 270 libraries and 350 MB,
+Why: the GPU machine (docs/gpu.md) is a bare CUDA image that cannot install packages, and
+at most 64 MiB of working tree reach it. seasonview's link closure is about 270 libraries and 350 MB,
 nearly all of it pulled in by OpenImageIO's, OpenCV's and libcitygml's dependencies (ffmpeg, OpenVDB, GDAL, ICU,
 ...) that a benchmark run never calls. The loader wants every library of the closure before main() runs, and (the
 Debian libraries here are linked BIND_NOW) every symbol they refer to.
