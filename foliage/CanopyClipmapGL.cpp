@@ -295,10 +295,17 @@ void CanopyClipmapGL::derive(int level, bool coarse, const std::vector<glm::ivec
     program.set("uLevel", level);
     program.set("uBlockSize", L.block);
     program.set("uDropThreshold", m_stats.dropThreshold);
-    program.set("uLayers", m_options.layers);
-    for (int i = 0; i < m_options.layers; ++i)
-        program.set(("uLayerK[" + std::to_string(i) + "]").c_str(),
-                      m_options.params.method == SegmentationMethod::Pixel ? 1 : layerK(i, level));
+    // The layers grouped by k (canopy_derive.comp's uGroupK): per group its k and its last layer + 1.
+    const auto kOf = [&](int layer) {
+        return m_options.params.method == SegmentationMethod::Pixel ? 1 : layerK(layer, level);
+    };
+    int groups = 0;
+    for (int i = 0; i < m_options.layers; ++i) {
+        if (i + 1 < m_options.layers && kOf(i + 1) == kOf(i)) continue;
+        const std::string name = "uGroupK[" + std::to_string(groups++) + "]";
+        glProgramUniform2i(program.id(), program.location(name.c_str()), kOf(i), i + 1);
+    }
+    program.set("uGroups", groups);
     glBindImageTexture(0, m_clip.id(), 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_R8UI);
     glBindImageTexture(1, m_coarse.id(), 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R8UI);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_blocks.id());

@@ -48,8 +48,13 @@ uniform int uLevel;        // the level derived; uCoarsePass: the coarse base
 const int uCoarsePass = COARSE_PASS;
 const int uMethod = METHOD;
 uniform int uDropThreshold;
-uniform int uLayers;
-uniform int uLayerK[32];   // k of each layer at this level, odd, non-decreasing
+// The layers at this level grouped by their k (odd, non-decreasing with the layer; several layers share one k, all of
+// them on coarser levels and with the `pixel` method): group g votes over uGroupK[g].x² texels and, where that vote is
+// a majority, puts the texel on every layer up to uGroupK[g].y (its last layer + 1). Groups in increasing k; the
+// texel's value is that of the last group with a majority, so the loop runs down from the last and stops at the
+// first: a texel costs one vote per distinct k at most, not one per layer (16 per texel cost half the derivation).
+uniform int uGroups;
+uniform ivec2 uGroupK[32];
 
 shared uint sIn[IN * IN];
 shared int sSmooth[SM * SM];
@@ -191,20 +196,17 @@ void main() {
         ivec2 out2 = ivec2(gl_LocalInvocationID.xy) * 2 + ivec2(o & 1, o >> 1);
         ivec2 g = tileOrigin + out2;
         if (any(greaterThanEqual(g, size))) continue;
-        int top = 0, lastK = 0, a = 0, b = 0; // default: votes; others: leaf-on green, leaf-off not green
+        int top = 0; // default: votes; others: leaf-on green (a), leaf-off not green (b)
         ivec2 c = out2 + VOTE_HALO;
-        for (int layer = 0; layer < uLayers; ++layer) {
-            int k = uLayerK[layer];
-            if (k != lastK) {
-                int r = k / 2;
-                ivec2 lo = c - r, hi = c + r + 1; // SAT corners
-                uint n = sIn[hi.y * SAT + hi.x] - sIn[lo.y * SAT + hi.x] - sIn[hi.y * SAT + lo.x] + sIn[lo.y * SAT + lo.x];
-                a = int(n & 0xFFFFu);
-                b = int(n >> 16);
-                lastK = k;
+        for (int g = uGroups - 1; g >= 0; --g) {
+            int k = uGroupK[g].x, r = k / 2;
+            ivec2 lo = c - r, hi = c + r + 1; // SAT corners
+            uint n = sIn[hi.y * SAT + hi.x] - sIn[lo.y * SAT + hi.x] - sIn[hi.y * SAT + lo.x] + sIn[lo.y * SAT + lo.x];
+            int a = int(n & 0xFFFFu), b = int(n >> 16);
+            if (texture ? svIsMajority(a, k) : svIsMajority(a, k) && svIsMajority(b, k)) {
+                top = uGroupK[g].y;
+                break;
             }
-            bool yes = texture ? svIsMajority(a, k) : svIsMajority(a, k) && svIsMajority(b, k);
-            if (yes) top = layer + 1;
         }
         if (top > 0 && !hasData(g)) top = 0;
         if (top > 0) atomicMax(sCellMax[(out2.y / CELL) * (TILE / CELL) + out2.x / CELL], uint(top));
