@@ -62,11 +62,35 @@ void main() {
         int hit = -1;
         vec3 at = vLocal;
         vec2 pAt = p;
-        for (int i = vLayer; i >= uFirstLayer; --i) {
-            float drop = float(uCanopyLayers - 1 - i) * step; // below the top layer
-            if (drop > 0.0 && descent <= 0.0) break;           // the ray does not come down to this layer
-            float t = drop > 0.0 ? drop / descent : 0.0;
-            vec2 q = p + uLocalToPixel * (t * dir.xy) + uLayerShift * float(i);
+        // Where the ray meets layer i (t along dir; false: it does not come down to that layer).
+#define SV_RAY_AT(i, t, q)                                                                                         \
+    float drop = float(uCanopyLayers - 1 - (i)) * step; /* below the top layer */                                  \
+    if (drop > 0.0 && descent <= 0.0) break;                                                                       \
+    float t = drop > 0.0 ? drop / descent : 0.0;                                                                   \
+    vec2 q = p + uLocalToPixel * (t * dir.xy) + uLayerShift * float(i);
+        // The points the loop may visit lie on a segment, from layer vLayer to uFirstLayer (or at vLayer alone when
+        // the ray does not come down); where the canopy's level is derived over all of it, the loop reads that level
+        // directly. The two loops below run for their own pixels only: a loop ends once no pixel of the block is in it.
+        bool direct;
+        {
+            int last = descent > 0.0 ? uFirstLayer : vLayer;
+            float d0 = float(uCanopyLayers - 1 - vLayer) * step, d1 = float(uCanopyLayers - 1 - last) * step;
+            vec2 q0 = p + uLocalToPixel * ((d0 > 0.0 ? d0 / descent : 0.0) * dir.xy) + uLayerShift * float(vLayer);
+            vec2 q1 = p + uLocalToPixel * ((d1 > 0.0 ? d1 / descent : 0.0) * dir.xy) + uLayerShift * float(last);
+            const float slack = 0.01; // level-0 texels: the loop's own rounding of the points between
+            direct = canopyBoxDerived(min(q0, q1) - slack, max(q0, q1) + slack, canopyLevel);
+        }
+        for (int i = vLayer; direct && i >= uFirstLayer; --i) {
+            SV_RAY_AT(i, t, q)
+            if (canopyAtDerived(q, canopyLevel) > i) {
+                hit = i;
+                at = vLocal + t * dir;
+                pAt = q;
+                break;
+            }
+        }
+        for (int i = vLayer; !direct && i >= uFirstLayer; --i) {
+            SV_RAY_AT(i, t, q)
             if (canopyAt(q, canopyLevel) > i) {
                 hit = i;
                 at = vLocal + t * dir;
@@ -74,6 +98,7 @@ void main() {
                 break;
             }
         }
+#undef SV_RAY_AT
         if (hit < 0) discard;
         vec3 lc = sampleClipmap(0, pAt, fm, used).rgb;
         lc *= mix(uCanopyDark, 1.0, float(hit) / float(max(uCanopyLayers - 1, 1)));

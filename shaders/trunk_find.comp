@@ -40,7 +40,7 @@ layout(std430, binding = 0) buffer Trunks {
 bool inWindow(ivec2 q) { return all(greaterThanEqual(q, uWindow0)) && all(lessThan(q, uWindow1)); }
 
 // Where the N×N level stores window texel q (q mod N; the window may start left of or above the image).
-ivec2 gWindow0Mod; // uWindow0 mod N, >= 0
+ivec2 gWindow0Mod = ivec2(0); // uWindow0 mod N, >= 0 (set first thing in main())
 ivec2 stored(ivec2 q) { return clipTexelOf(q - uWindow0 + gWindow0Mod); }
 
 // -1: unknown (outside the window or the level's image, or not derived), else the canopy value.
