@@ -25,8 +25,9 @@ struct CanopyOptions {
     int topK = 0;                // k of the top layer (odd, <= kSegMaxK); 0 = min(kSegMaxK, 3 k)
     int blocksPerFrame = 256;    // derivation budget per update()
     // update() derives the blocks of levels finer than keepLevelsFrom() only where canopy lookups read them: the
-    // canopy view's ground and marched layers record, per pixel, the block each lookup starts at and the blocks under
-    // it on every coarser level (read back without waiting), the rasterised layers through noteRead(); a block none
+    // canopy view's ground and march record, per pixel, the block each lookup starts at and each coarser one under it
+    // that it falls back past, where that block is not derived (shaders/common_view.glsl, canopyAtNoting; read back
+    // without waiting), the rasterised layers through noteRead(); a block none
     // read in the last readWindow frames waits
     // (a lookup falls back to the next coarser level meanwhile, as for any block not derived yet). Until the first
     // record is back every block is derived. false: every block.
@@ -110,7 +111,7 @@ private:
     void collectReads();
     // Whether a lookup read block `tag` of `level` (in `slot`) lately, or the level is kept whole.
     bool wanted(int level, size_t slot, std::int32_t tag) const;
-    // The record (shaders/common_view.glsl, canopyNoteRead): per clip level, per slot, the block read there.
+    // The record (shaders/common_view.glsl, canopyAtNoting): per clip level, per slot, the block read there.
     gl::Buffer m_reads, m_readsReadback;
     const std::int32_t* m_readsMapped = nullptr;
     GLsync m_readsFence = nullptr;

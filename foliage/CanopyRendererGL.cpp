@@ -5,6 +5,7 @@
 #include "gl/FrameStages.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 
 #include <glm/geometric.hpp>
@@ -89,6 +90,34 @@ GeometryFrameStats CanopyRendererGL::renderView(const Camera& camera, const Clip
     return st;
 }
 
+namespace {
+// Texture units of the full-screen march's entry record: past the terrain passes' (ClipmapTerrainRendererGL.h).
+constexpr int kEntryUnit = kGBufferUnit + 2;
+} // namespace
+
+void CanopyRendererGL::ensureEntry(const gl::RenderTarget& target) const {
+    if (m_entryFramebuffer && m_entrySize == glm::ivec2(target.width(), target.height()) &&
+        m_entryDepth == target.depthRenderbuffer())
+        return;
+    m_entryFramebuffer = gl::Framebuffer::create();
+    for (int i = 0; i < 3; ++i) {
+        m_entry[i] = gl::Texture::create(GL_TEXTURE_2D);
+        glTextureStorage2D(m_entry[i].id(), 1, GL_RGBA32F, target.width(), target.height());
+        glTextureParameteri(m_entry[i].id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        glTextureParameteri(m_entry[i].id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        glNamedFramebufferTexture(m_entryFramebuffer.id(), GLenum(GL_COLOR_ATTACHMENT0 + i), m_entry[i].id(), 0);
+    }
+    glNamedFramebufferRenderbuffer(m_entryFramebuffer.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER,
+                                   target.depthRenderbuffer());
+    const GLenum buffers[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
+    glNamedFramebufferDrawBuffers(m_entryFramebuffer.id(), 3, buffers);
+    assert(glCheckNamedFramebufferStatus(m_entryFramebuffer.id(), GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE &&
+           "CanopyRendererGL: incomplete entry framebuffer");
+    m_entrySize = {target.width(), target.height()};
+    m_entryDepth = target.depthRenderbuffer();
+    if (!m_emptyVao) m_emptyVao = gl::VertexArray::create();
+}
+
 Result<std::unique_ptr<CanopyRendererGL>> CanopyRendererGL::create() {
     // The programs are the terrain renderer's (ClipmapTerrainRendererGL::program): built for its clipmaps' layouts.
     return std::unique_ptr<CanopyRendererGL>(new CanopyRendererGL());
@@ -114,6 +143,14 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
                                 {"CANOPY_LAYER", std::string("NORMALS ") + (shade > 0.0f ? "1" : "0")});
     terrain.bindTerrain(program, viewProj);
     canopy.bind(program, kCanopyUnit);
+    if (march) {
+        // The top layer's patches record where each pixel's ray enters the stack; one full-screen pass marches.
+        ensureEntry(target);
+        glBindFramebuffer(GL_FRAMEBUFFER, m_entryFramebuffer.id());
+        glViewport(0, 0, target.width(), target.height());
+        const float none[4] = {-1.0f, -1.0f, 0.0f, 0.0f};
+        glClearNamedFramebufferfv(m_entryFramebuffer.id(), GL_COLOR, 0, none);
+    }
     program.set("uCanopyHeight", float(s.treeHeight));
     program.set("uCrownBase", float(std::clamp(s.crownBase, 0.0, s.treeHeight)));
     program.set("uCanopyDark", std::clamp(s.darkest, 0.0f, 1.0f));
@@ -183,6 +220,37 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
             out.push_back({n <= 1 ? top : first + int(std::lround(double((n - 1 - j) * span) / double(n - 1))), packed});
     };
     GeometryFrameStats st = terrain.geometry().drawPatches(program, viewProj, s.treeHeight, instances);
+    if (march) {
+        target.bind();
+        const gl::ShaderProgram& marcher = terrain.program("terrain_resolve.vert", "canopy_march.frag", {"CANOPY_MARCH"});
+        terrain.bindTerrain(marcher, viewProj);
+        canopy.bind(marcher, kCanopyUnit);
+        for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(kEntryUnit + i), m_entry[i].id());
+        marcher.set("uEntry", kEntryUnit);
+        marcher.set("uFootprint", kEntryUnit + 1);
+        marcher.set("uRay", kEntryUnit + 2);
+        marcher.set("uCanopyHeight", float(s.treeHeight));
+        marcher.set("uCrownBase", float(std::clamp(s.crownBase, 0.0, s.treeHeight)));
+        marcher.set("uCanopyDark", std::clamp(s.darkest, 0.0f, 1.0f));
+        marcher.set("uLayerShift", s.shift);
+        marcher.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
+        marcher.set("uShade", shade);
+        marcher.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
+        marcher.set("uFirstLayer", first);
+        marcher.set("uEye", glm::vec3(camera.position));
+        marcher.set("uLocalToPixel", glm::mat2(toPixel));
+        marcher.use();
+        // Every pixel with an entry is written: the hit's colour and depth, or, where the ray meets no layer, the
+        // far depth under a colour of alpha 0 (blended away), so the terrain drawn next shows there.
+        glDepthFunc(GL_ALWAYS);
+        glEnable(GL_BLEND);
+        glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+        glBindVertexArray(m_emptyVao.id());
+        glDrawArrays(GL_TRIANGLES, 0, 3);
+        ++st.drawCalls;
+        glDisable(GL_BLEND);
+        for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(kEntryUnit + i), 0);
+    }
     glBindVertexArray(0);
     glDepthFunc(GL_GREATER);
     return st;

@@ -10,6 +10,8 @@
 #include "ClipmapTerrainRendererGL.h"
 #include "Scene.h"
 #include "TrunksGL.h"
+#include "gl/GlObjects.h"
+#include "gl/RenderTarget.h"
 
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
@@ -18,9 +20,10 @@ namespace seasonview {
 
 /// How the stacked layers are drawn. Layers: each layer is its own lifted copy of the geometry clipmap's patches,
 /// rasterised, its fragments kept where the canopy reaches the layer (the paper's §4.2 as written: up to N fragments
-/// per pixel). March: only the top layer is rasterised, and each of its fragments intersects its view ray with the
-/// layers below in turn, over the terrain's local plane, keeping the first layer whose canopy it meets (one fragment
-/// per pixel, N cheap fetches at most; the same layers, exact on planar terrain).
+/// per pixel). March: only the top layer is rasterised, recording where each pixel's view ray enters the stack; one
+/// full-screen pass (shaders/canopy_march.frag) intersects each ray with the layers below in turn, over the terrain's
+/// local plane, keeping the first layer whose canopy it meets (one march per pixel, N cheap fetches at most; the
+/// same layers, exact on planar terrain).
 enum class CanopyDrawMode { Layers, March };
 
 struct CanopyDrawSettings {
@@ -97,6 +100,14 @@ public:
 
 private:
     CanopyRendererGL() = default;
+    // The marched pass's record of where each pixel's ray enters the stack (canopy_march.frag), sized to the target
+    // and sharing its depth buffer: RGBA32F (p, dFdx p), (dFdy p, normal xy), (entry point, first layer + 256 × level).
+    void ensureEntry(const gl::RenderTarget& target) const;
+    mutable gl::Framebuffer m_entryFramebuffer;
+    mutable gl::Texture m_entry[3];
+    mutable glm::ivec2 m_entrySize{0};
+    mutable GLuint m_entryDepth = 0;
+    mutable gl::VertexArray m_emptyVao;
 };
 
 } // namespace seasonview

@@ -5,7 +5,7 @@
 // 5 wireframe, 6 levels, 7 relief, 8 canopy (ground: uCanopyGround[1] under the canopy, uCanopyGround[0] elsewhere).
 // A compile-time constant so that each program holds only its view's code: llvmpipe executes every side of a
 // branch on a uniform under a mask, and the views' code together cost 2-3x one view (docs/performance.md).
-#if defined(LEVEL_STATS) || defined(CANOPY_LAYER) || defined(GBUFFER)
+#if defined(LEVEL_STATS) || defined(CANOPY_LAYER) || defined(GBUFFER) || defined(CANOPY_MARCH)
 #define VIEW 0 // not read: these variants draw no view's colour
 #endif
 #ifndef VIEW
@@ -31,19 +31,24 @@ uniform float uSwipeX;   // pixels
 uniform vec3 uLevelColors[8];
 uniform vec3 uNoDataColour; // where neither season has data (imagery/clipmap texels are premultiplied RGBA)
 
-// The canopy blocks read (foliage/CanopyClipmapGL.h, CanopyOptions::onDemand): a canopy lookup at level-0 position p
-// starting at `level` records the block it starts at and the blocks under p on every coarser clip level (those it
-// falls back to), per level and slot (the block's tag); update() derives the blocks read. Every pixel records: one in
-// 4 × 4 missed blocks that show in a few pixels only, which then stayed at a coarser level.
+// canopyAt(p, level) that records the canopy blocks it needed and found not derived (foliage/CanopyClipmapGL.h,
+// CanopyOptions::onDemand): the block at `level` under p and each coarser one it falls back past, per level and slot
+// (the block's tag); update() derives the blocks recorded. A lookup that finds its block derived records nothing (a
+// derived block stays derived while it is resident), so a still frame writes next to nothing. Every such lookup
+// records: one in 4 × 4 missed blocks that show in a few pixels only, which then stayed at a coarser level.
 layout(std430, binding = 3) buffer CanopyReads { int canopyReads[]; };
-void canopyNoteRead(vec2 p, int level) {
+int canopyAtNoting(vec2 p, int level) {
     for (int l = max(level, 0); l < uClipLevels; ++l) {
         float s = exp2(float(l));
         ivec2 q = clamp(ivec2(floor(p / s)), ivec2(0), ivec2(ceil(uLevel0Size / s)) - 1);
+        if (canopyBlockValid(l, q)) return int(texelFetch(uCanopyClip, ivec3(clipTexelOf(q), l), 0).r);
         ivec2 b = clipBlockOf(q);
         ivec2 slot = clipSlotOf(b);
         canopyReads[(l * uSlotsPerSide + slot.y) * uSlotsPerSide + slot.x] = b.x | (b.y << 16);
     }
+    float s = exp2(float(uClipLevels));
+    ivec2 q = clamp(ivec2(floor(p / s)), ivec2(0), ivec2(uCoarseSize) - 1);
+    return int(texelFetch(uCanopyCoarse, q, 0).r);
 }
 
 // Season s (0 leaf-on, 1 leaf-off) where it has data, the other season where it has none, then uNoDataColour: never
@@ -87,8 +92,7 @@ vec3 viewColour(vec2 p, ClipFootprint f, vec3 n, int level, out int used) {
         // The ground of the canopy view: leaf-off under the crowns (the trees stand on it as layers), leaf-on
         // elsewhere; both configurable.
         int canopyLevel = int(floor(max(f.lambdaIso, 0.0)));
-        if (uHasCanopy != 0) canopyNoteRead(p, canopyLevel);
-        bool under = uHasCanopy != 0 && canopyAt(p, canopyLevel) > 0;
+        bool under = uHasCanopy != 0 && canopyAtNoting(p, canopyLevel) > 0;
         // One seasonColour call: the season is per-pixel data here, a layer index into the one array both seasons
         // share (common_clipmap.glsl), so only the season shown is sampled.
         bool base = under && uCanopyBase > 0.0;

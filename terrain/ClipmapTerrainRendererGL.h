@@ -65,10 +65,10 @@ public:
     virtual void bind(const gl::ShaderProgram& program, int firstUnit) const = 0;
 };
 /// Texture units of the terrain passes: imagery clipmap 0.., elevation and lookup 8..12, canopy 13..15, G-buffer
-/// 16..17.
+/// 16..17 (the canopy march's entry record 18..20, foliage/CanopyRendererGL.cpp).
 inline constexpr int kCanopyUnit = 13;
 /// The SSBO binding of the canopy view's record of the canopy blocks its lookups read (shaders/common_view.glsl,
-/// canopyNoteRead; foliage/CanopyClipmapGL.h reads it back).
+/// canopyAtNoting; foliage/CanopyClipmapGL.h reads it back).
 inline constexpr int kCanopyReadsBinding = 3;
 inline constexpr int kGBufferUnit = 16; // the deferred resolve's G-buffer: 16 and 17
 inline constexpr float kMaxAnisotropy = 16.0f;
