@@ -76,7 +76,12 @@ GeometryFrameStats CanopyRendererGL::renderView(const Camera& camera, const Clip
     if (s.mode == CanopyDrawMode::March) {
         target.bind();
         beginTerrainPass(kBackgroundColor.r, kBackgroundColor.g, kBackgroundColor.b, kBackgroundColor.a);
-        add(render(camera, terrain, canopy, s, target, CanopyPass::Marched));
+        add(render(camera, terrain, canopy, s, target, CanopyPass::Marched)); // where each pixel's ray enters
+        if (ClipmapTerrainRendererGL::resolvesDeferred(imagery)) {
+            imagery.canopyMarch = &m_marchInput; // the terrain's resolve marches: one full-screen pass for both
+        } else {
+            add(marchForward(camera, terrain, canopy, target));
+        }
         imagery.clear = false;
         gl::markStage("canopy_marched");
     }
@@ -90,16 +95,11 @@ GeometryFrameStats CanopyRendererGL::renderView(const Camera& camera, const Clip
     return st;
 }
 
-namespace {
-// Texture units of the full-screen march's entry record: past the terrain passes' (ClipmapTerrainRendererGL.h).
-constexpr int kEntryUnit = kGBufferUnit + 2;
-} // namespace
-
 void CanopyRendererGL::ensureEntry(const gl::RenderTarget& target) const {
-    if (m_entryFramebuffer && m_entrySize == glm::ivec2(target.width(), target.height()) &&
-        m_entryDepth == target.depthRenderbuffer())
-        return;
+    if (m_entryFramebuffer && m_entrySize == glm::ivec2(target.width(), target.height())) return;
     m_entryFramebuffer = gl::Framebuffer::create();
+    m_entryDepth = gl::Renderbuffer::create();
+    glNamedRenderbufferStorage(m_entryDepth.id(), GL_DEPTH_COMPONENT32F, target.width(), target.height());
     for (int i = 0; i < 3; ++i) {
         m_entry[i] = gl::Texture::create(GL_TEXTURE_2D);
         glTextureStorage2D(m_entry[i].id(), 1, GL_RGBA32F, target.width(), target.height());
@@ -107,15 +107,47 @@ void CanopyRendererGL::ensureEntry(const gl::RenderTarget& target) const {
         glTextureParameteri(m_entry[i].id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
         glNamedFramebufferTexture(m_entryFramebuffer.id(), GLenum(GL_COLOR_ATTACHMENT0 + i), m_entry[i].id(), 0);
     }
-    glNamedFramebufferRenderbuffer(m_entryFramebuffer.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER,
-                                   target.depthRenderbuffer());
+    glNamedFramebufferRenderbuffer(m_entryFramebuffer.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, m_entryDepth.id());
     const GLenum buffers[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
     glNamedFramebufferDrawBuffers(m_entryFramebuffer.id(), 3, buffers);
     assert(glCheckNamedFramebufferStatus(m_entryFramebuffer.id(), GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE &&
            "CanopyRendererGL: incomplete entry framebuffer");
     m_entrySize = {target.width(), target.height()};
-    m_entryDepth = target.depthRenderbuffer();
     if (!m_emptyVao) m_emptyVao = gl::VertexArray::create();
+    for (int i = 0; i < 3; ++i) m_marchInput.entry[i] = m_entry[i].id();
+}
+
+GeometryFrameStats CanopyRendererGL::marchForward(const Camera& camera, const ClipmapTerrainRendererGL& terrain,
+                                                  const CanopyClipmapGL& canopy, const gl::RenderTarget& target) const {
+    target.bind();
+    const double aspect = double(target.width()) / double(target.height());
+    const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
+    const gl::ShaderProgram& marcher = terrain.program("terrain_resolve.vert", "canopy_march.frag", {"VIEW 0"});
+    terrain.bindTerrain(marcher, viewProj);
+    canopy.bind(marcher, kCanopyUnit);
+    for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(kCanopyEntryUnit + i), m_entry[i].id());
+    marcher.set("uEntry", kCanopyEntryUnit);
+    marcher.set("uEntryFootprint", kCanopyEntryUnit + 1);
+    marcher.set("uEntryRay", kCanopyEntryUnit + 2);
+    marcher.set("uClipAniso", m_marchAnisotropy);
+    marcher.set("uShade", m_marchShade);
+    marcher.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
+    m_marchInput.setUniforms(marcher);
+    marcher.use();
+    // Every pixel with an entry is written: the hit's colour and depth, or, where the ray meets no layer, the far
+    // depth under a colour of alpha 0 (blended away), so the terrain drawn next shows there.
+    glDepthFunc(GL_ALWAYS);
+    glEnable(GL_BLEND);
+    glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+    glBindVertexArray(m_emptyVao.id());
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    glDisable(GL_BLEND);
+    glBindVertexArray(0);
+    glDepthFunc(GL_GREATER);
+    for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(kCanopyEntryUnit + i), 0);
+    GeometryFrameStats st;
+    st.drawCalls = 1;
+    return st;
 }
 
 Result<std::unique_ptr<CanopyRendererGL>> CanopyRendererGL::create() {
@@ -144,12 +176,15 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
     terrain.bindTerrain(program, viewProj);
     canopy.bind(program, kCanopyUnit);
     if (march) {
-        // The top layer's patches record where each pixel's ray enters the stack; one full-screen pass marches.
+        // The top layer's patches record where each pixel's ray enters the stack, into their own targets and depth
+        // buffer (the terrain's geometry pass still needs the ground under them); a full-screen pass marches.
         ensureEntry(target);
         glBindFramebuffer(GL_FRAMEBUFFER, m_entryFramebuffer.id());
         glViewport(0, 0, target.width(), target.height());
         const float none[4] = {-1.0f, -1.0f, 0.0f, 0.0f};
         glClearNamedFramebufferfv(m_entryFramebuffer.id(), GL_COLOR, 0, none);
+        const float far = 0.0f; // reversed Z
+        glClearNamedFramebufferfv(m_entryFramebuffer.id(), GL_DEPTH, 0, &far);
     }
     program.set("uCanopyHeight", float(s.treeHeight));
     program.set("uCrownBase", float(std::clamp(s.crownBase, 0.0, s.treeHeight)));
@@ -222,34 +257,23 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
     GeometryFrameStats st = terrain.geometry().drawPatches(program, viewProj, s.treeHeight, instances);
     if (march) {
         target.bind();
-        const gl::ShaderProgram& marcher = terrain.program("terrain_resolve.vert", "canopy_march.frag", {"CANOPY_MARCH"});
-        terrain.bindTerrain(marcher, viewProj);
-        canopy.bind(marcher, kCanopyUnit);
-        for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(kEntryUnit + i), m_entry[i].id());
-        marcher.set("uEntry", kEntryUnit);
-        marcher.set("uFootprint", kEntryUnit + 1);
-        marcher.set("uRay", kEntryUnit + 2);
-        marcher.set("uCanopyHeight", float(s.treeHeight));
-        marcher.set("uCrownBase", float(std::clamp(s.crownBase, 0.0, s.treeHeight)));
-        marcher.set("uCanopyDark", std::clamp(s.darkest, 0.0f, 1.0f));
-        marcher.set("uLayerShift", s.shift);
-        marcher.set("uClipAniso", std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy));
-        marcher.set("uShade", shade);
-        marcher.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
-        marcher.set("uFirstLayer", first);
-        marcher.set("uEye", glm::vec3(camera.position));
-        marcher.set("uLocalToPixel", glm::mat2(toPixel));
-        marcher.use();
-        // Every pixel with an entry is written: the hit's colour and depth, or, where the ray meets no layer, the
-        // far depth under a colour of alpha 0 (blended away), so the terrain drawn next shows there.
-        glDepthFunc(GL_ALWAYS);
-        glEnable(GL_BLEND);
-        glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
-        glBindVertexArray(m_emptyVao.id());
-        glDrawArrays(GL_TRIANGLES, 0, 3);
-        ++st.drawCalls;
-        glDisable(GL_BLEND);
-        for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(kEntryUnit + i), 0);
+        // What the march (common_canopy_march.glsl) needs besides the terrain's bindings, for whichever pass marches.
+        const float canopyHeight = float(s.treeHeight), crownBase = float(std::clamp(s.crownBase, 0.0, s.treeHeight));
+        const float dark = std::clamp(s.darkest, 0.0f, 1.0f);
+        const glm::vec2 shift = s.shift;
+        const glm::vec3 eye(camera.position);
+        const glm::mat2 localToPixel(toPixel);
+        m_marchInput.setUniforms = [=](const gl::ShaderProgram& p) {
+            p.set("uCanopyHeight", canopyHeight);
+            p.set("uCrownBase", crownBase);
+            p.set("uCanopyDark", dark);
+            p.set("uLayerShift", shift);
+            p.set("uFirstLayer", first);
+            p.set("uEye", eye);
+            p.set("uLocalToPixel", localToPixel);
+        };
+        m_marchAnisotropy = std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy);
+        m_marchShade = shade;
     }
     glBindVertexArray(0);
     glDepthFunc(GL_GREATER);

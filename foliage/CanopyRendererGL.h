@@ -87,9 +87,10 @@ public:
     static Result<std::unique_ptr<CanopyRendererGL>> create();
 
     /// The canopy view whole: the ground (`imagery`, its canopyBase set when layer 0 lies on it), the layers and,
-    /// when given, the trunks, in the order that spares the most work. Marched layers go first: the depth they write
-    /// hides the ground under the crowns before its (anisotropic, two-season) fragments are shaded. Rasterised layers
-    /// go after the ground, whose pass draws their layer 0 on it.
+    /// when given, the trunks, in the order that spares the most work. The marched layers' entry record goes first,
+    /// and the terrain's deferred resolve marches it (ImagerySettings::canopyMarch: each pixel samples the imagery
+    /// once, for its crown or its ground; forward terrain shading: a march pass of its own before the terrain).
+    /// Rasterised layers go after the ground, whose pass draws their layer 0 on it.
     GeometryFrameStats renderView(const Camera& camera, const ClipmapTerrainRendererGL& terrain, ImagerySettings imagery,
                                   const CanopyClipmapGL& canopy, const CanopyDrawSettings& settings,
                                   const TrunksGL* trunks, const gl::RenderTarget& target) const;
@@ -100,14 +101,20 @@ public:
 
 private:
     CanopyRendererGL() = default;
-    // The marched pass's record of where each pixel's ray enters the stack (canopy_march.frag), sized to the target
-    // and sharing its depth buffer: RGBA32F (p, dFdx p), (dFdy p, normal xy), (entry point, first layer + 256 × level).
+    // The marched pass's record of where each pixel's ray enters the stack (common_canopy_march.glsl), sized to the
+    // target: RGBA32F (p, dFdx p), (dFdy p, normal xy), (entry point, first layer + 256 × level), its own depth.
     void ensureEntry(const gl::RenderTarget& target) const;
+    // The march with forward terrain shading: a full-screen pass before the terrain (with deferred shading the
+    // terrain's resolve marches, ImagerySettings::canopyMarch).
+    GeometryFrameStats marchForward(const Camera& camera, const ClipmapTerrainRendererGL& terrain,
+                                    const CanopyClipmapGL& canopy, const gl::RenderTarget& target) const;
     mutable gl::Framebuffer m_entryFramebuffer;
     mutable gl::Texture m_entry[3];
+    mutable gl::Renderbuffer m_entryDepth; // the top layer's own depth: the terrain's geometry pass draws under it
     mutable glm::ivec2 m_entrySize{0};
-    mutable GLuint m_entryDepth = 0;
     mutable gl::VertexArray m_emptyVao;
+    mutable CanopyMarchInput m_marchInput; // the entry record and the march's uniforms of the last Marched pass
+    mutable float m_marchAnisotropy = 8.0f, m_marchShade = 0.0f;
 };
 
 } // namespace seasonview

@@ -5,7 +5,7 @@
 // 5 wireframe, 6 levels, 7 relief, 8 canopy (ground: uCanopyGround[1] under the canopy, uCanopyGround[0] elsewhere).
 // A compile-time constant so that each program holds only its view's code: llvmpipe executes every side of a
 // branch on a uniform under a mask, and the views' code together cost 2-3x one view (docs/performance.md).
-#if defined(LEVEL_STATS) || defined(CANOPY_LAYER) || defined(GBUFFER) || defined(CANOPY_MARCH)
+#if defined(LEVEL_STATS) || defined(CANOPY_LAYER) || defined(GBUFFER)
 #define VIEW 0 // not read: these variants draw no view's colour
 #endif
 #ifndef VIEW
@@ -52,9 +52,8 @@ int canopyAtNoting(vec2 p, int level) {
 }
 
 // Season s (0 leaf-on, 1 leaf-off) where it has data, the other season where it has none, then uNoDataColour: never
-// black. The other season is fetched only where s lacks data.
-vec3 seasonColour(int s, vec2 p, ClipFootprint f, out int used) {
-    vec4 a = sampleClipmap(s, p, f, used);
+// black. The other season is fetched only where s lacks data. seasonColourOf: the same from s's sample `a` at p.
+vec3 seasonColourOf(vec4 a, int s, vec2 p, ClipFootprint f) {
 #ifdef SEASONS_COMPLETE
     // Both seasons are read as they are, on the working grid, with no pixel marked nodata (ImageryLayer::direct):
     // no other season to fall back on, and llvmpipe would run that sampling under a mask for every pixel.
@@ -64,6 +63,15 @@ vec3 seasonColour(int s, vec2 p, ClipFootprint f, out int used) {
     int other;
     vec4 b = sampleClipmap(1 - s, p, f, other);
     return a.rgb + (1.0 - a.a) * (b.rgb + (1.0 - b.a) * uNoDataColour);
+}
+vec3 seasonColour(int s, vec2 p, ClipFootprint f, out int used) {
+    return seasonColourOf(sampleClipmap(s, p, f, used), s, p, f);
+}
+
+// Lambert shading of a colour by normal n (uShade 0: none).
+vec3 shaded(vec3 c, vec3 n) {
+    if (uShade > 0.0) c *= mix(1.0, 0.25 + 0.75 * max(dot(n, uSunDir), 0.0), uShade);
+    return c;
 }
 
 // `level`: the geometry level drawn (the levels view's colour); `used` receives the imagery level used.
@@ -107,6 +115,5 @@ vec3 viewColour(vec2 p, ClipFootprint f, vec3 n, int level, out int used) {
         // Wireframe, first pass: the leaf-on imagery dimmed under the lines.
         c = 0.55 * seasonColour(0, p, f, used);
     }
-    if (uShade > 0.0) c *= mix(1.0, 0.25 + 0.75 * max(dot(n, uSunDir), 0.0), uShade);
-    return c;
+    return shaded(c, n);
 }

@@ -24,6 +24,9 @@ in vec3 vLocal;
 // exactly as the forward pass does.
 layout(location = 0) out vec4 gPosition;  // p, dFdx(p)
 layout(location = 1) out vec4 gFootprint; // dFdy(p), n.xy
+#ifdef GBUFFER_DEPTH
+layout(location = 2) out float gDepth;    // the depth: the canopy view's marching resolve writes it back
+#endif
 #elif defined(CANOPY_MARCH)
 layout(location = 0) out vec4 eEntry;     // p, dFdx(p)
 layout(location = 1) out vec4 eFootprint; // dFdy(p), n.xy
@@ -73,6 +76,9 @@ void main() {
 #elif defined(GBUFFER)
     gPosition = vec4(p, dFdx(p));
     gFootprint = vec4(dFdy(p), normalize(vNormal).xy);
+#ifdef GBUFFER_DEPTH
+    gDepth = gl_FragCoord.z;
+#endif
 #else
     fragColor = vec4(viewColour(p, f, normalize(vNormal), vLevel, used), 1.0);
 #endif

@@ -7,6 +7,10 @@
 #include "common_clipmap.glsl"
 #include "common_canopy.glsl"
 #include "common_view.glsl"
+#ifdef CANOPY_MARCH
+#include "common_canopy_march.glsl"
+uniform sampler2D uGDepth; // the terrain's depth (terrain_clipmap.frag, variant GBUFFER_DEPTH)
+#endif
 
 uniform sampler2D uGPosition;  // p, dFdx(p); p.x < 0: no terrain here
 uniform sampler2D uGFootprint; // dFdy(p), n.xy
@@ -15,9 +19,32 @@ out vec4 fragColor;
 void main() {
     ivec2 at = ivec2(gl_FragCoord.xy);
     vec4 g0 = texelFetch(uGPosition, at, 0);
+#ifdef CANOPY_MARCH
+    // The canopy view with marched layers (common_canopy_march.glsl): a pixel shows the crown its ray meets, else the
+    // ground as VIEW 8 draws it (common_view.glsl); one imagery sampling either way (the crown's leaf-on at its hit,
+    // or the ground's season), and the depth of what it shows.
+    CanopyHit h = canopyMarchAt(at);
+    bool crown = h.layer >= 0;
+    if (g0.x < 0.0 && !crown) discard;
+    vec4 g1 = texelFetch(uGFootprint, at, 0);
+    vec3 n = vec3(g1.zw, sqrt(max(1.0 - dot(g1.zw, g1.zw), 0.0)));
+    ClipFootprint f = clipmapFootprintOf(g0.zw, g1.xy);
+    int canopyLevel = int(floor(max(f.lambdaIso, 0.0)));
+    bool under = !crown && canopyAtNoting(g0.xy, canopyLevel) > 0;
+    bool base = under && uCanopyBase > 0.0;
+    int season = crown || base ? 0 : uCanopyGround[under ? 1 : 0];
+    vec2 sp = crown ? h.p : g0.xy;
+    ClipFootprint sf = crown ? h.f : f;
+    int used;
+    vec4 a = sampleClipmap(season, sp, sf, used);
+    vec3 c = crown ? canopyLayerFactor(h.layer) * a.rgb : (base ? uCanopyBase : 1.0) * seasonColourOf(a, season, sp, sf);
+    fragColor = vec4(shaded(c, crown ? h.n : n), 1.0);
+    gl_FragDepth = crown ? canopyHitDepth(h) : texelFetch(uGDepth, at, 0).r;
+#else
     if (g0.x < 0.0) discard;
     vec4 g1 = texelFetch(uGFootprint, at, 0);
     vec3 n = vec3(g1.zw, sqrt(max(1.0 - dot(g1.zw, g1.zw), 0.0)));
     int used;
     fragColor = vec4(viewColour(g0.xy, clipmapFootprintOf(g0.zw, g1.xy), n, 0, used), 1.0);
+#endif
 }

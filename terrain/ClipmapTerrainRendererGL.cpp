@@ -113,14 +113,16 @@ void ClipmapTerrainRendererGL::ensureGBuffer(const gl::RenderTarget& target) con
         return;
     m_gPosition = gl::Texture::create(GL_TEXTURE_2D);
     m_gFootprint = gl::Texture::create(GL_TEXTURE_2D);
-    for (const gl::Texture* t : {&m_gPosition, &m_gFootprint}) {
-        glTextureStorage2D(t->id(), 1, GL_RGBA32F, target.width(), target.height());
+    m_gDepth = gl::Texture::create(GL_TEXTURE_2D);
+    for (const gl::Texture* t : {&m_gPosition, &m_gFootprint, &m_gDepth}) {
+        glTextureStorage2D(t->id(), 1, t == &m_gDepth ? GL_R32F : GL_RGBA32F, target.width(), target.height());
         glTextureParameteri(t->id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
         glTextureParameteri(t->id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
     }
     m_gbuffer = gl::Framebuffer::create();
     glNamedFramebufferTexture(m_gbuffer.id(), GL_COLOR_ATTACHMENT0, m_gPosition.id(), 0);
     glNamedFramebufferTexture(m_gbuffer.id(), GL_COLOR_ATTACHMENT1, m_gFootprint.id(), 0);
+    glNamedFramebufferTexture(m_gbuffer.id(), GL_COLOR_ATTACHMENT2, m_gDepth.id(), 0);
     glNamedFramebufferRenderbuffer(m_gbuffer.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, target.depthRenderbuffer());
     const GLenum buffers[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
     glNamedFramebufferDrawBuffers(m_gbuffer.id(), 2, buffers);
@@ -193,15 +195,25 @@ GeometryFrameStats ClipmapTerrainRendererGL::renderDeferred(const Camera& camera
     // The geometry pass records each pixel's level-0 position, derivatives and normal (and the depth, into the
     // target's own depth buffer, for the passes that follow); the resolve shades every pixel it left once.
     ensureGBuffer(target);
+    // The canopy view with marched layers: the resolve marches them and writes each pixel's depth, the terrain's
+    // from a third target where no crown is met.
+    const bool march = s.canopyMarch && s.view == ImageryView::Canopy;
+    const GLenum buffers[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
+    glNamedFramebufferDrawBuffers(m_gbuffer.id(), march ? 3 : 2, buffers);
     glBindFramebuffer(GL_FRAMEBUFFER, m_gbuffer.id());
     glViewport(0, 0, target.width(), target.height());
     const float noTerrain[4] = {-1.0f, -1.0f, 0.0f, 0.0f};
     glClearNamedFramebufferfv(m_gbuffer.id(), GL_COLOR, 0, noTerrain);
-    const gl::ShaderProgram& geometryPass = program(
-        "terrain_geometry.vert", "terrain_clipmap.frag", {"GBUFFER", normals ? "NORMALS 1" : "NORMALS 0"});
+    std::vector<std::string> geometryDefines = {"GBUFFER", normals ? "NORMALS 1" : "NORMALS 0"};
+    if (march) geometryDefines.push_back("GBUFFER_DEPTH");
+    const gl::ShaderProgram& geometryPass = program("terrain_geometry.vert", "terrain_clipmap.frag", geometryDefines);
     GeometryFrameStats st = draw(geometryPass, camera, target);
     target.bind();
-    glDisable(GL_DEPTH_TEST);
+    if (march) {
+        glDepthFunc(GL_ALWAYS); // the resolve writes every pixel's depth: a crown's, or the terrain's as it was
+    } else {
+        glDisable(GL_DEPTH_TEST);
+    }
     glBindVertexArray(m_emptyVao.id());
     const double aspect = double(target.width()) / double(target.height());
     const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
@@ -213,14 +225,24 @@ GeometryFrameStats ClipmapTerrainRendererGL::renderDeferred(const Camera& camera
     for (int season = 0; season < (swipe ? 2 : 1); ++season) {
         const int x0 = season == 0 ? 0 : split, x1 = season == 0 && swipe ? split : target.width();
         if (x1 <= x0) continue;
-        const gl::ShaderProgram& resolve =
-            program("terrain_resolve.vert", "terrain_resolve.frag", viewDefines(s.view, season));
+        std::vector<std::string> defines = viewDefines(s.view, season);
+        if (march) defines.push_back("CANOPY_MARCH");
+        const gl::ShaderProgram& resolve = program("terrain_resolve.vert", "terrain_resolve.frag", defines);
         setViewUniforms(resolve, s, swipeX);
         bindTerrain(resolve, viewProj);
         glBindTextureUnit(kGBufferUnit, m_gPosition.id());
         glBindTextureUnit(kGBufferUnit + 1, m_gFootprint.id());
         resolve.set("uGPosition", kGBufferUnit);
         resolve.set("uGFootprint", kGBufferUnit + 1);
+        if (march) {
+            glBindTextureUnit(kGBufferUnit + 2, m_gDepth.id());
+            resolve.set("uGDepth", kGBufferUnit + 2);
+            for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(kCanopyEntryUnit + i), s.canopyMarch->entry[i]);
+            resolve.set("uEntry", kCanopyEntryUnit);
+            resolve.set("uEntryFootprint", kCanopyEntryUnit + 1);
+            resolve.set("uEntryRay", kCanopyEntryUnit + 2);
+            if (s.canopyMarch->setUniforms) s.canopyMarch->setUniforms(resolve);
+        }
         resolve.use();
         if (swipe) glScissor(x0, 0, x1 - x0, target.height());
         glDrawArrays(GL_TRIANGLES, 0, 3);
@@ -229,7 +251,12 @@ GeometryFrameStats ClipmapTerrainRendererGL::renderDeferred(const Camera& camera
     glDisable(GL_SCISSOR_TEST);
     glBindTextureUnit(kGBufferUnit, 0); // the G-buffer is drawn into next frame
     glBindTextureUnit(kGBufferUnit + 1, 0);
+    if (march) {
+        glBindTextureUnit(kGBufferUnit + 2, 0);
+        for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(kCanopyEntryUnit + i), 0);
+    }
     glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_GREATER);
     m_last = st;
     return st;
 }

@@ -11,6 +11,7 @@
 #include "gl/RenderTarget.h"
 #include "gl/ShaderProgram.h"
 
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -31,6 +32,15 @@ const char* imageryViewName(ImageryView v);
 enum class TerrainShading { Forward, Deferred };
 std::optional<TerrainShading> parseTerrainShading(const std::string& name);
 const char* terrainShadingName(TerrainShading t);
+
+/// The canopy view's marched layers (foliage/CanopyRendererGL.h, CanopyDrawMode::March) for the deferred resolve to
+/// march (shaders/terrain_resolve.frag, variant CANOPY_MARCH; common_canopy_march.glsl): the top layer's record of
+/// where each pixel's ray enters the stack (three RGBA32F textures the size of the frame) and what sets the march's
+/// own uniforms (the stack's heights, the eye, ...). The crowns take the terrain's anisotropy and shading.
+struct CanopyMarchInput {
+    GLuint entry[3] = {0, 0, 0};
+    std::function<void(const gl::ShaderProgram&)> setUniforms;
+};
 
 struct ImagerySettings {
     ImageryView view = ImageryView::LeafOn;
@@ -55,6 +65,9 @@ struct ImagerySettings {
     // false: the pass only clears (when `clear`) and draws nothing, so what follows (the city) is drawn alone, as
     // Buchholz & Döllner 2005 §6 timed the facades without terrain.
     bool terrain = true;
+    // Canopy view, deferred (resolvesDeferred()): the marched layers' entry record, marched in the resolve, which then
+    // shows each pixel's crown or ground and writes its depth (one full-screen pass for both). Null: none.
+    const CanopyMarchInput* canopyMarch = nullptr;
 };
 
 /// A per-texel canopy layer the ground pass can read (foliage/CanopyClipmapGL.h implements it): binds the samplers
@@ -65,12 +78,13 @@ public:
     virtual void bind(const gl::ShaderProgram& program, int firstUnit) const = 0;
 };
 /// Texture units of the terrain passes: imagery clipmap 0.., elevation and lookup 8..12, canopy 13..15, G-buffer
-/// 16..17 (the canopy march's entry record 18..20, foliage/CanopyRendererGL.cpp).
+/// 16..18 (position, footprint, depth), the canopy march's entry record 19..21 (kCanopyEntryUnit).
 inline constexpr int kCanopyUnit = 13;
 /// The SSBO binding of the canopy view's record of the canopy blocks its lookups read (shaders/common_view.glsl,
 /// canopyAtNoting; foliage/CanopyClipmapGL.h reads it back).
 inline constexpr int kCanopyReadsBinding = 3;
-inline constexpr int kGBufferUnit = 16; // the deferred resolve's G-buffer: 16 and 17
+inline constexpr int kGBufferUnit = 16; // the deferred resolve's G-buffer: 16, 17 and 18
+inline constexpr int kCanopyEntryUnit = 19;
 inline constexpr float kMaxAnisotropy = 16.0f;
 
 /// The colours of `--view lod`, level 0 first (paper Fig. 2: red, green, blue, ...).
@@ -98,6 +112,11 @@ public:
     ClipmapFrameStats completeGeometry();
 
     GeometryFrameStats render(const Camera& camera, const ImagerySettings& settings, const gl::RenderTarget& target) const;
+    /// Whether render() shades `settings` deferred (a geometry pass, then a full-screen resolve).
+    static bool resolvesDeferred(const ImagerySettings& settings) {
+        return settings.path == TerrainShading::Deferred && settings.view != ImageryView::Wireframe &&
+               settings.view != ImageryView::Levels;
+    }
 
     /// Renders the level-statistics pass into `scratch` (same size as the frame) and reduces it.
     FrameLevelStats measureLevels(const Camera& camera, const gl::RenderTarget& scratch) const;
@@ -148,6 +167,7 @@ private:
     mutable std::map<std::string, gl::ShaderProgram> m_programs;
     mutable gl::Framebuffer m_gbuffer;
     mutable gl::Texture m_gPosition, m_gFootprint; // RGBA32F: (p, dFdx p), (dFdy p, normal xy)
+    mutable gl::Texture m_gDepth;                  // R32F: the depth, for the canopy march's resolve
     mutable glm::ivec2 m_gbufferSize{0};
     mutable GLuint m_gbufferDepth = 0;
     mutable gl::VertexArray m_emptyVao;

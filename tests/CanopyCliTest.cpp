@@ -119,6 +119,27 @@ TEST(CanopyCliTest, BadCanopyFlagsFailWithOneLine) {
 // the rasterised layers are thinned to one per pixel of stack and the march takes every layer, and by the march's
 // planar-terrain intersection on slopes; a march that missed layers or put them at the wrong height would change
 // whole crowns.
+// The march runs in the deferred terrain resolve (one full-screen pass for crowns and ground) or, with forward
+// terrain shading, in its own full-screen pass before the terrain (CanopyRendererGL::marchForward): the same pixels.
+TEST(CanopyCliTest, MarchedLayersTheSameWithForwardAndDeferredTerrain) {
+    const CliScene& s = scene();
+    for (const char* trunks : {"on", "off"}) {
+        ASSERT_EQ(s.render("deferred.png", {"--view", "canopy", "--trunks", trunks}).exitCode, 0);
+        ASSERT_EQ(s.render("forward.png", {"--view", "canopy", "--trunks", trunks, "--terrain-shading", "forward"}).exitCode, 0);
+        ASSERT_EQ(s.render("ground.png", {"--view", "canopy", "--canopy-layers", "off", "--trunks", trunks}).exitCode, 0);
+        const auto deferred = s.image("deferred.png"), forward = s.image("forward.png"), ground = s.image("ground.png");
+        ASSERT_EQ(deferred.pixels.size(), forward.pixels.size());
+        int worst = 0;
+        size_t crowns = 0;
+        for (size_t i = 0; i < deferred.pixels.size(); ++i) {
+            worst = std::max(worst, std::abs(int(deferred.pixels[i]) - int(forward.pixels[i])));
+            crowns += deferred.pixels[i] != ground.pixels[i];
+        }
+        EXPECT_EQ(worst, 0) << trunks;
+        EXPECT_GT(crowns, deferred.pixels.size() / 50) << trunks; // the crowns are drawn at all
+    }
+}
+
 TEST(CanopyCliTest, MarchedLayersMatchRasterisedLayers) {
     const CliScene& s = scene();
     for (const char* trunks : {"on", "off"}) {
