@@ -1,0 +1,473 @@
+#include "BlockMap.h"
+
+#include "AtomicFile.h"
+
+#include <libdeflate.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <string>
+
+#include <glm/geometric.hpp>
+
+namespace seasonview::city {
+
+namespace {
+
+constexpr int kMaxSize = 4096;
+constexpr int kMaxWallTexels = 1024;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Sides of a texel: the neighbour's offset and the side's outward normal (-x, +x, -y, +y).
+constexpr std::array<glm::ivec2, 4> kSides{glm::ivec2(-1, 0), glm::ivec2(1, 0), glm::ivec2(0, -1), glm::ivec2(0, 1)};
+
+// Möller–Trumbore: t along the ray where it meets the triangle, and the barycentric coordinates; false if it misses.
+bool rayTriangle(const glm::dvec3& o, const glm::dvec3& d, const std::array<glm::dvec3, 3>& v, double& t,
+                 glm::dvec3& bary) {
+    const glm::dvec3 e1 = v[1] - v[0], e2 = v[2] - v[0];
+    const glm::dvec3 p = glm::cross(d, e2);
+    const double det = glm::dot(e1, p);
+    if (std::abs(det) < 1e-15) return false;
+    const double inv = 1.0 / det;
+    const glm::dvec3 s = o - v[0];
+    const double u = glm::dot(s, p) * inv;
+    if (u < 0.0 || u > 1.0) return false;
+    const glm::dvec3 q = glm::cross(s, e1);
+    const double w = glm::dot(d, q) * inv;
+    if (w < 0.0 || u + w > 1.0) return false;
+    t = glm::dot(e2, q) * inv;
+    bary = glm::dvec3(1.0 - u - w, u, w);
+    return true;
+}
+
+// The height map's Chebyshev distance field (two raster passes over the 8-neighbourhood), capped at 255.
+void distanceField(BlockMap& m) {
+    const int n = m.size;
+    std::vector<int> d(std::size_t(n) * std::size_t(n));
+    const int far = 1 << 20;
+    for (std::size_t i = 0; i < d.size(); ++i) d[i] = m.height[i] > 0 ? 0 : far;
+    auto at = [&](int x, int y) -> int& { return d[std::size_t(y) * std::size_t(n) + std::size_t(x)]; };
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+            int& v = at(x, y);
+            if (x > 0) v = std::min(v, at(x - 1, y) + 1);
+            if (y > 0) {
+                v = std::min(v, at(x, y - 1) + 1);
+                if (x > 0) v = std::min(v, at(x - 1, y - 1) + 1);
+                if (x + 1 < n) v = std::min(v, at(x + 1, y - 1) + 1);
+            }
+        }
+    for (int y = n - 1; y >= 0; --y)
+        for (int x = n - 1; x >= 0; --x) {
+            int& v = at(x, y);
+            if (x + 1 < n) v = std::min(v, at(x + 1, y) + 1);
+            if (y + 1 < n) {
+                v = std::min(v, at(x, y + 1) + 1);
+                if (x + 1 < n) v = std::min(v, at(x + 1, y + 1) + 1);
+                if (x > 0) v = std::min(v, at(x - 1, y + 1) + 1);
+            }
+        }
+    m.distance.resize(d.size());
+    for (std::size_t i = 0; i < d.size(); ++i) m.distance[i] = std::uint8_t(std::min(d[i], 255));
+}
+
+} // namespace
+
+Result<BlockMap> buildBlockMap(const CityModel& model, glm::dvec2 origin, double side, const BlockMapOptions& options,
+                               const TriangleColour& colour) {
+    const int n = options.size, W = options.wallTexels;
+    if (n < 2 || n > kMaxSize) return Error{"BlockMap: size " + std::to_string(n) + " outside 2.." + std::to_string(kMaxSize)};
+    if (W < 1 || W > kMaxWallTexels)
+        return Error{"BlockMap: wall texels " + std::to_string(W) + " outside 1.." + std::to_string(kMaxWallTexels)};
+    if (!(side > 0.0) || !std::isfinite(side) || !std::isfinite(origin.x) || !std::isfinite(origin.y))
+        return Error{"BlockMap: the block's side must be a positive number of metres"};
+    BlockMap m;
+    m.origin = origin;
+    m.size = n;
+    m.texel = side / double(n);
+    m.wallTexels = W;
+    const std::size_t cellsCount = std::size_t(n) * std::size_t(n);
+    m.height.assign(cellsCount, 0);
+    m.column.assign(cellsCount, 0);
+
+    // The triangles over the block, and per texel those whose box overlaps it.
+    std::vector<std::size_t> tris;
+    double zLo = kInf, zHi = -kInf;
+    std::vector<std::vector<std::uint32_t>> cells(cellsCount);
+    auto texelRange = [&](double lo, double hi, double o) {
+        return glm::ivec2(std::clamp(int(std::floor((lo - o) / m.texel)), 0, n - 1),
+                          std::clamp(int(std::floor((hi - o) / m.texel)), 0, n - 1));
+    };
+    for (std::size_t i = 0; i < model.triangles.size(); ++i) {
+        const auto& v = model.triangles[i].v;
+        const glm::dvec3 lo = glm::min(v[0], glm::min(v[1], v[2])), hi = glm::max(v[0], glm::max(v[1], v[2]));
+        if (hi.x < origin.x || hi.y < origin.y || lo.x > origin.x + side || lo.y > origin.y + side) continue;
+        const std::uint32_t k = std::uint32_t(tris.size());
+        tris.push_back(i);
+        zLo = std::min(zLo, lo.z);
+        zHi = std::max(zHi, hi.z);
+        const glm::ivec2 rx = texelRange(lo.x, hi.x, origin.x), ry = texelRange(lo.y, hi.y, origin.y);
+        for (int y = ry.x; y <= ry.y; ++y)
+            for (int x = rx.x; x <= rx.y; ++x) cells[std::size_t(y) * std::size_t(n) + std::size_t(x)].push_back(k);
+    }
+    if (tris.empty()) {
+        distanceField(m);
+        return m;
+    }
+    m.zBase = zLo;
+    m.zTop = zHi > zLo ? zHi : zLo + 1.0;
+    const double step = (m.zTop - m.zBase) / 255.0;
+
+    // Heights: the highest non-vertical triangle over each texel's centre.
+    std::vector<double> top(cellsCount, -kInf);
+    for (std::size_t k = 0; k < tris.size(); ++k) {
+        const auto& v = model.triangles[tris[k]].v;
+        const glm::dvec3 nrm = glm::cross(v[1] - v[0], v[2] - v[0]);
+        const double len = glm::length(nrm);
+        if (!(len > 0.0) || std::abs(nrm.z) < 1e-6 * len) continue; // vertical: a wall, no height of its own
+        const glm::dvec3 lo = glm::min(v[0], glm::min(v[1], v[2])), hi = glm::max(v[0], glm::max(v[1], v[2]));
+        const glm::ivec2 rx = texelRange(lo.x, hi.x, origin.x), ry = texelRange(lo.y, hi.y, origin.y);
+        const double det = (v[1].x - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (v[1].y - v[0].y);
+        for (int y = ry.x; y <= ry.y; ++y)
+            for (int x = rx.x; x <= rx.y; ++x) {
+                const double cx = origin.x + (double(x) + 0.5) * m.texel, cy = origin.y + (double(y) + 0.5) * m.texel;
+                const double b1 = ((cx - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (cy - v[0].y)) / det;
+                const double b2 = ((v[1].x - v[0].x) * (cy - v[0].y) - (cx - v[0].x) * (v[1].y - v[0].y)) / det;
+                const double b0 = 1.0 - b1 - b2;
+                const double eps = -1e-12;
+                if (b0 < eps || b1 < eps || b2 < eps) continue;
+                double& t = top[std::size_t(y) * std::size_t(n) + std::size_t(x)];
+                t = std::max(t, b0 * v[0].z + b1 * v[1].z + b2 * v[2].z);
+            }
+    }
+    for (std::size_t i = 0; i < cellsCount; ++i)
+        if (top[i] > -kInf) m.height[i] = std::uint8_t(std::clamp(std::lround((top[i] - m.zBase) / step), 1L, 255L));
+    distanceField(m);
+
+    // Wall columns of the boundary texels (§3.3, Fig. 4): per exposed side, horizontal rays into the texel.
+    auto neighbourTop = [&](int x, int y) {
+        return x < 0 || y < 0 || x >= n || y >= n ? m.zBase : m.topAt(x, y);
+    };
+    std::vector<glm::dvec3> sums;    // per column texel: colour sum
+    std::vector<int> counts;         // per column texel: rays that met a triangle
+    constexpr int kRaysPerSide = 4;
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+            if (m.heightAt(x, y) == 0) continue;
+            const double ownTop = m.topAt(x, y);
+            glm::dvec3 normal(0.0);
+            bool exposed = false;
+            for (const glm::ivec2 s : kSides)
+                if (neighbourTop(x + s.x, y + s.y) < ownTop) {
+                    exposed = true;
+                    normal += glm::dvec3(s.x, s.y, 0.0);
+                }
+            if (!exposed) continue;
+            const int col = m.columns();
+            m.column[std::size_t(y) * std::size_t(n) + std::size_t(x)] = std::uint32_t(col + 1);
+            m.wallNormal.push_back(glm::length(normal) > 0.0 ? glm::vec3(glm::normalize(normal)) : glm::vec3(0.0f));
+            sums.resize(sums.size() + std::size_t(W), glm::dvec3(0.0));
+            counts.resize(counts.size() + std::size_t(W), 0);
+            for (const glm::ivec2 s : kSides) {
+                const double nTop = neighbourTop(x + s.x, y + s.y);
+                if (nTop >= ownTop) continue;
+                // The side's midline, half a texel outside it, looking in; candidates from both texels' lists.
+                const glm::dvec3 dir(-s.x, -s.y, 0.0);
+                const glm::dvec2 centre = origin + (glm::dvec2(x, y) + 0.5) * m.texel;
+                const glm::dvec2 outside = centre + glm::dvec2(s) * m.texel; // the neighbour's centre line
+                const glm::dvec2 across(std::abs(s.y), std::abs(s.x));
+                std::vector<std::uint32_t> candidates = cells[std::size_t(y) * std::size_t(n) + std::size_t(x)];
+                if (x + s.x >= 0 && y + s.y >= 0 && x + s.x < n && y + s.y < n) {
+                    const auto& other = cells[std::size_t(y + s.y) * std::size_t(n) + std::size_t(x + s.x)];
+                    candidates.insert(candidates.end(), other.begin(), other.end());
+                }
+                for (int j = 0; j < W; ++j) {
+                    const double z = m.zBase + (double(j) + 0.5) / double(W) * (ownTop - m.zBase);
+                    if (z < nTop) continue; // the neighbour's prism covers this side here
+                    for (int r = 0; r < kRaysPerSide; ++r) {
+                        const double a = ((double(r) + 0.5) / kRaysPerSide - 0.5) * m.texel;
+                        const glm::dvec3 o(outside + across * a, z);
+                        double best = 1.5 * m.texel;
+                        std::size_t bestTri = 0;
+                        glm::dvec3 bestBary(0.0);
+                        bool found = false;
+                        for (const std::uint32_t k : candidates) {
+                            double t;
+                            glm::dvec3 b;
+                            if (rayTriangle(o, dir, model.triangles[tris[k]].v, t, b) && t >= 0.0 && t < best) {
+                                best = t;
+                                bestTri = tris[k];
+                                bestBary = b;
+                                found = true;
+                            }
+                        }
+                        if (!found) continue;
+                        sums[std::size_t(col) * std::size_t(W) + std::size_t(j)] += colour(bestTri, bestBary);
+                        ++counts[std::size_t(col) * std::size_t(W) + std::size_t(j)];
+                    }
+                }
+            }
+        }
+
+    // Column texels no ray saw: the nearest seen one in the column; a column that saw nothing: the block's mean.
+    glm::dvec3 mean(0.0);
+    int seen = 0;
+    for (std::size_t i = 0; i < sums.size(); ++i)
+        if (counts[i] > 0) {
+            mean += sums[i] / double(counts[i]);
+            ++seen;
+        }
+    mean = seen > 0 ? mean / double(seen) : glm::dvec3(0.5);
+    m.wallRgb.assign(sums.size() * 3, 0);
+    for (int c = 0; c < m.columns(); ++c) {
+        const std::size_t base = std::size_t(c) * std::size_t(W);
+        for (int j = 0; j < W; ++j) {
+            glm::dvec3 rgb = mean;
+            for (int dj = 0; dj < W; ++dj) { // nearest seen texel, below first at equal distance
+                const int below = j - dj, above = j + dj;
+                if (below >= 0 && counts[base + std::size_t(below)] > 0) {
+                    rgb = sums[base + std::size_t(below)] / double(counts[base + std::size_t(below)]);
+                    break;
+                }
+                if (above < W && counts[base + std::size_t(above)] > 0) {
+                    rgb = sums[base + std::size_t(above)] / double(counts[base + std::size_t(above)]);
+                    break;
+                }
+            }
+            for (int ch = 0; ch < 3; ++ch)
+                m.wallRgb[(base + std::size_t(j)) * 3 + std::size_t(ch)] =
+                    std::uint8_t(std::clamp(std::lround(rgb[ch] * 255.0), 0L, 255L));
+        }
+    }
+    return m;
+}
+
+BlockMapHit traceBlockMap(const BlockMap& m, const glm::dvec3& o, const glm::dvec3& d, bool leap) {
+    BlockMapHit hit;
+    const int n = m.size;
+    if (n <= 0 || (d.x == 0.0 && d.y == 0.0 && d.z == 0.0)) return hit;
+    const double side = double(n) * m.texel;
+    // The box: [t0, t1] of the ray inside it; the face it enters by (axis, or -1 when it starts inside).
+    double t0 = 0.0, t1 = kInf;
+    int enterAxis = -1;
+    for (int a = 0; a < 3; ++a) {
+        const double lo = a < 2 ? m.origin[a] : m.zBase, hi = a < 2 ? m.origin[a] + side : m.zTop;
+        if (d[a] == 0.0) {
+            if (o[a] < lo || o[a] > hi) return hit;
+            continue;
+        }
+        double ta = (lo - o[a]) / d[a], tb = (hi - o[a]) / d[a];
+        if (ta > tb) std::swap(ta, tb);
+        if (ta > t0) {
+            t0 = ta;
+            enterAxis = a;
+        }
+        t1 = std::min(t1, tb);
+    }
+    if (t0 > t1) return hit;
+    if (enterAxis == 2 && d.z > 0.0) return hit; // from under the block's floor: the terrain is in the way
+    auto cellOf = [&](double t, int axis) {
+        return std::clamp(int(std::floor((o[axis] + t * d[axis] - m.origin[axis]) / m.texel)), 0, n - 1);
+    };
+    int cx = cellOf(t0, 0), cy = cellOf(t0, 1);
+    // The face the current texel was entered by: 0..3 its -x, +x, -y, +y side, 4 the box's top, -1 none.
+    int face = enterAxis == 0 ? (d.x > 0.0 ? 0 : 1) : enterAxis == 1 ? (d.y > 0.0 ? 2 : 3) : enterAxis == 2 ? 4 : -1;
+    const int stepX = d.x > 0.0 ? 1 : -1, stepY = d.y > 0.0 ? 1 : -1;
+    const double deltaX = d.x != 0.0 ? m.texel / std::abs(d.x) : kInf, deltaY = d.y != 0.0 ? m.texel / std::abs(d.y) : kInf;
+    auto nextCrossing = [&](int c, int axis, int stepSign) {
+        if (d[axis] == 0.0) return kInf;
+        const double boundary = m.origin[axis] + double(c + (stepSign > 0 ? 1 : 0)) * m.texel;
+        return (boundary - o[axis]) / d[axis];
+    };
+    double tCell = t0;
+    double nextX = nextCrossing(cx, 0, stepX), nextY = nextCrossing(cy, 1, stepY);
+    for (;;) {
+        ++hit.texelsVisited;
+        const double tOut = std::min({nextX, nextY, t1});
+        if (m.heightAt(cx, cy) > 0) {
+            const double top = m.topAt(cx, cy);
+            const double zIn = o.z + tCell * d.z, zOut = o.z + tOut * d.z;
+            double t = -1.0;
+            BlockMapHit::Kind kind = BlockMapHit::Kind::None;
+            if (zIn <= top) {
+                t = tCell;
+                kind = face == 4 ? BlockMapHit::Kind::Roof : BlockMapHit::Kind::Wall;
+            } else if (zOut <= top) {
+                t = (top - o.z) / d.z; // d.z < 0 here: the ray comes down through the roof's plane in the texel
+                kind = BlockMapHit::Kind::Roof;
+            }
+            if (kind != BlockMapHit::Kind::None) {
+                hit.kind = kind;
+                hit.t = t;
+                hit.point = o + t * d;
+                hit.texel = {cx, cy};
+                if (kind == BlockMapHit::Kind::Roof) {
+                    hit.normal = {0.0, 0.0, 1.0};
+                } else {
+                    if (face >= 0 && face < 4) hit.normal = glm::dvec3(kSides[std::size_t(face)], 0.0);
+                    hit.column = int(m.column[std::size_t(cy) * std::size_t(n) + std::size_t(cx)]) - 1;
+                    hit.v = std::clamp((hit.point.z - m.zBase) / std::max(top - m.zBase, 1e-12), 0.0, 1.0);
+                }
+                return hit;
+            }
+        } else if (leap) {
+            const int r = int(m.distance[std::size_t(cy) * std::size_t(n) + std::size_t(cx)]) - 1;
+            if (r >= 1) {
+                // Every texel within r of this one (Chebyshev) is empty: go to where the ray leaves that square.
+                const double exitX = d.x != 0.0 ? (m.origin.x + double(cx + (stepX > 0 ? r + 1 : -r)) * m.texel - o.x) / d.x : kInf;
+                const double exitY = d.y != 0.0 ? (m.origin.y + double(cy + (stepY > 0 ? r + 1 : -r)) * m.texel - o.y) / d.y : kInf;
+                const double tExit = std::min(exitX, exitY);
+                if (tExit >= t1) return hit; // leaves the box, or reaches its floor, over empty texels
+                const int lox = cx - r, hix = cx + r, loy = cy - r, hiy = cy + r;
+                if (exitX <= exitY) {
+                    cx = stepX > 0 ? hix + 1 : lox - 1;
+                    cy = std::clamp(cellOf(tExit, 1), loy, hiy);
+                    face = stepX > 0 ? 0 : 1;
+                } else {
+                    cy = stepY > 0 ? hiy + 1 : loy - 1;
+                    cx = std::clamp(cellOf(tExit, 0), lox, hix);
+                    face = stepY > 0 ? 2 : 3;
+                }
+                if (cx < 0 || cy < 0 || cx >= n || cy >= n) return hit;
+                tCell = tExit;
+                nextX = nextCrossing(cx, 0, stepX);
+                nextY = nextCrossing(cy, 1, stepY);
+                continue;
+            }
+        }
+        if (tOut >= t1) return hit; // leaves the box, or reaches its floor
+        if (nextX <= nextY) {
+            cx += stepX;
+            tCell = nextX;
+            nextX += deltaX;
+            face = stepX > 0 ? 0 : 1;
+        } else {
+            cy += stepY;
+            tCell = nextY;
+            nextY += deltaY;
+            face = stepY > 0 ? 2 : 3;
+        }
+        if (cx < 0 || cy < 0 || cx >= n || cy >= n) return hit;
+    }
+}
+
+// ---- files ----
+
+namespace {
+
+constexpr char kMagic[8] = {'S', 'V', 'B', 'L', 'O', 'C', 'K', 'M'};
+constexpr std::uint32_t kVersion = 1;
+constexpr std::size_t kMapHeaderBytes = 5 * 8 + 3 * 4;
+
+template <typename T> void put(std::vector<std::uint8_t>& out, const T& v) {
+    const auto* p = reinterpret_cast<const std::uint8_t*>(&v);
+    out.insert(out.end(), p, p + sizeof(T));
+}
+template <typename T> T get(const std::uint8_t* p) {
+    T v;
+    std::memcpy(&v, p, sizeof(T));
+    return v;
+}
+
+std::size_t dataBytes(std::size_t n, std::size_t W, std::size_t columns) {
+    return n * n * (1 + 1 + 4) + columns * W * 3 + columns * 3 * 4;
+}
+
+} // namespace
+
+Status writeBlockMaps(const std::filesystem::path& path, const std::vector<BlockMap>& maps) {
+    std::vector<std::uint8_t> out(kMagic, kMagic + 8);
+    put(out, kVersion);
+    put(out, std::uint32_t(maps.size()));
+    for (const BlockMap& m : maps) {
+        const std::size_t start = out.size();
+        for (double v : {m.origin.x, m.origin.y, m.texel, m.zBase, m.zTop}) put(out, v);
+        put(out, std::int32_t(m.size));
+        put(out, std::int32_t(m.wallTexels));
+        put(out, std::int32_t(m.columns()));
+        out.insert(out.end(), m.height.begin(), m.height.end());
+        out.insert(out.end(), m.distance.begin(), m.distance.end());
+        for (std::uint32_t c : m.column) put(out, c);
+        out.insert(out.end(), m.wallRgb.begin(), m.wallRgb.end());
+        for (const glm::vec3& nrm : m.wallNormal)
+            for (int i = 0; i < 3; ++i) put(out, float(nrm[i]));
+        put(out, std::uint32_t(libdeflate_crc32(0, out.data() + start, out.size() - start)));
+    }
+    const std::filesystem::path tmp = temporaryPathFor(path);
+    {
+        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+        f.write(reinterpret_cast<const char*>(out.data()), std::streamsize(out.size()));
+        f.close();
+        if (!f) {
+            discardTemporary(tmp);
+            return fileError(path.string(), "cannot write the BlockMap file");
+        }
+    }
+    std::string error;
+    if (!commitTemporary(tmp, path, error)) return fileError(path.string(), error);
+    return Ok{};
+}
+
+Result<std::vector<BlockMap>> readBlockMaps(const std::filesystem::path& path) {
+    const std::string name = path.string();
+    std::ifstream f(path, std::ios::binary);
+    if (!f) return fileError(name, "cannot open the BlockMap file");
+    std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    if (bytes.size() < 16 || std::memcmp(bytes.data(), kMagic, 8) != 0) return fileError(name, "not a BlockMap file");
+    const std::uint32_t version = get<std::uint32_t>(bytes.data() + 8);
+    if (version != kVersion)
+        return fileError(name, "BlockMap file version " + std::to_string(version) + ", expected " + std::to_string(kVersion));
+    const std::uint32_t count = get<std::uint32_t>(bytes.data() + 12);
+    std::size_t at = 16;
+    std::vector<BlockMap> maps;
+    for (std::uint32_t k = 0; k < count; ++k) {
+        const std::string which = "BlockMap " + std::to_string(k) + " of " + std::to_string(count);
+        if (bytes.size() - at < kMapHeaderBytes) return fileError(name, "truncated (" + which + ")");
+        const std::uint8_t* h = bytes.data() + at;
+        BlockMap m;
+        m.origin = {get<double>(h), get<double>(h + 8)};
+        m.texel = get<double>(h + 16);
+        m.zBase = get<double>(h + 24);
+        m.zTop = get<double>(h + 32);
+        const std::int32_t n = get<std::int32_t>(h + 40), W = get<std::int32_t>(h + 44), columns = get<std::int32_t>(h + 48);
+        if (n < 2 || n > kMaxSize || W < 1 || W > kMaxWallTexels || columns < 0 || std::int64_t(columns) > std::int64_t(n) * n ||
+            !std::isfinite(m.origin.x) || !std::isfinite(m.origin.y) || !(m.texel > 0.0) || !std::isfinite(m.texel) ||
+            !std::isfinite(m.zBase) || !std::isfinite(m.zTop) || !(m.zTop > m.zBase))
+            return fileError(name, "damaged (" + which + ": impossible header)");
+        const std::size_t data = dataBytes(std::size_t(n), std::size_t(W), std::size_t(columns));
+        if (bytes.size() - at - kMapHeaderBytes < data + 4) return fileError(name, "truncated (" + which + ")");
+        const std::uint32_t crc = get<std::uint32_t>(h + kMapHeaderBytes + data);
+        if (std::uint32_t(libdeflate_crc32(0, h, kMapHeaderBytes + data)) != crc)
+            return fileError(name, "damaged (" + which + ": checksum mismatch)");
+        m.size = n;
+        m.wallTexels = W;
+        const std::size_t cells = std::size_t(n) * std::size_t(n);
+        const std::uint8_t* p = h + kMapHeaderBytes;
+        m.height.assign(p, p + cells);
+        p += cells;
+        m.distance.assign(p, p + cells);
+        p += cells;
+        m.column.resize(cells);
+        for (std::size_t i = 0; i < cells; ++i, p += 4) {
+            m.column[i] = get<std::uint32_t>(p);
+            if (m.column[i] > std::uint32_t(columns)) return fileError(name, "damaged (" + which + ": a column past the walls)");
+        }
+        m.wallRgb.assign(p, p + std::size_t(columns) * std::size_t(W) * 3);
+        p += std::size_t(columns) * std::size_t(W) * 3;
+        m.wallNormal.resize(std::size_t(columns));
+        for (auto& nrm : m.wallNormal) {
+            nrm = {get<float>(p), get<float>(p + 4), get<float>(p + 8)};
+            p += 12;
+        }
+        at += kMapHeaderBytes + data + 4;
+        maps.push_back(std::move(m));
+    }
+    if (at != bytes.size()) return fileError(name, "damaged (bytes after the last BlockMap)");
+    return maps;
+}
+
+} // namespace seasonview::city

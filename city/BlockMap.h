@@ -1,0 +1,92 @@
+#pragma once
+// BlockMaps (Cignoni, Di Benedetto, Ganovelli, Gobbetti, Marton, Scopigno 2007, "Ray-Casted BlockMaps for Large Urban
+// Models Visualization", §3): a square region of a city as discrete textured vertical prisms on an n × n grid, drawn
+// far away by casting rays against it instead of sending its polygons. Plain C++: the data (§3.1), its construction
+// from a model's triangles (§3.3) and the CPU ray traversal (§3.2) that the GPU's is checked against.
+//
+// §3.1 as stored here: per texel a height (8 bits over the block's height range, 0: no building), a wall column
+// index for boundary texels (those with a lower 4-neighbour, the block's edge counting as lower) and a discrete
+// distance field over the empty space (the Chebyshev distance in texels to the nearest building texel) for leaping.
+// Each wall column holds `wallTexels` colours from the prism's foot to its top, the mean of what its exposed sides
+// show, and the mean outward normal of those sides. Roofs store no colour: seasonview textures them from the terrain
+// imagery, as it draws the polygon roofs. The ground is not part of a BlockMap: a ray that meets no prism goes on to
+// the terrain drawn under it.
+#include "CityModel.h"
+#include "Result.h"
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <vector>
+
+namespace seasonview::city {
+
+struct BlockMapOptions {
+    int size = 64;       // n: height-map texels per side (the paper's examples: 32; the issue: 64–256)
+    int wallTexels = 32; // colours per wall column, from the prism's foot to its top (the paper: 31)
+};
+
+struct BlockMap {
+    glm::dvec2 origin{0.0};         // local metres: the corner with the smallest x and y
+    double texel = 1.0;             // metres per height-map texel
+    int size = 0;                   // n
+    double zBase = 0.0, zTop = 1.0; // heights are zBase + value · (zTop − zBase) / 255
+    int wallTexels = 0;
+    std::vector<std::uint8_t> height;   // n², row-major, row 0 at origin.y
+    std::vector<std::uint8_t> distance; // n²: Chebyshev distance in texels to the nearest building texel (0 on one)
+    std::vector<std::uint32_t> column;  // n²: 1 + the wall column of a boundary texel, 0 elsewhere
+    std::vector<std::uint8_t> wallRgb;  // columns × wallTexels × 3, the foot's colour first
+    std::vector<glm::vec3> wallNormal;  // per column, unit and horizontal
+
+    int columns() const { return int(wallNormal.size()); }
+    std::uint8_t heightAt(int x, int y) const { return height[std::size_t(y) * std::size_t(size) + std::size_t(x)]; }
+    /// The top of the prism at texel (x, y) in metres (zBase where there is none).
+    double topAt(int x, int y) const { return zBase + double(heightAt(x, y)) * (zTop - zBase) / 255.0; }
+};
+
+/// What a triangle shows at a point (its barycentric coordinates): e.g. its texture there.
+using TriangleColour = std::function<glm::dvec3(std::size_t triangle, const glm::dvec3& barycentric)>;
+
+/// Builds the BlockMap of the square [origin, origin + side]² from `model`'s triangles (§3.3): each texel's height is
+/// the highest triangle that is not vertical over the texel's centre (roofs, and any other surface facing up or
+/// down); a boundary texel's wall column is what horizontal rays see going into the texel through each exposed side
+/// (four across the side, at each column texel's height where the neighbour is lower), averaged over its sides, each
+/// ray taking the colour of the first triangle it meets (`colour`, 0..1 RGB); a column texel no ray saw takes the
+/// nearest one seen below or above it, a column that saw nothing the mean wall colour of the block. The block's
+/// height range is that of the triangles in it. Errors: a size outside 2..4096, wallTexels outside 1..1024, a
+/// side that is not positive.
+Result<BlockMap> buildBlockMap(const CityModel& model, glm::dvec2 origin, double side, const BlockMapOptions& options,
+                               const TriangleColour& colour);
+
+struct BlockMapHit {
+    enum class Kind { None, Roof, Wall };
+    Kind kind = Kind::None;
+    double t = 0.0;             // along the ray: point = origin + t · direction
+    glm::dvec3 point{0.0};      // local metres
+    glm::ivec2 texel{-1};       // the height-map texel hit
+    glm::dvec3 normal{0.0};     // the face's: (0, 0, 1) on a roof, ±x or ±y on a wall
+    int column = -1;            // a wall's column (its texel's)
+    double v = 0.0;             // a wall's height in its column, 0 at the foot, 1 at the top
+    int texelsVisited = 0;      // texels the traversal looked at (the leaping's effect)
+};
+
+/// Casts a ray (origin and direction in local metres, direction not zero) against the BlockMap's prisms (§3.2): the
+/// nearest roof or wall it meets at t > 0 inside the block's box [origin, origin + n · texel]² × [zBase, zTop],
+/// found by stepping texel by texel along the ray's path over the height map (Amanatides & Woo 1987), a texel hit
+/// where the ray is at or below its top there. `leap`: over empty texels the distance map moves the ray to the edge
+/// of the empty square around it in one step (§3.2's space leaping); false steps every texel (the reference). A ray
+/// that leaves the box, or reaches its floor, meets nothing (the terrain is drawn under the block); a ray that starts
+/// inside a prism hits it at once.
+BlockMapHit traceBlockMap(const BlockMap& map, const glm::dvec3& origin, const glm::dvec3& direction, bool leap = true);
+
+/// BlockMap files: "SVBLOCKM", a version, the maps' count, then per map its header and data and a CRC-32 of both;
+/// written under a temporary name and renamed. Reading checks everything (sizes within bounds, every column index
+/// within the columns, the CRCs, nothing after the last map) and refuses a truncated, damaged or foreign file with
+/// one line naming it.
+Status writeBlockMaps(const std::filesystem::path& path, const std::vector<BlockMap>& maps);
+Result<std::vector<BlockMap>> readBlockMaps(const std::filesystem::path& path);
+
+} // namespace seasonview::city

@@ -1,0 +1,311 @@
+// BlockMaps (city/BlockMap.h; Cignoni et al. 2007 §3): construction from a model's triangles, the CPU ray traversal
+// against the exact intersection with the prisms it was built from (a box, an L-shaped building, a courtyard,
+// buildings of different heights in one block), the distance map's leaping against stepping every texel, the wall
+// columns' colours and normals, and the file: round trip, truncated, damaged and foreign files refused with one line.
+#include "BlockMap.h"
+#include "TestUtil.h"
+
+#include <gtest/gtest.h>
+
+#include <glm/geometric.hpp>
+
+#include <fstream>
+#include <random>
+
+using namespace seasonview;
+using namespace seasonview::city;
+
+namespace {
+
+// An axis-aligned prism: x0..x1, y0..y1 (metres), from z 0 to `top`.
+struct Prism {
+    double x0, y0, x1, y1, top;
+};
+
+// The side a wall triangle faces, for the colour callback: 0 -x, 1 +x, 2 -y, 3 +y, 4 roof.
+std::vector<int> g_faceOf;
+
+void addQuad(CityModel& m, glm::dvec3 a, glm::dvec3 b, glm::dvec3 c, glm::dvec3 d, int face) {
+    for (auto tri : {std::array<glm::dvec3, 3>{a, b, c}, std::array<glm::dvec3, 3>{a, c, d}}) {
+        TexturedTriangle t;
+        t.v = tri;
+        t.texture = -1;
+        m.triangles.push_back(t);
+        m.building.push_back(0);
+        m.surface.push_back(face == 4 ? Surface::Roof : Surface::Wall);
+        g_faceOf.push_back(face);
+    }
+}
+
+// The prisms as a model: four walls and a roof each (a courtyard is four prisms around it).
+CityModel modelOf(const std::vector<Prism>& prisms) {
+    CityModel m;
+    g_faceOf.clear();
+    m.buildingIds = {"b"};
+    for (const Prism& p : prisms) {
+        const glm::dvec3 a(p.x0, p.y0, 0), b(p.x1, p.y0, 0), c(p.x1, p.y1, 0), d(p.x0, p.y1, 0);
+        const glm::dvec3 up(0, 0, p.top);
+        addQuad(m, a, d, d + up, a + up, 0);
+        addQuad(m, b, c, c + up, b + up, 1);
+        addQuad(m, a, b, b + up, a + up, 2);
+        addQuad(m, d, c, c + up, d + up, 3);
+        addQuad(m, a + up, b + up, c + up, d + up, 4);
+    }
+    return m;
+}
+
+const glm::dvec3 kFaceColour[5] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 0}, {0.5, 0.5, 0.5}};
+
+BlockMap build(const std::vector<Prism>& prisms, int size = 32, double side = 32.0) {
+    const CityModel model = modelOf(prisms);
+    BlockMapOptions o;
+    o.size = size;
+    o.wallTexels = 8;
+    auto m = buildBlockMap(model, {0.0, 0.0}, side, o,
+                           [](std::size_t tri, const glm::dvec3&) { return kFaceColour[g_faceOf[tri]]; });
+    EXPECT_TRUE(m) << m.message();
+    return m ? *m : BlockMap{};
+}
+
+struct Exact {
+    BlockMapHit::Kind kind = BlockMapHit::Kind::None;
+    double t = 0.0;
+    glm::dvec3 normal{0.0};
+};
+
+// The nearest entry of the ray into any prism (t > 0); rays from above the ground only.
+Exact exactHit(const std::vector<Prism>& prisms, glm::dvec3 o, glm::dvec3 d) {
+    Exact best;
+    best.t = 1e300;
+    for (const Prism& p : prisms) {
+        double t0 = 0.0, t1 = 1e300;
+        int axis = -1;
+        const double lo[3] = {p.x0, p.y0, 0.0}, hi[3] = {p.x1, p.y1, p.top};
+        bool miss = false;
+        for (int a = 0; a < 3; ++a) {
+            if (d[a] == 0.0) {
+                if (o[a] < lo[a] || o[a] > hi[a]) miss = true;
+                continue;
+            }
+            double ta = (lo[a] - o[a]) / d[a], tb = (hi[a] - o[a]) / d[a];
+            if (ta > tb) std::swap(ta, tb);
+            if (ta > t0) {
+                t0 = ta;
+                axis = a;
+            }
+            t1 = std::min(t1, tb);
+        }
+        if (miss || t0 > t1 || axis < 0 || t0 >= best.t) continue;
+        best.t = t0;
+        best.kind = axis == 2 ? BlockMapHit::Kind::Roof : BlockMapHit::Kind::Wall;
+        best.normal = glm::dvec3(0.0);
+        best.normal[axis] = d[axis] > 0.0 ? -1.0 : 1.0;
+    }
+    if (best.t == 1e300) best = Exact{};
+    return best;
+}
+
+// Random rays from above and around the block, towards points in it.
+void expectExact(const std::vector<Prism>& prisms, const char* what) {
+    const BlockMap m = build(prisms);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    int hits = 0, walls = 0, roofs = 0;
+    for (int i = 0; i < 4000; ++i) {
+        const double azimuth = 6.283185307179586 * u(rng), elevation = 0.05 + 1.4 * u(rng), dist = 40.0 + 60.0 * u(rng);
+        const glm::dvec3 target(32.0 * u(rng), 32.0 * u(rng), 12.0 * u(rng));
+        const glm::dvec3 o = target + dist * glm::dvec3(std::cos(elevation) * std::cos(azimuth),
+                                                        std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+        const glm::dvec3 d = glm::normalize(target - o);
+        const Exact e = exactHit(prisms, o, d);
+        for (bool leap : {true, false}) {
+            const BlockMapHit h = traceBlockMap(m, o, d, leap);
+            ASSERT_EQ(int(h.kind), int(e.kind)) << what << " ray " << i << (leap ? " leaping" : " stepping");
+            if (e.kind == BlockMapHit::Kind::None) continue;
+            EXPECT_NEAR(h.t, e.t, 1e-9 * dist) << what << " ray " << i;
+            EXPECT_EQ(h.normal, e.normal) << what << " ray " << i;
+            if (h.kind == BlockMapHit::Kind::Wall) {
+                EXPECT_GE(h.column, 0) << what << " ray " << i; // a wall is always a boundary texel's
+                EXPECT_GE(h.v, 0.0);
+                EXPECT_LE(h.v, 1.0);
+            }
+        }
+        hits += e.kind != BlockMapHit::Kind::None;
+        walls += e.kind == BlockMapHit::Kind::Wall;
+        roofs += e.kind == BlockMapHit::Kind::Roof;
+    }
+    // The rays exercise every case.
+    EXPECT_GT(walls, 100) << what;
+    EXPECT_GT(roofs, 100) << what;
+    EXPECT_GT(4000 - hits, 100) << what;
+}
+
+} // namespace
+
+// Heights on the 8-bit grid of the block's range (25.5 m / 255 = 0.1 m), walls on texel edges (1 m): the BlockMap
+// is then the prisms exactly, and every ray must meet what they meet.
+TEST(BlockMapTest, BoxMatchesTheExactIntersection) { expectExact({{8, 10, 20, 18, 25.5}}, "box"); }
+
+TEST(BlockMapTest, LShapedBuildingMatchesTheExactIntersection) {
+    expectExact({{4, 4, 24, 12, 25.5}, {4, 12, 12, 28, 25.5}}, "L");
+}
+
+TEST(BlockMapTest, CourtyardMatchesTheExactIntersection) {
+    // A ring of four wings around an open court: rays into the court reach the ground (nothing) or the inner walls.
+    expectExact({{4, 4, 28, 10, 25.5}, {4, 22, 28, 28, 25.5}, {4, 10, 10, 22, 25.5}, {22, 10, 28, 22, 25.5}}, "court");
+}
+
+TEST(BlockMapTest, BuildingsOfDifferentHeightsMatchTheExactIntersection) {
+    // Touching buildings of different heights: the taller one's wall above the lower roof is hit, the shared wall
+    // below it is not.
+    expectExact({{2, 2, 14, 14, 25.5}, {14, 2, 26, 14, 12.3}, {2, 16, 9, 30, 7.0}, {20, 20, 30, 30, 18.8}}, "heights");
+}
+
+TEST(BlockMapTest, LeapingVisitsFewerTexels) {
+    const std::vector<Prism> prisms = {{28, 28, 31, 31, 25.5}};
+    const BlockMap m = build(prisms);
+    // A grazing ray across the empty block to the one building in its corner.
+    const glm::dvec3 o(-5.0, -4.0, 20.0), d = glm::normalize(glm::dvec3(29.5, 29.5, 10.0) - o);
+    const BlockMapHit leap = traceBlockMap(m, o, d, true), step = traceBlockMap(m, o, d, false);
+    ASSERT_EQ(int(step.kind), int(BlockMapHit::Kind::Wall));
+    EXPECT_EQ(int(leap.kind), int(step.kind));
+    EXPECT_DOUBLE_EQ(leap.t, step.t);
+    EXPECT_LT(leap.texelsVisited * 3, step.texelsVisited) << leap.texelsVisited << " vs " << step.texelsVisited;
+}
+
+TEST(BlockMapTest, HeightsDistancesAndColumns) {
+    const BlockMap m = build({{8, 10, 20, 18, 25.5}, {20, 10, 24, 14, 12.3}});
+    ASSERT_EQ(m.size, 32);
+    EXPECT_DOUBLE_EQ(m.zBase, 0.0);
+    EXPECT_DOUBLE_EQ(m.zTop, 25.5);
+    EXPECT_EQ(m.heightAt(8, 10), 255);
+    EXPECT_EQ(m.heightAt(19, 17), 255);
+    EXPECT_EQ(m.heightAt(21, 11), 123);
+    EXPECT_NEAR(m.topAt(21, 11), 12.3, 1e-9);
+    EXPECT_EQ(m.heightAt(7, 10), 0);
+    EXPECT_EQ(m.heightAt(20, 14), 0);
+    // Chebyshev distance to the nearest building texel.
+    EXPECT_EQ(m.distance[std::size_t(12) * 32 + 10], 0);
+    EXPECT_EQ(m.distance[std::size_t(12) * 32 + 7], 1);
+    EXPECT_EQ(m.distance[std::size_t(2) * 32 + 2], 8); // (2, 2) to (8, 10): max(6, 8)
+    // Boundary texels have columns, inner ones none; the lower building's texels next to the taller one are boundary
+    // texels all the same (their other sides), the taller one's texels against it are boundary texels (its wall
+    // shows above the lower roof).
+    EXPECT_EQ(m.column[std::size_t(12) * 32 + 12], 0u);
+    EXPECT_GT(m.column[std::size_t(12) * 32 + 8], 0u);
+    EXPECT_GT(m.column[std::size_t(11) * 32 + 19], 0u);
+    std::size_t boundary = 0;
+    for (std::uint32_t c : m.column) boundary += c > 0;
+    EXPECT_EQ(boundary, std::size_t(m.columns()));
+}
+
+TEST(BlockMapTest, WallColumnsShowTheirSidesColours) {
+    const BlockMap m = build({{8, 10, 20, 18, 25.5}});
+    auto rgbOf = [&](int x, int y, int j) {
+        const std::uint32_t c = m.column[std::size_t(y) * 32 + std::size_t(x)];
+        EXPECT_GT(c, 0u) << x << "," << y;
+        const std::size_t at = (std::size_t(c - 1) * std::size_t(m.wallTexels) + std::size_t(j)) * 3;
+        return glm::ivec3(m.wallRgb[at], m.wallRgb[at + 1], m.wallRgb[at + 2]);
+    };
+    auto normalOf = [&](int x, int y) { return m.wallNormal[m.column[std::size_t(y) * 32 + std::size_t(x)] - 1]; };
+    // The middle of each side: that side's colour all the way up, its normal outwards.
+    for (int j : {0, 3, 7}) {
+        EXPECT_EQ(rgbOf(8, 14, j), glm::ivec3(255, 0, 0)) << j;   // -x: red
+        EXPECT_EQ(rgbOf(19, 14, j), glm::ivec3(0, 255, 0)) << j;  // +x: green
+        EXPECT_EQ(rgbOf(14, 10, j), glm::ivec3(0, 0, 255)) << j;  // -y: blue
+        EXPECT_EQ(rgbOf(14, 17, j), glm::ivec3(255, 255, 0)) << j; // +y: yellow
+    }
+    EXPECT_EQ(normalOf(8, 14), glm::vec3(-1, 0, 0));
+    EXPECT_EQ(normalOf(14, 17), glm::vec3(0, 1, 0));
+    // A corner texel averages its two sides (red and blue), its normal between them.
+    EXPECT_EQ(rgbOf(8, 10, 4), glm::ivec3(128, 0, 128));
+    EXPECT_NEAR(normalOf(8, 10).x, -0.70710678f, 1e-6f);
+    EXPECT_NEAR(normalOf(8, 10).y, -0.70710678f, 1e-6f);
+}
+
+TEST(BlockMapTest, AnEmptyBlockHasNoBuildingsAndEveryRayMisses) {
+    const BlockMap m = build({{100, 100, 110, 110, 10}});
+    EXPECT_EQ(m.columns(), 0);
+    for (std::uint8_t h : m.height) EXPECT_EQ(h, 0);
+    EXPECT_EQ(m.distance[0], 255);
+    const BlockMapHit h = traceBlockMap(m, {-10, -10, 50}, glm::normalize(glm::dvec3(1, 1, -1)));
+    EXPECT_EQ(int(h.kind), int(BlockMapHit::Kind::None));
+}
+
+TEST(BlockMapTest, BadOptionsAreRefused) {
+    const CityModel model = modelOf({{8, 10, 20, 18, 25.5}});
+    auto colour = [](std::size_t, const glm::dvec3&) { return glm::dvec3(0.5); };
+    BlockMapOptions o;
+    o.size = 1;
+    EXPECT_FALSE(buildBlockMap(model, {0, 0}, 32.0, o, colour));
+    o.size = 32;
+    o.wallTexels = 0;
+    EXPECT_FALSE(buildBlockMap(model, {0, 0}, 32.0, o, colour));
+    o.wallTexels = 8;
+    EXPECT_FALSE(buildBlockMap(model, {0, 0}, 0.0, o, colour));
+    EXPECT_TRUE(buildBlockMap(model, {0, 0}, 32.0, o, colour));
+}
+
+TEST(BlockMapTest, FilesRoundTripAndDamagedOnesAreRefusedWithOneLine) {
+    test::TempDir dir("blockmap-file");
+    const std::vector<BlockMap> maps = {build({{8, 10, 20, 18, 25.5}}), build({{2, 2, 14, 14, 25.5}, {14, 2, 26, 14, 12.3}})};
+    const auto path = dir / "city.svbm";
+    ASSERT_TRUE(writeBlockMaps(path, maps));
+    auto back = readBlockMaps(path);
+    ASSERT_TRUE(back) << back.message();
+    ASSERT_EQ(back->size(), 2u);
+    for (std::size_t k = 0; k < 2; ++k) {
+        const BlockMap &a = maps[k], &b = (*back)[k];
+        EXPECT_EQ(a.size, b.size);
+        EXPECT_EQ(a.origin, b.origin);
+        EXPECT_EQ(a.zTop, b.zTop);
+        EXPECT_EQ(a.height, b.height);
+        EXPECT_EQ(a.distance, b.distance);
+        EXPECT_EQ(a.column, b.column);
+        EXPECT_EQ(a.wallRgb, b.wallRgb);
+        EXPECT_EQ(a.wallNormal, b.wallNormal);
+    }
+    std::ifstream in(path, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    auto refused = [&](const std::string& content, const char* problem) {
+        const auto bad = dir / "bad.svbm";
+        std::ofstream(bad, std::ios::binary | std::ios::trunc) << content;
+        auto r = readBlockMaps(bad);
+        ASSERT_FALSE(r) << problem;
+        EXPECT_NE(r.message().find(bad.string()), std::string::npos) << r.message();
+        EXPECT_NE(r.message().find(problem), std::string::npos) << r.message();
+        EXPECT_EQ(r.message().find('\n'), std::string::npos) << r.message();
+    };
+    for (std::size_t cut : {std::size_t(10), std::size_t(40), bytes.size() / 2, bytes.size() - 1})
+        refused(bytes.substr(0, cut), cut < 16 ? "not a BlockMap file" : "truncated");
+    std::string flipped = bytes;
+    flipped[bytes.size() / 3] = char(flipped[bytes.size() / 3] ^ 0x10);
+    refused(flipped, "damaged");
+    refused(bytes + "x", "damaged");
+    refused("SVATLAS\0 an atlas tree, not BlockMaps", "not a BlockMap file");
+    std::string version = bytes;
+    version[8] = 9;
+    refused(version, "version 9");
+    EXPECT_FALSE(readBlockMaps(dir / "missing.svbm"));
+}
+
+// Every truncation and every single damaged byte of a file is refused (CRC-32 per map, sizes checked before they are
+// allocated), never read as something else or crashed on.
+TEST(BlockMapTest, EveryTruncationAndDamagedByteIsRefused) {
+    test::TempDir dir("blockmap-damage");
+    const auto path = dir / "city.svbm";
+    ASSERT_TRUE(writeBlockMaps(path, {build({{8, 10, 20, 18, 25.5}}, 8, 32.0), build({{2, 2, 14, 14, 25.5}}, 8, 32.0)}));
+    std::ifstream in(path, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const auto bad = dir / "bad.svbm";
+    auto read = [&](const std::string& content) {
+        std::ofstream(bad, std::ios::binary | std::ios::trunc) << content;
+        return readBlockMaps(bad);
+    };
+    for (std::size_t cut = 0; cut < bytes.size(); ++cut) EXPECT_FALSE(read(bytes.substr(0, cut))) << cut;
+    for (std::size_t i = 0; i < bytes.size(); ++i) {
+        std::string damaged = bytes;
+        damaged[i] = char(damaged[i] ^ 0x5a);
+        EXPECT_FALSE(read(damaged)) << i;
+    }
+}
