@@ -1,0 +1,40 @@
+#pragma once
+// A BlockMap on the GPU (Cignoni et al. 2007 §3.2): its height, distance and column maps as integer textures, its
+// wall columns and normals as colour textures, drawn by ray casting in a fragment shader (shaders/blockmap.frag, the
+// copy of BlockMap.cpp's traceBlockMap) over its bounding box's back faces, writing each hit's colour and depth so it
+// composes with the terrain and the polygons drawn around it.
+#include "BlockMap.h"
+#include "Camera.h"
+#include "gl/GlObjects.h"
+#include "gl/RenderTarget.h"
+#include "gl/ShaderProgram.h"
+
+#include <memory>
+
+namespace seasonview::city {
+
+class BlockMapGL {
+public:
+    /// Uploads `map` (kept on the GPU only). Errors: the shaders do not build (a bug).
+    static Result<std::unique_ptr<BlockMapGL>> create(const BlockMap& map);
+
+    struct DrawSettings {
+        glm::vec3 roofColour{0.6f, 0.55f, 0.5f};
+        bool outputKind = false; // colour (kind, 0, 0, 1): 0.5 a roof, 1 a wall (tests)
+    };
+    /// Draws into `target` over what it holds, depth-tested (reversed Z, GL_GREATER) and writing depth. Returns the
+    /// draw calls (1).
+    int draw(const Camera& camera, const gl::RenderTarget& target, const DrawSettings& settings) const;
+    int draw(const Camera& camera, const gl::RenderTarget& target) const { return draw(camera, target, DrawSettings{}); }
+
+private:
+    BlockMapGL() = default;
+    gl::ShaderProgram m_program;
+    gl::Texture m_height, m_distance, m_column, m_wall, m_normal;
+    gl::VertexArray m_vao;
+    glm::dvec2 m_origin{0.0};
+    double m_texel = 1.0, m_zBase = 0.0, m_zTop = 1.0;
+    int m_size = 0;
+};
+
+} // namespace seasonview::city

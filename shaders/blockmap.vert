@@ -1,0 +1,19 @@
+// A BlockMap's bounding box (city/BlockMapGL.h; Cignoni et al. 2007 §3.2: "the fragments corresponding to rays
+// entering the bounding box are activated by the rasterization of ... the bounding box"). The box's back faces are
+// drawn (front faces culled), so a pixel gets one fragment whether the eye is outside the box or inside it; the
+// fragment shader (blockmap.frag) casts the pixel's ray from the eye.
+uniform mat4 uViewProj;
+uniform vec3 uBoxMin, uBoxMax; // local metres
+
+out vec3 vWorld;
+
+// The unit cube's corners (bit 0: x, 1: y, 2: z), two triangles per face, counter-clockwise seen from outside.
+const int kCorner[36] = int[36](0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5, 0, 1, 5, 0, 5, 4, 2, 6, 7, 2, 7, 3, 0, 2, 3, 0, 3, 1,
+                                4, 5, 7, 4, 7, 6);
+
+void main() {
+    int c = kCorner[gl_VertexID];
+    vec3 corner = vec3(float(c & 1), float((c >> 1) & 1), float((c >> 2) & 1));
+    vWorld = mix(uBoxMin, uBoxMax, corner);
+    gl_Position = uViewProj * vec4(vWorld, 1.0);
+}
