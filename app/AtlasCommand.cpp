@@ -1,6 +1,8 @@
-// `seasonview atlas build|info`: the multiresolution texture-atlas tree of a city model (city/AtlasTreeBuild.h).
+// `seasonview atlas build|info|compare|blockmaps`: the multiresolution texture-atlas tree of a city model
+// (city/AtlasTreeBuild.h) and its BlockMaps (city/BlockMap.h).
 #include "AtlasCodec.h"
 #include "AtlasTreeBuild.h"
+#include "BlockMap.h"
 #include "AtomicFile.h"
 #include "Raster.h"
 #include "CityModel.h"
@@ -27,6 +29,8 @@ struct AtlasArgs {
     std::string tree; // info
     std::vector<std::string> atlasPng;
     std::string treeA, treeB; // compare
+    int blockMapSize = 64, wallTexels = 32; // blockmaps
+    double leafTexel = 1.0;
 };
 
 double peakRssGb() {
@@ -238,6 +242,41 @@ int atlasBuild(const AtlasArgs* a) {
     return 0;
 }
 
+// atlas blockmaps INPUT --out FILE: the model's BlockMaps over a quadtree of its footprint (buildCityBlockMaps).
+int atlasBlockMaps(const AtlasArgs* a) {
+    const auto t0 = std::chrono::steady_clock::now();
+    auto model = loadCityForCli(a->input, a->crs, a->objLocal, a->objUp);
+    if (!model) return fail(model.error().message);
+    std::printf("%s: %zu buildings, %zu triangles, %zu textures\n", a->input.c_str(), model->buildingIds.size(),
+                model->triangles.size(), model->textures.size());
+    std::fflush(stdout);
+    city::CityBlockMapSettings s;
+    s.map.size = a->blockMapSize;
+    s.map.wallTexels = a->wallTexels;
+    s.leafTexel = a->leafTexel;
+    s.cacheBytes = std::uint64_t(std::max(16.0, a->cacheMb) * 1048576.0);
+    s.progress = terminalProgress("blockmaps");
+    auto r = city::buildCityBlockMaps(*model, s, a->out);
+    if (!r) return fail(model->failureWithWarnings(r.error().message));
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::printf("%s: %zu BlockMaps of %d² texels (depth %d, root %.0f m, leaves %.1f m per texel), %zu wall columns, "
+                "file %.1f MB, %llu texture reads, %.1f s, peak RSS %.2f GB\n",
+                a->out.c_str(), r->maps, s.map.size, r->depth, r->rootSide, r->rootSide / double(s.map.size << r->depth),
+                r->columns, double(r->fileBytes) / 1e6, (unsigned long long)r->textureReads, seconds, peakRssGb());
+    if (!a->report.empty()) {
+        nlohmann::json j = {{"input", a->input},     {"buildings", model->buildingIds.size()},
+                            {"triangles", model->triangles.size()}, {"maps", r->maps},
+                            {"depth", r->depth},     {"root_side_m", r->rootSide},
+                            {"size", s.map.size},    {"wall_texels", s.map.wallTexels},
+                            {"columns", r->columns}, {"file_bytes", r->fileBytes},
+                            {"texture_reads", r->textureReads}, {"seconds", seconds},
+                            {"peak_rss_gb", peakRssGb()}};
+        std::string err;
+        if (!writeTextAtomic(a->report, j.dump(2) + "\n", err)) return fail(a->report + ": " + err);
+    }
+    return 0;
+}
+
 } // namespace
 
 Runner addAtlasCommand(CLI::App& app) {
@@ -284,8 +323,27 @@ Runner addAtlasCommand(CLI::App& app) {
     info->add_option("--atlas-png", a->atlasPng, "Write node N's atlas (of the first tree) as a PNG: N:FILE.png")
         ->expected(1, 64);
 
-    return [a, build, info, compare]() -> int {
+    CLI::App* blockmaps = cmd->add_subcommand(
+        "blockmaps", "Build a city model's BlockMaps (Cignoni et al. 2007): discrete textured prisms for the far field");
+    blockmaps->add_option("INPUT", a->input, "City model: CityGML (.gml/.xml) or OBJ (.obj with its .mtl)")->required();
+    blockmaps->add_option("--out", a->out, "BlockMap file to write (written whole or not at all)")->required();
+    blockmaps->add_option("--size", a->blockMapSize, "Height-map texels per side of every BlockMap")
+        ->check(CLI::Range(2, 4096))
+        ->capture_default_str();
+    blockmaps->add_option("--wall-texels", a->wallTexels, "Colours per wall column, foot to top")
+        ->check(CLI::Range(1, 1024))
+        ->capture_default_str();
+    blockmaps->add_option("--leaf-texel", a->leafTexel, "Metres per texel of the finest BlockMaps")->capture_default_str();
+    blockmaps->add_option("--cache-mb", a->cacheMb, "Original textures held in memory while building, MB")
+        ->capture_default_str();
+    blockmaps->add_option("--city-crs", a->crs, "CRS of a model that names none (OBJ, CityGML without srsName): EPSG:CODE");
+    blockmaps->add_flag("--obj-local", a->objLocal, "OBJ positions are already metres in the scene's local frame");
+    blockmaps->add_option("--obj-up", a->objUp, "OBJ up axis")->check(CLI::IsMember({"y", "z"}))->capture_default_str();
+    blockmaps->add_option("--report", a->report, "Write the build figures as JSON");
+
+    return [a, build, info, compare, blockmaps]() -> int {
         (void)build;
+        if (blockmaps->parsed()) return atlasBlockMaps(a.get());
         if (compare->parsed()) return atlasCompare(a.get());
         if (info->parsed()) return atlasInfo(a.get());
         return atlasBuild(a.get());

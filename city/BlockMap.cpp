@@ -1,6 +1,7 @@
 #include "BlockMap.h"
 
 #include "AtomicFile.h"
+#include "TextureSource.h"
 
 #include <libdeflate.h>
 
@@ -79,6 +80,13 @@ void distanceField(BlockMap& m) {
 
 Result<BlockMap> buildBlockMap(const CityModel& model, glm::dvec2 origin, double side, const BlockMapOptions& options,
                                const TriangleColour& colour) {
+    std::vector<std::uint32_t> all(model.triangles.size());
+    for (std::size_t i = 0; i < all.size(); ++i) all[i] = std::uint32_t(i);
+    return buildBlockMap(model, all, origin, side, options, colour);
+}
+
+Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::uint32_t>& candidates, glm::dvec2 origin,
+                               double side, const BlockMapOptions& options, const TriangleColour& colour) {
     const int n = options.size, W = options.wallTexels;
     if (n < 2 || n > kMaxSize) return Error{"BlockMap: size " + std::to_string(n) + " outside 2.." + std::to_string(kMaxSize)};
     if (W < 1 || W > kMaxWallTexels)
@@ -102,7 +110,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, glm::dvec2 origin, double
         return glm::ivec2(std::clamp(int(std::floor((lo - o) / m.texel)), 0, n - 1),
                           std::clamp(int(std::floor((hi - o) / m.texel)), 0, n - 1));
     };
-    for (std::size_t i = 0; i < model.triangles.size(); ++i) {
+    for (const std::uint32_t i : candidates) {
         const auto& v = model.triangles[i].v;
         const glm::dvec3 lo = glm::min(v[0], glm::min(v[1], v[2])), hi = glm::max(v[0], glm::max(v[1], v[2]));
         if (hi.x < origin.x || hi.y < origin.y || lo.x > origin.x + side || lo.y > origin.y + side) continue;
@@ -180,10 +188,10 @@ Result<BlockMap> buildBlockMap(const CityModel& model, glm::dvec2 origin, double
                 const glm::dvec2 centre = origin + (glm::dvec2(x, y) + 0.5) * m.texel;
                 const glm::dvec2 outside = centre + glm::dvec2(s) * m.texel; // the neighbour's centre line
                 const glm::dvec2 across(std::abs(s.y), std::abs(s.x));
-                std::vector<std::uint32_t> candidates = cells[std::size_t(y) * std::size_t(n) + std::size_t(x)];
+                std::vector<std::uint32_t> near = cells[std::size_t(y) * std::size_t(n) + std::size_t(x)];
                 if (x + s.x >= 0 && y + s.y >= 0 && x + s.x < n && y + s.y < n) {
                     const auto& other = cells[std::size_t(y + s.y) * std::size_t(n) + std::size_t(x + s.x)];
-                    candidates.insert(candidates.end(), other.begin(), other.end());
+                    near.insert(near.end(), other.begin(), other.end());
                 }
                 for (int j = 0; j < W; ++j) {
                     const double z = m.zBase + (double(j) + 0.5) / double(W) * (ownTop - m.zBase);
@@ -195,7 +203,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, glm::dvec2 origin, double
                         std::size_t bestTri = 0;
                         glm::dvec3 bestBary(0.0);
                         bool found = false;
-                        for (const std::uint32_t k : candidates) {
+                        for (const std::uint32_t k : near) {
                             double t;
                             glm::dvec3 b;
                             if (rayTriangle(o, dir, model.triangles[tris[k]].v, t, b) && t >= 0.0 && t < best) {
@@ -353,6 +361,94 @@ BlockMapHit traceBlockMap(const BlockMap& m, const glm::dvec3& o, const glm::dve
         }
         if (cx < 0 || cy < 0 || cx >= n || cy >= n) return hit;
     }
+}
+
+Result<CityBlockMapReport> buildCityBlockMaps(const CityModel& model, const CityBlockMapSettings& s,
+                                              const std::filesystem::path& out) {
+    if (model.triangles.empty()) return Error{model.source + ": no triangles to build BlockMaps of"};
+    if (!(s.leafTexel > 0.0) || !std::isfinite(s.leafTexel)) return Error{"BlockMaps: the leaf texel must be positive"};
+    const glm::dvec3 lo = model.boundsMin(), hi = model.boundsMax();
+    const double extent = std::max({hi.x - lo.x, hi.y - lo.y, 1e-6});
+    // At most kMaxDepth levels below the root (a city wider than 2^kMaxDepth leaves gets wider leaves).
+    constexpr int kMaxDepth = 10;
+    double leafSide = double(s.map.size) * s.leafTexel;
+    int depth = 0;
+    while (leafSide * std::ldexp(1.0, depth) < extent && depth < kMaxDepth) ++depth;
+    leafSide = std::max(leafSide, extent / std::ldexp(1.0, depth));
+    const double rootSide = leafSide * std::ldexp(1.0, depth);
+    const glm::dvec2 root(lo.x, lo.y);
+    // Triangles per leaf square (by their boxes), so a node gathers its own from its leaves.
+    const int leaves = 1 << depth;
+    std::vector<std::vector<std::uint32_t>> buckets(std::size_t(leaves) * std::size_t(leaves));
+    for (std::size_t i = 0; i < model.triangles.size(); ++i) {
+        const auto& v = model.triangles[i].v;
+        const glm::dvec3 a = glm::min(v[0], glm::min(v[1], v[2])), b = glm::max(v[0], glm::max(v[1], v[2]));
+        const int x0 = std::clamp(int(std::floor((a.x - root.x) / leafSide)), 0, leaves - 1);
+        const int x1 = std::clamp(int(std::floor((b.x - root.x) / leafSide)), 0, leaves - 1);
+        const int y0 = std::clamp(int(std::floor((a.y - root.y) / leafSide)), 0, leaves - 1);
+        const int y1 = std::clamp(int(std::floor((b.y - root.y) / leafSide)), 0, leaves - 1);
+        for (int y = y0; y <= y1; ++y)
+            for (int x = x0; x <= x1; ++x) buckets[std::size_t(y) * std::size_t(leaves) + std::size_t(x)].push_back(std::uint32_t(i));
+    }
+    TextureCache cache(model.textures, s.cacheBytes);
+    std::string failure;
+    double nodeTexel = 1.0; // metres per texel of the map being built
+    const TriangleColour colour = [&](std::size_t tri, const glm::dvec3& b) -> glm::dvec3 {
+        const TexturedTriangle& t = model.triangles[tri];
+        if (t.texture < 0) return glm::dvec3(0.72, 0.70, 0.66); // CityRendererGL's plain colour
+        auto tex = cache.get(t.texture);
+        if (!tex) {
+            if (failure.empty()) failure = tex.message();
+            return glm::dvec3(0.5);
+        }
+        const glm::dvec2 uv = b.x * t.t[0] + b.y * t.t[1] + b.z * t.t[2];
+        const WorldScale ws = textureWorldScale(t);
+        const double texelsPerMetre = ws.s > 0.0 ? double((*tex)->sizes[0].x) / ws.s : 1.0;
+        // The texture's texels under one column texel: about the node's texel (the map being built).
+        const glm::vec4 c = (*tex)->sample(uv, std::max(1.0, nodeTexel * texelsPerMetre));
+        return glm::dvec3(c) / 255.0;
+    };
+    std::size_t total = 0;
+    for (int l = 0; l <= depth; ++l) total += std::size_t(1) << (2 * l);
+    std::vector<BlockMap> maps;
+    CityBlockMapReport report;
+    std::vector<std::uint32_t> mark(model.triangles.size(), 0);
+    std::uint32_t stamp = 0;
+    std::size_t done = 0;
+    for (int l = 0; l <= depth; ++l) {
+        const int perSide = 1 << l, span = leaves / perSide; // leaf squares per node side
+        const double side = rootSide / double(perSide);
+        nodeTexel = side / double(s.map.size);
+        const BlockMapOptions mo = s.map;
+        for (int j = 0; j < perSide; ++j)
+            for (int i = 0; i < perSide; ++i, ++done) {
+                std::vector<std::uint32_t> tris;
+                ++stamp;
+                for (int y = j * span; y < (j + 1) * span; ++y)
+                    for (int x = i * span; x < (i + 1) * span; ++x)
+                        for (std::uint32_t t : buckets[std::size_t(y) * std::size_t(leaves) + std::size_t(x)])
+                            if (mark[t] != stamp) {
+                                mark[t] = stamp;
+                                tris.push_back(t);
+                            }
+                if (s.progress) s.progress(double(done) / double(total), "BlockMaps");
+                if (tris.empty()) continue;
+                auto m = buildBlockMap(model, tris, root + glm::dvec2(i, j) * side, side, mo, colour);
+                if (!m) return m.error();
+                if (!failure.empty()) return Error{failure};
+                report.columns += std::size_t(m->columns());
+                maps.push_back(std::move(*m));
+            }
+    }
+    if (s.progress) s.progress(1.0, "BlockMaps");
+    if (auto st = writeBlockMaps(out, maps); !st) return st.error();
+    report.maps = maps.size();
+    report.depth = depth;
+    report.rootSide = rootSide;
+    std::error_code ec;
+    report.fileBytes = std::uint64_t(std::filesystem::file_size(out, ec));
+    report.textureReads = cache.reads();
+    return report;
 }
 
 // ---- files ----

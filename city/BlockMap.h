@@ -60,6 +60,33 @@ using TriangleColour = std::function<glm::dvec3(std::size_t triangle, const glm:
 /// side that is not positive.
 Result<BlockMap> buildBlockMap(const CityModel& model, glm::dvec2 origin, double side, const BlockMapOptions& options,
                                const TriangleColour& colour);
+/// The same from the triangles `candidates` (indices into model.triangles) only: those over the square among them.
+Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::uint32_t>& candidates, glm::dvec2 origin,
+                               double side, const BlockMapOptions& options, const TriangleColour& colour);
+
+/// A city's BlockMaps (§4: "a quadtree hierarchy of finer and finer BlockMap representations"): a quadtree of squares
+/// over the model's footprint, its leaves `map.size · leafTexel` metres wide, every node with triangles a BlockMap
+/// of `map.size`² texels (empty nodes none), the root first, level by level. Wall colours from the model's textures
+/// (read through a TextureCache of `cacheBytes`, sampled at the map texel's footprint in each texture; untextured
+/// triangles the city's plain colour).
+struct CityBlockMapSettings {
+    BlockMapOptions map;
+    double leafTexel = 1.0; // metres per texel of the finest BlockMaps
+    std::uint64_t cacheBytes = std::uint64_t(512) << 20;
+    std::function<void(double, const char*)> progress; // 0..1 as maps are built, and the stage
+};
+struct CityBlockMapReport {
+    std::size_t maps = 0;
+    int depth = 0;            // levels below the root
+    double rootSide = 0.0;    // metres
+    std::size_t columns = 0;  // wall columns, all maps
+    std::uint64_t fileBytes = 0;
+    std::uint64_t textureReads = 0;
+};
+/// Builds the city's BlockMaps and writes them to `out` (writeBlockMaps). Errors: a texture that cannot be read (one
+/// line naming it), a model with no triangles, bad settings, the file not written.
+Result<CityBlockMapReport> buildCityBlockMaps(const CityModel& model, const CityBlockMapSettings& settings,
+                                              const std::filesystem::path& out);
 
 struct BlockMapHit {
     enum class Kind { None, Roof, Wall };

@@ -1,6 +1,7 @@
 // City models end to end: `synth`'s buildings, `atlas build`/`atlas info`, `render --city atlas|original|flat`
 // (golden images; the atlas close to the originals; roofs from the imagery), an OBJ in a national grid placed with
 // `--city-crs`, the real Berlin and Tokyo models with their own photo textures, and bad input.
+#include "BlockMap.h"
 #include "TestUtil.h"
 
 #include <glm/common.hpp>
@@ -584,6 +585,54 @@ TEST(CityCliTest, AtlasBuildAndInfo) {
     ASSERT_EQ(same.exitCode, 0) << same.err;
     EXPECT_NE(same.out.find("B/A size 1.000; PSNR of B against A 99.00 dB"), std::string::npos) << same.out;
     fails(runCli({"atlas", "compare", tree, coarse}), coarse);
+}
+
+// `atlas blockmaps`: the city's BlockMaps over a quadtree of its footprint, written whole; every map's buildings
+// within the model's footprint; bad input one line and no file.
+TEST(CityCliTest, AtlasBlockMapsBuildsTheCitysQuadtree) {
+    const CliScene& s = scene();
+    const auto out = s.dir / "city.svbm";
+    const CliResult b = runCli({"atlas", "blockmaps", (s.dir / "s/city/city.obj").string(), "--obj-local", "--out",
+                                out.string(), "--size", "32", "--wall-texels", "16", "--report", (s.dir / "bm.json").string()});
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    EXPECT_NE(b.out.find("BlockMaps of 32² texels"), std::string::npos) << b.out;
+    auto maps = city::readBlockMaps(out);
+    ASSERT_TRUE(maps) << maps.message();
+    const auto report = nlohmann::json::parse(std::ifstream(s.dir / "bm.json"));
+    EXPECT_EQ(report["maps"].get<std::size_t>(), maps->size());
+    for (const char* key : {"seconds", "peak_rss_gb", "file_bytes", "columns", "depth"}) EXPECT_TRUE(report.contains(key)) << key;
+    auto model = city::loadCityModel((s.dir / "s/city/city.obj").string(), [] {
+        city::CityLoadOptions o;
+        o.localFrame = true;
+        return o;
+    }());
+    ASSERT_TRUE(model) << model.message();
+    const glm::dvec3 lo = model->boundsMin(), hi = model->boundsMax();
+    // The root covers the whole model; the finest maps are 32 m (32 texels of 1 m); every map holds buildings.
+    ASSERT_FALSE(maps->empty());
+    const city::BlockMap& root = maps->front();
+    EXPECT_LE(root.origin.x, lo.x);
+    EXPECT_GE(root.origin.x + root.size * root.texel, hi.x);
+    EXPECT_GE(root.origin.y + root.size * root.texel, hi.y);
+    double finest = 1e300;
+    std::size_t columns = 0;
+    for (const city::BlockMap& m : *maps) {
+        finest = std::min(finest, m.texel);
+        columns += std::size_t(m.columns());
+        EXPECT_GT(std::count_if(m.height.begin(), m.height.end(), [](std::uint8_t h) { return h > 0; }), 0);
+        EXPECT_GE(m.zBase, lo.z - 1e-6);
+        EXPECT_LE(m.zTop, hi.z + 1.0);
+    }
+    EXPECT_DOUBLE_EQ(finest, 1.0);
+    EXPECT_EQ(report["columns"].get<std::size_t>(), columns);
+    // Bad input: one line, exit 1, no file.
+    const auto missing = s.dir / "none.obj", badOut = s.dir / "bad.svbm";
+    fails(runCli({"atlas", "blockmaps", missing.string(), "--obj-local", "--out", badOut.string()}), missing.string());
+    EXPECT_FALSE(std::filesystem::exists(badOut));
+    fails(runCli({"atlas", "blockmaps", (s.dir / "s/city/city.obj").string(), "--obj-local", "--out", badOut.string(),
+                  "--leaf-texel", "0"}),
+          "leaf texel");
+    EXPECT_FALSE(std::filesystem::exists(badOut));
 }
 
 // An OBJ in real coordinates of a national grid (Swiss LV95, EPSG:2056) over a UTM 32N scene near Bern, given by
