@@ -12,6 +12,7 @@
 #include <fstream>
 #include <limits>
 #include <string>
+#include <thread>
 
 #include <glm/geometric.hpp>
 
@@ -391,6 +392,32 @@ Result<CityBlockMapReport> buildCityBlockMaps(const CityModel& model, const City
             for (int x = x0; x <= x1; ++x) buckets[std::size_t(y) * std::size_t(leaves) + std::size_t(x)].push_back(std::uint32_t(i));
     }
     TextureCache cache(model.textures, s.cacheBytes);
+    // Every map samples a texture at least leafTexel metres per sample: the cache keeps only the mips that can be
+    // read (a 512² facade over 16 m seen at 1 m per texel needs its 16² level and coarser), so it holds the whole
+    // city's facades and reads each once, on all cores, before the maps are built.
+    {
+        std::vector<int> finest(model.textures.size(), 1 << 20);
+        std::vector<int> used;
+        for (const TexturedTriangle& t : model.triangles) {
+            if (t.texture < 0 || std::size_t(t.texture) >= model.textures.size()) continue;
+            const WorldScale ws = textureWorldScale(t);
+            const int width = model.textures[std::size_t(t.texture)].width;
+            const double texelsPerMetre = ws.s > 0.0 && width > 0 ? double(width) / ws.s : 1.0;
+            const int level = int(std::floor(std::log2(std::max(1.0, s.leafTexel * texelsPerMetre))));
+            int& f = finest[std::size_t(t.texture)];
+            if (f == 1 << 20) used.push_back(t.texture);
+            f = std::min(f, width > 0 ? level : 0);
+        }
+        for (int& f : finest) f = f == 1 << 20 ? 0 : f;
+        cache.setFinestLevels(finest);
+        const int threads = int(std::max(1u, std::thread::hardware_concurrency()));
+        for (std::size_t first = 0; first < used.size(); first += 256) {
+            const std::vector<int> batch(used.begin() + std::ptrdiff_t(first),
+                                         used.begin() + std::ptrdiff_t(std::min(used.size(), first + 256)));
+            if (auto st = cache.prefetch(batch, threads); !st) return st.error();
+            if (s.progress) s.progress(0.5 * double(first + batch.size()) / double(used.size()), "textures");
+        }
+    }
     std::string failure;
     double nodeTexel = 1.0; // metres per texel of the map being built
     const TriangleColour colour = [&](std::size_t tri, const glm::dvec3& b) -> glm::dvec3 {
@@ -410,7 +437,8 @@ Result<CityBlockMapReport> buildCityBlockMaps(const CityModel& model, const City
     };
     std::size_t total = 0;
     for (int l = 0; l <= depth; ++l) total += std::size_t(1) << (2 * l);
-    std::vector<BlockMap> maps;
+    auto writer = BlockMapWriter::open(out);
+    if (!writer) return writer.error();
     CityBlockMapReport report;
     std::vector<std::uint32_t> mark(model.triangles.size(), 0);
     std::uint32_t stamp = 0;
@@ -431,18 +459,18 @@ Result<CityBlockMapReport> buildCityBlockMaps(const CityModel& model, const City
                                 mark[t] = stamp;
                                 tris.push_back(t);
                             }
-                if (s.progress) s.progress(double(done) / double(total), "BlockMaps");
+                if (s.progress) s.progress(0.5 + 0.5 * double(done) / double(total), "BlockMaps");
                 if (tris.empty()) continue;
                 auto m = buildBlockMap(model, tris, root + glm::dvec2(i, j) * side, side, mo, colour);
                 if (!m) return m.error();
                 if (!failure.empty()) return Error{failure};
                 report.columns += std::size_t(m->columns());
-                maps.push_back(std::move(*m));
+                if (auto st = writer->add(*m); !st) return st.error();
             }
     }
     if (s.progress) s.progress(1.0, "BlockMaps");
-    if (auto st = writeBlockMaps(out, maps); !st) return st.error();
-    report.maps = maps.size();
+    report.maps = writer->count();
+    if (auto st = writer->finish(); !st) return st.error();
     report.depth = depth;
     report.rootSide = rootSide;
     std::error_code ec;
@@ -473,39 +501,87 @@ std::size_t dataBytes(std::size_t n, std::size_t W, std::size_t columns) {
     return n * n * (1 + 1 + 4) + columns * W * 3 + columns * 3 * 4;
 }
 
+std::vector<std::uint8_t> serializeMap(const BlockMap& m) {
+    std::vector<std::uint8_t> out;
+    for (double v : {m.origin.x, m.origin.y, m.texel, m.zBase, m.zTop}) put(out, v);
+    put(out, std::int32_t(m.size));
+    put(out, std::int32_t(m.wallTexels));
+    put(out, std::int32_t(m.columns()));
+    out.insert(out.end(), m.height.begin(), m.height.end());
+    out.insert(out.end(), m.distance.begin(), m.distance.end());
+    for (std::uint32_t c : m.column) put(out, c);
+    out.insert(out.end(), m.wallRgb.begin(), m.wallRgb.end());
+    for (const glm::vec3& nrm : m.wallNormal)
+        for (int i = 0; i < 3; ++i) put(out, float(nrm[i]));
+    put(out, std::uint32_t(libdeflate_crc32(0, out.data(), out.size())));
+    return out;
+}
+
 } // namespace
 
-Status writeBlockMaps(const std::filesystem::path& path, const std::vector<BlockMap>& maps) {
-    std::vector<std::uint8_t> out(kMagic, kMagic + 8);
-    put(out, kVersion);
-    put(out, std::uint32_t(maps.size()));
-    for (const BlockMap& m : maps) {
-        const std::size_t start = out.size();
-        for (double v : {m.origin.x, m.origin.y, m.texel, m.zBase, m.zTop}) put(out, v);
-        put(out, std::int32_t(m.size));
-        put(out, std::int32_t(m.wallTexels));
-        put(out, std::int32_t(m.columns()));
-        out.insert(out.end(), m.height.begin(), m.height.end());
-        out.insert(out.end(), m.distance.begin(), m.distance.end());
-        for (std::uint32_t c : m.column) put(out, c);
-        out.insert(out.end(), m.wallRgb.begin(), m.wallRgb.end());
-        for (const glm::vec3& nrm : m.wallNormal)
-            for (int i = 0; i < 3; ++i) put(out, float(nrm[i]));
-        put(out, std::uint32_t(libdeflate_crc32(0, out.data() + start, out.size() - start)));
+struct BlockMapWriter::File {
+    std::ofstream out;
+};
+
+Result<BlockMapWriter> BlockMapWriter::open(const std::filesystem::path& path) {
+    BlockMapWriter w;
+    w.m_path = path;
+    w.m_tmp = temporaryPathFor(path);
+    w.m_file = std::make_unique<File>();
+    w.m_file->out.open(w.m_tmp, std::ios::binary | std::ios::trunc);
+    std::vector<std::uint8_t> header(kMagic, kMagic + 8);
+    put(header, kVersion);
+    put(header, std::uint32_t(0)); // the count, written by finish()
+    w.m_file->out.write(reinterpret_cast<const char*>(header.data()), std::streamsize(header.size()));
+    if (!w.m_file->out) {
+        discardTemporary(w.m_tmp);
+        return fileError(path.string(), "cannot write the BlockMap file");
     }
-    const std::filesystem::path tmp = temporaryPathFor(path);
-    {
-        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-        f.write(reinterpret_cast<const char*>(out.data()), std::streamsize(out.size()));
-        f.close();
-        if (!f) {
-            discardTemporary(tmp);
-            return fileError(path.string(), "cannot write the BlockMap file");
-        }
+    return w;
+}
+
+BlockMapWriter::BlockMapWriter() = default;
+BlockMapWriter::BlockMapWriter(BlockMapWriter&&) noexcept = default;
+BlockMapWriter& BlockMapWriter::operator=(BlockMapWriter&&) noexcept = default;
+
+BlockMapWriter::~BlockMapWriter() {
+    if (m_file && !m_done) {
+        m_file->out.close();
+        discardTemporary(m_tmp);
+    }
+}
+
+Status BlockMapWriter::add(const BlockMap& map) {
+    const std::vector<std::uint8_t> bytes = serializeMap(map);
+    m_file->out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+    if (!m_file->out) return fileError(m_path.string(), "cannot write the BlockMap file");
+    ++m_count;
+    m_bytes += bytes.size();
+    return Ok{};
+}
+
+Status BlockMapWriter::finish() {
+    m_file->out.seekp(12);
+    put(m_countBytes, m_count);
+    m_file->out.write(reinterpret_cast<const char*>(m_countBytes.data()), 4);
+    m_file->out.close();
+    if (!m_file->out) {
+        discardTemporary(m_tmp);
+        m_done = true;
+        return fileError(m_path.string(), "cannot write the BlockMap file");
     }
     std::string error;
-    if (!commitTemporary(tmp, path, error)) return fileError(path.string(), error);
+    m_done = true;
+    if (!commitTemporary(m_tmp, m_path, error)) return fileError(m_path.string(), error);
     return Ok{};
+}
+
+Status writeBlockMaps(const std::filesystem::path& path, const std::vector<BlockMap>& maps) {
+    auto w = BlockMapWriter::open(path);
+    if (!w) return w.error();
+    for (const BlockMap& m : maps)
+        if (auto st = w->add(m); !st) return st;
+    return w->finish();
 }
 
 Result<std::vector<BlockMap>> readBlockMaps(const std::filesystem::path& path) {

@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <vector>
 
 namespace seasonview::city {
@@ -114,6 +115,30 @@ BlockMapHit traceBlockMap(const BlockMap& map, const glm::dvec3& origin, const g
 /// within the columns, the CRCs, nothing after the last map) and refuses a truncated, damaged or foreign file with
 /// one line naming it.
 Status writeBlockMaps(const std::filesystem::path& path, const std::vector<BlockMap>& maps);
+
+/// The same file written map by map (a city's maps need not all be in memory): open() starts the temporary file,
+/// add() appends a map, finish() writes the count and renames it into place. Destroyed unfinished, it leaves nothing.
+class BlockMapWriter {
+public:
+    static Result<BlockMapWriter> open(const std::filesystem::path& path);
+    Status add(const BlockMap& map);
+    Status finish();
+    std::uint32_t count() const { return m_count; }
+    std::uint64_t bytes() const { return m_bytes; }
+    BlockMapWriter(BlockMapWriter&&) noexcept;
+    BlockMapWriter& operator=(BlockMapWriter&&) noexcept;
+    ~BlockMapWriter();
+
+private:
+    BlockMapWriter();
+    struct File;
+    std::unique_ptr<File> m_file;
+    std::filesystem::path m_path, m_tmp;
+    std::uint32_t m_count = 0;
+    std::uint64_t m_bytes = 0;
+    std::vector<std::uint8_t> m_countBytes;
+    bool m_done = false;
+};
 Result<std::vector<BlockMap>> readBlockMaps(const std::filesystem::path& path);
 
 } // namespace seasonview::city

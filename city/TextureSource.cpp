@@ -48,7 +48,7 @@ glm::vec4 bilinear(const std::vector<std::uint8_t>& img, glm::ivec2 size, glm::d
 } // namespace
 
 glm::vec4 SourceTexture::sample(glm::dvec2 uv, double texelsPerSample) const {
-    const double lod = std::clamp(std::log2(std::max(texelsPerSample, 1.0)), 0.0, double(mips.size() - 1));
+    const double lod = std::clamp(std::log2(std::max(texelsPerSample, 1.0)), double(firstLevel), double(mips.size() - 1));
     const int l0 = int(std::floor(lod));
     const int l1 = std::min(l0 + 1, int(mips.size()) - 1);
     const float f = float(lod - l0);
@@ -119,6 +119,12 @@ TextureCache::TextureCache(const std::vector<CityTexture>& textures, std::uint64
 
 void TextureCache::insert(int texture, std::shared_ptr<const SourceTexture> ptr) {
     ++m_reads;
+    if (std::size_t(texture) < m_finest.size() && m_finest[std::size_t(texture)] > 0) {
+        auto reduced = std::make_shared<SourceTexture>(*ptr);
+        reduced->firstLevel = std::min(m_finest[std::size_t(texture)], int(reduced->mips.size()) - 1);
+        for (int l = 0; l < reduced->firstLevel; ++l) std::vector<std::uint8_t>().swap(reduced->mips[std::size_t(l)]);
+        ptr = std::move(reduced);
+    }
     m_bytes += ptr->bytes();
     m_lru.push_front(texture);
     m_entries.emplace(texture, Entry{std::move(ptr), m_lru.begin()});
@@ -140,7 +146,7 @@ Result<std::shared_ptr<const SourceTexture>> TextureCache::get(int texture) {
     if (!t) return t.error();
     auto ptr = std::make_shared<const SourceTexture>(std::move(*t));
     insert(texture, ptr);
-    return ptr;
+    return m_entries.at(texture).tex;
 }
 
 Status TextureCache::prefetch(const std::vector<int>& textures, int threads) {

@@ -22,6 +22,7 @@ struct SourceTexture {
     std::vector<glm::ivec2> sizes;
     int channels = 3; // of the file
     bool repeat = true;
+    int firstLevel = 0; // mips finer than this were dropped (empty): sample() never reads them
     std::uint64_t bytes() const;
     /// Colour at texture coordinates `uv` (texture units; repeated or clamped) with `texelsPerSample` source texels
     /// of level 0 per output sample (chooses and blends two mip levels). RGBA, 0..255.
@@ -45,6 +46,9 @@ public:
     /// Reads the missing ones of `textures` on up to `threads` threads and keeps them (the first error is returned,
     /// naming its file). Then get() finds them, as long as the capacity holds them all.
     Status prefetch(const std::vector<int>& textures, int threads);
+    /// Per texture the finest mip level any sample will read (a BlockMap build reads facades at metres per
+    /// texel): finer levels are dropped as a texture is read, so the cache holds many more. Empty: keep every level.
+    void setFinestLevels(std::vector<int> levels) { m_finest = std::move(levels); }
     std::uint64_t bytes() const { return m_bytes; }
     std::uint64_t peakBytes() const { return m_peak; }
     std::uint64_t reads() const { return m_reads; }
@@ -59,6 +63,7 @@ private:
         std::list<int>::iterator pos;
     };
     std::unordered_map<int, Entry> m_entries;
+    std::vector<int> m_finest;
 };
 
 } // namespace seasonview::city

@@ -309,3 +309,22 @@ TEST(BlockMapTest, EveryTruncationAndDamagedByteIsRefused) {
         EXPECT_FALSE(read(damaged)) << i;
     }
 }
+
+// Written map by map: a writer given up before finish() leaves neither the file nor its temporary.
+TEST(BlockMapTest, AnUnfinishedWriterLeavesNothing) {
+    test::TempDir dir("blockmap-writer");
+    const auto path = dir / "city.svbm";
+    {
+        auto w = BlockMapWriter::open(path);
+        ASSERT_TRUE(w) << w.message();
+        ASSERT_TRUE(w->add(build({{8, 10, 20, 18, 25.5}}, 8, 32.0)));
+    }
+    EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
+    auto w = BlockMapWriter::open(path);
+    ASSERT_TRUE(w);
+    ASSERT_TRUE(w->add(build({{8, 10, 20, 18, 25.5}}, 8, 32.0)));
+    ASSERT_TRUE(w->finish());
+    auto back = readBlockMaps(path);
+    ASSERT_TRUE(back) << back.message();
+    EXPECT_EQ(back->size(), 1u);
+}
