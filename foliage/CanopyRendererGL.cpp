@@ -77,7 +77,7 @@ GeometryFrameStats CanopyRendererGL::renderView(const Camera& camera, const Clip
         target.bind();
         beginTerrainPass(kBackgroundColor.r, kBackgroundColor.g, kBackgroundColor.b, kBackgroundColor.a);
         add(render(camera, terrain, canopy, s, target, CanopyPass::Marched)); // where each pixel's ray enters
-        if (ClipmapTerrainRendererGL::resolvesDeferred(imagery)) {
+        if (imagery.terrain && ClipmapTerrainRendererGL::resolvesDeferred(imagery)) {
             imagery.canopyMarch = &m_marchInput; // the terrain's resolve marches: one full-screen pass for both
         } else {
             add(marchForward(camera, terrain, canopy, target));
