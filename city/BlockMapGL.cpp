@@ -4,6 +4,10 @@
 
 #include <glm/geometric.hpp>
 
+#include <algorithm>
+#include <cmath>
+#include <string>
+
 namespace seasonview::city {
 
 namespace {
@@ -37,13 +41,30 @@ Result<std::unique_ptr<BlockMapGL>> BlockMapGL::create(const BlockMap& map) {
     b->m_height = texture2D(GL_R8UI, n, n, GL_RED_INTEGER, GL_UNSIGNED_BYTE, map.height.data());
     b->m_distance = texture2D(GL_R8UI, n, n, GL_RED_INTEGER, GL_UNSIGNED_BYTE, map.distance.data());
     b->m_column = texture2D(GL_R32UI, n, n, GL_RED_INTEGER, GL_UNSIGNED_INT, map.column.data());
-    b->m_wall = texture2D(GL_RGB8, map.wallTexels, columns, GL_RGB, GL_UNSIGNED_BYTE, map.wallRgb.data());
-    std::vector<std::uint8_t> normals(std::size_t(columns) * 3);
-    for (int c = 0; c < columns; ++c)
+    // Columns in rows of `perRow` (a map may have up to n² of them, past any texture's width): column c's colours at
+    // x = (c mod perRow) · wallTexels + j, y = c / perRow; its normal at (c mod perRow, c / perRow).
+    GLint maxSize = 0;
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &maxSize);
+    const int W = map.wallTexels;
+    const int perRow = std::max(1, std::min(std::max(columns, 1), maxSize / std::max(W, 1)));
+    const int rows = (columns + perRow - 1) / perRow;
+    if (W > maxSize || rows > maxSize)
+        return Error{"BlockMap: " + std::to_string(columns) + " wall columns of " + std::to_string(W) +
+                     " texels do not fit the GPU's " + std::to_string(maxSize) + "-texel textures"};
+    std::vector<std::uint8_t> wall(std::size_t(perRow) * std::size_t(W) * std::size_t(std::max(rows, 1)) * 3, 0);
+    std::vector<std::uint8_t> normals(std::size_t(perRow) * std::size_t(std::max(rows, 1)) * 3, 0);
+    for (int c = 0; c < columns; ++c) {
+        const std::size_t x = std::size_t(c % perRow), y = std::size_t(c / perRow);
+        std::copy_n(&map.wallRgb[std::size_t(c) * std::size_t(W) * 3], std::size_t(W) * 3,
+                    &wall[(y * std::size_t(perRow) * std::size_t(W) + x * std::size_t(W)) * 3]);
         for (int i = 0; i < 3; ++i)
-            normals[std::size_t(c) * 3 + std::size_t(i)] =
+            normals[(y * std::size_t(perRow) + x) * 3 + std::size_t(i)] =
                 std::uint8_t(std::lround((map.wallNormal[std::size_t(c)][i] * 0.5f + 0.5f) * 255.0f));
-    b->m_normal = texture2D(GL_RGB8, columns, 1, GL_RGB, GL_UNSIGNED_BYTE, normals.data());
+    }
+    b->m_wall = texture2D(GL_RGB8, perRow * W, std::max(rows, 1), GL_RGB, GL_UNSIGNED_BYTE, wall.data());
+    b->m_normal = texture2D(GL_RGB8, perRow, std::max(rows, 1), GL_RGB, GL_UNSIGNED_BYTE, normals.data());
+    b->m_columnsPerRow = perRow;
+    b->m_wallTexels = W;
     b->m_vao = gl::VertexArray::create();
     return b;
 }
@@ -66,6 +87,8 @@ int BlockMapGL::draw(const Camera& camera, const gl::RenderTarget& target, const
     p.set("uRoofColour", s.roofColour);
     p.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
     p.set("uOutputKind", s.outputKind ? 1 : 0);
+    p.set("uBmColumnsPerRow", m_columnsPerRow);
+    p.set("uBmWallTexels", m_wallTexels);
     const GLuint textures[5] = {m_height.id(), m_distance.id(), m_column.id(), m_wall.id(), m_normal.id()};
     const char* names[5] = {"uBmHeight", "uBmDistance", "uBmColumn", "uBmWall", "uBmNormal"};
     for (int i = 0; i < 5; ++i) {

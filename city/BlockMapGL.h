@@ -15,7 +15,8 @@ namespace seasonview::city {
 
 class BlockMapGL {
 public:
-    /// Uploads `map` (kept on the GPU only). Errors: the shaders do not build (a bug).
+    /// Uploads `map` (kept on the GPU only). Errors: its wall columns do not fit the GPU's textures, the shaders do
+    /// not build (a bug).
     static Result<std::unique_ptr<BlockMapGL>> create(const BlockMap& map);
 
     struct DrawSettings {
@@ -35,6 +36,7 @@ private:
     glm::dvec2 m_origin{0.0};
     double m_texel = 1.0, m_zBase = 0.0, m_zTop = 1.0;
     int m_size = 0;
+    int m_columnsPerRow = 1, m_wallTexels = 1;
 };
 
 } // namespace seasonview::city

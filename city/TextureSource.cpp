@@ -119,12 +119,6 @@ TextureCache::TextureCache(const std::vector<CityTexture>& textures, std::uint64
 
 void TextureCache::insert(int texture, std::shared_ptr<const SourceTexture> ptr) {
     ++m_reads;
-    if (std::size_t(texture) < m_finest.size() && m_finest[std::size_t(texture)] > 0) {
-        auto reduced = std::make_shared<SourceTexture>(*ptr);
-        reduced->firstLevel = std::min(m_finest[std::size_t(texture)], int(reduced->mips.size()) - 1);
-        for (int l = 0; l < reduced->firstLevel; ++l) std::vector<std::uint8_t>().swap(reduced->mips[std::size_t(l)]);
-        ptr = std::move(reduced);
-    }
     m_bytes += ptr->bytes();
     m_lru.push_front(texture);
     m_entries.emplace(texture, Entry{std::move(ptr), m_lru.begin()});
@@ -137,6 +131,12 @@ void TextureCache::insert(int texture, std::shared_ptr<const SourceTexture> ptr)
     }
 }
 
+void TextureCache::dropFinerMips(int texture, SourceTexture& t) const {
+    if (std::size_t(texture) >= m_finest.size() || m_finest[std::size_t(texture)] <= 0) return;
+    t.firstLevel = std::min(m_finest[std::size_t(texture)], int(t.mips.size()) - 1);
+    for (int l = 0; l < t.firstLevel; ++l) std::vector<std::uint8_t>().swap(t.mips[std::size_t(l)]);
+}
+
 Result<std::shared_ptr<const SourceTexture>> TextureCache::get(int texture) {
     if (auto it = m_entries.find(texture); it != m_entries.end()) {
         m_lru.splice(m_lru.begin(), m_lru, it->second.pos);
@@ -144,9 +144,10 @@ Result<std::shared_ptr<const SourceTexture>> TextureCache::get(int texture) {
     }
     auto t = readSourceTexture(m_textures[std::size_t(texture)]);
     if (!t) return t.error();
+    dropFinerMips(texture, *t);
     auto ptr = std::make_shared<const SourceTexture>(std::move(*t));
     insert(texture, ptr);
-    return m_entries.at(texture).tex;
+    return ptr;
 }
 
 Status TextureCache::prefetch(const std::vector<int>& textures, int threads) {
@@ -155,7 +156,12 @@ Status TextureCache::prefetch(const std::vector<int>& textures, int threads) {
         if (!m_entries.count(t) && std::find(missing.begin(), missing.end(), t) == missing.end()) missing.push_back(t);
     std::vector<std::optional<Result<SourceTexture>>> read(missing.size());
     parallelIndices(int(missing.size()), threads,
-                    [&](int i, int) { read[std::size_t(i)] = readSourceTexture(m_textures[std::size_t(missing[std::size_t(i)])]); });
+                    [&](int i, int) {
+                        const int texture = missing[std::size_t(i)];
+                        read[std::size_t(i)] = readSourceTexture(m_textures[std::size_t(texture)]);
+                        // On the worker, at once: a batch holds the reduced textures, not their full mips.
+                        if (*read[std::size_t(i)]) dropFinerMips(texture, read[std::size_t(i)]->value());
+                    });
     for (std::size_t i = 0; i < missing.size(); ++i) {
         if (!*read[i]) return read[i]->error();
         insert(missing[i], std::make_shared<const SourceTexture>(std::move(read[i]->value())));

@@ -55,6 +55,7 @@ public:
 
 private:
     void insert(int texture, std::shared_ptr<const SourceTexture> tex);
+    void dropFinerMips(int texture, SourceTexture& t) const;
     const std::vector<CityTexture>& m_textures;
     std::uint64_t m_capacity, m_bytes = 0, m_peak = 0, m_reads = 0;
     std::list<int> m_lru; // front = most recent

@@ -76,8 +76,12 @@ GeometryFrameStats CanopyRendererGL::renderView(const Camera& camera, const Clip
     if (s.mode == CanopyDrawMode::March) {
         target.bind();
         beginTerrainPass(kBackgroundColor.r, kBackgroundColor.g, kBackgroundColor.b, kBackgroundColor.a);
+        m_entryRecorded = false;
         add(render(camera, terrain, canopy, s, target, CanopyPass::Marched)); // where each pixel's ray enters
-        if (imagery.terrain && ClipmapTerrainRendererGL::resolvesDeferred(imagery)) {
+        if (!m_entryRecorded) {
+            // No layer to march (none above the ground, or no tree height): nothing recorded, nothing to march.
+        } else if (imagery.terrain && imagery.view == ImageryView::Canopy &&
+                   ClipmapTerrainRendererGL::resolvesDeferred(imagery)) {
             imagery.canopyMarch = &m_marchInput; // the terrain's resolve marches: one full-screen pass for both
         } else {
             add(marchForward(camera, terrain, canopy, target));
@@ -185,6 +189,7 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
         glClearNamedFramebufferfv(m_entryFramebuffer.id(), GL_COLOR, 0, none);
         const float far = 0.0f; // reversed Z
         glClearNamedFramebufferfv(m_entryFramebuffer.id(), GL_DEPTH, 0, &far);
+        m_entryRecorded = true;
     }
     program.set("uCanopyHeight", float(s.treeHeight));
     program.set("uCrownBase", float(std::clamp(s.crownBase, 0.0, s.treeHeight)));

@@ -114,6 +114,7 @@ private:
     mutable glm::ivec2 m_entrySize{0};
     mutable gl::VertexArray m_emptyVao;
     mutable CanopyMarchInput m_marchInput; // the entry record and the march's uniforms of the last Marched pass
+    mutable bool m_entryRecorded = false;  // the last Marched pass recorded entries (it draws none without layers)
     mutable float m_marchAnisotropy = 8.0f, m_marchShade = 0.0f;
 };
 

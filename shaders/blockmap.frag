@@ -7,8 +7,10 @@
 uniform usampler2D uBmHeight;   // n × n: 0 no building, else zBase + value · (zTop − zBase) / 255
 uniform usampler2D uBmDistance; // n × n: Chebyshev distance in texels to the nearest building texel
 uniform usampler2D uBmColumn;   // n × n: 1 + a boundary texel's wall column
-uniform sampler2D uBmWall;      // wallTexels × columns: a column's colours, the foot's first
-uniform sampler2D uBmNormal;    // columns × 1: a column's outward normal, (n + 1) / 2
+uniform sampler2D uBmWall;      // the columns in rows of uBmColumnsPerRow, each uBmWallTexels colours, the foot's first
+uniform sampler2D uBmNormal;    // a column's outward normal, (n + 1) / 2, at (column mod perRow, column / perRow)
+uniform int uBmColumnsPerRow;
+uniform int uBmWallTexels;
 uniform vec2 uBmOrigin;         // local metres
 uniform float uBmTexel;
 uniform int uBmSize;
@@ -113,11 +115,12 @@ void main() {
     vec3 colour = uRoofColour;
     vec3 n = vec3(0.0, 0.0, 1.0);
     if (kind == kWall) {
-        int column = int(texelFetch(uBmColumn, c, 0).r) - 1;
-        int wallTexels = textureSize(uBmWall, 0).x;
+        int column = max(int(texelFetch(uBmColumn, c, 0).r) - 1, 0);
+        ivec2 slot = ivec2(column % uBmColumnsPerRow, column / uBmColumnsPerRow);
         float v = clamp((hit.z - uBmZBase) / max(top - uBmZBase, 1e-6), 0.0, 1.0);
-        colour = texelFetch(uBmWall, ivec2(min(int(v * float(wallTexels)), wallTexels - 1), max(column, 0)), 0).rgb;
-        n = texelFetch(uBmNormal, ivec2(max(column, 0), 0), 0).xyz * 2.0 - 1.0;
+        int j = min(int(v * float(uBmWallTexels)), uBmWallTexels - 1);
+        colour = texelFetch(uBmWall, ivec2(slot.x * uBmWallTexels + j, slot.y), 0).rgb;
+        n = texelFetch(uBmNormal, slot, 0).xyz * 2.0 - 1.0;
     }
     fragColor = vec4(colour * (0.55 + 0.45 * max(dot(n, uSunDir), 0.0)), 1.0);
 }

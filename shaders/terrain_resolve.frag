@@ -24,7 +24,10 @@ void main() {
     // ground as VIEW 8 draws it (common_view.glsl); one imagery sampling either way (the crown's leaf-on at its hit,
     // or the ground's season), and the depth of what it shows.
     CanopyHit h = canopyMarchAt(at);
-    bool crown = h.layer >= 0;
+    // The top layer's record has its own depth buffer: terrain nearer than the crown's hit (a crest in front of the
+    // forest behind it) hides the crown, as it did when the crowns were drawn first (reversed Z; ties: the crown).
+    float terrainDepth = texelFetch(uGDepth, at, 0).r;
+    bool crown = h.layer >= 0 && (g0.x < 0.0 || canopyHitDepth(h) >= terrainDepth);
     if (g0.x < 0.0 && !crown) discard;
     vec4 g1 = texelFetch(uGFootprint, at, 0);
     vec3 n = vec3(g1.zw, sqrt(max(1.0 - dot(g1.zw, g1.zw), 0.0)));
@@ -39,7 +42,7 @@ void main() {
     vec4 a = sampleClipmap(season, sp, sf, used);
     vec3 c = crown ? canopyLayerFactor(h.layer) * a.rgb : (base ? uCanopyBase : 1.0) * seasonColourOf(a, season, sp, sf);
     fragColor = vec4(shaded(c, crown ? h.n : n), 1.0);
-    gl_FragDepth = crown ? canopyHitDepth(h) : texelFetch(uGDepth, at, 0).r;
+    gl_FragDepth = crown ? canopyHitDepth(h) : terrainDepth;
 #else
     if (g0.x < 0.0) discard;
     vec4 g1 = texelFetch(uGFootprint, at, 0);

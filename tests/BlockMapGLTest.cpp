@@ -187,3 +187,62 @@ TEST(BlockMapGLTest, DepthIsThePolygonsDepth) {
     // other).
     EXPECT_LT(farApart, both / 500) << farApart << " of " << both;
 }
+
+// Wall colours reach the screen from the right column, also when the columns take several rows of the wall texture
+// (1,024 colours per column: a few dozen columns per row): each side of a box in its own colour, every wall pixel the
+// CPU traversal says shows a side is that side's colour (shaded, so by its dominant channels).
+TEST(BlockMapGLTest, WallPixelsShowTheirSidesColours) {
+    ASSERT_TRUE(headlessContext());
+    const std::vector<Prism> box = {{6, 8, 26, 20, 25.5}};
+    const CityModel model = modelOf(box);
+    const glm::dvec3 colours[4] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 0}}; // -x, +x, -y, +y
+    BlockMapOptions o;
+    o.size = 32;
+    o.wallTexels = 1024;
+    auto map = buildBlockMap(model, {0.0, 0.0}, 32.0, o, [&](std::size_t tri, const glm::dvec3&) {
+        // The side a triangle lies on, by its vertices (the quads' winding is not outward on every side).
+        const auto& v = model.triangles[tri].v;
+        const Prism& b = box[0];
+        auto all = [&](auto pred) { return pred(v[0]) && pred(v[1]) && pred(v[2]); };
+        if (all([&](const glm::dvec3& q) { return q.x == b.x0; })) return colours[0];
+        if (all([&](const glm::dvec3& q) { return q.x == b.x1; })) return colours[1];
+        if (all([&](const glm::dvec3& q) { return q.y == b.y0; })) return colours[2];
+        if (all([&](const glm::dvec3& q) { return q.y == b.y1; })) return colours[3];
+        return glm::dvec3(0.5);
+    });
+    ASSERT_TRUE(map) << map.message();
+    GLint maxSize = 0;
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &maxSize);
+    ASSERT_GT(map->columns(), maxSize / 1024) << "the columns must take more than one row";
+    auto gpu = BlockMapGL::create(*map);
+    ASSERT_TRUE(gpu) << gpu.message();
+    gl::RenderTarget target(kW, kH);
+    int checked = 0, wrong = 0;
+    for (const Camera& cam : cameras({0.0, 0.0})) {
+        target.bind();
+        beginTerrainPass(0.0f, 0.0f, 0.0f, 0.0f);
+        (*gpu)->draw(cam, target);
+        const auto rgba = target.readRgba();
+        const glm::dmat4 inv = glm::inverse(viewProjOf(cam));
+        for (int y = 0; y < kH; ++y)
+            for (int x = 0; x < kW; ++x) {
+                const glm::dvec4 w = inv * glm::dvec4((x + 0.5) / kW * 2.0 - 1.0, 1.0 - (y + 0.5) / kH * 2.0, 0.5, 1.0);
+                const BlockMapHit h = traceBlockMap(*map, cam.position, glm::normalize(glm::dvec3(w) / w.w - cam.position));
+                if (h.kind != BlockMapHit::Kind::Wall) continue;
+                // A texel whose column averages two sides (a corner) has no single colour: only mid-side texels.
+                const std::uint32_t c = map->column[std::size_t(h.texel.y) * 32 + std::size_t(h.texel.x)];
+                const glm::vec3 n = map->wallNormal[c - 1];
+                if (std::abs(n.x) > 0.01f && std::abs(n.y) > 0.01f) continue;
+                const int side = n.x < -0.5f ? 0 : n.x > 0.5f ? 1 : n.y < -0.5f ? 2 : 3;
+                const std::uint8_t* p = &rgba[(std::size_t(y) * kW + std::size_t(x)) * 4];
+                const glm::ivec3 got(p[0], p[1], p[2]);
+                const glm::ivec3 want = glm::ivec3(colours[side] * 255.0);
+                bool ok = true;
+                for (int i = 0; i < 3; ++i) ok = ok && ((want[i] > 0) == (got[i] > 40));
+                ++checked;
+                wrong += !ok;
+            }
+    }
+    EXPECT_GT(checked, 1000);
+    EXPECT_LT(wrong, checked / 200) << wrong << " of " << checked;
+}

@@ -3,6 +3,8 @@
 // buildings of different heights in one block), the distance map's leaping against stepping every texel, the wall
 // columns' colours and normals, and the file: round trip, truncated, damaged and foreign files refused with one line.
 #include "BlockMap.h"
+#include "Raster.h"
+#include "TextureSource.h"
 #include "TestUtil.h"
 
 #include <gtest/gtest.h>
@@ -327,4 +329,26 @@ TEST(BlockMapTest, AnUnfinishedWriterLeavesNothing) {
     auto back = readBlockMaps(path);
     ASSERT_TRUE(back) << back.message();
     EXPECT_EQ(back->size(), 1u);
+}
+
+// The texture cache keeps only the mips a BlockMap build can read (setFinestLevels): fewer bytes, the same samples at
+// every footprint it is asked for, and the finest kept level for anything finer.
+TEST(BlockMapTest, TextureCacheKeepsOnlyTheMipsReadAndSamplesTheSame) {
+    test::TempDir dir("blockmap-texcache");
+    std::vector<std::uint8_t> px(256 * 256 * 3);
+    for (std::size_t i = 0; i < px.size(); ++i) px[i] = std::uint8_t((i * 37) ^ (i >> 7));
+    const auto path = dir / "facade.png";
+    ASSERT_TRUE(writeImageAtomic(path, px.data(), 256, 256, 3));
+    const std::vector<CityTexture> textures = {CityTexture{path.string(), true, 3, 256, 256}};
+    TextureCache full(textures, 64 << 20), reduced(textures, 64 << 20);
+    reduced.setFinestLevels({3});
+    auto a = full.get(0), b = reduced.get(0);
+    ASSERT_TRUE(a) << a.message();
+    ASSERT_TRUE(b) << b.message();
+    EXPECT_EQ((*b)->firstLevel, 3);
+    EXPECT_LT(reduced.bytes() * 40, full.bytes()); // 32² and coarser of 256²: about 1/64
+    for (double tps : {8.0, 11.0, 16.0, 40.0, 300.0})
+        for (glm::dvec2 uv : {glm::dvec2(0.1, 0.2), glm::dvec2(0.77, 0.5), glm::dvec2(1.3, -0.4)})
+            EXPECT_EQ((*a)->sample(uv, tps), (*b)->sample(uv, tps)) << tps;
+    EXPECT_EQ((*b)->sample({0.3, 0.3}, 1.0), (*a)->sample({0.3, 0.3}, 8.0)); // finer than kept: the finest kept
 }
