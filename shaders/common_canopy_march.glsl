@@ -50,12 +50,6 @@ CanopyHit canopyMarchAt(ivec2 pixel) {
         vec2 grad = h.n.z > 0.2 ? -h.n.xy / h.n.z : vec2(0.0); // terrain slope, metres per metre
         float descent = -dir.z + dot(grad, dir.xy);             // height over the terrain lost per unit of t
         float step = (uCanopyHeight - uCrownBase) / float(max(uCanopyLayers - 1, 1));
-        // Where the ray meets layer i (t along dir; break: it does not come down to that layer).
-#define SV_RAY_AT(i, t, q)                                                                                         \
-    float drop = float(uCanopyLayers - 1 - (i)) * step; /* below the top layer */                                  \
-    if (drop > 0.0 && descent <= 0.0) break;                                                                       \
-    float t = drop > 0.0 ? drop / descent : 0.0;                                                                   \
-    vec2 q = p + uLocalToPixel * (t * dir.xy) + uLayerShift * float(i);
         // The points the loop may visit lie on a segment, from layer firstTested to uFirstLayer (or at firstTested
         // alone when the ray does not come down); where the canopy's level is derived over all of it, the loop reads
         // that level directly (and records nothing: its blocks are derived). Each of the two loops below runs for its
@@ -66,25 +60,25 @@ CanopyHit canopyMarchAt(ivec2 pixel) {
         vec2 q1 = p + uLocalToPixel * ((d1 > 0.0 ? d1 / descent : 0.0) * dir.xy) + uLayerShift * float(last);
         const float slack = 0.01; // level-0 texels: the loop's own rounding of the points between
         bool direct = canopyBoxDerived(min(q0, q1) - slack, max(q0, q1) + slack, canopyLevel);
-        for (int i = firstTested; direct && i >= uFirstLayer; --i) {
-            SV_RAY_AT(i, t, q)
-            if (canopyAtDerived(q, canopyLevel) > i) {
-                h.layer = i;
-                h.at = entry + t * dir;
-                h.p = q;
-                break;
-            }
-        }
-        for (int i = firstTested; !direct && i >= uFirstLayer; --i) {
-            SV_RAY_AT(i, t, q)
-            if (canopyAtNoting(q, canopyLevel) > i) {
-                h.layer = i;
-                h.at = entry + t * dir;
-                h.p = q;
-                break;
-            }
-        }
-#undef SV_RAY_AT
+        // Layer by layer down from firstTested, for the pixels where `cond` holds, reading the canopy with `lookup`:
+        // where the ray meets layer i (t along dir; none below once it does not come down to a layer), and whether
+        // the canopy there reaches it.
+#define SV_MARCH(cond, lookup)                                                                                     \
+    for (int i = firstTested; (cond) && i >= uFirstLayer; --i) {                                                   \
+        float drop = float(uCanopyLayers - 1 - i) * step; /* below the top layer */                                \
+        if (drop > 0.0 && descent <= 0.0) break;                                                                   \
+        float t = drop > 0.0 ? drop / descent : 0.0;                                                               \
+        vec2 q = p + uLocalToPixel * (t * dir.xy) + uLayerShift * float(i);                                        \
+        if (lookup(q, canopyLevel) > i) {                                                                          \
+            h.layer = i;                                                                                           \
+            h.at = entry + t * dir;                                                                                \
+            h.p = q;                                                                                               \
+            break;                                                                                                 \
+        }                                                                                                          \
+    }
+        SV_MARCH(direct, canopyAtDerived)
+        SV_MARCH(!direct, canopyAtNoting)
+#undef SV_MARCH
     }
     return h;
 }

@@ -2,6 +2,7 @@
 // (city/BlockMap.h, traceBlockMap) pixel by pixel, and against the polygons they were built from: the depth a
 // BlockMap writes is the depth its prisms' own faces give, so it composes with everything drawn around it.
 #include "BlockMapGL.h"
+#include "PrismCity.h"
 #include "TerrainMeshGL.h"
 #include "TestUtil.h"
 
@@ -16,38 +17,14 @@ using namespace seasonview::test;
 
 namespace {
 
-struct Prism {
-    double x0, y0, x1, y1, top;
-};
+using test::Prism;
 
 // Buildings of different heights, touching, and a courtyard, on 1 m texels, heights on the 0.1 m grid of 25.5 m.
 const std::vector<Prism> kPrisms = {{2, 2, 14, 14, 25.5}, {14, 2, 26, 14, 12.3}, {2, 16, 9, 30, 7.0},
                                     {17, 17, 30, 20, 18.8}, {17, 27, 30, 30, 18.8}, {17, 20, 20, 27, 18.8},
                                     {27, 20, 30, 27, 18.8}};
 
-CityModel modelOf(const std::vector<Prism>& prisms) {
-    CityModel m;
-    m.buildingIds = {"b"};
-    auto quad = [&](glm::dvec3 a, glm::dvec3 b, glm::dvec3 c, glm::dvec3 d) {
-        for (auto tri : {std::array<glm::dvec3, 3>{a, b, c}, std::array<glm::dvec3, 3>{a, c, d}}) {
-            TexturedTriangle t;
-            t.v = tri;
-            t.texture = -1;
-            m.triangles.push_back(t);
-            m.building.push_back(0);
-            m.surface.push_back(Surface::Wall);
-        }
-    };
-    for (const Prism& p : prisms) {
-        const glm::dvec3 a(p.x0, p.y0, 0), b(p.x1, p.y0, 0), c(p.x1, p.y1, 0), d(p.x0, p.y1, 0), up(0, 0, p.top);
-        quad(a, d, d + up, a + up);
-        quad(b, c, c + up, b + up);
-        quad(a, b, b + up, a + up);
-        quad(d, c, c + up, d + up);
-        quad(a + up, b + up, c + up, d + up);
-    }
-    return m;
-}
+CityModel modelOf(const std::vector<Prism>& prisms) { return test::prismModel(prisms); }
 
 BlockMap blockMap(glm::dvec2 origin) {
     std::vector<Prism> moved = kPrisms;
@@ -194,22 +171,14 @@ TEST(BlockMapGLTest, DepthIsThePolygonsDepth) {
 TEST(BlockMapGLTest, WallPixelsShowTheirSidesColours) {
     ASSERT_TRUE(headlessContext());
     const std::vector<Prism> box = {{6, 8, 26, 20, 25.5}};
-    const CityModel model = modelOf(box);
-    const glm::dvec3 colours[4] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 0}}; // -x, +x, -y, +y
+    std::vector<int> faceOf;
+    const CityModel model = test::prismModel(box, &faceOf);
+    const glm::dvec3 colours[5] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 0}, {0.5, 0.5, 0.5}}; // -x, +x, -y, +y, roof
     BlockMapOptions o;
     o.size = 32;
     o.wallTexels = 1024;
-    auto map = buildBlockMap(model, {0.0, 0.0}, 32.0, o, [&](std::size_t tri, const glm::dvec3&) {
-        // The side a triangle lies on, by its vertices (the quads' winding is not outward on every side).
-        const auto& v = model.triangles[tri].v;
-        const Prism& b = box[0];
-        auto all = [&](auto pred) { return pred(v[0]) && pred(v[1]) && pred(v[2]); };
-        if (all([&](const glm::dvec3& q) { return q.x == b.x0; })) return colours[0];
-        if (all([&](const glm::dvec3& q) { return q.x == b.x1; })) return colours[1];
-        if (all([&](const glm::dvec3& q) { return q.y == b.y0; })) return colours[2];
-        if (all([&](const glm::dvec3& q) { return q.y == b.y1; })) return colours[3];
-        return glm::dvec3(0.5);
-    });
+    auto map = buildBlockMap(model, {0.0, 0.0}, 32.0, o,
+                             [&](std::size_t tri, const glm::dvec3&) { return colours[faceOf[tri]]; });
     ASSERT_TRUE(map) << map.message();
     GLint maxSize = 0;
     glGetIntegerv(GL_MAX_TEXTURE_SIZE, &maxSize);

@@ -3,6 +3,7 @@
 // buildings of different heights in one block), the distance map's leaping against stepping every texel, the wall
 // columns' colours and normals, and the file: round trip, truncated, damaged and foreign files refused with one line.
 #include "BlockMap.h"
+#include "PrismCity.h"
 #include "Raster.h"
 #include "TextureSource.h"
 #include "TestUtil.h"
@@ -19,42 +20,12 @@ using namespace seasonview::city;
 
 namespace {
 
-// An axis-aligned prism: x0..x1, y0..y1 (metres), from z 0 to `top`.
-struct Prism {
-    double x0, y0, x1, y1, top;
-};
+using test::Prism;
 
-// The side a wall triangle faces, for the colour callback: 0 -x, 1 +x, 2 -y, 3 +y, 4 roof.
+// The side each triangle of the last model lies on (prismModel's faceOf), for the colour callback.
 std::vector<int> g_faceOf;
 
-void addQuad(CityModel& m, glm::dvec3 a, glm::dvec3 b, glm::dvec3 c, glm::dvec3 d, int face) {
-    for (auto tri : {std::array<glm::dvec3, 3>{a, b, c}, std::array<glm::dvec3, 3>{a, c, d}}) {
-        TexturedTriangle t;
-        t.v = tri;
-        t.texture = -1;
-        m.triangles.push_back(t);
-        m.building.push_back(0);
-        m.surface.push_back(face == 4 ? Surface::Roof : Surface::Wall);
-        g_faceOf.push_back(face);
-    }
-}
-
-// The prisms as a model: four walls and a roof each (a courtyard is four prisms around it).
-CityModel modelOf(const std::vector<Prism>& prisms) {
-    CityModel m;
-    g_faceOf.clear();
-    m.buildingIds = {"b"};
-    for (const Prism& p : prisms) {
-        const glm::dvec3 a(p.x0, p.y0, 0), b(p.x1, p.y0, 0), c(p.x1, p.y1, 0), d(p.x0, p.y1, 0);
-        const glm::dvec3 up(0, 0, p.top);
-        addQuad(m, a, d, d + up, a + up, 0);
-        addQuad(m, b, c, c + up, b + up, 1);
-        addQuad(m, a, b, b + up, a + up, 2);
-        addQuad(m, d, c, c + up, d + up, 3);
-        addQuad(m, a + up, b + up, c + up, d + up, 4);
-    }
-    return m;
-}
+CityModel modelOf(const std::vector<Prism>& prisms) { return test::prismModel(prisms, &g_faceOf); }
 
 const glm::dvec3 kFaceColour[5] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 0}, {0.5, 0.5, 0.5}};
 

@@ -1,0 +1,43 @@
+#pragma once
+// Hand-made blocks for the BlockMap tests (BlockMapTest, BlockMapGLTest): axis-aligned prisms as a city model.
+#include "CityModel.h"
+
+#include <array>
+#include <vector>
+
+namespace seasonview::test {
+
+// An axis-aligned prism: x0..x1, y0..y1 (metres), from z 0 to `top`.
+struct Prism {
+    double x0, y0, x1, y1, top;
+};
+
+/// The prisms as a model, untextured: four walls and a roof each (a courtyard is four prisms around it). `faceOf`,
+/// when given, receives per triangle the side it lies on: 0 −x, 1 +x, 2 −y, 3 +y, 4 the roof.
+inline city::CityModel prismModel(const std::vector<Prism>& prisms, std::vector<int>* faceOf = nullptr) {
+    city::CityModel m;
+    m.buildingIds = {"b"};
+    if (faceOf) faceOf->clear();
+    auto quad = [&](glm::dvec3 a, glm::dvec3 b, glm::dvec3 c, glm::dvec3 d, int face) {
+        for (auto tri : {std::array<glm::dvec3, 3>{a, b, c}, std::array<glm::dvec3, 3>{a, c, d}}) {
+            city::TexturedTriangle t;
+            t.v = tri;
+            t.texture = -1;
+            m.triangles.push_back(t);
+            m.building.push_back(0);
+            m.surface.push_back(face == 4 ? city::Surface::Roof : city::Surface::Wall);
+            if (faceOf) faceOf->push_back(face);
+        }
+    };
+    for (const Prism& p : prisms) {
+        const glm::dvec3 a(p.x0, p.y0, 0), b(p.x1, p.y0, 0), c(p.x1, p.y1, 0), d(p.x0, p.y1, 0), up(0, 0, p.top);
+        quad(a, d, d + up, a + up, 0);
+        quad(b, c, c + up, b + up, 1);
+        quad(a, b, b + up, a + up, 2);
+        quad(d, c, c + up, d + up, 3);
+        quad(a + up, b + up, c + up, d + up, 4);
+    }
+    return m;
+}
+
+} // namespace seasonview::test
