@@ -125,8 +125,11 @@ nlohmann::json figure(const std::vector<double>& v) {
 /// A city mode's figures: per-frame medians/maxima of its counters and the capacity they must stay under.
 nlohmann::json cityFigures(const Mode& m) {
     std::vector<double> nodes, binds, calls, resident, queue, coarser, cpu, update, upload, uploaded, wait, occluded,
-        queries, waits;
+        queries, waits, drawnTriangles, maps, mapsMissing;
     for (const FrameRow& r : m.rows) {
+        drawnTriangles.push_back(double(r.city.triangles));
+        maps.push_back(r.city.blockMaps);
+        mapsMissing.push_back(r.city.blockMapsNotResident);
         cpu.push_back(r.cityCpuMs);
         update.push_back(r.cityUpdateMs);
         upload.push_back(r.city.uploadMs);
@@ -145,7 +148,8 @@ nlohmann::json cityFigures(const Mode& m) {
     return {{"mode", city::cityModeName(*m.cityMode)},
             {"upload", city::atlasUploadName(m.cityUpload)},
             {"atlases_decoded", m.city->decodesAtlases()},
-            {"occlusion", m.city->settings().occlusion && *m.cityMode == city::CityMode::Atlas},
+            {"occlusion", m.city->settings().occlusion &&
+                              (*m.cityMode == city::CityMode::Atlas || *m.cityMode == city::CityMode::BlockMap)},
             {"flush_first", m.city->settings().flushFirst},
             {"atlas_nodes", figure(nodes)},
             {"occluded_nodes", figure(occluded)},
@@ -162,7 +166,11 @@ nlohmann::json cityFigures(const Mode& m) {
             {"capacity_bytes", m.city->settings().capacityBytes},
             {"loader_queue", figure(queue)},
             {"coarser_than_wanted", figure(coarser)},
-            {"triangles", m.city->triangles()}};
+            {"triangles", m.city->triangles()},
+            {"drawn_triangles", figure(drawnTriangles)},
+            {"block_maps", figure(maps)},
+            {"block_maps_not_resident", figure(mapsMissing)},
+            {"block_map_error_px", m.city->settings().blockMapErrorPx}};
 }
 
 // "centers=concentric,offset,footprint" or "renderer=clipmap,reference" -> modes.
@@ -212,7 +220,7 @@ Status applyCompareValue(const BenchSettings& a, const std::string& key, const s
             m.cityMode.reset();
         } else {
             m.cityMode = city::parseCityMode(v);
-            if (!m.cityMode) return Error{"--compare: city '" + v + "' (expected atlas|original|flat|off)"};
+            if (!m.cityMode) return Error{"--compare: city '" + v + "' (expected atlas|original|flat|blockmap|off)"};
         }
     } else if (key == "city-upload") {
         // The atlas city (or --city's mode) with its BC atlases uploaded each way.
@@ -275,7 +283,7 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
         m.anisotropy = a.imagery.aniso;
         if (a.city.mode != "off") {
             m.cityMode = city::parseCityMode(a.city.mode);
-            if (!m.cityMode) return Error{"--city '" + a.city.mode + "': expected atlas|original|flat|off"};
+            if (!m.cityMode) return Error{"--city '" + a.city.mode + "': expected atlas|original|flat|blockmap|off"};
         }
         auto upload = city::parseAtlasUpload(a.city.upload);
         if (!upload) return Error{"--city-upload '" + a.city.upload + "': expected auto|compressed|decoded"};
@@ -507,6 +515,9 @@ Status BenchRun::createCities() {
         cs.upload = m.cityUpload;
         cs.occlusion = m.cityOcclusion;
         cs.flushFirst = m.cityFlush;
+        cs.blockMaps = m_a.city.blockMaps;
+        cs.blockMapErrorPx = m_a.city.blockMapErrorPx;
+        if (auto st = prepareCityBlockMaps(m_scene, cityTree, m_cache, cs); !st) return st.error();
         auto c = city::CityRendererGL::create(m_scene, cityTree.string(), cs);
         if (!c) return c.error();
         m.city = std::move(*c);
@@ -738,14 +749,14 @@ Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>
            "trunk_searches,city_cpu_ms,city_occluded_nodes,city_occlusion_queries,city_occlusion_waits,"
            "elevation_texels_uploaded,elevation_resident_bytes,run_order,city_allocated_bytes,city_evicted_blocks,"
            "canopy_blocks_pending,canopy_blocks_unread,canopy_blocks_on_demand,city_update_ms,city_upload_ms,"
-           "city_uploaded_bytes,city_wait_ms,stream_ms\n";
+           "city_uploaded_bytes,city_wait_ms,stream_ms,city_blockmaps,city_blockmaps_not_resident\n";
     for (const Mode& m : modes)
         for (const FrameRow& r : m.rows) {
             char line[640];
             std::snprintf(line, sizeof line,
                           "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s,"
                           "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f,%d,%d,%d,%lld,%lld,%d,%llu,%zu,%d,%d,%d,%.4f,%.4f,"
-                          "%llu,%.4f,%.4f\n",
+                          "%llu,%.4f,%.4f,%d,%d\n",
                           m.label.c_str(), r.frame, r.camera.position.x, r.camera.position.y, r.camera.position.z,
                           r.camera.yawDeg, r.camera.pitchDeg, r.cpuMs, r.gpuMs, r.frameMs, r.drawCalls,
                           (long long)r.triangles, (long long)r.texelsUploaded, (long long)r.exposedTexels,
@@ -759,7 +770,8 @@ Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>
                           (long long)r.elevationResidentBytes, r.runOrder,
                           (unsigned long long)r.city.allocatedBytes, r.city.evictedBlocks, r.canopyBlocksPending,
                           r.canopyBlocksUnread, r.canopyBlocksOnDemand, r.cityUpdateMs, r.city.uploadMs,
-                          (unsigned long long)r.city.uploadedBytes, r.city.waitMs, r.streamMs);
+                          (unsigned long long)r.city.uploadedBytes, r.city.waitMs, r.streamMs, r.city.blockMaps,
+                          r.city.blockMapsNotResident);
             csv << line;
         }
     std::string err;

@@ -1,6 +1,7 @@
 #include "CityJob.h"
 
 #include "AtlasTreeBuild.h"
+#include "BlockMap.h"
 #include "CityModel.h"
 #include "Commands.h"
 #include "StableHash.h"
@@ -61,12 +62,62 @@ Result<std::filesystem::path> prepareCityTree(const Scene& scene, const std::fil
     return tree;
 }
 
+Status prepareCityBlockMaps(const Scene& scene, const std::filesystem::path& tree, const std::filesystem::path& cacheDir,
+                            city::CitySettings& settings) {
+    if (settings.mode != city::CityMode::BlockMap || !settings.blockMaps.empty()) return Ok{};
+    auto file = city::AtlasTreeFile::open(tree.string());
+    if (!file) return file.error();
+    city::placeInSceneFrame(scene, *file, settings.placeOnTerrain);
+    const city::CityModel model = city::modelOfTree(*file);
+    // The key: the placed triangles, their textures and coordinates, the texture files, the build settings.
+    std::string key = "blockmaps|v1|64|32|1", chunk;
+    auto flush = [&] {
+        key += "|" + std::to_string(stableHash64(chunk));
+        chunk.clear();
+    };
+    for (const auto& t : model.triangles) {
+        chunk.append(reinterpret_cast<const char*>(t.v.data()), sizeof t.v);
+        chunk.append(reinterpret_cast<const char*>(t.t.data()), sizeof t.t);
+        chunk.append(reinterpret_cast<const char*>(&t.texture), sizeof t.texture);
+        if (chunk.size() > (1u << 20)) flush();
+    }
+    flush();
+    for (const auto& t : model.textures) {
+        std::error_code ec;
+        const auto mtime = std::filesystem::last_write_time(t.path, ec).time_since_epoch().count();
+        key += "|" + t.path + "|" + std::to_string(ec ? 0 : mtime);
+    }
+    char name[64];
+    std::snprintf(name, sizeof name, "%016llx.svbm", (unsigned long long)stableHash64(key));
+    const auto dir = cacheDir / "atlas";
+    const auto path = dir / name;
+    std::error_code ec;
+    if (std::filesystem::exists(path, ec) && city::BlockMapFile::open(path)) {
+        settings.blockMaps = path.string();
+        return Ok{};
+    }
+    std::filesystem::create_directories(dir, ec);
+    if (ec) return fileError(dir.string(), "cannot create cache folder: " + ec.message());
+    const auto t0 = std::chrono::steady_clock::now();
+    city::CityBlockMapSettings bs;
+    bs.progress = terminalProgress("BlockMaps");
+    auto r = city::buildCityBlockMaps(model, bs, path);
+    if (!r) return r.error();
+    std::printf("city: built %zu BlockMaps of %s in %.1f s: %.1f MB, %s\n", r->maps, tree.string().c_str(),
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), double(r->fileBytes) / 1e6,
+                path.string().c_str());
+    std::fflush(stdout);
+    settings.blockMaps = path.string();
+    return Ok{};
+}
+
 bool removeDamagedCityTree(const std::string& message, const std::filesystem::path& cacheDir) {
     namespace fs = std::filesystem;
     std::error_code ec;
     const std::string dir = fs::weakly_canonical(fs::absolute(cacheDir / "atlas", ec), ec).string() + "/";
     const fs::path named = fs::weakly_canonical(fs::absolute(message.substr(0, message.find(": ")), ec), ec);
-    if (named.string().rfind(dir, 0) != 0 || named.extension() != ".svat") return false;
+    if (named.string().rfind(dir, 0) != 0 || (named.extension() != ".svat" && named.extension() != ".svbm"))
+        return false;
     return fs::remove(named, ec) && !ec;
 }
 

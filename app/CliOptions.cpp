@@ -371,8 +371,9 @@ void CityArgs::addTo(CLI::App& cmd) {
     const size_t first = cmd.get_options().size();
     cmd.add_option("--city", mode,
                    "City model (the scene's `buildings`): atlas (texture-atlas tree), original (each original texture "
-                   "bound per draw), flat (one dummy texture, the upper bound), off")
-        ->check(CLI::IsMember({"atlas", "original", "flat", "off"}))
+                   "bound per draw), flat (one dummy texture, the upper bound), blockmap (the atlas tree near, "
+                   "ray-cast BlockMaps far), off")
+        ->check(CLI::IsMember({"atlas", "original", "flat", "blockmap", "off"}))
         ->capture_default_str();
     cmd.add_option("--city-tree", tree, "Atlas tree file to draw (default: built from the scene's buildings into the cache)");
     cmd.add_option("--city-capacity", capacityMb, "Resident atlases and original textures, MB")->capture_default_str();
@@ -384,6 +385,11 @@ void CityArgs::addTo(CLI::App& cmd) {
     cmd.add_option("--city-occlusion", occlusion,
                    "City, atlas mode: skip nodes hidden behind what is drawn (occlusion queries on node boxes)")
         ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
+    cmd.add_option("--city-blockmaps", blockMaps,
+                   "City, blockmap mode: BlockMap file to draw (default: built from the atlas tree into the cache)");
+    cmd.add_option("--city-blockmap-error", blockMapErrorPx,
+                   "City, blockmap mode: pixels one BlockMap texel may cover where maps are drawn instead of polygons")
         ->capture_default_str();
     groupFrom(cmd, first, kCityGroup);
 }
@@ -398,6 +404,9 @@ Result<std::optional<city::CitySettings>> CityArgs::settings() const {
     s.tpp = tpp;
     s.upload = city::parseAtlasUpload(upload).value_or(city::AtlasUpload::Auto);
     s.occlusion = occlusion != "off";
+    if (!(blockMapErrorPx > 0.0) || !std::isfinite(blockMapErrorPx)) return Error{"--city-blockmap-error must be positive"};
+    s.blockMaps = blockMaps;
+    s.blockMapErrorPx = blockMapErrorPx;
     return std::optional<city::CitySettings>(s);
 }
 

@@ -127,12 +127,14 @@ struct CanopyArgs {
 
 /// City: the scene's city model and how it is drawn.
 struct CityArgs {
-    std::string mode = "off"; // atlas | original | flat | off
+    std::string mode = "off"; // atlas | original | flat | blockmap | off
     std::string tree;         // an atlas tree file; empty: the scene's buildings, built into the cache
     double capacityMb = 256.0;
     double tpp = 1.0;
     std::string upload = "auto"; // BC atlases: auto | compressed | decoded
     std::string occlusion = "on"; // atlas mode: occlusion culling on | off
+    std::string blockMaps;        // blockmap mode: a BlockMap file; empty: built from the tree into the cache
+    double blockMapErrorPx = 1.0; // blockmap mode: pixels a map texel may cover where maps replace polygons
     void addTo(CLI::App& cmd);
     /// The renderer settings, nullopt for `off`; errors name the flag.
     Result<std::optional<city::CitySettings>> settings() const;

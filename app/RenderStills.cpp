@@ -1,5 +1,6 @@
 // renderStills (RenderJob.h): stills through the reference renderer, or through the clipmaps with the canopy view and
 // the city, each written atomically with its optional accuracy and statistics files.
+#include "CityJob.h"
 #include "RenderJob.h"
 #include "StreamedPyramid.h"
 
@@ -128,6 +129,7 @@ Status ClipmapStills::create(const std::vector<StillRequest>& stills) {
     if (m_settings.city) {
         city::CitySettings cs = *m_settings.city;
         cs.threaded = false; // stills load everything they show
+        if (auto st = prepareCityBlockMaps(m_scene, m_settings.cityTree, m_settings.cacheDir, cs); !st) return st.error();
         auto c = city::CityRendererGL::create(m_scene, m_settings.cityTree.string(), cs);
         if (!c) return c.error();
         m_city = std::move(*c);

@@ -1,6 +1,7 @@
 #include "Viewer.h"
 
 #include "AtomicFile.h"
+#include "CityJob.h"
 #include "RenderJob.h"
 #include "ViewerInput.h"
 #include "gl/GlContext.h"
@@ -433,7 +434,9 @@ Status createRenderers(const Scene& scene, const ViewerOptions& o, LiveScene& li
     if (!terrain) return terrain.error();
     live.terrain = std::move(*terrain);
     if (o.city) {
-        auto c = city::CityRendererGL::create(scene, o.cityTree.string(), *o.city);
+        city::CitySettings cs = *o.city;
+        if (auto st = prepareCityBlockMaps(scene, o.cityTree, o.cache, cs); !st) return st.error();
+        auto c = city::CityRendererGL::create(scene, o.cityTree.string(), cs);
         if (!c) return c.error();
         live.city = std::move(*c);
     }

@@ -59,6 +59,10 @@ std::pair<std::uint64_t, std::uint64_t> AtlasPager::heldBytes() const {
 }
 
 std::uint64_t AtlasPager::blockBytes(const BlockKey& key) const {
+    if (key.kind == BlockKey::Kind::BlockMap)
+        return m_settings.blockMaps && key.index < m_settings.blockMaps->records().size()
+                   ? m_settings.blockMaps->records()[key.index].gpuBytes()
+                   : 0;
     if (key.kind == BlockKey::Kind::Atlas) {
         const AtlasTreeData& t = m_file.trees[std::size_t(m_tree)];
         const int size = m_file.info.atlasSize;
@@ -113,6 +117,14 @@ Result<LoadedBlock> AtlasPager::load(const BlockKey& key) const {
     LoadedBlock b;
     b.key = key;
     b.bytes = blockBytes(key);
+    if (key.kind == BlockKey::Kind::BlockMap) {
+        if (!m_settings.blockMaps) return Error{"BlockMap " + std::to_string(key.index) + " asked of a pager without BlockMaps"};
+        auto m = m_settings.blockMaps->read(key.index);
+        if (!m) return m.error();
+        b.size = glm::ivec2(m->size);
+        b.blockMap = std::make_shared<const BlockMap>(std::move(*m));
+        return b;
+    }
     if (key.kind == BlockKey::Kind::Atlas) {
         auto blob = m_file.readAtlasBlob(m_tree, int(key.index));
         if (!blob) return blob.error();

@@ -11,9 +11,13 @@
 // ideal set and the resident set whole (all its parts or none: a partial one is undrawable), and counts its whole
 // GPU bytes while any part is resident or reserved (the GL side allocates it whole with its first band).
 //
+// BlockMaps (BlockMapTraversal.h) are blocks of the same pager when PagerSettings::blockMaps names their file: the
+// far field's maps and the near field's atlases share one capacity and one loader.
+//
 // Plain C++ (the GL side, CityRendererGL, uploads what update() hands out and deletes what it evicts).
 #include "AtlasTraversal.h"
 #include "AtlasTree.h"
+#include "BlockMap.h"
 #include "TextureSource.h"
 #include "Result.h"
 
@@ -22,6 +26,7 @@
 #include <deque>
 #include <functional>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <set>
 #include <thread>
@@ -35,6 +40,9 @@ struct PagerSettings {
     std::uint64_t uploadBytesPerFrame = 8ull << 20; // handed out for upload per frame (at least one block)
     bool threaded = true;                           // false: loads run inside update() (tests, stills)
     bool decodedAtlases = false;                    // BC atlases uploaded decoded: counted as RGB(A)8 bytes
+    /// BlockMaps paged with the tree's blocks (kind BlockMap, index = record): read from this file, kept by
+    /// reference (null: none).
+    const BlockMapFile* blockMaps = nullptr;
 };
 
 /// A loaded block: an atlas's stored blob, or an original texture's RGBA8 level 0 (rows bottom-up): all of it, or
@@ -51,6 +59,8 @@ struct LoadedBlock {
     /// mipFirstRows[l - 1]; the bands' shares partition every level. Empty (a custom loader): the driver's mips.
     std::vector<std::vector<std::uint8_t>> mips;
     std::vector<int> mipFirstRows;
+    /// A BlockMap block: the map, read and checked (its CRC) on the loader thread.
+    std::shared_ptr<const BlockMap> blockMap;
 };
 
 /// Rows [first, end) of mip level `level` that the band of level-0 rows [r0, r1) of a texture `height` rows high

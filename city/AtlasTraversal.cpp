@@ -36,7 +36,7 @@ std::array<glm::dvec4, 5> frustumPlanes(const glm::dmat4& m) {
     return {row(3) + row(0), row(3) - row(0), row(3) + row(1), row(3) - row(1), row(3)};
 }
 
-enum class Side { Outside, Intersects, Inside };
+using Side = FrustumSide;
 
 Side boxSide(const std::array<glm::dvec4, 5>& planes, glm::dvec3 lo, glm::dvec3 hi) {
     Side side = Side::Inside;
@@ -51,6 +51,16 @@ Side boxSide(const std::array<glm::dvec4, 5>& planes, glm::dvec3 lo, glm::dvec3 
 }
 
 } // namespace
+
+FrustumSide frustumSide(const glm::dmat4& viewProj, const glm::dvec3& lo, const glm::dvec3& hi) {
+    return boxSide(frustumPlanes(viewProj), lo, hi);
+}
+
+std::uint8_t AtlasTraversal::covered(std::uint32_t node) const {
+    if (!m_covered) return 0;
+    const AtlasNode& n = m_tree.nodes[node];
+    return m_covered(glm::dvec3(n.boundsMin), glm::dvec3(n.boundsMax));
+}
 
 AtlasTraversal::AtlasTraversal(const AtlasTreeData& tree, const AtlasTreeInfo& info) : m_tree(tree), m_info(info) {}
 
@@ -80,7 +90,9 @@ void AtlasTraversal::atlasRanges(std::uint32_t node, std::uint32_t atlasNode, co
     if (n.count == 0) return;
     const Side side = boxSide(frustumPlanes(view.viewProj), glm::dvec3(n.boundsMin), glm::dvec3(n.boundsMax));
     if (side == Side::Outside) return;
-    if (side == Side::Inside || n.leaf()) {
+    const std::uint8_t cov = covered(node);
+    if (cov == 2) return;
+    if ((side == Side::Inside && cov == 0) || n.leaf()) {
         // Contiguous with the previous range (§4.8.1 order): one draw call for both.
         if (!out.empty() && !out.back().original && out.back().level == level &&
             out.back().first + out.back().count == n.first && out.back().node == atlasNode)
@@ -112,7 +124,7 @@ void AtlasTraversal::walk(std::uint32_t start, std::uint32_t fallback, const Atl
     while (!stack.empty()) {
         const auto [ni, fb] = stack.back();
         stack.pop_back();
-        if (!visible(ni, view)) continue;
+        if (!visible(ni, view) || covered(ni) == 2) continue;
         if (!(startVisible && ni == start) && !known(ni)) {
             r.deferred.push_back(ni);
             continue;
@@ -130,7 +142,7 @@ void AtlasTraversal::walk(std::uint32_t start, std::uint32_t fallback, const Atl
             } else {
                 for (int c : n.children) {
                     const auto ci = std::uint32_t(c);
-                    if (m_tree.nodes[ci].count > 0 && visible(ci, view) && known(ci))
+                    if (m_tree.nodes[ci].count > 0 && visible(ci, view) && known(ci) && covered(ci) != 2)
                         possible = possible && atlasResident(ci);
                 }
             }
@@ -206,7 +218,7 @@ std::vector<BlockRequest> AtlasTraversal::requests(const AtlasView& view, const 
         const std::uint32_t ni = stack.back();
         stack.pop_back();
         const AtlasNode& n = m_tree.nodes[ni];
-        if (!visible(ni, view) || (ni == 0 && hidden(ni))) continue;
+        if (!visible(ni, view) || (ni == 0 && hidden(ni)) || covered(ni) == 2) continue;
         markAtlas(ni, BlockCategory::Needed); // used or refined: on the path to what is used
         const double d = distance(ni, view);
         const bool useAtlas = d >= minDistance(ni, view);
@@ -217,7 +229,7 @@ std::vector<BlockRequest> AtlasTraversal::requests(const AtlasView& view, const 
         }
         for (int q = 0; q < 4; ++q) {
             const auto c = std::uint32_t(n.children[std::size_t(q)]);
-            if (m_tree.nodes[c].count == 0) continue;
+            if (m_tree.nodes[c].count == 0 || covered(c) == 2) continue;
             if (useAtlas) markAtlas(c, BlockCategory::ParentNeeded); // the next refinement
             else if (!visible(c, view) || hidden(c)) markAtlas(c, BlockCategory::Culled); // a sibling is needed
             else stack.push_back(c);

@@ -31,6 +31,14 @@
 
 namespace seasonview::city {
 
+/// Where a box lies against a view-projection's frustum (its side planes and the eye plane; the far plane is not used).
+enum class FrustumSide : std::uint8_t { Outside, Intersects, Inside };
+FrustumSide frustumSide(const glm::dmat4& viewProj, const glm::dvec3& lo, const glm::dvec3& hi);
+
+/// How much of a box (local metres) is drawn by something else (BlockMaps far away, BlockMapTraversal::coverage):
+/// 0 none, 1 part of it, 2 all of it.
+using CoveredFn = std::function<std::uint8_t(const glm::dvec3& lo, const glm::dvec3& hi)>;
+
 /// The view the traversal serves.
 struct AtlasView {
     glm::dvec3 eye{0.0};       // metres, the tree's frame
@@ -49,11 +57,12 @@ using VisibilityFn = std::function<NodeVisibility(std::uint32_t)>;
 enum class BlockCategory : std::uint8_t { Needed = 0, Culled = 1, ParentNeeded = 2, Unused = 3 };
 const char* blockCategoryName(BlockCategory c);
 
-/// A block: a node's atlas (kind Atlas, index = node) or an original texture (kind Texture, index = texture); an
+/// A block: a node's atlas (kind Atlas, index = node), an original texture (kind Texture, index = texture) or a
+/// BlockMap (kind BlockMap, index = its node in the BlockMap quadtree, BlockMapTraversal.h); an
 /// original texture over twice an atlas's bytes is paged as several blocks of rows (`part`, thesis §4.6; the
 /// traversal asks for part 0, the pager for all of them).
 struct BlockKey {
-    enum class Kind : std::uint8_t { Atlas, Texture } kind = Kind::Atlas;
+    enum class Kind : std::uint8_t { Atlas, Texture, BlockMap } kind = Kind::Atlas; // BlockMap: index = the map's node
     std::uint32_t index = 0;
     std::uint16_t part = 0;
     bool operator==(const BlockKey& o) const { return kind == o.kind && index == o.index && part == o.part; }
@@ -122,7 +131,13 @@ public:
 
     const AtlasTreeData& tree() const { return m_tree; }
 
+    /// What else draws (BlockMaps): draws() and drawsBelow() skip nodes it covers entirely and draw a node whole only
+    /// where it covers none of it (else its children's ranges); requests() does not ask for the atlases of nodes it
+    /// covers entirely (the root's always). Empty: nothing else draws.
+    void setCovered(CoveredFn covered) { m_covered = std::move(covered); }
+
 private:
+    std::uint8_t covered(std::uint32_t node) const;
     /// The visible triangle ranges of `node`'s subtree, drawn with `atlasNode`'s atlas.
     void atlasRanges(std::uint32_t node, std::uint32_t atlasNode, const AtlasView& view, std::vector<AtlasDraw>& out,
                      int level) const;
@@ -136,6 +151,7 @@ private:
 
     const AtlasTreeData& m_tree;
     AtlasTreeInfo m_info;
+    CoveredFn m_covered;
 };
 
 } // namespace seasonview::city

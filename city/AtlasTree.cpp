@@ -280,4 +280,39 @@ Result<std::vector<std::uint8_t>> AtlasTreeFile::readAtlasRgba(int tree, int nod
     return rgba;
 }
 
+CityModel modelOfTree(const AtlasTreeFile& f) {
+    CityModel m;
+    m.source = f.path;
+    m.crs = f.info.crs;
+    m.origin = f.info.origin;
+    m.sceneFrame = true;
+    m.textures = f.textures;
+    for (std::size_t t = 0; t < m.textures.size() && t < f.textureSizes.size(); ++t) {
+        m.textures[t].width = f.textureSizes[t].x;
+        m.textures[t].height = f.textureSizes[t].y;
+    }
+    m.buildingIds = {"city"};
+    for (const AtlasTreeData& tree : f.trees)
+        for (std::size_t i = 0; i + 2 < tree.vertices.size(); i += 3) {
+            TexturedTriangle t;
+            for (std::size_t k = 0; k < 3; ++k) {
+                t.v[k] = glm::dvec3(tree.vertices[i + k].position);
+                t.t[k] = glm::dvec2(tree.vertices[i + k].uv);
+            }
+            t.texture = int(tree.triangleTexture[i / 3]);
+            m.triangles.push_back(t);
+            m.building.push_back(0);
+            m.surface.push_back(Surface::Wall);
+        }
+    for (std::size_t i = 0; i < f.plain.surface.size(); ++i) {
+        TexturedTriangle t;
+        for (std::size_t k = 0; k < 3; ++k) t.v[k] = glm::dvec3(f.plain.positions[i * 3 + k]);
+        t.texture = -1;
+        m.triangles.push_back(t);
+        m.building.push_back(0);
+        m.surface.push_back(f.plain.surface[i]);
+    }
+    return m;
+}
+
 } // namespace seasonview::city

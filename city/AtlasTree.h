@@ -108,6 +108,11 @@ struct AtlasTreeFile {
     Result<std::vector<std::uint8_t>> readAtlasBlob(int tree, int node) const;
 };
 
+/// The file's triangles as a model in the frame its positions are in (after placement in a scene: the scene's), each
+/// tree triangle with its original texture and coordinates, the plain ones untextured (texture -1), the textures as
+/// the file lists them: what BlockMaps are built from (buildCityBlockMaps), so they match the triangles drawn.
+CityModel modelOfTree(const AtlasTreeFile& file);
+
 /// Bytes of mip level `level` of an atlas of `size`² texels in `format` as decoded for upload (BC: blocks).
 std::uint64_t atlasLevelBytes(AtlasFormat format, bool alpha, int size, int level);
 /// Mip levels stored per atlas: down to 4×4 (one BC block).

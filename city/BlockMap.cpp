@@ -11,6 +11,8 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <map>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -124,6 +126,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
             for (int x = rx.x; x <= rx.y; ++x) cells[std::size_t(y) * std::size_t(n) + std::size_t(x)].push_back(k);
     }
     if (tris.empty()) {
+        m.roofNormal.assign(cellsCount * 2, 128);
         distanceField(m);
         return m;
     }
@@ -133,11 +136,13 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
 
     // Heights: the highest non-vertical triangle over each texel's centre.
     std::vector<double> top(cellsCount, -kInf);
+    std::vector<glm::dvec3> topNormal(cellsCount, glm::dvec3(0.0, 0.0, 1.0));
     for (std::size_t k = 0; k < tris.size(); ++k) {
         const auto& v = model.triangles[tris[k]].v;
         const glm::dvec3 nrm = glm::cross(v[1] - v[0], v[2] - v[0]);
         const double len = glm::length(nrm);
         if (!(len > 0.0) || std::abs(nrm.z) < 1e-6 * len) continue; // vertical: a wall, no height of its own
+        const glm::dvec3 up = (nrm.z < 0.0 ? -nrm : nrm) / len;
         const glm::dvec3 lo = glm::min(v[0], glm::min(v[1], v[2])), hi = glm::max(v[0], glm::max(v[1], v[2]));
         const glm::ivec2 rx = texelRange(lo.x, hi.x, origin.x), ry = texelRange(lo.y, hi.y, origin.y);
         const double det = (v[1].x - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (v[1].y - v[0].y);
@@ -150,9 +155,18 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                 const double eps = -1e-12;
                 if (b0 < eps || b1 < eps || b2 < eps) continue;
                 double& t = top[std::size_t(y) * std::size_t(n) + std::size_t(x)];
-                t = std::max(t, b0 * v[0].z + b1 * v[1].z + b2 * v[2].z);
+                const double z = b0 * v[0].z + b1 * v[1].z + b2 * v[2].z;
+                if (z > t) {
+                    t = z;
+                    topNormal[std::size_t(y) * std::size_t(n) + std::size_t(x)] = up;
+                }
             }
     }
+    m.roofNormal.assign(cellsCount * 2, 128);
+    for (std::size_t i = 0; i < cellsCount; ++i)
+        for (int c = 0; c < 2; ++c)
+            m.roofNormal[i * 2 + std::size_t(c)] =
+                std::uint8_t(std::clamp(std::lround((topNormal[i][c] * 0.5 + 0.5) * 255.0), 0L, 255L));
     for (std::size_t i = 0; i < cellsCount; ++i)
         if (top[i] > -kInf) m.height[i] = std::uint8_t(std::clamp(std::lround((top[i] - m.zBase) / step), 1L, 255L));
     distanceField(m);
@@ -161,8 +175,15 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
     auto neighbourTop = [&](int x, int y) {
         return x < 0 || y < 0 || x >= n || y >= n ? m.zBase : m.topAt(x, y);
     };
-    std::vector<glm::dvec3> sums;    // per column texel: colour sum
+    std::vector<glm::dvec3> sums;    // per column texel: colour sum of the rays that met walls
     std::vector<int> counts;         // per column texel: rays that met a triangle
+    std::vector<int> wallCounts;     // per column texel: of those, rays that met walls (not roofs)
+    // A triangle that faces up or down by more than about 12° is a roof here (its steps are drawn as roof).
+    auto roofLike = [&](std::size_t tri) {
+        const auto& v = model.triangles[tri].v;
+        const glm::dvec3 nrm = glm::cross(v[1] - v[0], v[2] - v[0]);
+        return std::abs(nrm.z) > 0.2 * glm::length(nrm);
+    };
     constexpr int kRaysPerSide = 4;
     for (int y = 0; y < n; ++y)
         for (int x = 0; x < n; ++x) {
@@ -181,6 +202,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
             m.wallNormal.push_back(glm::length(normal) > 0.0 ? glm::vec3(glm::normalize(normal)) : glm::vec3(0.0f));
             sums.resize(sums.size() + std::size_t(W), glm::dvec3(0.0));
             counts.resize(counts.size() + std::size_t(W), 0);
+            wallCounts.resize(wallCounts.size() + std::size_t(W), 0);
             for (const glm::ivec2 s : kSides) {
                 const double nTop = neighbourTop(x + s.x, y + s.y);
                 if (nTop >= ownTop) continue;
@@ -215,41 +237,45 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                             }
                         }
                         if (!found) continue;
-                        sums[std::size_t(col) * std::size_t(W) + std::size_t(j)] += colour(bestTri, bestBary);
-                        ++counts[std::size_t(col) * std::size_t(W) + std::size_t(j)];
+                        const std::size_t at = std::size_t(col) * std::size_t(W) + std::size_t(j);
+                        ++counts[at];
+                        if (roofLike(bestTri)) continue;
+                        sums[at] += colour(bestTri, bestBary);
+                        ++wallCounts[at];
                     }
                 }
             }
         }
 
     // Column texels no ray saw: the nearest seen one in the column; a column that saw nothing: the block's mean.
+    // The colour is the walls' (the nearest texel that saw walls where this one saw only roofs), A the walls' share.
     glm::dvec3 mean(0.0);
     int seen = 0;
     for (std::size_t i = 0; i < sums.size(); ++i)
-        if (counts[i] > 0) {
-            mean += sums[i] / double(counts[i]);
+        if (wallCounts[i] > 0) {
+            mean += sums[i] / double(wallCounts[i]);
             ++seen;
         }
     mean = seen > 0 ? mean / double(seen) : glm::dvec3(0.5);
-    m.wallRgb.assign(sums.size() * 3, 0);
+    m.wallRgba.assign(sums.size() * 4, 0);
+    auto nearest = [&](std::size_t base, int j, const std::vector<int>& by) -> std::optional<std::size_t> {
+        for (int dj = 0; dj < W; ++dj) { // below first at equal distance
+            const int below = j - dj, above = j + dj;
+            if (below >= 0 && by[base + std::size_t(below)] > 0) return base + std::size_t(below);
+            if (above < W && by[base + std::size_t(above)] > 0) return base + std::size_t(above);
+        }
+        return std::nullopt;
+    };
     for (int c = 0; c < m.columns(); ++c) {
         const std::size_t base = std::size_t(c) * std::size_t(W);
         for (int j = 0; j < W; ++j) {
-            glm::dvec3 rgb = mean;
-            for (int dj = 0; dj < W; ++dj) { // nearest seen texel, below first at equal distance
-                const int below = j - dj, above = j + dj;
-                if (below >= 0 && counts[base + std::size_t(below)] > 0) {
-                    rgb = sums[base + std::size_t(below)] / double(counts[base + std::size_t(below)]);
-                    break;
-                }
-                if (above < W && counts[base + std::size_t(above)] > 0) {
-                    rgb = sums[base + std::size_t(above)] / double(counts[base + std::size_t(above)]);
-                    break;
-                }
-            }
-            for (int ch = 0; ch < 3; ++ch)
-                m.wallRgb[(base + std::size_t(j)) * 3 + std::size_t(ch)] =
-                    std::uint8_t(std::clamp(std::lround(rgb[ch] * 255.0), 0L, 255L));
+            const auto w = nearest(base, j, wallCounts);
+            const glm::dvec3 rgb = w ? sums[*w] / double(wallCounts[*w]) : mean;
+            const auto any = nearest(base, j, counts);
+            const double wallShare = any ? double(wallCounts[*any]) / double(counts[*any]) : 1.0;
+            std::uint8_t* out = &m.wallRgba[(base + std::size_t(j)) * 4];
+            for (int ch = 0; ch < 3; ++ch) out[ch] = std::uint8_t(std::clamp(std::lround(rgb[ch] * 255.0), 0L, 255L));
+            out[3] = std::uint8_t(std::lround(wallShare * 255.0));
         }
     }
     return m;
@@ -484,7 +510,7 @@ Result<CityBlockMapReport> buildCityBlockMaps(const CityModel& model, const City
 namespace {
 
 constexpr char kMagic[8] = {'S', 'V', 'B', 'L', 'O', 'C', 'K', 'M'};
-constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kVersion = 2; // 2: wall texels RGBA (A: walls' share), per-texel roof normals
 constexpr std::size_t kMapHeaderBytes = 5 * 8 + 3 * 4;
 
 template <typename T> void put(std::vector<std::uint8_t>& out, const T& v) {
@@ -498,7 +524,7 @@ template <typename T> T get(const std::uint8_t* p) {
 }
 
 std::size_t dataBytes(std::size_t n, std::size_t W, std::size_t columns) {
-    return n * n * (1 + 1 + 4) + columns * W * 3 + columns * 3 * 4;
+    return n * n * (1 + 1 + 4 + 2) + columns * W * 4 + columns * 3 * 4;
 }
 
 std::vector<std::uint8_t> serializeMap(const BlockMap& m) {
@@ -510,7 +536,8 @@ std::vector<std::uint8_t> serializeMap(const BlockMap& m) {
     out.insert(out.end(), m.height.begin(), m.height.end());
     out.insert(out.end(), m.distance.begin(), m.distance.end());
     for (std::uint32_t c : m.column) put(out, c);
-    out.insert(out.end(), m.wallRgb.begin(), m.wallRgb.end());
+    out.insert(out.end(), m.roofNormal.begin(), m.roofNormal.end());
+    out.insert(out.end(), m.wallRgba.begin(), m.wallRgba.end());
     for (const glm::vec3& nrm : m.wallNormal)
         for (int i = 0; i < 3; ++i) put(out, float(nrm[i]));
     put(out, std::uint32_t(libdeflate_crc32(0, out.data(), out.size())));
@@ -584,62 +611,174 @@ Status writeBlockMaps(const std::filesystem::path& path, const std::vector<Block
     return w->finish();
 }
 
-Result<std::vector<BlockMap>> readBlockMaps(const std::filesystem::path& path) {
+int wallSpan(int wallTexels) {
+    int span = 0;
+    for (int w = std::max(wallTexels, 1);; w = (w + 1) / 2) {
+        span += w;
+        if (w == 1) break;
+    }
+    return span;
+}
+
+std::uint64_t BlockMapRecord::gpuBytes() const {
+    const auto n = std::uint64_t(size), c = std::uint64_t(columns);
+    return n * n * (1 + 1 + 4 + 2) + c * std::uint64_t(wallSpan(wallTexels)) * 4 + c * 3;
+}
+
+namespace {
+
+/// The record header at `h` (kMapHeaderBytes), checked; empty message when it is sound.
+std::string parseHeader(const std::uint8_t* h, BlockMapRecord& r) {
+    r.origin = {get<double>(h), get<double>(h + 8)};
+    r.texel = get<double>(h + 16);
+    r.zBase = get<double>(h + 24);
+    r.zTop = get<double>(h + 32);
+    r.size = get<std::int32_t>(h + 40);
+    r.wallTexels = get<std::int32_t>(h + 44);
+    r.columns = get<std::int32_t>(h + 48);
+    if (r.size < 2 || r.size > kMaxSize || r.wallTexels < 1 || r.wallTexels > kMaxWallTexels || r.columns < 0 ||
+        std::int64_t(r.columns) > std::int64_t(r.size) * r.size || !std::isfinite(r.origin.x) ||
+        !std::isfinite(r.origin.y) || !(r.texel > 0.0) || !std::isfinite(r.texel) || !std::isfinite(r.zBase) ||
+        !std::isfinite(r.zTop) || !(r.zTop > r.zBase))
+        return "impossible header";
+    r.bytes = kMapHeaderBytes + dataBytes(std::size_t(r.size), std::size_t(r.wallTexels), std::size_t(r.columns)) + 4;
+    return {};
+}
+
+} // namespace
+
+Result<BlockMapFile> BlockMapFile::open(const std::filesystem::path& path) {
     const std::string name = path.string();
     std::ifstream f(path, std::ios::binary);
     if (!f) return fileError(name, "cannot open the BlockMap file");
-    std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-    if (bytes.size() < 16 || std::memcmp(bytes.data(), kMagic, 8) != 0) return fileError(name, "not a BlockMap file");
-    const std::uint32_t version = get<std::uint32_t>(bytes.data() + 8);
+    f.seekg(0, std::ios::end);
+    const std::uint64_t fileBytes = std::uint64_t(std::max<std::streamoff>(f.tellg(), 0));
+    f.seekg(0);
+    std::uint8_t head[16] = {};
+    if (fileBytes < 16 || !f.read(reinterpret_cast<char*>(head), 16) || std::memcmp(head, kMagic, 8) != 0)
+        return fileError(name, "not a BlockMap file");
+    const std::uint32_t version = get<std::uint32_t>(head + 8);
     if (version != kVersion)
         return fileError(name, "BlockMap file version " + std::to_string(version) + ", expected " + std::to_string(kVersion));
-    const std::uint32_t count = get<std::uint32_t>(bytes.data() + 12);
-    std::size_t at = 16;
-    std::vector<BlockMap> maps;
+    const std::uint32_t count = get<std::uint32_t>(head + 12);
+    BlockMapFile out;
+    out.m_path = path;
+    std::uint64_t at = 16;
+    std::uint8_t h[kMapHeaderBytes];
     for (std::uint32_t k = 0; k < count; ++k) {
         const std::string which = "BlockMap " + std::to_string(k) + " of " + std::to_string(count);
-        if (bytes.size() - at < kMapHeaderBytes) return fileError(name, "truncated (" + which + ")");
-        const std::uint8_t* h = bytes.data() + at;
-        BlockMap m;
-        m.origin = {get<double>(h), get<double>(h + 8)};
-        m.texel = get<double>(h + 16);
-        m.zBase = get<double>(h + 24);
-        m.zTop = get<double>(h + 32);
-        const std::int32_t n = get<std::int32_t>(h + 40), W = get<std::int32_t>(h + 44), columns = get<std::int32_t>(h + 48);
-        if (n < 2 || n > kMaxSize || W < 1 || W > kMaxWallTexels || columns < 0 || std::int64_t(columns) > std::int64_t(n) * n ||
-            !std::isfinite(m.origin.x) || !std::isfinite(m.origin.y) || !(m.texel > 0.0) || !std::isfinite(m.texel) ||
-            !std::isfinite(m.zBase) || !std::isfinite(m.zTop) || !(m.zTop > m.zBase))
-            return fileError(name, "damaged (" + which + ": impossible header)");
-        const std::size_t data = dataBytes(std::size_t(n), std::size_t(W), std::size_t(columns));
-        if (bytes.size() - at - kMapHeaderBytes < data + 4) return fileError(name, "truncated (" + which + ")");
-        const std::uint32_t crc = get<std::uint32_t>(h + kMapHeaderBytes + data);
-        if (std::uint32_t(libdeflate_crc32(0, h, kMapHeaderBytes + data)) != crc)
-            return fileError(name, "damaged (" + which + ": checksum mismatch)");
-        m.size = n;
-        m.wallTexels = W;
-        const std::size_t cells = std::size_t(n) * std::size_t(n);
-        const std::uint8_t* p = h + kMapHeaderBytes;
-        m.height.assign(p, p + cells);
-        p += cells;
-        m.distance.assign(p, p + cells);
-        p += cells;
-        m.column.resize(cells);
-        for (std::size_t i = 0; i < cells; ++i, p += 4) {
-            m.column[i] = get<std::uint32_t>(p);
-            if (m.column[i] > std::uint32_t(columns)) return fileError(name, "damaged (" + which + ": a column past the walls)");
-        }
-        m.wallRgb.assign(p, p + std::size_t(columns) * std::size_t(W) * 3);
-        p += std::size_t(columns) * std::size_t(W) * 3;
-        m.wallNormal.resize(std::size_t(columns));
-        for (auto& nrm : m.wallNormal) {
-            nrm = {get<float>(p), get<float>(p + 4), get<float>(p + 8)};
-            p += 12;
-        }
-        at += kMapHeaderBytes + data + 4;
-        maps.push_back(std::move(m));
+        if (fileBytes - at < kMapHeaderBytes) return fileError(name, "truncated (" + which + ")");
+        f.seekg(std::streamoff(at));
+        if (!f.read(reinterpret_cast<char*>(h), std::streamsize(kMapHeaderBytes)))
+            return fileError(name, "cannot read (" + which + ")");
+        BlockMapRecord r;
+        if (std::string why = parseHeader(h, r); !why.empty()) return fileError(name, "damaged (" + which + ": " + why + ")");
+        if (fileBytes - at < r.bytes) return fileError(name, "truncated (" + which + ")");
+        r.offset = at;
+        at += r.bytes;
+        out.m_records.push_back(r);
     }
-    if (at != bytes.size()) return fileError(name, "damaged (bytes after the last BlockMap)");
+    if (at != fileBytes) return fileError(name, "damaged (bytes after the last BlockMap)");
+    return out;
+}
+
+Result<BlockMap> BlockMapFile::read(std::size_t k) const {
+    const std::string name = m_path.string();
+    if (k >= m_records.size()) return fileError(name, "no BlockMap " + std::to_string(k));
+    const BlockMapRecord& r = m_records[k];
+    const std::string which = "BlockMap " + std::to_string(k) + " of " + std::to_string(m_records.size());
+    std::ifstream f(m_path, std::ios::binary);
+    if (!f) return fileError(name, "cannot open the BlockMap file");
+    std::vector<std::uint8_t> bytes(r.bytes);
+    f.seekg(std::streamoff(r.offset));
+    if (!f.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(bytes.size())))
+        return fileError(name, "truncated (" + which + ")");
+    const std::uint8_t* h = bytes.data();
+    BlockMapRecord again;
+    if (std::string why = parseHeader(h, again); !why.empty() || again.bytes != r.bytes)
+        return fileError(name, "damaged (" + which + ": changed since it was opened)");
+    const std::size_t data = std::size_t(r.bytes) - kMapHeaderBytes - 4;
+    const std::uint32_t crc = get<std::uint32_t>(h + kMapHeaderBytes + data);
+    if (std::uint32_t(libdeflate_crc32(0, h, kMapHeaderBytes + data)) != crc)
+        return fileError(name, "damaged (" + which + ": checksum mismatch)");
+    BlockMap m;
+    m.origin = r.origin;
+    m.texel = r.texel;
+    m.zBase = r.zBase;
+    m.zTop = r.zTop;
+    m.size = r.size;
+    m.wallTexels = r.wallTexels;
+    const std::size_t cells = std::size_t(r.size) * std::size_t(r.size);
+    const std::uint8_t* p = h + kMapHeaderBytes;
+    m.height.assign(p, p + cells);
+    p += cells;
+    m.distance.assign(p, p + cells);
+    p += cells;
+    m.column.resize(cells);
+    for (std::size_t i = 0; i < cells; ++i, p += 4) {
+        m.column[i] = get<std::uint32_t>(p);
+        if (m.column[i] > std::uint32_t(r.columns)) return fileError(name, "damaged (" + which + ": a column past the walls)");
+    }
+    m.roofNormal.assign(p, p + cells * 2);
+    p += cells * 2;
+    m.wallRgba.assign(p, p + std::size_t(r.columns) * std::size_t(r.wallTexels) * 4);
+    p += std::size_t(r.columns) * std::size_t(r.wallTexels) * 4;
+    m.wallNormal.resize(std::size_t(r.columns));
+    for (auto& nrm : m.wallNormal) {
+        nrm = {get<float>(p), get<float>(p + 4), get<float>(p + 8)};
+        p += 12;
+    }
+    return m;
+}
+
+Result<std::vector<BlockMap>> readBlockMaps(const std::filesystem::path& path) {
+    auto file = BlockMapFile::open(path);
+    if (!file) return file.error();
+    std::vector<BlockMap> maps;
+    for (std::size_t k = 0; k < file->records().size(); ++k) {
+        auto m = file->read(k);
+        if (!m) return m.error();
+        maps.push_back(std::move(*m));
+    }
     return maps;
+}
+
+Result<BlockMapQuadtree> BlockMapQuadtree::of(const BlockMapFile& file) {
+    const std::string name = file.path().string();
+    const auto& recs = file.records();
+    if (recs.empty()) return fileError(name, "no BlockMaps");
+    BlockMapQuadtree q;
+    q.origin = recs[0].origin;
+    q.rootSide = recs[0].side();
+    std::map<std::pair<int, std::pair<int, int>>, std::int32_t> at;
+    q.nodes.resize(recs.size());
+    for (std::size_t k = 0; k < recs.size(); ++k) {
+        const BlockMapRecord& r = recs[k];
+        const std::string which = "BlockMap " + std::to_string(k);
+        if (r.size != recs[0].size) return fileError(name, which + " is not the root's size");
+        const double levelF = std::log2(q.rootSide / r.side());
+        const int level = int(std::lround(levelF));
+        const double side = q.rootSide / std::ldexp(1.0, level);
+        const glm::dvec2 cellF = (r.origin - q.origin) / side;
+        const glm::ivec2 cell(int(std::lround(cellF.x)), int(std::lround(cellF.y)));
+        const double tol = 1e-6;
+        if (level < 0 || level > 30 || std::abs(levelF - level) > tol || std::abs(cellF.x - cell.x) > tol ||
+            std::abs(cellF.y - cell.y) > tol || cell.x < 0 || cell.y < 0 || cell.x >= (1 << level) || cell.y >= (1 << level))
+            return fileError(name, which + " is not a square of the root's quadtree");
+        if (!at.emplace(std::make_pair(level, std::make_pair(cell.x, cell.y)), std::int32_t(k)).second)
+            return fileError(name, which + " repeats a square");
+        Node& n = q.nodes[k];
+        n.level = level;
+        n.cell = cell;
+        q.depth = std::max(q.depth, level);
+        if (level > 0) {
+            const auto p = at.find(std::make_pair(level - 1, std::make_pair(cell.x / 2, cell.y / 2)));
+            if (p == at.end()) return fileError(name, which + " has no parent map before it");
+            n.parent = p->second;
+            q.nodes[std::size_t(p->second)].children[std::size_t((cell.x & 1) + 2 * (cell.y & 1))] = std::int32_t(k);
+        }
+    }
+    return q;
 }
 
 } // namespace seasonview::city

@@ -8,7 +8,8 @@
 // index for boundary texels (those with a lower 4-neighbour, the block's edge counting as lower) and a discrete
 // distance field over the empty space (the Chebyshev distance in texels to the nearest building texel) for leaping.
 // Each wall column holds `wallTexels` colours from the prism's foot to its top, the mean of what its exposed sides
-// show, and the mean outward normal of those sides. Roofs store no colour: seasonview textures them from the terrain
+// show (and how much of it is wall rather than the steps of a sloped roof), and the mean outward normal of those
+// sides; each texel its roof's normal. Roofs store no colour: seasonview textures them from the terrain
 // imagery, as it draws the polygon roofs. The ground is not part of a BlockMap: a ray that meets no prism goes on to
 // the terrain drawn under it.
 #include "CityModel.h"
@@ -17,6 +18,7 @@
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -39,8 +41,13 @@ struct BlockMap {
     std::vector<std::uint8_t> height;   // n², row-major, row 0 at origin.y
     std::vector<std::uint8_t> distance; // n²: Chebyshev distance in texels to the nearest building texel (0 on one)
     std::vector<std::uint32_t> column;  // n²: 1 + the wall column of a boundary texel, 0 elsewhere
-    std::vector<std::uint8_t> wallRgb;  // columns × wallTexels × 3, the foot's colour first
+    // Per wall texel RGB and A, the share of its rays that met walls (255) rather than roofs (0: a step of a sloped
+    // roof seen from the side, drawn as roof); columns × wallTexels × 4, the foot's first.
+    std::vector<std::uint8_t> wallRgba;
     std::vector<glm::vec3> wallNormal;  // per column, unit and horizontal
+    // Per texel the roof's normal (the highest triangle's, facing up) as x and y in 0..255 for -1..1 (z is implied):
+    // the roofs are shaded as the polygons' are (the paper's per-texel normals, §3.1).
+    std::vector<std::uint8_t> roofNormal; // n² × 2
 
     int columns() const { return int(wallNormal.size()); }
     std::uint8_t heightAt(int x, int y) const { return height[std::size_t(y) * std::size_t(size) + std::size_t(x)]; }
@@ -139,6 +146,56 @@ private:
     std::vector<std::uint8_t> m_countBytes;
     bool m_done = false;
 };
+/// Texels a wall column takes with its halved levels (BlockMapGL): W, then (W + 1) / 2, ... down to 1.
+int wallSpan(int wallTexels);
+
+/// Reads every map of a file (BlockMapFile::open, then read() of each).
 Result<std::vector<BlockMap>> readBlockMaps(const std::filesystem::path& path);
+
+/// One map's record in a BlockMap file: its header, and where its data lies.
+struct BlockMapRecord {
+    glm::dvec2 origin{0.0};
+    double texel = 1.0, zBase = 0.0, zTop = 1.0;
+    int size = 0, wallTexels = 0, columns = 0;
+    std::uint64_t offset = 0, bytes = 0; // the record (header, data, CRC) in the file
+    double side() const { return double(size) * texel; }
+    /// Bytes of the map's textures once uploaded (BlockMapGL: height, distance, column, wall colours with their
+    /// halved levels, normals).
+    std::uint64_t gpuBytes() const;
+};
+
+/// A BlockMap file opened for reading its maps one at a time (a city's need not fit in memory): open() reads and
+/// checks every record's header and that the records fill the file exactly; read() reads one map and checks its CRC.
+/// Either refuses a truncated, damaged or foreign file with one line naming it.
+class BlockMapFile {
+public:
+    static Result<BlockMapFile> open(const std::filesystem::path& path);
+    const std::vector<BlockMapRecord>& records() const { return m_records; }
+    /// Map `k` (thread-safe: each call reads through its own stream).
+    Result<BlockMap> read(std::size_t k) const;
+    const std::filesystem::path& path() const { return m_path; }
+
+private:
+    std::filesystem::path m_path;
+    std::vector<BlockMapRecord> m_records;
+};
+
+/// The quadtree of a city's BlockMaps (buildCityBlockMaps: the root first, then level by level; squares without
+/// triangles have no map), recovered from the maps' squares: node k is record k.
+struct BlockMapQuadtree {
+    struct Node {
+        int level = 0;
+        glm::ivec2 cell{0};          // the square's column and row at its level
+        std::int32_t parent = -1;
+        std::array<std::int32_t, 4> children{-1, -1, -1, -1}; // quadrant dx + 2·dy; -1: no map (no triangles there)
+    };
+    glm::dvec2 origin{0.0};
+    double rootSide = 0.0;
+    int depth = 0;
+    std::vector<Node> nodes;
+    /// Errors (one line naming the file): no maps, a map whose square is not a node of the root's quadtree, a node
+    /// twice, a node whose parent has no map, maps of different sizes.
+    static Result<BlockMapQuadtree> of(const BlockMapFile& file);
+};
 
 } // namespace seasonview::city

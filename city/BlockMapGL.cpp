@@ -27,11 +27,24 @@ gl::Texture texture2D(GLenum internalFormat, int width, int height, GLenum forma
 
 } // namespace
 
+Result<gl::ShaderProgram> BlockMapGL::buildProgram(bool roofImagery) {
+    return roofImagery ? gl::ShaderProgram::build("blockmap.vert", "blockmap.frag", {"ROOF_IMAGERY"})
+                       : gl::ShaderProgram::build("blockmap.vert", "blockmap.frag");
+}
+
 Result<std::unique_ptr<BlockMapGL>> BlockMapGL::create(const BlockMap& map) {
-    auto program = gl::ShaderProgram::build("blockmap.vert", "blockmap.frag");
+    auto program = buildProgram(false);
     if (!program) return program.error();
+    auto own = std::make_unique<gl::ShaderProgram>(std::move(*program));
+    auto b = create(map, *own);
+    if (!b) return b.error();
+    (*b)->m_ownProgram = std::move(own);
+    return b;
+}
+
+Result<std::unique_ptr<BlockMapGL>> BlockMapGL::create(const BlockMap& map, const gl::ShaderProgram& program) {
     std::unique_ptr<BlockMapGL> b(new BlockMapGL());
-    b->m_program = std::move(*program);
+    b->m_program = &program;
     const int n = map.size, columns = map.columns();
     b->m_origin = map.origin;
     b->m_texel = map.texel;
@@ -41,30 +54,48 @@ Result<std::unique_ptr<BlockMapGL>> BlockMapGL::create(const BlockMap& map) {
     b->m_height = texture2D(GL_R8UI, n, n, GL_RED_INTEGER, GL_UNSIGNED_BYTE, map.height.data());
     b->m_distance = texture2D(GL_R8UI, n, n, GL_RED_INTEGER, GL_UNSIGNED_BYTE, map.distance.data());
     b->m_column = texture2D(GL_R32UI, n, n, GL_RED_INTEGER, GL_UNSIGNED_INT, map.column.data());
-    // Columns in rows of `perRow` (a map may have up to n² of them, past any texture's width): column c's colours at
-    // x = (c mod perRow) · wallTexels + j, y = c / perRow; its normal at (c mod perRow, c / perRow).
+    b->m_roofNormal = texture2D(GL_RG8, n, n, GL_RG, GL_UNSIGNED_BYTE, map.roofNormal.data());
+    // Columns in rows of `perRow` (a map may have up to n² of them, past any texture's width): column c's colours and
+    // their halved levels at x = (c mod perRow) · span + j, y = c / perRow; its normal at (c mod perRow, c / perRow).
     GLint maxSize = 0;
     glGetIntegerv(GL_MAX_TEXTURE_SIZE, &maxSize);
-    const int W = map.wallTexels;
-    const int perRow = std::max(1, std::min(std::max(columns, 1), maxSize / std::max(W, 1)));
+    const int W = map.wallTexels, span = wallSpan(W);
+    const int perRow = std::max(1, std::min(std::max(columns, 1), maxSize / std::max(span, 1)));
     const int rows = (columns + perRow - 1) / perRow;
-    if (W > maxSize || rows > maxSize)
+    if (span > maxSize || rows > maxSize)
         return Error{"BlockMap: " + std::to_string(columns) + " wall columns of " + std::to_string(W) +
                      " texels do not fit the GPU's " + std::to_string(maxSize) + "-texel textures"};
-    std::vector<std::uint8_t> wall(std::size_t(perRow) * std::size_t(W) * std::size_t(std::max(rows, 1)) * 3, 0);
+    std::vector<std::uint8_t> wall(std::size_t(perRow) * std::size_t(span) * std::size_t(std::max(rows, 1)) * 4, 0);
     std::vector<std::uint8_t> normals(std::size_t(perRow) * std::size_t(std::max(rows, 1)) * 3, 0);
+    std::vector<float> level, next;
     for (int c = 0; c < columns; ++c) {
         const std::size_t x = std::size_t(c % perRow), y = std::size_t(c / perRow);
-        std::copy_n(&map.wallRgb[std::size_t(c) * std::size_t(W) * 3], std::size_t(W) * 3,
-                    &wall[(y * std::size_t(perRow) * std::size_t(W) + x * std::size_t(W)) * 3]);
+        std::uint8_t* out = &wall[(y * std::size_t(perRow) * std::size_t(span) + x * std::size_t(span)) * 4];
+        level.assign(&map.wallRgba[std::size_t(c) * std::size_t(W) * 4], &map.wallRgba[std::size_t(c + 1) * std::size_t(W) * 4]);
+        for (int w = W;;) {
+            for (float f : level) *out++ = std::uint8_t(std::lround(std::clamp(f, 0.0f, 255.0f)));
+            if (w == 1) break;
+            const int half = (w + 1) / 2;
+            next.assign(std::size_t(half) * 4, 0.0f);
+            for (int j = 0; j < half; ++j)
+                for (int k = 0; k < 4; ++k) {
+                    const float a = level[std::size_t(2 * j) * 4 + std::size_t(k)];
+                    const float e = 2 * j + 1 < w ? level[std::size_t(2 * j + 1) * 4 + std::size_t(k)] : a;
+                    next[std::size_t(j) * 4 + std::size_t(k)] = 0.5f * (a + e);
+                }
+            level.swap(next);
+            w = half;
+        }
         for (int i = 0; i < 3; ++i)
             normals[(y * std::size_t(perRow) + x) * 3 + std::size_t(i)] =
                 std::uint8_t(std::lround((map.wallNormal[std::size_t(c)][i] * 0.5f + 0.5f) * 255.0f));
     }
-    b->m_wall = texture2D(GL_RGB8, perRow * W, std::max(rows, 1), GL_RGB, GL_UNSIGNED_BYTE, wall.data());
+    b->m_wall = texture2D(GL_RGBA8, perRow * span, std::max(rows, 1), GL_RGBA, GL_UNSIGNED_BYTE, wall.data());
     b->m_normal = texture2D(GL_RGB8, perRow, std::max(rows, 1), GL_RGB, GL_UNSIGNED_BYTE, normals.data());
     b->m_columnsPerRow = perRow;
     b->m_wallTexels = W;
+    b->m_wallSpan = span;
+    b->m_bytes = std::uint64_t(n) * std::uint64_t(n) * 8 + wall.size() + normals.size();
     b->m_vao = gl::VertexArray::create();
     return b;
 }
@@ -72,9 +103,32 @@ Result<std::unique_ptr<BlockMapGL>> BlockMapGL::create(const BlockMap& map) {
 int BlockMapGL::draw(const Camera& camera, const gl::RenderTarget& target, const DrawSettings& s) const {
     target.bind();
     const double aspect = double(target.width()) / double(target.height());
-    const glm::dmat4 viewProj = camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix();
-    const gl::ShaderProgram& p = m_program;
+    const double pixelAngle = 2.0 * std::tan(camera.fovYDeg * M_PI / 360.0) / double(target.height());
+    begin(*m_program, camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix(), camera.position, pixelAngle, s);
+    drawOne();
+    end();
+    return 1;
+}
+
+void BlockMapGL::begin(const gl::ShaderProgram& p, const glm::dmat4& viewProj, const glm::dvec3& eye,
+                       double pixelAngle, const DrawSettings& s) {
+    p.set("uPixelAngle", float(pixelAngle));
     p.set("uViewProj", glm::mat4(viewProj));
+    p.set("uEye", glm::vec3(eye));
+    p.set("uRoofColour", s.roofColour);
+    p.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
+    p.set("uOutputKind", s.outputKind ? 1 : 0);
+    const char* names[kTextures] = {"uBmHeight", "uBmDistance", "uBmColumn", "uBmWall", "uBmNormal", "uBmRoofNormal"};
+    for (int i = 0; i < kTextures; ++i) p.set(names[i], kUnit + i);
+    p.use();
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_GREATER);
+    glEnable(GL_CULL_FACE);
+    glCullFace(GL_FRONT); // the back faces: one fragment per pixel, the eye inside the box or not
+}
+
+void BlockMapGL::drawOne() const {
+    const gl::ShaderProgram& p = *m_program;
     const double side = double(m_size) * m_texel;
     p.set("uBoxMin", glm::vec3(glm::dvec3(m_origin, m_zBase)));
     p.set("uBoxMax", glm::vec3(glm::dvec3(m_origin + side, m_zTop)));
@@ -83,29 +137,21 @@ int BlockMapGL::draw(const Camera& camera, const gl::RenderTarget& target, const
     p.set("uBmSize", m_size);
     p.set("uBmZBase", float(m_zBase));
     p.set("uBmZTop", float(m_zTop));
-    p.set("uEye", glm::vec3(camera.position));
-    p.set("uRoofColour", s.roofColour);
-    p.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
-    p.set("uOutputKind", s.outputKind ? 1 : 0);
     p.set("uBmColumnsPerRow", m_columnsPerRow);
     p.set("uBmWallTexels", m_wallTexels);
-    const GLuint textures[5] = {m_height.id(), m_distance.id(), m_column.id(), m_wall.id(), m_normal.id()};
-    const char* names[5] = {"uBmHeight", "uBmDistance", "uBmColumn", "uBmWall", "uBmNormal"};
-    for (int i = 0; i < 5; ++i) {
-        glBindTextureUnit(GLuint(i), textures[i]);
-        p.set(names[i], i);
-    }
-    p.use();
-    glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_GREATER);
-    glEnable(GL_CULL_FACE);
-    glCullFace(GL_FRONT); // the back faces: one fragment per pixel, the eye inside the box or not
+    p.set("uBmWallSpan", m_wallSpan);
+    const GLuint textures[kTextures] = {m_height.id(), m_distance.id(), m_column.id(),
+                                        m_wall.id(),   m_normal.id(),   m_roofNormal.id()};
+    for (int i = 0; i < kTextures; ++i) glBindTextureUnit(GLuint(kUnit + i), textures[i]);
     glBindVertexArray(m_vao.id());
     glDrawArrays(GL_TRIANGLES, 0, 36);
+}
+
+void BlockMapGL::end() {
     glBindVertexArray(0);
     glDisable(GL_CULL_FACE);
-    for (int i = 0; i < 5; ++i) glBindTextureUnit(GLuint(i), 0);
-    return 1;
+    glCullFace(GL_BACK);
+    for (int i = 0; i < kTextures; ++i) glBindTextureUnit(GLuint(kUnit + i), 0);
 }
 
 } // namespace seasonview::city

@@ -15,9 +15,18 @@ namespace seasonview::city {
 
 class BlockMapGL {
 public:
-    /// Uploads `map` (kept on the GPU only). Errors: its wall columns do not fit the GPU's textures, the shaders do
-    /// not build (a bug).
+    /// Texture units a map's textures are bound to: kUnit .. kUnit + kTextures - 1 (past the terrain's, so the
+    /// ROOF_IMAGERY program samples the clipmaps on theirs).
+    static constexpr int kUnit = 22, kTextures = 6;
+
+    /// The program that draws maps (shaders/blockmap.*): with `roofImagery` its ROOF_IMAGERY variant (bind the
+    /// terrain's clipmaps to it: ClipmapTerrainRendererGL::bindTerrain). A shader that does not build is a bug.
+    static Result<gl::ShaderProgram> buildProgram(bool roofImagery);
+    /// Uploads `map` (kept on the GPU only), drawn with its own program. Errors: its wall columns do not fit the GPU's
+    /// textures, the shaders do not build (a bug).
     static Result<std::unique_ptr<BlockMapGL>> create(const BlockMap& map);
+    /// The same, drawn with `program` (buildProgram(); kept by reference).
+    static Result<std::unique_ptr<BlockMapGL>> create(const BlockMap& map, const gl::ShaderProgram& program);
 
     struct DrawSettings {
         glm::vec3 roofColour{0.6f, 0.55f, 0.5f};
@@ -28,15 +37,27 @@ public:
     int draw(const Camera& camera, const gl::RenderTarget& target, const DrawSettings& settings) const;
     int draw(const Camera& camera, const gl::RenderTarget& target) const { return draw(camera, target, DrawSettings{}); }
 
+    /// Many maps with one program: begin() sets what they share and the state (into the bound target; `pixelAngle`:
+    /// radians per pixel, which filters the walls' colours), drawOne() draws each, end() restores the state.
+    static void begin(const gl::ShaderProgram& program, const glm::dmat4& viewProj, const glm::dvec3& eye,
+                      double pixelAngle, const DrawSettings& settings);
+    void drawOne() const;
+    static void end();
+
+    /// GPU bytes of its textures.
+    std::uint64_t bytes() const { return m_bytes; }
+
 private:
     BlockMapGL() = default;
-    gl::ShaderProgram m_program;
-    gl::Texture m_height, m_distance, m_column, m_wall, m_normal;
+    std::unique_ptr<gl::ShaderProgram> m_ownProgram;
+    const gl::ShaderProgram* m_program = nullptr;
+    gl::Texture m_height, m_distance, m_column, m_wall, m_normal, m_roofNormal;
     gl::VertexArray m_vao;
     glm::dvec2 m_origin{0.0};
     double m_texel = 1.0, m_zBase = 0.0, m_zTop = 1.0;
     int m_size = 0;
-    int m_columnsPerRow = 1, m_wallTexels = 1;
+    int m_columnsPerRow = 1, m_wallTexels = 1, m_wallSpan = 1;
+    std::uint64_t m_bytes = 0;
 };
 
 } // namespace seasonview::city

@@ -20,6 +20,7 @@ std::optional<CityMode> parseCityMode(const std::string& name) {
     if (name == "atlas") return CityMode::Atlas;
     if (name == "original") return CityMode::Original;
     if (name == "flat") return CityMode::Flat;
+    if (name == "blockmap") return CityMode::BlockMap;
     return std::nullopt;
 }
 
@@ -28,6 +29,7 @@ const char* cityModeName(CityMode m) {
     case CityMode::Atlas: return "atlas";
     case CityMode::Original: return "original";
     case CityMode::Flat: return "flat";
+    case CityMode::BlockMap: return "blockmap";
     }
     return "?";
 }
@@ -97,8 +99,6 @@ std::size_t CityRendererGL::triangles() const {
     return n;
 }
 
-namespace {
-
 // Into the scene's frame: point by point when the tree has its own CRS, then (`placeOnTerrain`) each building onto the
 // DEM; then every node's bounds there (every node is a contiguous range, §4.8.1). A tree in the scene's frame already
 // is left as it is.
@@ -149,7 +149,6 @@ void placeInSceneFrame(const Scene& scene, AtlasTreeFile& f, bool placeOnTerrain
         }
 }
 
-} // namespace
 
 Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scene, const std::string& treePath,
                                                                const CitySettings& settings) {
@@ -160,6 +159,8 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
     r->m_settings = settings;
     placeInSceneFrame(scene, r->m_file, settings.placeOnTerrain);
     if (auto st = r->buildPrograms(); !st) return st.error();
+    if (settings.mode == CityMode::BlockMap)
+        if (auto st = r->openBlockMaps(); !st) return st.error();
     r->createGeometry();
     r->createSamplers();
     if (auto st = r->createPagers(treePath); !st) return st.error();
@@ -201,12 +202,28 @@ void CityRendererGL::createGeometry() {
         m_atlases.emplace_back();
     }
     std::vector<glm::vec3> plain;
-    for (int pass = 0; pass < 2; ++pass)
-        for (std::size_t i = 0; i < f.plain.surface.size(); ++i)
-            if ((f.plain.surface[i] == Surface::Roof) == (pass == 0)) {
-                for (int k = 0; k < 3; ++k) plain.push_back(f.plain.positions[i * 3 + std::size_t(k)]);
-                (pass == 0 ? m_plainRoofs : m_plainOthers)++;
+    std::vector<std::uint32_t> passTriangles[2];
+    for (std::size_t i = 0; i < f.plain.surface.size(); ++i)
+        passTriangles[f.plain.surface[i] == Surface::Roof ? 0 : 1].push_back(std::uint32_t(i));
+    for (int pass = 0; pass < 2; ++pass) {
+        std::vector<std::uint32_t>& tris = passTriangles[pass];
+        if (m_bmTree) {
+            // Blockmap mode: in the maps' quadtree order, so what the polygons draw near the eye is a few ranges.
+            std::vector<std::pair<glm::dvec2, glm::dvec2>> boxes;
+            for (std::uint32_t i : tris) {
+                const glm::vec3 a = f.plain.positions[i * 3], b = f.plain.positions[i * 3 + 1], c = f.plain.positions[i * 3 + 2];
+                boxes.emplace_back(glm::dvec2(glm::min(a, glm::min(b, c))), glm::dvec2(glm::max(a, glm::max(b, c))));
             }
+            BlockMapTriangleOrder& order = pass == 0 ? m_bmRoofOrder : m_bmOtherOrder;
+            order = BlockMapTriangleOrder::of(*m_bmTree, boxes);
+            std::vector<std::uint32_t> ordered;
+            for (std::uint32_t k : order.order) ordered.push_back(tris[k]);
+            tris = std::move(ordered);
+        }
+        for (std::uint32_t i : tris)
+            for (int k = 0; k < 3; ++k) plain.push_back(f.plain.positions[i * 3 + std::size_t(k)]);
+        (pass == 0 ? m_plainRoofs : m_plainOthers) = tris.size();
+    }
     m_plainVbo = gl::Buffer::create();
     glNamedBufferStorage(m_plainVbo.id(), GLsizeiptr(std::max<std::size_t>(plain.size(), 1) * sizeof(glm::vec3)),
                          plain.empty() ? nullptr : plain.data(), 0);
@@ -274,7 +291,7 @@ Status CityRendererGL::createPagers(const std::string& treePath) {
         m_originalPager = std::make_unique<AtlasPager>(m_file, 0, ps);
         return Ok{};
     }
-    if (m_settings.mode != CityMode::Atlas) return Ok{};
+    if (m_settings.mode != CityMode::Atlas && m_settings.mode != CityMode::BlockMap) return Ok{};
     std::vector<std::uint64_t> share;
     std::uint64_t total = 0;
     for (const auto& t : f.trees) {
@@ -286,7 +303,9 @@ Status CityRendererGL::createPagers(const std::string& treePath) {
     for (std::size_t t = 0; t < f.trees.size(); ++t) {
         ps.capacityBytes = f.trees.size() == 1 ? m_settings.capacityBytes
                                                : std::max<std::uint64_t>(m_settings.capacityBytes * share[t] / total, 1);
-        m_pagers.push_back(std::make_unique<AtlasPager>(m_file, int(t), ps));
+        PagerSettings tps = ps;
+        if (t == 0) tps.blockMaps = m_bmFile.get(); // the maps share the first tree's pager
+        m_pagers.push_back(std::make_unique<AtlasPager>(m_file, int(t), tps));
         // Every frame draws at least the root's atlas (the coarsest, never a missing texture): a capacity that
         // cannot hold it would leave the whole tree undrawn.
         const auto& nodes = f.trees[t].nodes;
@@ -409,6 +428,10 @@ void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
     const auto t0 = std::chrono::steady_clock::now();
     m_frameEvicted += frame.evict.size();
     for (const auto& k : frame.evict) {
+        if (k.kind == BlockKey::Kind::BlockMap) {
+            m_blockMaps.erase(k.index);
+            continue;
+        }
         if (k.kind == BlockKey::Kind::Atlas) {
             m_atlases[std::size_t(tree)].erase(k.index);
             continue;
@@ -434,7 +457,13 @@ void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
         }
     }
     for (const auto& b : frame.upload) {
-        if (b.key.kind == BlockKey::Kind::Atlas) uploadAtlas(tree, b);
+        if (b.key.kind == BlockKey::Kind::BlockMap) {
+            auto g = b.blockMap ? BlockMapGL::create(*b.blockMap, m_bmProgram)
+                                : Result<std::unique_ptr<BlockMapGL>>(Error{"no map"});
+            if (g) m_blockMaps[b.key.index] = std::move(*g);
+            else if (m_uploadError.empty()) m_uploadError = m_bmFile->path().string() + ": BlockMap " +
+                                                            std::to_string(b.key.index) + ": " + g.message();
+        } else if (b.key.kind == BlockKey::Kind::Atlas) uploadAtlas(tree, b);
         else uploadTexture(b);
         m_frameUploaded += b.bytes;
     }
@@ -501,14 +530,20 @@ void CityRendererGL::update(const Camera& camera, int width, int height) {
     m_frameEvicted = 0;
     m_frameUploadMs = 0;
     const AtlasView v = view(camera, width, height);
-    if (m_settings.mode == CityMode::Atlas) {
+    if (m_settings.mode == CityMode::Atlas || m_settings.mode == CityMode::BlockMap) {
         collectQueries(false); // the pager uses the answers if they are in, else the frame before's
+        // Blockmap mode: the atlases of what the maps will cover are not asked for.
+        const BlockMapCut ideal = m_bmTraversal ? blockMapCut(v, true) : BlockMapCut{};
+        coverWith(m_bmTraversal ? &ideal : nullptr);
         // Nodes the last frame found hidden are paged as if outside the frustum.
         for (std::size_t t = 0; t < m_pagers.size(); ++t) {
             VisibilityFn vis;
             if (m_settings.occlusion) vis = [o = m_occlusion[t].get()](std::uint32_t n) { return o->forPaging(n); };
-            apply(int(t), m_pagers[t]->update(m_traversals[t]->requests(v, vis)));
+            auto req = m_traversals[t]->requests(v, vis);
+            if (t == 0) req = requestsWithBlockMaps(std::move(req), v);
+            apply(int(t), m_pagers[t]->update(req));
         }
+        coverWith(nullptr);
     } else if (m_originalPager) {
         // The originals of every visible leaf, nearest first.
         std::vector<BlockRequest> req;
@@ -531,8 +566,15 @@ void CityRendererGL::update(const Camera& camera, int width, int height) {
 
 void CityRendererGL::complete(const Camera& camera, int width, int height) {
     const AtlasView v = view(camera, width, height);
-    if (m_settings.mode == CityMode::Atlas) {
-        for (std::size_t t = 0; t < m_pagers.size(); ++t) apply(int(t), m_pagers[t]->complete(m_traversals[t]->requests(v)));
+    if (m_settings.mode == CityMode::Atlas || m_settings.mode == CityMode::BlockMap) {
+        const BlockMapCut ideal = m_bmTraversal ? blockMapCut(v, true) : BlockMapCut{};
+        coverWith(m_bmTraversal ? &ideal : nullptr);
+        for (std::size_t t = 0; t < m_pagers.size(); ++t) {
+            auto req = m_traversals[t]->requests(v);
+            if (t == 0) req = requestsWithBlockMaps(std::move(req), v);
+            apply(int(t), m_pagers[t]->complete(req));
+        }
+        coverWith(nullptr);
     } else if (m_originalPager) {
         update(camera, width, height);
         for (int i = 0; i < 100000 && (m_originalPager->stats().idealMissing > 0 || m_originalPager->stats().queued > 0); ++i) {
@@ -573,7 +615,8 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
     const auto w0 = std::chrono::steady_clock::now();
     collectQueries(true);
     st.waitMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0).count();
-    const bool occlusion = m_settings.occlusion && m_settings.mode == CityMode::Atlas;
+    const bool occlusion =
+        m_settings.occlusion && (m_settings.mode == CityMode::Atlas || m_settings.mode == CityMode::BlockMap);
     target.bind();
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_GREATER);
@@ -582,6 +625,9 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
                  glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))), st, 0, {}};
     ds.viewProj = glm::mat4(ds.v.viewProj);
     ds.drawnNodes.resize(m_file.trees.size());
+    // Blockmap mode: the maps resident where the cut wants them; the polygons draw the rest.
+    const BlockMapCut cut = m_bmTraversal ? blockMapCut(ds.v, false) : BlockMapCut{};
+    coverWith(m_bmTraversal ? &cut : nullptr);
     for (std::size_t t = 0; t < m_file.trees.size(); ++t) {
         const AtlasTreeData& tree = m_file.trees[t];
         if (tree.vertices.empty()) continue;
@@ -595,7 +641,9 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
         st.residentBytes = m_originalPager->stats().residentBytes;
         st.loaderQueue = m_originalPager->stats().queued;
     }
-    drawPlain(ds, terrain, target.width());
+    drawPlain(ds, terrain, target.width(), m_bmTraversal ? &cut : nullptr);
+    if (m_bmTraversal) drawBlockMaps(cut, ds, terrain, target.width());
+    coverWith(nullptr);
     // (3) The drawn nodes' boxes against the frame's depth, for the next frame.
     if (occlusion) {
         for (std::size_t t = 0; t < ds.drawnNodes.size(); ++t) {
@@ -619,6 +667,8 @@ std::uint64_t CityRendererGL::allocatedBytes() const {
     std::uint64_t bytes = 0;
     for (std::size_t t = 0; t < m_atlases.size() && t < m_pagers.size(); ++t)
         for (const auto& [node, tex] : m_atlases[t]) bytes += m_pagers[t]->blockBytes({BlockKey::Kind::Atlas, node});
+    if (!m_pagers.empty())
+        for (const auto& [k, map] : m_blockMaps) bytes += m_pagers[0]->blockBytes({BlockKey::Kind::BlockMap, k});
     const AtlasPager* pager = m_originalPager ? m_originalPager.get() : m_pagers.empty() ? nullptr : m_pagers[0].get();
     if (pager) {
         for (const auto& [i, tex] : m_textures) bytes += pager->textureBytes(i);
@@ -771,32 +821,44 @@ void CityRendererGL::drawAtlas(std::size_t t, DrawState& ds, bool occlusion) {
 
 // Plain triangles: roofs with the imagery (or one colour), the rest in one colour. Unit 0's sampler object would
 // override the clipmap's own filtering.
-void CityRendererGL::drawPlain(DrawState& ds, const ClipmapTerrainRendererGL* terrain, int targetWidth) {
+void CityRendererGL::setRoofImagery(const gl::ShaderProgram& p, const DrawState& ds,
+                                    const ClipmapTerrainRendererGL* terrain, int targetWidth) const {
+    const RoofImagery& ri = m_settings.roofs;
+    p.set("uSeason", std::clamp(ri.season, 0, 1));
+    p.set("uBlend", ri.blend < 0.0f ? -1.0f : std::clamp(ri.blend, 0.0f, 1.0f));
+    p.set("uSwipeX", ri.swipe < 0.0f ? -1.0f : std::clamp(ri.swipe, 0.0f, 1.0f) * float(targetWidth));
+    p.set("uHasImagery", terrain && ri.imagery ? 1 : 0);
+    if (terrain) terrain->bindTerrain(p, ds.v.viewProj);
+    else {
+        // Nothing to sample, but samplers of two types on one unit (the defaults: all on unit 0) fail the draw.
+        p.set("uClip", 12);
+        p.set("uCoarse", 13);
+        p.set("uClipTags", 11);
+        p.set("uLocalToImage", 10);
+    }
+    p.set("uViewProj", ds.viewProj);
+}
+
+void CityRendererGL::drawPlain(DrawState& ds, const ClipmapTerrainRendererGL* terrain, int targetWidth,
+                               const BlockMapCut* cut) {
     glBindSampler(0, 0);
     glBindVertexArray(m_plainVao.id());
+    // All of them, or (blockmap mode) the ranges the maps do not cover.
+    auto drawRanges = [&](std::size_t offset, std::size_t count, const BlockMapTriangleOrder& order) {
+        const std::vector<std::pair<std::uint32_t, std::uint32_t>> all{{0u, std::uint32_t(count)}};
+        for (const auto& [first, n] : cut ? order.ranges(*cut) : all) {
+            glDrawArrays(GL_TRIANGLES, GLint((offset + first) * 3), GLsizei(std::size_t(n) * 3));
+            ++ds.st.drawCalls;
+            ds.st.triangles += std::int64_t(n);
+        }
+    };
     if (m_plainRoofs > 0) {
-        m_roofProgram.set("uViewProj", ds.viewProj);
         m_roofProgram.set("uSunDir", ds.sun);
         m_roofProgram.set("uPlainColour", kRoofColour);
         m_roofProgram.set("uAlphaCut", -1.0f);
-        const RoofImagery& ri = m_settings.roofs;
-        m_roofProgram.set("uSeason", std::clamp(ri.season, 0, 1));
-        m_roofProgram.set("uBlend", ri.blend < 0.0f ? -1.0f : std::clamp(ri.blend, 0.0f, 1.0f));
-        m_roofProgram.set("uSwipeX", ri.swipe < 0.0f ? -1.0f : std::clamp(ri.swipe, 0.0f, 1.0f) * float(targetWidth));
-        m_roofProgram.set("uHasImagery", terrain && ri.imagery ? 1 : 0);
-        if (terrain) terrain->bindTerrain(m_roofProgram, ds.v.viewProj);
-        else {
-            // Nothing to sample, but samplers of two types on one unit (the defaults: all on unit 0) fail the draw.
-            m_roofProgram.set("uClip", 12);
-            m_roofProgram.set("uCoarse", 13);
-            m_roofProgram.set("uClipTags", 11);
-            m_roofProgram.set("uLocalToImage", 10);
-        }
-        m_roofProgram.set("uViewProj", ds.viewProj);
+        setRoofImagery(m_roofProgram, ds, terrain, targetWidth);
         m_roofProgram.use();
-        glDrawArrays(GL_TRIANGLES, 0, GLsizei(m_plainRoofs * 3));
-        ++ds.st.drawCalls;
-        ds.st.triangles += std::int64_t(m_plainRoofs);
+        drawRanges(0, m_plainRoofs, m_bmRoofOrder);
         ds.bound = 0;
     }
     if (m_plainOthers > 0) {
@@ -805,10 +867,75 @@ void CityRendererGL::drawPlain(DrawState& ds, const ClipmapTerrainRendererGL* te
         m_plainProgram.set("uPlainColour", kPlainColour);
         m_plainProgram.set("uAlphaCut", -1.0f);
         m_plainProgram.use();
-        glDrawArrays(GL_TRIANGLES, GLint(m_plainRoofs * 3), GLsizei(m_plainOthers * 3));
-        ++ds.st.drawCalls;
-        ds.st.triangles += std::int64_t(m_plainOthers);
+        drawRanges(m_plainRoofs, m_plainOthers, m_bmOtherOrder);
     }
+}
+
+Status CityRendererGL::openBlockMaps() {
+    if (m_settings.blockMaps.empty()) return Error{m_file.path + ": --city blockmap needs the city's BlockMaps (none given)"};
+    auto f = BlockMapFile::open(m_settings.blockMaps);
+    if (!f) return f.error();
+    auto q = BlockMapQuadtree::of(*f);
+    if (!q) return q.error();
+    if (m_file.trees.empty())
+        return Error{m_file.path + ": --city blockmap needs a textured tree to page the maps with (the model has no textures)"};
+    m_bmFile = std::make_unique<BlockMapFile>(std::move(*f));
+    m_bmTree = std::make_unique<BlockMapQuadtree>(std::move(*q));
+    m_bmTraversal = std::make_unique<BlockMapTraversal>(*m_bmTree, m_bmFile->records());
+    auto p = BlockMapGL::buildProgram(true);
+    if (!p) return p.error();
+    m_bmProgram = std::move(*p);
+    return Ok{};
+}
+
+BlockMapCut CityRendererGL::blockMapCut(const AtlasView& v, bool ideal) const {
+    if (ideal || m_pagers.empty()) return m_bmTraversal->cut(v, m_settings.blockMapErrorPx);
+    return m_bmTraversal->cut(v, m_settings.blockMapErrorPx,
+                              [this](std::uint32_t k) { return m_blockMaps.count(k) != 0; });
+}
+
+void CityRendererGL::coverWith(const BlockMapCut* cut) {
+    for (auto& t : m_traversals) {
+        if (!cut) {
+            t->setCovered({});
+            continue;
+        }
+        t->setCovered([this, cut](const glm::dvec3& lo, const glm::dvec3& hi) {
+            return std::uint8_t(m_bmTraversal->coverage(*cut, lo, hi));
+        });
+    }
+}
+
+std::vector<BlockRequest> CityRendererGL::requestsWithBlockMaps(std::vector<BlockRequest> req, const AtlasView& v) const {
+    if (!m_bmTraversal) return req;
+    const auto maps = m_bmTraversal->requests(v, m_settings.blockMapErrorPx);
+    req.insert(req.end(), maps.begin(), maps.end());
+    std::sort(req.begin(), req.end());
+    return req;
+}
+
+// The maps of the cut, nearest first (what is nearer hides what is behind it before it is cast), over the polygons.
+void CityRendererGL::drawBlockMaps(const BlockMapCut& cut, DrawState& ds, const ClipmapTerrainRendererGL* terrain,
+                                   int targetWidth) {
+    ds.st.blockMapsNotResident = int(cut.notResident);
+    if (cut.drawn.empty()) return;
+    glBindSampler(0, 0);
+    setRoofImagery(m_bmProgram, ds, terrain, targetWidth);
+    BlockMapGL::DrawSettings s;
+    s.roofColour = kRoofColour;
+    const double pixelAngle = 2.0 * std::tan(ds.v.fovXDeg * M_PI / 360.0) / double(std::max(ds.v.screenWidth, 1));
+    BlockMapGL::begin(m_bmProgram, ds.v.viewProj, ds.v.eye, pixelAngle, s);
+    for (std::uint32_t k : cut.drawn) {
+        auto it = m_blockMaps.find(k);
+        if (it == m_blockMaps.end()) continue; // cannot happen: the cut checked residency
+        it->second->drawOne();
+        ++ds.st.drawCalls;
+        ++ds.st.blockMaps;
+        ds.st.triangles += 12;
+    }
+    BlockMapGL::end();
+    glDisable(GL_CULL_FACE);
+    ds.bound = 0;
 }
 
 } // namespace seasonview::city

@@ -7,6 +7,8 @@
 #include "AtlasPager.h"
 #include "AtlasTraversal.h"
 #include "AtlasTree.h"
+#include "BlockMapGL.h"
+#include "BlockMapTraversal.h"
 #include "Camera.h"
 #include "ClipmapTerrainRendererGL.h"
 #include "NodeOcclusion.h"
@@ -23,7 +25,8 @@
 
 namespace seasonview::city {
 
-enum class CityMode { Atlas, Original, Flat };
+/// Blockmap: the atlas tree near, BlockMaps far (BlockMapTraversal.h: the switch by projected error).
+enum class CityMode { Atlas, Original, Flat, BlockMap };
 std::optional<CityMode> parseCityMode(const std::string& name);
 const char* cityModeName(CityMode m);
 
@@ -50,6 +53,11 @@ struct RoofImagery {
 /// wireframe show the leaf-on imagery under their colours).
 RoofImagery roofImageryFor(const ImagerySettings& s);
 
+/// Moves a tree's positions (read in its own CRS) into the scene's local frame, and with `placeOnTerrain` sets each
+/// building's lowest vertex on the lowest ground under it; a tree already in the scene's frame is left as it is.
+/// What CityRendererGL::create() does to the file it draws.
+void placeInSceneFrame(const Scene& scene, AtlasTreeFile& file, bool placeOnTerrain);
+
 struct CitySettings {
     CityMode mode = CityMode::Atlas;
     double tpp = 1.0;                              // pixels per texel (§4.5.2), adjustable per frame
@@ -62,6 +70,10 @@ struct CitySettings {
     AtlasUpload upload = AtlasUpload::Auto;        // BC atlases: compressed or decoded on upload
     bool occlusion = true;                         // atlas mode: occlusion queries on node boxes (draw())
     bool flushFirst = true;                        // update() first hands the GPU what is queued (glFlush)
+    // Blockmap mode: the city's BlockMaps (a file of buildCityBlockMaps over the tree's triangles as placed in the
+    // scene: prepareCityBlockMaps) and the pixels a map's texel may cover where it is drawn instead of polygons.
+    std::string blockMaps;
+    double blockMapErrorPx = 1.0;
 };
 
 /// Per-frame counters (the issue's: nodes drawn, texture binds, draw calls, blocks resident, bytes, loader queue).
@@ -83,6 +95,8 @@ struct CityFrameStats {
     double uploadMs = 0;             // this frame's update(): GL uploads of arriving blocks and deletes of evicted ones
     double waitMs = 0;               // draw(): waiting for occlusion query answers (the GPU catching up)
     std::size_t evictedBlocks = 0;   // this frame
+    int blockMaps = 0;               // blockmap mode: maps drawn
+    int blockMapsNotResident = 0;    // blockmap mode: maps the view wants that are loading (polygons stand in)
     // GL texture storage held (atlases, original textures whole or while their parts arrive): what residentBytes
     // accounts for, so never above the capacity.
     std::uint64_t allocatedBytes = 0;
@@ -160,11 +174,30 @@ private:
     void drawOriginal(std::size_t tree, DrawState& ds);
     void drawAtlas(std::size_t tree, DrawState& ds, bool occlusion);
     void issueDraws(const AtlasTraversalResult& result, AtlasPass& pass, DrawState& ds);
-    void drawPlain(DrawState& ds, const ClipmapTerrainRendererGL* terrain, int targetWidth);
+    /// The plain triangles; blockmap mode: those `cut` does not cover.
+    void drawPlain(DrawState& ds, const ClipmapTerrainRendererGL* terrain, int targetWidth, const BlockMapCut* cut);
+    // Blockmap mode.
+    Status openBlockMaps();
+    /// The cut of the view: with every map resident (`ideal`, for paging) or with those that are.
+    BlockMapCut blockMapCut(const AtlasView& v, bool ideal) const;
+    /// The traversals skip what `cut` covers (an empty cut: nothing).
+    void coverWith(const BlockMapCut* cut);
+    /// Tree 0's requests with the maps' (blockmap mode), in priority order.
+    std::vector<BlockRequest> requestsWithBlockMaps(std::vector<BlockRequest> requests, const AtlasView& v) const;
+    void drawBlockMaps(const BlockMapCut& cut, DrawState& ds, const ClipmapTerrainRendererGL* terrain, int targetWidth);
+    void setRoofImagery(const gl::ShaderProgram& p, const DrawState& ds, const ClipmapTerrainRendererGL* terrain,
+                        int targetWidth) const;
     std::uint64_t allocatedBytes() const;
 
     AtlasTreeFile m_file;
     CitySettings m_settings;
+    // Blockmap mode (declared before the pagers, which read the file on their thread).
+    std::unique_ptr<BlockMapFile> m_bmFile;
+    std::unique_ptr<BlockMapQuadtree> m_bmTree;
+    std::unique_ptr<BlockMapTraversal> m_bmTraversal;
+    BlockMapTriangleOrder m_bmRoofOrder, m_bmOtherOrder; // the plain roofs and the other plain triangles
+    std::map<std::uint32_t, std::unique_ptr<BlockMapGL>> m_blockMaps;
+    gl::ShaderProgram m_bmProgram;
     std::vector<std::unique_ptr<AtlasTraversal>> m_traversals;
     std::vector<std::unique_ptr<AtlasPager>> m_pagers;
     std::vector<gl::Buffer> m_vbo;       // per tree: TreeVertex

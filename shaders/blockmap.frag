@@ -4,10 +4,28 @@
 // through the top), leaping over empty texels with the distance map to the edge of the empty square it guarantees.
 // Writes the hit's colour and depth (reversed Z, as the terrain's), so it composes with everything else drawn; a ray
 // that meets no prism is discarded (the terrain under the block shows). Positions relative to the block's origin.
+// Variant ROOF_IMAGERY: roofs show the terrain's imagery clipmap at the hit's position, as the polygon roofs do
+// (city_building.frag's ROOF: the season shown, the blend, the swipe), else one colour.
+#ifdef ROOF_IMAGERY
+#include "common_clipmap.glsl"
+uniform int uSeason;    // 0 leaf-on, 1 leaf-off
+uniform float uBlend;   // >= 0: leaf-on mixed with leaf-off by this much
+uniform float uSwipeX;  // >= 0, pixels: leaf-on left of it, leaf-off right, a 2-pixel white divider
+uniform int uHasImagery;
+uniform sampler2D uLocalToImage; // RG32F: local -> leaf-on image coordinates in [0,1]
+uniform vec2 uLookupMin, uLookupSize;
+uniform float uLookupTexels;
+uniform mat2 uLookupSlope;
+#endif
 uniform usampler2D uBmHeight;   // n × n: 0 no building, else zBase + value · (zTop − zBase) / 255
 uniform usampler2D uBmDistance; // n × n: Chebyshev distance in texels to the nearest building texel
 uniform usampler2D uBmColumn;   // n × n: 1 + a boundary texel's wall column
-uniform sampler2D uBmWall;      // the columns in rows of uBmColumnsPerRow, each uBmWallTexels colours, the foot's first
+// The columns in rows of uBmColumnsPerRow, each uBmWallSpan texels: its uBmWallTexels colours (the foot's first),
+// then the same halved again and again down to one (level l has (W_{l-1} + 1) / 2, 2×1 box means), for filtering.
+uniform sampler2D uBmWall;
+uniform int uBmWallSpan;
+uniform sampler2D uBmRoofNormal; // n × n: the roof's normal's x and y, (v + 1) / 2; z implied
+uniform float uPixelAngle;      // radians per pixel at the centre of the screen (1 / focal length in pixels)
 uniform sampler2D uBmNormal;    // a column's outward normal, (n + 1) / 2, at (column mod perRow, column / perRow)
 uniform int uBmColumnsPerRow;
 uniform int uBmWallTexels;
@@ -26,6 +44,50 @@ in vec3 vWorld;
 out vec4 fragColor;
 
 const int kNone = 0, kRoof = 1, kWall = 2;
+
+// Column `slot`'s colour at height v (0 foot, 1 top) at level `level` of its halved levels, linear between texels.
+vec4 bmWallAt(ivec2 slot, float v, int level) {
+    int size = uBmWallTexels, offset = 0;
+    for (int l = 0; l < level && size > 1; ++l) {
+        offset += size;
+        size = (size + 1) / 2;
+    }
+    float x = clamp(v * float(size) - 0.5, 0.0, float(size - 1));
+    int j0 = int(floor(x)), j1 = min(j0 + 1, size - 1);
+    int base = slot.x * uBmWallSpan + offset;
+    return mix(texelFetch(uBmWall, ivec2(base + j0, slot.y), 0), texelFetch(uBmWall, ivec2(base + j1, slot.y), 0),
+               x - float(j0));
+}
+
+// The roof at `world` (local metres) over texel `c`: the terrain's imagery there (ROOF_IMAGERY, as the polygon roofs
+// show it, unlit), else one colour lit by the texel's roof normal.
+vec3 bmRoof(vec2 world, ivec2 c) {
+#ifdef ROOF_IMAGERY
+    if (uHasImagery != 0) {
+        // The local -> image lookup as city_building.vert does it per vertex, here per pixel.
+        vec2 t = (world - uLookupMin) / uLookupSize;
+        vec2 tc = clamp(t, 0.0, 1.0);
+        vec2 imageUv = textureLod(uLocalToImage, (tc * (uLookupTexels - 1.0) + 0.5) / uLookupTexels, 0.0).xy +
+                       uLookupSlope * (t - tc);
+        if (all(greaterThanEqual(imageUv, vec2(0.0))) && all(lessThanEqual(imageUv, vec2(1.0)))) {
+            vec2 p = imageUv * uLevel0Size;
+            ClipFootprint f = clipmapFootprint(p);
+            int used, used1;
+            vec4 on = sampleClipmap(0, p, f, used);
+            vec4 off = sampleClipmap(1, p, f, used1);
+            vec3 onFilled = on.rgb + (1.0 - on.a) * (off.rgb + (1.0 - off.a) * uRoofColour);
+            vec3 offFilled = off.rgb + (1.0 - off.a) * (on.rgb + (1.0 - on.a) * uRoofColour);
+            if (uSwipeX >= 0.0 && abs(gl_FragCoord.x - uSwipeX) < 1.0) return vec3(1.0);
+            if (uSwipeX < 0.0 && uBlend >= 0.0) return mix(onFilled, offFilled, uBlend);
+            if (uSwipeX >= 0.0 ? gl_FragCoord.x < uSwipeX : uSeason == 0) return onFilled;
+            return offFilled;
+        }
+    }
+#endif
+    vec2 rn = texelFetch(uBmRoofNormal, c, 0).xy * 2.0 - 1.0;
+    vec3 n = vec3(rn, sqrt(max(1.0 - dot(rn, rn), 0.0)));
+    return uRoofColour * (0.62 + 0.38 * abs(dot(n, uSunDir)));
+}
 
 float bmTop(uint value) { return uBmZBase + float(value) * (uBmZTop - uBmZBase) / 255.0; }
 bool bmOutside(ivec2 c) { return any(lessThan(c, ivec2(0))) || any(greaterThanEqual(c, ivec2(uBmSize))); }
@@ -112,15 +174,24 @@ void main() {
         fragColor = vec4(kind == kRoof ? 0.5 : 1.0, 0.0, 0.0, 1.0);
         return;
     }
-    vec3 colour = uRoofColour;
-    vec3 n = vec3(0.0, 0.0, 1.0);
+    // A wall's colour and how much of it is wall (the rest: the steps of a sloped roof, drawn as roof).
+    float wallShare = 0.0;
+    vec3 wall = vec3(0.0);
     if (kind == kWall) {
         int column = max(int(texelFetch(uBmColumn, c, 0).r) - 1, 0);
         ivec2 slot = ivec2(column % uBmColumnsPerRow, column / uBmColumnsPerRow);
         float v = clamp((hit.z - uBmZBase) / max(top - uBmZBase, 1e-6), 0.0, 1.0);
-        int j = min(int(v * float(uBmWallTexels)), uBmWallTexels - 1);
-        colour = texelFetch(uBmWall, ivec2(slot.x * uBmWallTexels + j, slot.y), 0).rgb;
-        n = texelFetch(uBmNormal, slot, 0).xyz * 2.0 - 1.0;
+        // The wall texels a pixel spans vertically: filtered from the column's halved levels (trilinear), so a
+        // far facade shows its mean, not a few of its texels.
+        float metresPerPixel = tHit * length(d) * uPixelAngle;
+        float lod = log2(max(1.0, float(uBmWallTexels) / max(top - uBmZBase, 1e-3) * metresPerPixel));
+        int l0 = int(floor(lod));
+        vec4 w = mix(bmWallAt(slot, v, l0), bmWallAt(slot, v, l0 + 1), fract(lod));
+        vec3 n = texelFetch(uBmNormal, slot, 0).xyz * 2.0 - 1.0;
+        wallShare = w.a;
+        wall = w.rgb * (0.62 + 0.38 * abs(dot(n, uSunDir))); // as city_building.frag lights faces
     }
-    fragColor = vec4(colour * (0.55 + 0.45 * max(dot(n, uSunDir), 0.0)), 1.0);
+    vec3 roof = vec3(0.0);
+    if (wallShare < 1.0) roof = bmRoof(hit.xy + uBmOrigin, c);
+    fragColor = vec4(mix(roof, wall, wallShare), 1.0);
 }

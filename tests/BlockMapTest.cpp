@@ -177,8 +177,9 @@ TEST(BlockMapTest, WallColumnsShowTheirSidesColours) {
     auto rgbOf = [&](int x, int y, int j) {
         const std::uint32_t c = m.column[std::size_t(y) * 32 + std::size_t(x)];
         EXPECT_GT(c, 0u) << x << "," << y;
-        const std::size_t at = (std::size_t(c - 1) * std::size_t(m.wallTexels) + std::size_t(j)) * 3;
-        return glm::ivec3(m.wallRgb[at], m.wallRgb[at + 1], m.wallRgb[at + 2]);
+        const std::size_t at = (std::size_t(c - 1) * std::size_t(m.wallTexels) + std::size_t(j)) * 4;
+        EXPECT_EQ(m.wallRgba[at + 3], 255) << "all wall";
+        return glm::ivec3(m.wallRgba[at], m.wallRgba[at + 1], m.wallRgba[at + 2]);
     };
     auto normalOf = [&](int x, int y) { return m.wallNormal[m.column[std::size_t(y) * 32 + std::size_t(x)] - 1]; };
     // The middle of each side: that side's colour all the way up, its normal outwards.
@@ -194,6 +195,56 @@ TEST(BlockMapTest, WallColumnsShowTheirSidesColours) {
     EXPECT_EQ(rgbOf(8, 10, 4), glm::ivec3(128, 0, 128));
     EXPECT_NEAR(normalOf(8, 10).x, -0.70710678f, 1e-6f);
     EXPECT_NEAR(normalOf(8, 10).y, -0.70710678f, 1e-6f);
+}
+
+// A gabled roof (45° slopes, the ridge along x): each texel's roof normal is its slope's, and the steps the slope
+// makes between texels are roof in the wall columns (their walls' share 0), while the walls under the eaves are wall.
+TEST(BlockMapTest, SlopedRoofsAreShadedAsRoofsAndTheirStepsAreRoof) {
+    CityModel model;
+    model.buildingIds = {"b"};
+    auto tri = [&](glm::dvec3 a, glm::dvec3 b, glm::dvec3 c) {
+        TexturedTriangle t;
+        t.v = {a, b, c};
+        t.texture = -1;
+        model.triangles.push_back(t);
+        model.building.push_back(0);
+        model.surface.push_back(Surface::Wall);
+    };
+    auto quad = [&](glm::dvec3 a, glm::dvec3 b, glm::dvec3 c, glm::dvec3 d) {
+        tri(a, b, c);
+        tri(a, c, d);
+    };
+    const double x0 = 10, x1 = 20, y0 = 10, y1 = 18, eaves = 10, ridge = 14; // the ridge at y = 14
+    quad({x0, y0, 0}, {x1, y0, 0}, {x1, y0, eaves}, {x0, y0, eaves});                 // south wall
+    quad({x0, y1, 0}, {x1, y1, 0}, {x1, y1, eaves}, {x0, y1, eaves});                 // north wall
+    quad({x0, y0, 0}, {x0, y1, 0}, {x0, y1, eaves}, {x0, y0, eaves});                 // west wall
+    quad({x1, y0, 0}, {x1, y1, 0}, {x1, y1, eaves}, {x1, y0, eaves});                 // east wall
+    tri({x0, y0, eaves}, {x0, y1, eaves}, {x0, 14, ridge});                            // west gable
+    tri({x1, y0, eaves}, {x1, y1, eaves}, {x1, 14, ridge});                            // east gable
+    quad({x0, y0, eaves}, {x1, y0, eaves}, {x1, 14, ridge}, {x0, 14, ridge});         // south slope
+    quad({x0, 14, ridge}, {x1, 14, ridge}, {x1, y1, eaves}, {x0, y1, eaves});         // north slope
+    BlockMapOptions o;
+    o.size = 32;
+    o.wallTexels = 8;
+    auto built = buildBlockMap(model, {0.0, 0.0}, 32.0, o, [](std::size_t, const glm::dvec3&) { return glm::dvec3(0.5); });
+    ASSERT_TRUE(built) << built.message();
+    const BlockMap& m = *built;
+    auto normalAt = [&](int x, int y) {
+        const std::size_t i = (std::size_t(y) * 32 + std::size_t(x)) * 2;
+        return glm::dvec2(m.roofNormal[i], m.roofNormal[i + 1]) / 255.0 * 2.0 - 1.0;
+    };
+    EXPECT_NEAR(normalAt(15, 11).x, 0.0, 0.01);
+    EXPECT_NEAR(normalAt(15, 11).y, -0.7071, 0.01) << "the south slope faces south";
+    EXPECT_NEAR(normalAt(15, 16).y, 0.7071, 0.01) << "the north slope faces north";
+    auto share = [&](int x, int y, int j) {
+        const std::uint32_t c = m.column[std::size_t(y) * 32 + std::size_t(x)];
+        EXPECT_GT(c, 0u) << x << "," << y;
+        return c > 0 ? int(m.wallRgba[((std::size_t(c) - 1) * std::size_t(m.wallTexels) + std::size_t(j)) * 4 + 3]) : -1;
+    };
+    // Texel (15, 12) rises 1 m above (15, 11): its column's top texel is the slope between them.
+    EXPECT_EQ(share(15, 12, 7), 0);
+    // The south wall's column (15, 10): wall below the eaves.
+    EXPECT_EQ(share(15, 10, 2), 255);
 }
 
 TEST(BlockMapTest, AnEmptyBlockHasNoBuildingsAndEveryRayMisses) {
@@ -235,7 +286,8 @@ TEST(BlockMapTest, FilesRoundTripAndDamagedOnesAreRefusedWithOneLine) {
         EXPECT_EQ(a.height, b.height);
         EXPECT_EQ(a.distance, b.distance);
         EXPECT_EQ(a.column, b.column);
-        EXPECT_EQ(a.wallRgb, b.wallRgb);
+        EXPECT_EQ(a.wallRgba, b.wallRgba);
+        EXPECT_EQ(a.roofNormal, b.roofNormal);
         EXPECT_EQ(a.wallNormal, b.wallNormal);
     }
     std::ifstream in(path, std::ios::binary);

