@@ -446,7 +446,7 @@ Status BenchRun::createRenderers(const std::array<std::vector<ImagePyramid>, 2>&
     if (auto st = createCities(); !st) return st;
     if (auto st = m_a.canopy.applyGround(m_imagery); !st) return st;
     for (Mode& m : m_modes)
-        if (m.city) m.city->settings().roofs = city::roofImageryFor(m_imagery);
+        if (m.city) m.city->settings().view = city::cityViewFor(m_imagery);
     return Ok{};
 }
 

@@ -109,7 +109,8 @@ GeometryFrameStats LiveScene::draw(const Camera& cam, const ViewerSettings& s, c
     cityStats = {};
     if (city && s.city) {
         city->settings().tpp = std::max(0.05f, s.cityTpp);
-        city->settings().roofs = city::roofImageryFor(im);
+        if (city->hasBlockMaps()) city->settings().mode = s.cityBlockMaps ? city::CityMode::BlockMap : city::CityMode::Atlas;
+        city->settings().view = city::cityViewFor(im);
         if (complete) city->complete(cam, target.width(), target.height());
         else city->update(cam, target.width(), target.height());
         cityStats = city->draw(cam, terrain.get(), target);
@@ -138,6 +139,8 @@ bool applySetting(ViewerSettings& s, const std::string& name, const nlohmann::js
         else return err = "layers must be 1..64 or \"off\"", false;
     } else if (name == "city" && v.is_boolean()) {
         s.city = v.get<bool>();
+    } else if (name == "city_blockmaps" && v.is_boolean()) {
+        s.cityBlockMaps = v.get<bool>();
     } else if (name == "city_tpp" && v.is_number()) {
         s.cityTpp = std::clamp(v.get<float>(), 0.05f, 16.0f);
     } else if (name == "trunks" && v.is_boolean()) {

@@ -40,10 +40,11 @@ struct ViewerSettings {
     int coverageEvery = 30; // frames between coverage measurements (0: never)
     bool city = true;       // the city model, when the viewer was started with one (key B)
     float cityTpp = 1.0f;   // its pixels per texel
+    bool cityBlockMaps = true; // started with --city blockmap: BlockMaps far (key G; off: the atlas tree everywhere)
 };
 
 /// Applies a script's `set` event or a panel change given by name (view, blend, swipe, shading, layers, city,
-/// city_tpp, trunks, canopy_draw, centers, method, k, panel); false and `err` for an unknown name or value.
+/// city_tpp, city_blockmaps, trunks, canopy_draw, centers, method, k, panel); false and `err` for an unknown name or value.
 bool applySetting(ViewerSettings& s, const std::string& name, const nlohmann::json& v, std::string& err);
 
 /// The scene on the GPU: clipmaps, terrain, canopy, trunks and city, as `render` and `bench` make them.

@@ -202,7 +202,7 @@ GeometryFrameStats ClipmapStills::drawTerrain(const StillRequest& s, ImagerySett
 Result<city::CityFrameStats> ClipmapStills::drawCity(const StillRequest& s, const ImagerySettings& imagery) {
     std::vector<std::uint8_t> ground;
     if (!s.cityAccuracyOut.empty()) ground = m_c.target.readRgba();
-    m_city->settings().roofs = city::roofImageryFor(s.imagery);
+    m_city->settings().view = city::cityViewFor(s.imagery);
     m_city->complete(s.camera, m_c.width, m_c.height);
     m_city->resetOcclusion(); // a still: every node tested before it is drawn
     const city::CityFrameStats cst = m_city->draw(s.camera, m_renderer.get(), m_c.target);

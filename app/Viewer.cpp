@@ -200,6 +200,7 @@ void Viewer::handleKeys(const std::vector<int>& pressed, glm::dvec2 cursor) {
         else if (key == GLFW_KEY_C) m_s.layers = m_s.layers > 0 ? 0 : 16;
         else if (key == GLFW_KEY_T) m_s.trunks = !m_s.trunks;
         else if (key == GLFW_KEY_B) m_s.city = !m_s.city;
+        else if (key == GLFW_KEY_G) m_s.cityBlockMaps = !m_s.cityBlockMaps;
         else if (key == GLFW_KEY_M) m_nav.setMode(NavMode::Map, m_viewport);
         else if (key == GLFW_KEY_F) m_nav.setMode(NavMode::Fly, m_viewport);
         else if (key == GLFW_KEY_O) {
@@ -336,6 +337,12 @@ void Viewer::panel(const Camera& cam, const GeometryFrameStats& drawn) {
     if (m_live.city) {
         ImGui::Checkbox("city (B)", &m_s.city);
         ImGui::SliderFloat("city pixels per texel", &m_s.cityTpp, 0.25f, 8.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
+        if (m_live.city->hasBlockMaps()) {
+            ImGui::Checkbox("BlockMaps far (G)", &m_s.cityBlockMaps);
+            float e = float(m_live.city->settings().blockMapErrorPx);
+            if (ImGui::SliderFloat("BlockMap error, px", &e, 0.25f, 8.0f, "%.2f", ImGuiSliderFlags_Logarithmic))
+                m_live.city->settings().blockMapErrorPx = double(e);
+        }
     }
     int method = int(m_s.params.method);
     ImGui::Combo("method", &method, "pixel\0neighborhood\0equalized\0default\0");
@@ -385,6 +392,9 @@ void Viewer::hud(const Camera& cam, const GeometryFrameStats& drawn) {
         ImGui::Text("city: %d atlases (%d hidden), %d binds, %d calls, %zu blocks %.1f MB, queue %zu", c.atlasNodes,
                     c.occludedNodes, c.textureBinds, c.drawCalls, c.blocksResident,
                     double(c.residentBytes) / 1048576.0, c.loaderQueue);
+        if (m_live.city->hasBlockMaps())
+            ImGui::Text("city: %d BlockMaps (%d loading), %lld triangles", c.blockMaps, c.blockMapsNotResident,
+                        (long long)c.triangles);
     }
     ImGui::Text("texels uploaded %lld (total %.1f M)", (long long)m_live.lastLoad.texelsUploaded,
                 double(m_live.texelsTotal) / 1e6);

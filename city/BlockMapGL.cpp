@@ -27,9 +27,17 @@ gl::Texture texture2D(GLenum internalFormat, int width, int height, GLenum forma
 
 } // namespace
 
-Result<gl::ShaderProgram> BlockMapGL::buildProgram(bool roofImagery) {
-    return roofImagery ? gl::ShaderProgram::build("blockmap.vert", "blockmap.frag", {"ROOF_IMAGERY"})
-                       : gl::ShaderProgram::build("blockmap.vert", "blockmap.frag");
+Result<gl::ShaderProgram> BlockMapGL::buildProgram(bool roofImagery, bool frontFaces) {
+    std::vector<std::string> defines;
+    if (roofImagery) defines.push_back("ROOF_IMAGERY");
+    if (frontFaces) defines.push_back("FRONT_FACES");
+    return gl::ShaderProgram::build("blockmap.vert", "blockmap.frag", defines);
+}
+
+bool BlockMapGL::needsBackFaces(const glm::dvec3& eye, double margin) const {
+    const double side = double(m_size) * m_texel;
+    return eye.x >= m_origin.x - margin && eye.x <= m_origin.x + side + margin && eye.y >= m_origin.y - margin &&
+           eye.y <= m_origin.y + side + margin && eye.z >= m_zBase - margin && eye.z <= m_zTop + margin;
 }
 
 Result<std::unique_ptr<BlockMapGL>> BlockMapGL::create(const BlockMap& map) {
@@ -111,7 +119,7 @@ int BlockMapGL::draw(const Camera& camera, const gl::RenderTarget& target, const
 }
 
 void BlockMapGL::begin(const gl::ShaderProgram& p, const glm::dmat4& viewProj, const glm::dvec3& eye,
-                       double pixelAngle, const DrawSettings& s) {
+                       double pixelAngle, const DrawSettings& s, bool frontFaces) {
     p.set("uPixelAngle", float(pixelAngle));
     p.set("uViewProj", glm::mat4(viewProj));
     p.set("uEye", glm::vec3(eye));
@@ -121,14 +129,15 @@ void BlockMapGL::begin(const gl::ShaderProgram& p, const glm::dmat4& viewProj, c
     const char* names[kTextures] = {"uBmHeight", "uBmDistance", "uBmColumn", "uBmWall", "uBmNormal", "uBmRoofNormal"};
     for (int i = 0; i < kTextures; ++i) p.set(names[i], kUnit + i);
     p.use();
+    glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE); // reversed Z in [0, 1]: gl_FragDepth is the hit's clip z / w
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_GREATER);
     glEnable(GL_CULL_FACE);
-    glCullFace(GL_FRONT); // the back faces: one fragment per pixel, the eye inside the box or not
+    // One fragment per pixel either way: the front faces (the eye outside), or the back faces (inside it or not).
+    glCullFace(frontFaces ? GL_BACK : GL_FRONT);
 }
 
-void BlockMapGL::drawOne() const {
-    const gl::ShaderProgram& p = *m_program;
+void BlockMapGL::drawOne(const gl::ShaderProgram& p) const {
     const double side = double(m_size) * m_texel;
     p.set("uBoxMin", glm::vec3(glm::dvec3(m_origin, m_zBase)));
     p.set("uBoxMax", glm::vec3(glm::dvec3(m_origin + side, m_zTop)));

@@ -20,8 +20,12 @@ public:
     static constexpr int kUnit = 22, kTextures = 6;
 
     /// The program that draws maps (shaders/blockmap.*): with `roofImagery` its ROOF_IMAGERY variant (bind the
-    /// terrain's clipmaps to it: ClipmapTerrainRendererGL::bindTerrain). A shader that does not build is a bug.
-    static Result<gl::ShaderProgram> buildProgram(bool roofImagery);
+    /// terrain's clipmaps to it: ClipmapTerrainRendererGL::bindTerrain), with `frontFaces` its FRONT_FACES variant
+    /// (for boxes the eye is well outside of: begin(..., true)). A shader that does not build is a bug.
+    static Result<gl::ShaderProgram> buildProgram(bool roofImagery, bool frontFaces = false);
+    /// Whether a box drawn from `eye` needs its back faces (the eye inside it, or within `margin` metres: its front
+    /// faces would be clipped by the near plane).
+    bool needsBackFaces(const glm::dvec3& eye, double margin) const;
     /// Uploads `map` (kept on the GPU only), drawn with its own program. Errors: its wall columns do not fit the GPU's
     /// textures, the shaders do not build (a bug).
     static Result<std::unique_ptr<BlockMapGL>> create(const BlockMap& map);
@@ -40,8 +44,9 @@ public:
     /// Many maps with one program: begin() sets what they share and the state (into the bound target; `pixelAngle`:
     /// radians per pixel, which filters the walls' colours), drawOne() draws each, end() restores the state.
     static void begin(const gl::ShaderProgram& program, const glm::dmat4& viewProj, const glm::dvec3& eye,
-                      double pixelAngle, const DrawSettings& settings);
-    void drawOne() const;
+                      double pixelAngle, const DrawSettings& settings, bool frontFaces = false);
+    void drawOne() const { drawOne(*m_program); }
+    void drawOne(const gl::ShaderProgram& program) const;
     static void end();
 
     /// GPU bytes of its textures.

@@ -35,44 +35,85 @@ double BlockMapTraversal::errorPx(std::uint32_t k, const AtlasView& view) const 
 }
 
 BlockMapCut BlockMapTraversal::cut(const AtlasView& view, double maxErrorPx,
-                                   const std::function<bool(std::uint32_t)>& resident) const {
+                                   const std::function<bool(std::uint32_t)>& resident, const BlockMapCut* previous) const {
     BlockMapCut c;
     c.use.assign(m_tree.nodes.size(), BlockMapUse::Unvisited);
     if (m_tree.nodes.empty()) return c;
+    const bool prev = previous && previous->use.size() == c.use.size();
+    auto isResident = [&](std::uint32_t k) { return !resident || resident(k); };
+    auto leafOf = [&](std::uint32_t k) {
+        const auto& ch = m_tree.nodes[k].children;
+        return std::none_of(ch.begin(), ch.end(), [](std::int32_t x) { return x >= 0; });
+    };
+    // Whether node k's square can be drawn with resident maps alone: its own, or its children's (recursively).
+    std::function<bool(std::uint32_t)> mapsBelow = [&](std::uint32_t k) {
+        if (isResident(k)) return true;
+        if (leafOf(k)) return false;
+        for (std::int32_t ch : m_tree.nodes[k].children)
+            if (ch >= 0 && !mapsBelow(std::uint32_t(ch))) return false;
+        return true;
+    };
     std::vector<std::pair<double, std::uint32_t>> drawn;
-    std::vector<std::uint32_t> stack{0};
-    while (!stack.empty()) {
-        const std::uint32_t k = stack.back();
-        stack.pop_back();
+    auto drawMap = [&](std::uint32_t k) {
+        c.use[k] = BlockMapUse::BlockMap;
+        drawn.emplace_back(distance(k, view), k);
+    };
+    auto toPolygons = [&](std::uint32_t k) {
+        c.use[k] = BlockMapUse::Polygons;
+        ++c.polygonNodes;
+    };
+    // `forced`: a parent's map is loading and its children's stand in for it, whatever their error.
+    std::function<void(std::uint32_t, bool)> visit = [&](std::uint32_t k, bool forced) {
         if (frustumSide(view.viewProj, boxMin(k), boxMax(k)) == FrustumSide::Outside) {
             c.use[k] = BlockMapUse::Outside;
-            continue;
+            return;
         }
         const BlockMapQuadtree::Node& n = m_tree.nodes[k];
-        if (errorPx(k, view) <= maxErrorPx) {
-            if (!resident || resident(k)) {
-                c.use[k] = BlockMapUse::BlockMap;
-                drawn.emplace_back(distance(k, view), k);
+        const bool leaf = leafOf(k);
+        const double error = errorPx(k, view);
+        bool useMap = forced || error <= maxErrorPx;
+        // The previous cut's choice where it made one (a node refined there is refined here, and so on).
+        const BlockMapUse before = prev ? previous->use[k] : BlockMapUse::Unvisited;
+        if (!forced && before == BlockMapUse::BlockMap) useMap = true;
+        else if (!forced && (before == BlockMapUse::Refined || (before == BlockMapUse::Polygons && leaf))) useMap = false;
+        auto refine = [&](bool force) {
+            c.use[k] = BlockMapUse::Refined;
+            for (std::int32_t ch : n.children)
+                if (ch >= 0) visit(std::uint32_t(ch), force);
+        };
+        if (useMap) {
+            if (isResident(k)) {
+                drawMap(k);
+            } else if (!leaf && mapsBelow(k)) {
+                ++c.standIns; // the eye moving away: the finer maps it had stand in
+                refine(true);
             } else {
-                c.use[k] = BlockMapUse::Polygons;
-                ++c.polygonNodes;
+                toPolygons(k);
                 ++c.notResident;
             }
-            continue;
+            return;
         }
-        bool children = false;
-        for (std::int32_t ch : n.children)
-            if (ch >= 0) {
-                stack.push_back(std::uint32_t(ch));
-                children = true;
+        if (leaf) {
+            toPolygons(k);
+            return;
+        }
+        // Too coarse: refined, unless a child that wants its map has none to draw while this one, one level coarser
+        // than wanted, is resident (the eye coming nearer).
+        if (resident && before == BlockMapUse::Unvisited && error <= 2.0 * maxErrorPx && isResident(k)) {
+            bool missing = false;
+            for (std::int32_t ch : n.children)
+                if (ch >= 0 && errorPx(std::uint32_t(ch), view) <= maxErrorPx && !mapsBelow(std::uint32_t(ch)) &&
+                    frustumSide(view.viewProj, boxMin(std::uint32_t(ch)), boxMax(std::uint32_t(ch))) != FrustumSide::Outside)
+                    missing = true;
+            if (missing) {
+                ++c.standIns;
+                drawMap(k);
+                return;
             }
-        if (children) {
-            c.use[k] = BlockMapUse::Refined;
-        } else {
-            c.use[k] = BlockMapUse::Polygons;
-            ++c.polygonNodes;
         }
-    }
+        refine(false);
+    };
+    visit(0, false);
     std::sort(drawn.begin(), drawn.end());
     for (const auto& [d, k] : drawn) c.drawn.push_back(k);
     return c;

@@ -7,8 +7,10 @@
 // side over its distance from the eye, times the focal length in pixels) is drawn with its BlockMap; a coarser one
 // is refined into its children (a square without a map has no triangles: nothing to draw there); a leaf still too
 // coarse is left to the polygons. A node the cut wants whose map is not resident is left to the polygons too (never a
-// missing block: the atlas tree's root atlas is always resident). The atlas tree then draws only what no BlockMap
-// covers (coverage()).
+// missing block: the atlas tree's root atlas is always resident), unless maps stand in for it: its children's (the
+// eye moving away: they were drawn before) or, for a node that wants its children's, its own one level coarser (the
+// eye coming nearer), as the atlas traversal draws a coarser atlas while finer ones load. The atlas tree then draws
+// only what no BlockMap covers (coverage()).
 //
 // Paging, with the atlas tree's categories (Buchholz's thesis §4.6): the cut's maps are Needed, their children (the
 // next refinement as the eye comes nearer) ParentNeeded, a refined node's children outside the frustum Culled.
@@ -35,6 +37,7 @@ struct BlockMapCut {
     std::vector<std::uint32_t> drawn; // the nodes drawn with their BlockMaps, nearest first
     std::size_t polygonNodes = 0;     // nodes left to the polygons
     std::size_t notResident = 0;      // of those, because the map was not resident
+    std::size_t standIns = 0;         // maps loading whose children's maps, or parent's (one level coarser), stand in
 };
 
 /// How much of a box the BlockMaps drawn cover (the atlas tree skips what they cover entirely).
@@ -66,8 +69,12 @@ public:
     /// Pixels one of node `k`'s texels covers at its box's nearest point (infinite with the eye in the box).
     double errorPx(std::uint32_t k, const AtlasView& view) const;
     double distance(std::uint32_t k, const AtlasView& view) const;
-    /// The cut for the view; `resident(k)`: whether node k's map can be drawn (empty: all of them).
-    BlockMapCut cut(const AtlasView& view, double maxErrorPx, const std::function<bool(std::uint32_t)>& resident = {}) const;
+    /// The cut for the view; `resident(k)`: whether node k's map can be drawn (empty: all of them). With `previous`,
+    /// every node in the frustum that `previous` drew with its map, refined or left to the polygons keeps that choice
+    /// (the others are decided by their error): the picture the last frame's switches give at this camera, which,
+    /// against this frame's, is what the viewer sees pop.
+    BlockMapCut cut(const AtlasView& view, double maxErrorPx, const std::function<bool(std::uint32_t)>& resident = {},
+                    const BlockMapCut* previous = nullptr) const;
     /// The maps' requests for the view (the cut with every map resident), in priority order.
     std::vector<BlockRequest> requests(const AtlasView& view, double maxErrorPx) const;
     /// How much of the box [lo, hi] (local metres; x and y count) the cut's BlockMaps cover. Squares outside the

@@ -34,14 +34,15 @@ const char* cityModeName(CityMode m) {
     return "?";
 }
 
-RoofImagery roofImageryFor(const ImagerySettings& s) {
-    RoofImagery r;
+CityView cityViewFor(const ImagerySettings& s) {
+    CityView r;
     switch (s.view) {
     case ImageryView::LeafOff: r.season = 1; break;
     case ImageryView::Blend: r.blend = std::clamp(s.blend, 0.0f, 1.0f); break;
     case ImageryView::Swipe: r.swipe = std::clamp(s.swipe, 0.0f, 1.0f); break;
     case ImageryView::Canopy: r.season = std::clamp(s.groundElsewhere, 0, 1); break; // a roof is no tree's ground
     case ImageryView::Relief: r.imagery = false; break;
+    case ImageryView::Levels: r.sources = true; break;
     default: break;
     }
     return r;
@@ -458,7 +459,7 @@ void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
     }
     for (const auto& b : frame.upload) {
         if (b.key.kind == BlockKey::Kind::BlockMap) {
-            auto g = b.blockMap ? BlockMapGL::create(*b.blockMap, m_bmProgram)
+            auto g = b.blockMap ? BlockMapGL::create(*b.blockMap, m_bmProgram) // drawn with either program
                                 : Result<std::unique_ptr<BlockMapGL>>(Error{"no map"});
             if (g) m_blockMaps[b.key.index] = std::move(*g);
             else if (m_uploadError.empty()) m_uploadError = m_bmFile->path().string() + ": BlockMap " +
@@ -533,8 +534,8 @@ void CityRendererGL::update(const Camera& camera, int width, int height) {
     if (m_settings.mode == CityMode::Atlas || m_settings.mode == CityMode::BlockMap) {
         collectQueries(false); // the pager uses the answers if they are in, else the frame before's
         // Blockmap mode: the atlases of what the maps will cover are not asked for.
-        const BlockMapCut ideal = m_bmTraversal ? blockMapCut(v, true) : BlockMapCut{};
-        coverWith(m_bmTraversal ? &ideal : nullptr);
+        const BlockMapCut ideal = blockMapsOn() ? blockMapCut(v, true) : BlockMapCut{};
+        coverWith(blockMapsOn() ? &ideal : nullptr);
         // Nodes the last frame found hidden are paged as if outside the frustum.
         for (std::size_t t = 0; t < m_pagers.size(); ++t) {
             VisibilityFn vis;
@@ -567,8 +568,8 @@ void CityRendererGL::update(const Camera& camera, int width, int height) {
 void CityRendererGL::complete(const Camera& camera, int width, int height) {
     const AtlasView v = view(camera, width, height);
     if (m_settings.mode == CityMode::Atlas || m_settings.mode == CityMode::BlockMap) {
-        const BlockMapCut ideal = m_bmTraversal ? blockMapCut(v, true) : BlockMapCut{};
-        coverWith(m_bmTraversal ? &ideal : nullptr);
+        const BlockMapCut ideal = blockMapsOn() ? blockMapCut(v, true) : BlockMapCut{};
+        coverWith(blockMapsOn() ? &ideal : nullptr);
         for (std::size_t t = 0; t < m_pagers.size(); ++t) {
             auto req = m_traversals[t]->requests(v);
             if (t == 0) req = requestsWithBlockMaps(std::move(req), v);
@@ -618,6 +619,7 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
     const bool occlusion =
         m_settings.occlusion && (m_settings.mode == CityMode::Atlas || m_settings.mode == CityMode::BlockMap);
     target.bind();
+    glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE); // reversed Z, as the terrain draws (BlockMaps write depth in [0, 1])
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_GREATER);
     glDisable(GL_CULL_FACE); // CityGML rings are not reliably oriented
@@ -626,8 +628,9 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
     ds.viewProj = glm::mat4(ds.v.viewProj);
     ds.drawnNodes.resize(m_file.trees.size());
     // Blockmap mode: the maps resident where the cut wants them; the polygons draw the rest.
-    const BlockMapCut cut = m_bmTraversal ? blockMapCut(ds.v, false) : BlockMapCut{};
-    coverWith(m_bmTraversal ? &cut : nullptr);
+    const BlockMapCut cut = blockMapsOn() ? blockMapCut(ds.v, false) : BlockMapCut{};
+    if (!m_settings.holdSwitches) m_lastCut = cut;
+    coverWith(blockMapsOn() ? &cut : nullptr);
     for (std::size_t t = 0; t < m_file.trees.size(); ++t) {
         const AtlasTreeData& tree = m_file.trees[t];
         if (tree.vertices.empty()) continue;
@@ -641,8 +644,8 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
         st.residentBytes = m_originalPager->stats().residentBytes;
         st.loaderQueue = m_originalPager->stats().queued;
     }
-    drawPlain(ds, terrain, target.width(), m_bmTraversal ? &cut : nullptr);
-    if (m_bmTraversal) drawBlockMaps(cut, ds, terrain, target.width());
+    drawPlain(ds, terrain, target.width(), blockMapsOn() ? &cut : nullptr);
+    if (blockMapsOn()) drawBlockMaps(cut, ds, terrain, target.width());
     coverWith(nullptr);
     // (3) The drawn nodes' boxes against the frame's depth, for the next frame.
     if (occlusion) {
@@ -677,7 +680,14 @@ std::uint64_t CityRendererGL::allocatedBytes() const {
     return bytes;
 }
 
+glm::vec4 CityRendererGL::sourceColour(int source) const {
+    if (!m_settings.view.sources) return glm::vec4(0.0f);
+    const float* c = kSourceColours[std::clamp(source, 0, 3)];
+    return glm::vec4(c[0], c[1], c[2], 1.0f);
+}
+
 void CityRendererGL::setBuildingUniforms(const gl::ShaderProgram& p, const DrawState& ds, float alphaCut) const {
+    p.set("uSourceColour", sourceColour(&p == &m_originalProgram ? 1 : 0));
     p.set("uViewProj", ds.viewProj);
     p.set("uSunDir", ds.sun);
     p.set("uTexture", 0);
@@ -823,7 +833,7 @@ void CityRendererGL::drawAtlas(std::size_t t, DrawState& ds, bool occlusion) {
 // override the clipmap's own filtering.
 void CityRendererGL::setRoofImagery(const gl::ShaderProgram& p, const DrawState& ds,
                                     const ClipmapTerrainRendererGL* terrain, int targetWidth) const {
-    const RoofImagery& ri = m_settings.roofs;
+    const CityView& ri = m_settings.view;
     p.set("uSeason", std::clamp(ri.season, 0, 1));
     p.set("uBlend", ri.blend < 0.0f ? -1.0f : std::clamp(ri.blend, 0.0f, 1.0f));
     p.set("uSwipeX", ri.swipe < 0.0f ? -1.0f : std::clamp(ri.swipe, 0.0f, 1.0f) * float(targetWidth));
@@ -856,6 +866,7 @@ void CityRendererGL::drawPlain(DrawState& ds, const ClipmapTerrainRendererGL* te
         m_roofProgram.set("uSunDir", ds.sun);
         m_roofProgram.set("uPlainColour", kRoofColour);
         m_roofProgram.set("uAlphaCut", -1.0f);
+        m_roofProgram.set("uSourceColour", sourceColour(2));
         setRoofImagery(m_roofProgram, ds, terrain, targetWidth);
         m_roofProgram.use();
         drawRanges(0, m_plainRoofs, m_bmRoofOrder);
@@ -866,6 +877,7 @@ void CityRendererGL::drawPlain(DrawState& ds, const ClipmapTerrainRendererGL* te
         m_plainProgram.set("uSunDir", ds.sun);
         m_plainProgram.set("uPlainColour", kPlainColour);
         m_plainProgram.set("uAlphaCut", -1.0f);
+        m_plainProgram.set("uSourceColour", sourceColour(2));
         m_plainProgram.use();
         drawRanges(m_plainRoofs, m_plainOthers, m_bmOtherOrder);
     }
@@ -885,13 +897,16 @@ Status CityRendererGL::openBlockMaps() {
     auto p = BlockMapGL::buildProgram(true);
     if (!p) return p.error();
     m_bmProgram = std::move(*p);
+    auto front = BlockMapGL::buildProgram(true, true);
+    if (!front) return front.error();
+    m_bmFrontProgram = std::move(*front);
     return Ok{};
 }
 
 BlockMapCut CityRendererGL::blockMapCut(const AtlasView& v, bool ideal) const {
     if (ideal || m_pagers.empty()) return m_bmTraversal->cut(v, m_settings.blockMapErrorPx);
-    return m_bmTraversal->cut(v, m_settings.blockMapErrorPx,
-                              [this](std::uint32_t k) { return m_blockMaps.count(k) != 0; });
+    return m_bmTraversal->cut(v, m_settings.blockMapErrorPx, [this](std::uint32_t k) { return m_blockMaps.count(k) != 0; },
+                              m_settings.holdSwitches ? &m_lastCut : nullptr);
 }
 
 void CityRendererGL::coverWith(const BlockMapCut* cut) {
@@ -907,31 +922,46 @@ void CityRendererGL::coverWith(const BlockMapCut* cut) {
 }
 
 std::vector<BlockRequest> CityRendererGL::requestsWithBlockMaps(std::vector<BlockRequest> req, const AtlasView& v) const {
-    if (!m_bmTraversal) return req;
+    if (!blockMapsOn()) return req;
     const auto maps = m_bmTraversal->requests(v, m_settings.blockMapErrorPx);
     req.insert(req.end(), maps.begin(), maps.end());
     std::sort(req.begin(), req.end());
     return req;
 }
 
-// The maps of the cut, nearest first (what is nearer hides what is behind it before it is cast), over the polygons.
+// The maps of the cut over the polygons, writing depth.
 void CityRendererGL::drawBlockMaps(const BlockMapCut& cut, DrawState& ds, const ClipmapTerrainRendererGL* terrain,
                                    int targetWidth) {
     ds.st.blockMapsNotResident = int(cut.notResident);
     if (cut.drawn.empty()) return;
     glBindSampler(0, 0);
-    setRoofImagery(m_bmProgram, ds, terrain, targetWidth);
     BlockMapGL::DrawSettings s;
     s.roofColour = kRoofColour;
     const double pixelAngle = 2.0 * std::tan(ds.v.fovXDeg * M_PI / 360.0) / double(std::max(ds.v.screenWidth, 1));
-    BlockMapGL::begin(m_bmProgram, ds.v.viewProj, ds.v.eye, pixelAngle, s);
-    for (std::uint32_t k : cut.drawn) {
-        auto it = m_blockMaps.find(k);
-        if (it == m_blockMaps.end()) continue; // cannot happen: the cut checked residency
-        it->second->drawOne();
-        ++ds.st.drawCalls;
-        ++ds.st.blockMaps;
-        ds.st.triangles += 12;
+    // The boxes the eye is well outside of over their front faces (a hidden face skips the ray cast), the others over
+    // their back faces; each group nearest first.
+    for (const bool front : {true, false}) {
+        const gl::ShaderProgram& program = front ? m_bmFrontProgram : m_bmProgram;
+        setRoofImagery(program, ds, terrain, targetWidth);
+        BlockMapGL::begin(program, ds.v.viewProj, ds.v.eye, pixelAngle, s, front);
+        for (std::uint32_t k : cut.drawn) {
+            auto it = m_blockMaps.find(k);
+            if (it == m_blockMaps.end()) continue; // cannot happen: the cut checked residency
+            if (it->second->needsBackFaces(ds.v.eye, 2.0) == front) continue;
+            if (m_settings.view.sources) {
+                // Lighter for coarser maps: the finest level's colour at the leaves, towards white at the root.
+                const glm::vec4 c = sourceColour(3);
+                const float coarser =
+                    float(m_bmTree->depth - m_bmTree->nodes[k].level) / float(std::max(m_bmTree->depth, 1));
+                program.set("uSourceColour", glm::vec4(glm::mix(glm::vec3(c), glm::vec3(1.0f), 0.75f * coarser), 1.0f));
+            } else {
+                program.set("uSourceColour", glm::vec4(0.0f));
+            }
+            it->second->drawOne(program);
+            ++ds.st.drawCalls;
+            ++ds.st.blockMaps;
+            ds.st.triangles += 12;
+        }
     }
     BlockMapGL::end();
     glDisable(GL_CULL_FACE);

@@ -40,18 +40,24 @@ const char* atlasUploadName(AtlasUpload u);
 /// Whether a GL_RENDERER string names a software rasteriser (llvmpipe, softpipe, SwiftShader).
 bool isSoftwareRenderer(const std::string& glRenderer);
 
-/// What the roofs show of the terrain's imagery (thesis §4.8.2: roofs are textured from it, so they follow its view):
-/// one season, the two blended, or split at the swipe line.
-struct RoofImagery {
+/// How the city follows the terrain's view. The roofs show the terrain's imagery (thesis §4.8.2: roofs are textured
+/// from it): one season, the two blended, or split at the swipe line. The levels view shows what drew each pixel.
+struct CityView {
     int season = 0;       // 0 leaf-on, 1 leaf-off
     float blend = -1.0f;  // >= 0: leaf-on mixed with leaf-off by this much (the blend view)
     float swipe = -1.0f;  // >= 0: leaf-on left of this fraction of the width, leaf-off right (the swipe view)
     bool imagery = true;  // false: one colour (the relief view shows no imagery)
+    // Each pixel in the colour of what drew it (kSourceColours): an atlas, an original texture, a plain triangle, or
+    // a BlockMap (lighter for a coarser one), shaded by its face.
+    bool sources = false;
 };
-/// The roofs' imagery for a terrain view: leaf-off for leafoff, the ground elsewhere's season for the canopy view,
-/// the blend and the swipe as the terrain draws them, no imagery for relief, leaf-on otherwise (lod, levels,
-/// wireframe show the leaf-on imagery under their colours).
-RoofImagery roofImageryFor(const ImagerySettings& s);
+/// The colours of sources (apart from the terrain's level colours): atlas white, original brown, plain dark grey,
+/// BlockMaps of the finest level deep purple (coarser ones lighter).
+inline constexpr float kSourceColours[4][3] = {{0.95f, 0.95f, 0.95f}, {0.55f, 0.35f, 0.2f}, {0.35f, 0.35f, 0.35f}, {0.5f, 0.1f, 0.55f}};
+/// The city's view for a terrain view: roofs leaf-off for leafoff, the ground elsewhere's season for the canopy view,
+/// the blend and the swipe as the terrain draws them, no imagery for relief, leaf-on otherwise (lod, wireframe show
+/// the leaf-on imagery under their colours); the levels view shows the sources.
+CityView cityViewFor(const ImagerySettings& s);
 
 /// Moves a tree's positions (read in its own CRS) into the scene's local frame, and with `placeOnTerrain` sets each
 /// building's lowest vertex on the lowest ground under it; a tree already in the scene's frame is left as it is.
@@ -64,7 +70,7 @@ struct CitySettings {
     std::uint64_t capacityBytes = 256ull << 20;    // resident atlases and original textures (GPU bytes)
     std::uint64_t uploadBytesPerFrame = 16ull << 20;
     bool threaded = true;                          // background loader (false: loads inside update())
-    RoofImagery roofs;                             // the roofs' imagery (roofImageryFor the terrain's view)
+    CityView view;                                 // the roofs' imagery, the sources (cityViewFor the terrain's view)
     bool placeOnTerrain = true;                    // a model in its own CRS: each building set on the scene's DEM
     float anisotropy = 8.0f;                       // the samplers' maximum anisotropy (render/bench --aniso)
     AtlasUpload upload = AtlasUpload::Auto;        // BC atlases: compressed or decoded on upload
@@ -74,6 +80,9 @@ struct CitySettings {
     // scene: prepareCityBlockMaps) and the pixels a map's texel may cover where it is drawn instead of polygons.
     std::string blockMaps;
     double blockMapErrorPx = 1.0;
+    // Blockmap mode, measuring pops: draw() keeps the last frame's switches between polygons and maps and between
+    // map levels (BlockMapTraversal::cut's `previous`) instead of making this frame's (which it otherwise remembers).
+    bool holdSwitches = false;
 };
 
 /// Per-frame counters (the issue's: nodes drawn, texture binds, draw calls, blocks resident, bytes, loader queue).
@@ -137,6 +146,8 @@ public:
     CityFrameStats draw(const Camera& camera, const ClipmapTerrainRendererGL* terrain, const gl::RenderTarget& target);
 
     CitySettings& settings() { return m_settings; }
+    /// Whether BlockMaps were opened (created in blockmap mode): the mode may then switch between blockmap and atlas.
+    bool hasBlockMaps() const { return m_bmTraversal != nullptr; }
     /// Whether BC atlases are uploaded decoded (settings().upload resolved against this GL).
     bool decodesAtlases() const { return m_decodeBc; }
     const AtlasTreeFile& file() const { return m_file; }
@@ -170,6 +181,8 @@ private:
     struct DrawState;
     struct AtlasPass;
     void setBuildingUniforms(const gl::ShaderProgram& p, const DrawState& ds, float alphaCut) const;
+    /// The levels view's colour of source `source` (kSourceColours), alpha 0 in other views.
+    glm::vec4 sourceColour(int source) const;
     void drawFlat(std::size_t tree, DrawState& ds);
     void drawOriginal(std::size_t tree, DrawState& ds);
     void drawAtlas(std::size_t tree, DrawState& ds, bool occlusion);
@@ -177,6 +190,7 @@ private:
     /// The plain triangles; blockmap mode: those `cut` does not cover.
     void drawPlain(DrawState& ds, const ClipmapTerrainRendererGL* terrain, int targetWidth, const BlockMapCut* cut);
     // Blockmap mode.
+    bool blockMapsOn() const { return m_bmTraversal && m_settings.mode == CityMode::BlockMap; }
     Status openBlockMaps();
     /// The cut of the view: with every map resident (`ideal`, for paging) or with those that are.
     BlockMapCut blockMapCut(const AtlasView& v, bool ideal) const;
@@ -197,14 +211,14 @@ private:
     std::unique_ptr<BlockMapTraversal> m_bmTraversal;
     BlockMapTriangleOrder m_bmRoofOrder, m_bmOtherOrder; // the plain roofs and the other plain triangles
     std::map<std::uint32_t, std::unique_ptr<BlockMapGL>> m_blockMaps;
-    gl::ShaderProgram m_bmProgram;
+    BlockMapCut m_lastCut; // the last draw()'s (not kept while holdSwitches)
+    gl::ShaderProgram m_bmProgram, m_bmFrontProgram; // over the boxes' back faces, over their front faces
     std::vector<std::unique_ptr<AtlasTraversal>> m_traversals;
     std::vector<std::unique_ptr<AtlasPager>> m_pagers;
     std::vector<gl::Buffer> m_vbo;       // per tree: TreeVertex
     std::vector<gl::VertexArray> m_vao;
     gl::Buffer m_plainVbo;
     gl::VertexArray m_plainVao;
-    std::vector<std::uint32_t> m_roofFirst, m_roofCount; // plain triangle ranges: roofs, then the rest
     std::size_t m_plainRoofs = 0, m_plainOthers = 0;
     std::vector<std::map<std::uint32_t, gl::Texture>> m_atlases; // per tree: node -> texture
     std::map<std::uint32_t, gl::Texture> m_textures;             // original textures (shared by both trees)

@@ -6,6 +6,12 @@
 // that meets no prism is discarded (the terrain under the block shows). Positions relative to the block's origin.
 // Variant ROOF_IMAGERY: roofs show the terrain's imagery clipmap at the hit's position, as the polygon roofs do
 // (city_building.frag's ROOF: the season shown, the blend, the swipe), else one colour.
+// Variant FRONT_FACES: drawn over the box's front faces (the eye outside the box): the hit is never nearer than the
+// face, so the depth written is at most the face's (reversed Z) and a face already hidden is rejected before the ray
+// is cast (ARB_conservative_depth).
+#ifdef FRONT_FACES
+layout(depth_less) out float gl_FragDepth;
+#endif
 #ifdef ROOF_IMAGERY
 #include "common_clipmap.glsl"
 uniform int uSeason;    // 0 leaf-on, 1 leaf-off
@@ -37,6 +43,7 @@ uniform vec3 uEye;              // local metres
 uniform mat4 uViewProj;
 uniform vec3 uRoofColour;       // roofs (the renderer textures them from the terrain imagery)
 uniform vec3 uSunDir;
+uniform vec4 uSourceColour;     // a > 0: the levels view, this map's colour, shaded by the face
 // Output what was hit instead of a colour (the tests): (kind, 0, 0, 1) with kind 0.5 a roof, 1 a wall.
 uniform int uOutputKind;
 
@@ -57,6 +64,12 @@ vec4 bmWallAt(ivec2 slot, float v, int level) {
     int base = slot.x * uBmWallSpan + offset;
     return mix(texelFetch(uBmWall, ivec2(base + j0, slot.y), 0), texelFetch(uBmWall, ivec2(base + j1, slot.y), 0),
                x - float(j0));
+}
+
+// The roof's normal over texel `c`.
+vec3 bmRoofNormal(ivec2 c) {
+    vec2 rn = texelFetch(uBmRoofNormal, c, 0).xy * 2.0 - 1.0;
+    return vec3(rn, sqrt(max(1.0 - dot(rn, rn), 0.0)));
 }
 
 // The roof at `world` (local metres) over texel `c`: the terrain's imagery there (ROOF_IMAGERY, as the polygon roofs
@@ -84,9 +97,7 @@ vec3 bmRoof(vec2 world, ivec2 c) {
         }
     }
 #endif
-    vec2 rn = texelFetch(uBmRoofNormal, c, 0).xy * 2.0 - 1.0;
-    vec3 n = vec3(rn, sqrt(max(1.0 - dot(rn, rn), 0.0)));
-    return uRoofColour * (0.62 + 0.38 * abs(dot(n, uSunDir)));
+    return uRoofColour * (0.62 + 0.38 * abs(dot(bmRoofNormal(c), uSunDir)));
 }
 
 float bmTop(uint value) { return uBmZBase + float(value) * (uBmZTop - uBmZBase) / 255.0; }
@@ -177,6 +188,7 @@ void main() {
     // A wall's colour and how much of it is wall (the rest: the steps of a sloped roof, drawn as roof).
     float wallShare = 0.0;
     vec3 wall = vec3(0.0);
+    vec3 faceNormal = bmRoofNormal(c);
     if (kind == kWall) {
         int column = max(int(texelFetch(uBmColumn, c, 0).r) - 1, 0);
         ivec2 slot = ivec2(column % uBmColumnsPerRow, column / uBmColumnsPerRow);
@@ -190,8 +202,10 @@ void main() {
         vec3 n = texelFetch(uBmNormal, slot, 0).xyz * 2.0 - 1.0;
         wallShare = w.a;
         wall = w.rgb * (0.62 + 0.38 * abs(dot(n, uSunDir))); // as city_building.frag lights faces
+        if (wallShare >= 0.5) faceNormal = n;
     }
     vec3 roof = vec3(0.0);
     if (wallShare < 1.0) roof = bmRoof(hit.xy + uBmOrigin, c);
     fragColor = vec4(mix(roof, wall, wallShare), 1.0);
+    if (uSourceColour.a > 0.0) fragColor = vec4(uSourceColour.rgb * (0.62 + 0.38 * abs(dot(faceNormal, uSunDir))), 1.0);
 }

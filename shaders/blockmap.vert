@@ -1,7 +1,8 @@
 // A BlockMap's bounding box (city/BlockMapGL.h; Cignoni et al. 2007 §3.2: "the fragments corresponding to rays
-// entering the bounding box are activated by the rasterization of ... the bounding box"). The box's back faces are
-// drawn (front faces culled), so a pixel gets one fragment whether the eye is outside the box or inside it; the
-// fragment shader (blockmap.frag) casts the pixel's ray from the eye.
+// entering the bounding box are activated by the rasterization of ... the bounding box"). Its front faces are drawn
+// when the eye is well outside the box (blockmap.frag's FRONT_FACES: hidden faces skip the ray cast), its back faces
+// otherwise (a pixel gets one fragment with the eye inside the box too); the fragment shader casts the pixel's ray
+// from the eye.
 uniform mat4 uViewProj;
 uniform vec3 uBoxMin, uBoxMax; // local metres
 

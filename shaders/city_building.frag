@@ -18,6 +18,7 @@ uniform float uMaxAniso;   // ORIGINAL, FLAT: the sampler's maximum anisotropy
 uniform vec3 uSunDir;
 uniform vec3 uPlainColour;
 uniform float uAlphaCut; // RGBA tree: fragments below this alpha are dropped
+uniform vec4 uSourceColour; // a > 0: the levels view, the colour of what draws these triangles, shaded by the face
 
 in vec2 vUv;
 in vec2 vRoot;
@@ -71,5 +72,9 @@ void main() {
     c = vec4(uPlainColour, 1.0);
 #endif
     if (c.a < uAlphaCut) discard;
+    if (uSourceColour.a > 0.0) {
+        c.rgb = uSourceColour.rgb;
+        light = 0.62 + 0.38 * abs(dot(n, uSunDir));
+    }
     fragColor = vec4(c.rgb * light, 1.0);
 }

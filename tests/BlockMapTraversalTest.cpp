@@ -12,7 +12,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
+#include <optional>
 #include <set>
 
 using namespace seasonview;
@@ -194,21 +197,67 @@ TEST(BlockMapTraversalTest, MapsNotResidentAreLeftToThePolygons) {
     BlockMapTraversal t(l.tree, l.file.records());
     const AtlasView v = viewOf(street());
     const BlockMapCut all = t.cut(v, 1.0);
-    const BlockMapCut odd = t.cut(v, 1.0, [](std::uint32_t k) { return k % 2 == 1; });
+    // The even maps of the cut, with every map above and below them, not resident: nothing can stand in.
+    std::set<std::uint32_t> loading;
+    std::function<void(std::uint32_t)> below = [&](std::uint32_t k) {
+        loading.insert(k);
+        for (std::int32_t ch : l.tree.nodes[k].children)
+            if (ch >= 0) below(std::uint32_t(ch));
+    };
     std::size_t even = 0;
-    for (std::uint32_t k : all.drawn) even += k % 2 == 0 ? 1 : 0;
+    for (std::uint32_t k : all.drawn)
+        if (k % 2 == 0) {
+            ++even;
+            below(k);
+            for (std::int32_t a = l.tree.nodes[k].parent; a >= 0; a = l.tree.nodes[std::size_t(a)].parent)
+                loading.insert(std::uint32_t(a));
+        }
     ASSERT_GT(even, 0u);
+    const BlockMapCut odd = t.cut(v, 1.0, [&](std::uint32_t k) { return !loading.count(k); });
     EXPECT_EQ(odd.notResident, even);
+    EXPECT_EQ(odd.standIns, 0u);
     EXPECT_EQ(odd.polygonNodes, all.polygonNodes + even);
     EXPECT_EQ(odd.drawn.size() + even, all.drawn.size());
     for (std::uint32_t k : all.drawn) {
         if (k % 2 != 0) continue;
-        {
-            EXPECT_EQ(odd.use[k], BlockMapUse::Polygons);
-            EXPECT_EQ(t.coverage(odd, t.boxMin(k), t.boxMax(k)), Coverage::None) << k;
-            EXPECT_EQ(t.coverage(all, t.boxMin(k), t.boxMax(k)), Coverage::Full) << k;
-        }
+        EXPECT_EQ(odd.use[k], BlockMapUse::Polygons);
+        EXPECT_EQ(t.coverage(odd, t.boxMin(k), t.boxMax(k)), Coverage::None) << k;
+        EXPECT_EQ(t.coverage(all, t.boxMin(k), t.boxMax(k)), Coverage::Full) << k;
     }
+}
+
+// A map loading while its children's are resident (the eye moving away) is drawn with theirs; a map loading whose
+// parent's is resident and at most twice too coarse (the eye coming nearer) is drawn with its parent's.
+TEST(BlockMapTraversalTest, ResidentChildrenOrParentStandInForAMapLoading) {
+    const Loaded l = load();
+    BlockMapTraversal t(l.tree, l.file.records());
+    const AtlasView o = viewOf(overview());
+    std::optional<std::uint32_t> inner, nearParent;
+    for (std::uint32_t k : t.cut(o, 1.0).drawn) {
+        const auto& n = l.tree.nodes[k];
+        if (!inner && std::any_of(n.children.begin(), n.children.end(), [](std::int32_t c) { return c >= 0; })) inner = k;
+        if (!nearParent && n.parent >= 0 && t.errorPx(std::uint32_t(n.parent), o) <= 2.0) nearParent = k;
+    }
+    ASSERT_TRUE(inner && nearParent);
+    // Children stand in.
+    const BlockMapCut away = t.cut(o, 1.0, [&](std::uint32_t k) { return k != *inner; });
+    EXPECT_EQ(away.use[*inner], BlockMapUse::Refined);
+    EXPECT_EQ(away.notResident, 0u);
+    EXPECT_GE(away.standIns, 1u);
+    EXPECT_EQ(t.coverage(away, t.boxMin(*inner), t.boxMax(*inner)), Coverage::Full);
+    // The parent stands in: the map and everything under it loading.
+    std::set<std::uint32_t> loading;
+    std::function<void(std::uint32_t)> below = [&](std::uint32_t k) {
+        loading.insert(k);
+        for (std::int32_t ch : l.tree.nodes[k].children)
+            if (ch >= 0) below(std::uint32_t(ch));
+    };
+    below(*nearParent);
+    const BlockMapCut nearer = t.cut(o, 1.0, [&](std::uint32_t k) { return !loading.count(k); });
+    const auto parent = std::uint32_t(l.tree.nodes[*nearParent].parent);
+    EXPECT_EQ(nearer.use[parent], BlockMapUse::BlockMap);
+    EXPECT_GE(nearer.standIns, 1u);
+    EXPECT_EQ(t.coverage(nearer, t.boxMin(*nearParent), t.boxMax(*nearParent)), Coverage::Full);
 }
 
 TEST(BlockMapTraversalTest, RequestsAreTheCutNeededAndItsNextRefinement) {
