@@ -324,7 +324,8 @@ Status ClipmapStills::writeStats(const StillRequest& s, const ClipmapFrameStats&
                         {"device", m_c.ctx->info().renderer}};
     if (cityStats)
         j["city"] = {{"mode", city::cityModeName(m_city->settings().mode)},
-                     {"occlusion", m_city->settings().occlusion && m_city->settings().mode == city::CityMode::Atlas},
+                     {"occlusion", m_city->settings().occlusion && (m_city->settings().mode == city::CityMode::Atlas ||
+                                                                    m_city->settings().mode == city::CityMode::BlockMap)},
                      {"atlas_nodes", cityStats->atlasNodes},
                      {"original_leaves", cityStats->originalLeaves},
                      {"coarser_than_wanted", cityStats->coarserThanWanted},
@@ -337,7 +338,9 @@ Status ClipmapStills::writeStats(const StillRequest& s, const ClipmapFrameStats&
                      {"resident_bytes", cityStats->residentBytes},
                      {"allocated_bytes", cityStats->allocatedBytes},
                      {"blocks_resident", cityStats->blocksResident},
-                     {"loader_queue", cityStats->loaderQueue}};
+                     {"loader_queue", cityStats->loaderQueue},
+                     {"block_maps", cityStats->blockMaps},
+                     {"block_maps_not_resident", cityStats->blockMapsNotResident}};
     std::string err;
     if (!writeTextAtomic(s.statsOut, j.dump(2) + "\n", err)) return fileError(s.statsOut.string(), err);
     return m_c.checkGl(s.statsOut);

@@ -122,16 +122,25 @@ BlockMapCut BlockMapTraversal::cut(const AtlasView& view, double maxErrorPx,
 std::vector<BlockRequest> BlockMapTraversal::requests(const AtlasView& view, double maxErrorPx) const {
     const BlockMapCut c = cut(view, maxErrorPx);
     std::vector<BlockRequest> out;
+    std::vector<std::int8_t> added(c.use.size(), -1); // the category a node was asked for (the first, the highest)
     auto add = [&](std::uint32_t k, BlockCategory cat) {
-        out.push_back(BlockRequest{BlockKey{BlockKey::Kind::BlockMap, k, 0}, cat, distance(k, view), m_tree.nodes[k].level});
+        if (added[k] >= 0 && added[k] <= std::int8_t(cat)) return;
+        if (added[k] >= 0) // asked for in a lower category already: raise it
+            for (BlockRequest& r : out)
+                if (r.key.index == k) r.category = cat;
+        if (added[k] < 0)
+            out.push_back(BlockRequest{BlockKey{BlockKey::Kind::BlockMap, k, 0}, cat, distance(k, view), m_tree.nodes[k].level});
+        added[k] = std::int8_t(cat);
     };
     for (std::uint32_t k = 0; k < c.use.size(); ++k) {
         const BlockMapQuadtree::Node& n = m_tree.nodes[k];
         switch (c.use[k]) {
         case BlockMapUse::BlockMap:
             add(k, BlockCategory::Needed);
+            // The next refinement (the eye coming nearer) and the next coarsening (moving away).
             for (std::int32_t ch : n.children)
                 if (ch >= 0) add(std::uint32_t(ch), BlockCategory::ParentNeeded);
+            if (n.parent >= 0) add(std::uint32_t(n.parent), BlockCategory::ParentNeeded);
             break;
         case BlockMapUse::Outside:
             // A sibling of something used: the eye may turn to it.

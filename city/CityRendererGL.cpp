@@ -305,7 +305,10 @@ Status CityRendererGL::createPagers(const std::string& treePath) {
         ps.capacityBytes = f.trees.size() == 1 ? m_settings.capacityBytes
                                                : std::max<std::uint64_t>(m_settings.capacityBytes * share[t] / total, 1);
         PagerSettings tps = ps;
-        if (t == 0) tps.blockMaps = m_bmFile.get(); // the maps share the first tree's pager
+        if (t == 0 && m_bmFile) {
+            tps.blockMaps = m_bmFile.get(); // the maps share the first tree's pager
+            tps.queueLength = 32;           // and its loader: maps are small and many change per frame as the eye climbs
+        }
         m_pagers.push_back(std::make_unique<AtlasPager>(m_file, int(t), tps));
         // Every frame draws at least the root's atlas (the coarsest, never a missing texture): a capacity that
         // cannot hold it would leave the whole tree undrawn.
@@ -938,8 +941,39 @@ void CityRendererGL::drawBlockMaps(const BlockMapCut& cut, DrawState& ds, const 
     BlockMapGL::DrawSettings s;
     s.roofColour = kRoofColour;
     const double pixelAngle = 2.0 * std::tan(ds.v.fovXDeg * M_PI / 360.0) / double(std::max(ds.v.screenWidth, 1));
-    // The boxes the eye is well outside of over their front faces (a hidden face skips the ray cast), the others over
-    // their back faces; each group nearest first.
+    // Occlusion: each box the eye is well outside of is first tested against the depth drawn so far (the terrain, the
+    // near field's polygons) with a query, writing nothing, and its map is cast only where some of it shows
+    // (conditional rendering): far maps behind the near buildings cost a box each, not a ray per pixel.
+    std::map<std::uint32_t, std::size_t> query;
+    if (m_settings.occlusion) {
+        GLboolean colourMask[4] = {GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE};
+        glGetBooleanv(GL_COLOR_WRITEMASK, colourMask);
+        glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+        glDepthMask(GL_FALSE);
+        glEnable(GL_DEPTH_TEST);
+        glDepthFunc(GL_GEQUAL); // a face on the depth drawn still counts (reversed Z)
+        glBindVertexArray(m_boxVao.id());
+        m_boxProgram.set("uViewProj", ds.viewProj);
+        m_boxProgram.use();
+        for (std::uint32_t k : cut.drawn) {
+            auto it = m_blockMaps.find(k);
+            if (it == m_blockMaps.end() || it->second->needsBackFaces(ds.v.eye, 2.0)) continue;
+            m_boxProgram.set("uBoxMin", glm::vec3(m_bmTraversal->boxMin(k)));
+            m_boxProgram.set("uBoxMax", glm::vec3(m_bmTraversal->boxMax(k)));
+            const std::size_t q = query.size();
+            if (q == m_bmQueries.size()) m_bmQueries.push_back(gl::Query::create(GL_ANY_SAMPLES_PASSED_CONSERVATIVE));
+            glBeginQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, m_bmQueries[q].id());
+            glDrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr);
+            glEndQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE);
+            query[k] = q;
+        }
+        glColorMask(colourMask[0], colourMask[1], colourMask[2], colourMask[3]);
+        glDepthMask(GL_TRUE);
+        glDepthFunc(GL_GREATER);
+        ds.st.occlusionQueries += int(query.size());
+    }
+    // The boxes the eye is well outside of over their front faces (a hidden face skips the ray cast where the GL can
+    // tell), the others over their back faces; each group nearest first.
     for (const bool front : {true, false}) {
         const gl::ShaderProgram& program = front ? m_bmFrontProgram : m_bmProgram;
         setRoofImagery(program, ds, terrain, targetWidth);
@@ -957,7 +991,10 @@ void CityRendererGL::drawBlockMaps(const BlockMapCut& cut, DrawState& ds, const 
             } else {
                 program.set("uSourceColour", glm::vec4(0.0f));
             }
+            const auto q = query.find(k);
+            if (q != query.end()) glBeginConditionalRender(m_bmQueries[q->second].id(), GL_QUERY_WAIT);
             it->second->drawOne(program);
+            if (q != query.end()) glEndConditionalRender();
             ++ds.st.drawCalls;
             ++ds.st.blockMaps;
             ds.st.triangles += 12;

@@ -74,7 +74,7 @@ struct CitySettings {
     bool placeOnTerrain = true;                    // a model in its own CRS: each building set on the scene's DEM
     float anisotropy = 8.0f;                       // the samplers' maximum anisotropy (render/bench --aniso)
     AtlasUpload upload = AtlasUpload::Auto;        // BC atlases: compressed or decoded on upload
-    bool occlusion = true;                         // atlas mode: occlusion queries on node boxes (draw())
+    bool occlusion = true;                         // atlas, blockmap: occlusion queries on node and map boxes (draw())
     bool flushFirst = true;                        // update() first hands the GPU what is queued (glFlush)
     // Blockmap mode: the city's BlockMaps (a file of buildCityBlockMaps over the tree's triangles as placed in the
     // scene: prepareCityBlockMaps) and the pixels a map's texel may cover where it is drawn instead of polygons.
@@ -213,6 +213,7 @@ private:
     std::map<std::uint32_t, std::unique_ptr<BlockMapGL>> m_blockMaps;
     BlockMapCut m_lastCut; // the last draw()'s (not kept while holdSwitches)
     gl::ShaderProgram m_bmProgram, m_bmFrontProgram; // over the boxes' back faces, over their front faces
+    std::vector<gl::Query> m_bmQueries;              // the maps' box queries, reused every frame
     std::vector<std::unique_ptr<AtlasTraversal>> m_traversals;
     std::vector<std::unique_ptr<AtlasPager>> m_pagers;
     std::vector<gl::Buffer> m_vbo;       // per tree: TreeVertex

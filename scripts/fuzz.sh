@@ -15,7 +15,7 @@ shift || true
 JOBS="${JOBS:-2}"
 DATA="${DATA:-$ROOT/../shared/data}"
 B="$ROOT/build-fuzz"
-ALL=(raster scene_json camera_path trees_csv pair_stats pyramid_index pyramid_tile citygml obj atlas_tree preset
+ALL=(raster scene_json camera_path trees_csv pair_stats pyramid_index pyramid_tile citygml obj atlas_tree blockmap preset
      viewer_script)
 TARGETS=("$@")
 [ ${#TARGETS[@]} -eq 0 ] && TARGETS=("${ALL[@]}")
@@ -33,7 +33,7 @@ cmake --build "$B" -j "$(nproc)" --target fuzz_all seasonview
 # Seeds: made once into build-fuzz/fuzz/seeds/TARGET (a corpus of small valid inputs and the regressions).
 S="$B/fuzz/seeds"
 if [ ! -f "$S/.done" ]; then
-  rm -rf "$S" && mkdir -p "$S"/{raster,scene_json,camera_path,trees_csv,pair_stats,pyramid_index,pyramid_tile,citygml,obj,atlas_tree,preset,viewer_script}
+  rm -rf "$S" && mkdir -p "$S"/{raster,scene_json,camera_path,trees_csv,pair_stats,pyramid_index,pyramid_tile,citygml,obj,atlas_tree,blockmap,preset,viewer_script}
   W="$B/fuzz/work" && rm -rf "$W" && mkdir -p "$W"
   SV="$B/seasonview"
   "$SV" synth --preset data/presets/tiny.json --size-m 128 --block-city 2 --facade-size 32 --out "$W/scene" >/dev/null
@@ -83,6 +83,8 @@ GML
     for fmt in deflate bc; do
       "$SV" atlas build "$obj" --obj-local --atlas-size 64 --border 2 --format "$fmt" --out "$S/atlas_tree/city_$fmt.atlas" >/dev/null
     done
+    # BlockMaps of the same model, small (8² texels, 4 per wall column) so a seed holds several maps.
+    "$SV" atlas blockmaps "$obj" --obj-local --size 8 --wall-texels 4 --leaf-texel 4 --out "$S/blockmap/city.svbm" >/dev/null
   fi
   "$SV" prepare "$W/scene/scene.json" --cache "$W/cache" >/dev/null
   for d in "$W"/cache/pyramids/*/; do
@@ -104,7 +106,7 @@ run_one() {
   rm -rf "$findings" # this run's findings only (earlier ones live on in tests/fuzz/regressions)
   mkdir -p "$corpus" "$findings" "$OUT/logs"
   local maxlen=65536 started=$SECONDS
-  case "$t" in atlas_tree|pyramid_tile|raster|citygml) maxlen=1048576 ;; esac
+  case "$t" in atlas_tree|blockmap|pyramid_tile|raster|citygml) maxlen=1048576 ;; esac
   # GDAL's block cache and ASan's quarantine kept small: RSS then measures the loaders, and -rss_limit_mb catches
   # what they hold; one allocation over 4 GiB is a finding of its own (-malloc_limit_mb).
   ( cd "$findings" && GDAL_CACHEMAX=64 ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1:quarantine_size_mb=64 \

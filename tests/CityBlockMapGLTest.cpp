@@ -1,8 +1,7 @@
 // The city in blockmap mode (city/CityRendererGL.h with city/BlockMapTraversal.h; Cignoni et al. 2007 §4): the atlas
 // tree near, ray-cast BlockMaps far, switched by projected error. Against the atlas mode on a synthetic block city:
 // the picture (PSNR over the city's pixels), the triangles and draw calls at an overview and at street level, the
-// pager's capacity with maps and atlases in it (maps evicted and loaded again draw what they drew), and a damaged
-// BlockMap file refused with one line.
+// goldens of the overview and of the levels view (what drew each pixel).
 #include "CityJob.h"
 #include "CityRendererGL.h"
 #include "Raster.h"
@@ -140,7 +139,7 @@ TEST(CityBlockMapGLTest, FarBlocksAreMapsAndThePictureIsTheAtlasModes) {
         std::printf("%s: atlas %lld triangles %d calls, blockmap %lld triangles %d calls %d maps; PSNR %.1f dB over %zu px\n",
                     v.name, (long long)sa.triangles, sa.drawCalls, (long long)sb.triangles, sb.drawCalls, sb.blockMaps,
                     psnr, pixels);
-        for (const auto& [img, mode] : {std::pair{&a, "atlas"}, {&b, "blockmap"}}) // bottom-up rows: upside down
+        for (const auto& [img, mode] : {std::pair{&a, "atlas"}, {&b, "blockmap"}})
             (void)writeImageAtomic(outputDir() / (std::string("blockmap_") + v.name + "_" + mode + ".png"),
                                    rgbOf(*img).data(), kW, kH, 3);
         EXPECT_GT(pixels, std::size_t(kW * kH / 20)) << "the city is in view";
@@ -150,9 +149,16 @@ TEST(CityBlockMapGLTest, FarBlocksAreMapsAndThePictureIsTheAtlasModes) {
         if (std::string(v.name) == "overview") {
             EXPECT_LE(sb.triangles * 10, sa.triangles) << "at the overview at least 10x fewer triangles";
             EXPECT_LE(sb.drawCalls * 2, sa.drawCalls + 1);
+            compareWithGolden("city_blockmap_overview", rgbOf(b), kW, kH, 255, 3.0);
         } else {
             EXPECT_GT(sb.triangles, 12 * sb.blockMaps) << "the near field is polygons";
             EXPECT_LT(sb.triangles, sa.triangles);
+            // The levels view: what drew each pixel (atlas white, plain roofs dark grey, maps purple).
+            blockmap->settings().view.sources = true;
+            city::CityFrameStats sl;
+            const auto levels = drawCity(*blockmap, v.cam, target, sl);
+            blockmap->settings().view.sources = false;
+            compareWithGolden("city_blockmap_levels", rgbOf(levels), kW, kH, 255, 3.0);
         }
     }
 }
@@ -194,9 +200,9 @@ TEST(CityBlockMapGLTest, SwitchesAtTheDefaultErrorDoNotPop) {
         if (psnr < worst) {
             worst = psnr;
             worstPixels = changed;
-            for (const auto& [img, when] : {std::pair{&before, "before"}, {&after, "after"}}) // bottom-up rows
-                (void)writeImageAtomic(outputDir() / (std::string("blockmap_pop_") + when + ".png"), rgbOf(*img).data(),
-                                       kW, kH, 3);
+            for (const auto& [img, when] : {std::pair{&before, "before"}, {&after, "after"}})
+                (void)writeImageAtomic(outputDir() / (std::string("blockmap_pop_") + when + ".png"),
+                                       rgbOf(*img).data(), kW, kH, 3);
         }
     }
     std::printf("%zu of %d frames switched; worst pop: PSNR %.1f dB over the city, %zu px changed by more than 16 levels "
@@ -204,4 +210,70 @@ TEST(CityBlockMapGLTest, SwitchesAtTheDefaultErrorDoNotPop) {
     EXPECT_GT(switched, 5u) << "the descent switches polygons and maps";
     EXPECT_GE(worst, 24.0);
     EXPECT_LT(worstPixels, std::size_t(kW * kH * 3 / 100)) << "under 3 % of the picture changes visibly at a switch";
+}
+
+// The pager's capacity with maps and atlases in it: each view's blocks fit, both views' do not; along a walk from one
+// to the other and back, the GL side holds at most the capacity, exactly what the pager counts; maps and atlases are
+// evicted and loaded again, and the first view then draws what it drew at first and what an ample renderer draws.
+TEST(CityBlockMapGLTest, PagerCapacityHoldsWithMapsAndAtlases) {
+    ASSERT_TRUE(headlessContext());
+    BlockCity& bc = blockCity();
+    ASSERT_TRUE(bc.scene);
+    gl::RenderTarget target(kW, kH);
+    const Camera a = bc.camera(-150.0, -230.0, 40.0, 30.0, -12.0), b = bc.camera(150.0, 230.0, 40.0, 210.0, -12.0);
+    city::CityFrameStats st;
+    std::uint64_t bytesA = 0, bytesB = 0, both = 0;
+    std::vector<std::uint8_t> ampleA;
+    {
+        auto ample = bc.renderer(bc.settings(city::CityMode::BlockMap));
+        ASSERT_TRUE(ample);
+        ample->complete(a, kW, kH);
+        ampleA = drawCity(*ample, a, target, st);
+        bytesA = st.residentBytes;
+        EXPECT_GT(st.blockMaps, 0);
+        ample->complete(b, kW, kH);
+        drawCity(*ample, b, target, st);
+        both = st.residentBytes;
+    }
+    {
+        auto ample = bc.renderer(bc.settings(city::CityMode::BlockMap));
+        ASSERT_TRUE(ample);
+        ample->complete(b, kW, kH);
+        drawCity(*ample, b, target, st);
+        bytesB = st.residentBytes;
+    }
+    city::CitySettings cs = bc.settings(city::CityMode::BlockMap);
+    cs.capacityBytes = std::max(bytesA, bytesB) + std::max(bytesA, bytesB) / 20;
+    std::printf("A %llu B %llu both %llu bytes, capacity %llu\n", (unsigned long long)bytesA, (unsigned long long)bytesB,
+                (unsigned long long)both, (unsigned long long)cs.capacityBytes);
+    ASSERT_GT(both, cs.capacityBytes) << "the two views together must not fit";
+    cs.uploadBytesPerFrame = 1u << 20;
+    auto tight = bc.renderer(cs);
+    ASSERT_TRUE(tight);
+    tight->complete(a, kW, kH);
+    const auto firstA = drawCity(*tight, a, target, st);
+    EXPECT_TRUE(firstA == ampleA) << "A with the tight capacity is A";
+    std::size_t evicted = 0, standIns = 0;
+    auto walk = [&](const Camera& from, const Camera& to) {
+        for (int i = 1; i <= 12; ++i) {
+            const double t = i / 12.0;
+            Camera c = to;
+            c.position = from.position + (to.position - from.position) * t;
+            c.yawDeg = from.yawDeg + (to.yawDeg - from.yawDeg) * t;
+            tight->update(c, kW, kH);
+            drawCity(*tight, c, target, st);
+            evicted += st.evictedBlocks;
+            standIns += std::size_t(st.blockMapsNotResident + st.coarserThanWanted);
+            EXPECT_LE(st.allocatedBytes, cs.capacityBytes) << "frame " << i;
+            EXPECT_EQ(st.allocatedBytes, st.residentBytes) << "frame " << i;
+        }
+    };
+    walk(a, b);
+    walk(b, a);
+    tight->complete(a, kW, kH);
+    const auto againA = drawCity(*tight, a, target, st);
+    std::printf("walk: %zu blocks evicted, %zu frames' nodes drawn with a stand-in while theirs loaded\n", evicted, standIns);
+    EXPECT_GT(evicted, 10u) << "the walk evicted blocks";
+    EXPECT_LE(st.allocatedBytes, cs.capacityBytes);
+    EXPECT_TRUE(againA == firstA) << "A after the walk is A again";
 }

@@ -671,6 +671,32 @@ TEST(CityCliTest, BlockmapModeRendersAndBenches) {
     std::getline(csv, header);
     EXPECT_NE(header.find(",city_blockmaps,city_blockmaps_not_resident"), std::string::npos) << header;
 
+    // A cached file whose maps rot (every map's checksum flipped; the headers intact, so it opens): the still stops
+    // at the first map paged in, with one line naming the file, and the cached file is removed to be built again.
+    std::filesystem::path cached;
+    for (const auto& e : std::filesystem::directory_iterator(s.dir / "cache/atlas"))
+        if (e.path().extension() == ".svbm") cached = e.path();
+    ASSERT_FALSE(cached.empty());
+    {
+        auto f = city::BlockMapFile::open(cached);
+        ASSERT_TRUE(f) << f.message();
+        for (const auto& r : f->records()) flipByte(cached, r.offset + r.bytes - 1);
+    }
+    // From the south-west, 400 m away: the houses are a map.
+    auto far = [&](const std::string& out) {
+        return runCli({"render", (s.dir / "s/scene.json").string(), "--size", s.size, "--camera=-200,-200,+120,40,-15",
+                       "--clip-size", "512", "--cache", (s.dir / "cache").string(), "--city", "blockmap", "--stats",
+                       (s.dir / (out + ".json")).string(), "--out", (s.dir / out).string()});
+    };
+    fails(far("rot.png"), cached.filename().string());
+    EXPECT_FALSE(std::filesystem::exists(cached)) << "removed, to be built again";
+    const CliResult rebuilt = far("bm3.png");
+    ASSERT_EQ(rebuilt.exitCode, 0) << rebuilt.err;
+    EXPECT_NE(rebuilt.out.find("BlockMaps of"), std::string::npos) << rebuilt.out;
+    std::ifstream stats(s.dir / "bm3.png.json");
+    const auto st = nlohmann::json::parse(stats);
+    EXPECT_GE(st["city"]["block_maps"].get<int>(), 1) << st.dump();
+
     fails(s.render("x.png", {"--city", "blockmap", "--city-blockmaps", (s.dir / "none.svbm").string()}), "none.svbm");
     std::ofstream(s.dir / "cut.svbm") << "SVBLOCKM\x01";
     fails(s.render("x.png", {"--city", "blockmap", "--city-blockmaps", (s.dir / "cut.svbm").string()}), "cut.svbm");

@@ -18,7 +18,7 @@ namespace fs = std::filesystem;
 
 TEST(FuzzRegressionTest, EveryLoaderHasATarget) {
     for (const char* t : {"raster", "scene_json", "camera_path", "trees_csv", "pair_stats", "pyramid_index",
-                          "pyramid_tile", "citygml", "obj", "atlas_tree", "preset", "viewer_script"})
+                          "pyramid_tile", "citygml", "obj", "atlas_tree", "blockmap", "preset", "viewer_script"})
         EXPECT_EQ(fuzz::targets().count(t), 1u) << t;
 }
 
