@@ -149,6 +149,19 @@ private:
 /// Texels a wall column takes with its halved levels (BlockMapGL): W, then (W + 1) / 2, ... down to 1.
 int wallSpan(int wallTexels);
 
+/// A map's walls as BlockMapGL uploads them: the columns in rows of `perRow` (a map may have up to n² of them, past
+/// any texture's width), column c's RGBA colours and their halved levels (2×1 box means) at x = (c mod perRow) · span
+/// + j, y = c / perRow; its normal, (n + 1) / 2 as RGB8, at (c mod perRow, c / perRow). Plain C++, so the pager's
+/// loader thread lays them out and the GL thread only uploads.
+struct BlockMapWallLayout {
+    int maxTextureSize = 0; // the texture width and height it was laid out for
+    int perRow = 1, rows = 1, span = 1;
+    std::vector<std::uint8_t> wall;    // perRow · span × rows RGBA8
+    std::vector<std::uint8_t> normals; // perRow × rows RGB8
+};
+/// Errors: the columns do not fit textures of `maxTextureSize` texels.
+Result<BlockMapWallLayout> layOutWalls(const BlockMap& map, int maxTextureSize);
+
 /// Reads every map of a file (BlockMapFile::open, then read() of each).
 Result<std::vector<BlockMap>> readBlockMaps(const std::filesystem::path& path);
 

@@ -5,6 +5,7 @@
 #include <glm/geometric.hpp>
 
 #include <algorithm>
+#include <optional>
 #include <cmath>
 #include <string>
 
@@ -50,10 +51,11 @@ Result<std::unique_ptr<BlockMapGL>> BlockMapGL::create(const BlockMap& map) {
     return b;
 }
 
-Result<std::unique_ptr<BlockMapGL>> BlockMapGL::create(const BlockMap& map, const gl::ShaderProgram& program) {
+Result<std::unique_ptr<BlockMapGL>> BlockMapGL::create(const BlockMap& map, const gl::ShaderProgram& program,
+                                                       const BlockMapWallLayout* walls) {
     std::unique_ptr<BlockMapGL> b(new BlockMapGL());
     b->m_program = &program;
-    const int n = map.size, columns = map.columns();
+    const int n = map.size;
     b->m_origin = map.origin;
     b->m_texel = map.texel;
     b->m_zBase = map.zBase;
@@ -63,45 +65,23 @@ Result<std::unique_ptr<BlockMapGL>> BlockMapGL::create(const BlockMap& map, cons
     b->m_distance = texture2D(GL_R8UI, n, n, GL_RED_INTEGER, GL_UNSIGNED_BYTE, map.distance.data());
     b->m_column = texture2D(GL_R32UI, n, n, GL_RED_INTEGER, GL_UNSIGNED_INT, map.column.data());
     b->m_roofNormal = texture2D(GL_RG8, n, n, GL_RG, GL_UNSIGNED_BYTE, map.roofNormal.data());
-    // Columns in rows of `perRow` (a map may have up to n² of them, past any texture's width): column c's colours and
-    // their halved levels at x = (c mod perRow) · span + j, y = c / perRow; its normal at (c mod perRow, c / perRow).
     GLint maxSize = 0;
     glGetIntegerv(GL_MAX_TEXTURE_SIZE, &maxSize);
-    const int W = map.wallTexels, span = wallSpan(W);
-    const int perRow = std::max(1, std::min(std::max(columns, 1), maxSize / std::max(span, 1)));
-    const int rows = (columns + perRow - 1) / perRow;
-    if (span > maxSize || rows > maxSize)
-        return Error{"BlockMap: " + std::to_string(columns) + " wall columns of " + std::to_string(W) +
-                     " texels do not fit the GPU's " + std::to_string(maxSize) + "-texel textures"};
-    std::vector<std::uint8_t> wall(std::size_t(perRow) * std::size_t(span) * std::size_t(std::max(rows, 1)) * 4, 0);
-    std::vector<std::uint8_t> normals(std::size_t(perRow) * std::size_t(std::max(rows, 1)) * 3, 0);
-    std::vector<float> level, next;
-    for (int c = 0; c < columns; ++c) {
-        const std::size_t x = std::size_t(c % perRow), y = std::size_t(c / perRow);
-        std::uint8_t* out = &wall[(y * std::size_t(perRow) * std::size_t(span) + x * std::size_t(span)) * 4];
-        level.assign(&map.wallRgba[std::size_t(c) * std::size_t(W) * 4], &map.wallRgba[std::size_t(c + 1) * std::size_t(W) * 4]);
-        for (int w = W;;) {
-            for (float f : level) *out++ = std::uint8_t(std::lround(std::clamp(f, 0.0f, 255.0f)));
-            if (w == 1) break;
-            const int half = (w + 1) / 2;
-            next.assign(std::size_t(half) * 4, 0.0f);
-            for (int j = 0; j < half; ++j)
-                for (int k = 0; k < 4; ++k) {
-                    const float a = level[std::size_t(2 * j) * 4 + std::size_t(k)];
-                    const float e = 2 * j + 1 < w ? level[std::size_t(2 * j + 1) * 4 + std::size_t(k)] : a;
-                    next[std::size_t(j) * 4 + std::size_t(k)] = 0.5f * (a + e);
-                }
-            level.swap(next);
-            w = half;
-        }
-        for (int i = 0; i < 3; ++i)
-            normals[(y * std::size_t(perRow) + x) * 3 + std::size_t(i)] =
-                std::uint8_t(std::lround((map.wallNormal[std::size_t(c)][i] * 0.5f + 0.5f) * 255.0f));
+    // The walls as the loader laid them out for this GL's texture width, else laid out here.
+    std::optional<BlockMapWallLayout> own;
+    if (!walls || walls->maxTextureSize > maxSize) {
+        auto laid = layOutWalls(map, maxSize);
+        if (!laid) return laid.error();
+        own = std::move(*laid);
+        walls = &*own;
     }
+    const int perRow = walls->perRow, rows = walls->rows, span = walls->span;
+    const std::vector<std::uint8_t>& wall = walls->wall;
+    const std::vector<std::uint8_t>& normals = walls->normals;
     b->m_wall = texture2D(GL_RGBA8, perRow * span, std::max(rows, 1), GL_RGBA, GL_UNSIGNED_BYTE, wall.data());
     b->m_normal = texture2D(GL_RGB8, perRow, std::max(rows, 1), GL_RGB, GL_UNSIGNED_BYTE, normals.data());
     b->m_columnsPerRow = perRow;
-    b->m_wallTexels = W;
+    b->m_wallTexels = map.wallTexels;
     b->m_wallSpan = span;
     b->m_bytes = std::uint64_t(n) * std::uint64_t(n) * 8 + wall.size() + normals.size();
     b->m_vao = gl::VertexArray::create();

@@ -29,8 +29,10 @@ public:
     /// Uploads `map` (kept on the GPU only), drawn with its own program. Errors: its wall columns do not fit the GPU's
     /// textures, the shaders do not build (a bug).
     static Result<std::unique_ptr<BlockMapGL>> create(const BlockMap& map);
-    /// The same, drawn with `program` (buildProgram(); kept by reference).
-    static Result<std::unique_ptr<BlockMapGL>> create(const BlockMap& map, const gl::ShaderProgram& program);
+    /// The same, drawn with `program` (buildProgram(); kept by reference), with its walls as `walls` lays them out
+    /// (layOutWalls on a loader thread; null, or laid out for a wider texture than this GL's: laid out here).
+    static Result<std::unique_ptr<BlockMapGL>> create(const BlockMap& map, const gl::ShaderProgram& program,
+                                                      const BlockMapWallLayout* walls = nullptr);
 
     struct DrawSettings {
         glm::vec3 roofColour{0.6f, 0.55f, 0.5f};

@@ -13,8 +13,7 @@
 // only what no BlockMap covers (coverage()).
 //
 // Paging, with the atlas tree's categories (Buchholz's thesis §4.6): the cut's maps are Needed, their children (the
-// next refinement as the eye comes nearer) and parents (the next coarsening as it moves away) ParentNeeded, a refined
-// node's children outside the frustum Culled.
+// next refinement as the eye comes nearer) ParentNeeded, a refined node's children outside the frustum Culled.
 #include "AtlasTraversal.h"
 #include "BlockMap.h"
 

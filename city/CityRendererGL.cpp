@@ -462,7 +462,7 @@ void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
     }
     for (const auto& b : frame.upload) {
         if (b.key.kind == BlockKey::Kind::BlockMap) {
-            auto g = b.blockMap ? BlockMapGL::create(*b.blockMap, m_bmProgram) // drawn with either program
+            auto g = b.blockMap ? BlockMapGL::create(*b.blockMap, m_bmProgram, b.blockMapWalls.get()) // either program
                                 : Result<std::unique_ptr<BlockMapGL>>(Error{"no map"});
             if (g) m_blockMaps[b.key.index] = std::move(*g);
             else if (m_uploadError.empty()) m_uploadError = m_bmFile->path().string() + ": BlockMap " +
