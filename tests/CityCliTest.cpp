@@ -918,3 +918,39 @@ TEST(CityCliTest, ViewerDrawsTheCityAndKeyBHidesIt) {
     EXPECT_GT(differ, city->pixels.size() / 3 / 50) << "the buildings should show, and B hide them";
     EXPECT_EQ(city->pixels, again->pixels) << "`set city true` shows the same city again";
 }
+
+// The viewer with `--city blockmap`: in the levels view the houses, at a coarse error bound, are a BlockMap (lavender:
+// a coarse level's purple), G switches the maps off (the atlas tree draws them, white), `set city_blockmaps true` on
+// again (the same picture).
+TEST(CityCliTest, ViewerKeyGSwitchesTheFarBlockMaps) {
+    const CliScene& s = scene();
+    {
+        std::ofstream f(s.dir / "bm_script.json");
+        f << R"([{"t": 0.1, "set": "view", "value": "levels"}, {"t": 0.5, "key": "G"},)"
+          << R"( {"t": 0.9, "set": "city_blockmaps", "value": true}])";
+    }
+    auto png = [&](const char* name) { return (s.dir / name).string(); };
+    const auto r = runCliWithDisplay({"view", (s.dir / "s/scene.json").string(), "--size", "320x200", "--cache",
+                                      (s.dir / "cache").string(), "--camera=40,-20,+40,40,-6,12", "--city", "blockmap",
+                                      "--city-blockmap-error", "8", "--no-panel", "--script", png("bm_script.json"),
+                                      "--screenshot-at", std::string("0.3:") + png("g_on.png"), "--screenshot-at",
+                                      std::string("0.7:") + png("g_off.png"), "--screenshot-at",
+                                      std::string("1.1:") + png("g_again.png"), "--quit-at", "1.2"});
+    if (!r) GTEST_SKIP() << "no DISPLAY and no xvfb-run: the viewer needs a window";
+    ASSERT_EQ(r->exitCode, 0) << r->err;
+    auto on = readImageU8(s.dir / "g_on.png", 3), off = readImageU8(s.dir / "g_off.png", 3),
+         again = readImageU8(s.dir / "g_again.png", 3);
+    ASSERT_TRUE(on.ok() && off.ok() && again.ok());
+    // Lavender maps against white polygons: green lower than red and blue where the maps are.
+    std::size_t mapPixels = 0, offMapPixels = 0;
+    auto lavender = [](const Image<std::uint8_t>& img, std::size_t i) {
+        return img.pixels[i] > img.pixels[i + 1] + 12 && img.pixels[i + 2] > img.pixels[i + 1] + 12 && img.pixels[i] > 120;
+    };
+    for (std::size_t i = 0; i < on->pixels.size(); i += 3) {
+        mapPixels += lavender(*on, i) ? 1 : 0;
+        offMapPixels += lavender(*off, i) ? 1 : 0;
+    }
+    EXPECT_GT(mapPixels, 200u) << "the houses are a BlockMap";
+    EXPECT_LT(offMapPixels, mapPixels / 20) << "G: the atlas tree draws them";
+    EXPECT_EQ(on->pixels, again->pixels) << "`set city_blockmaps true` shows the maps again";
+}
