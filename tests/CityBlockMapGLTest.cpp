@@ -3,6 +3,7 @@
 // the picture (PSNR over the city's pixels), the triangles and draw calls at an overview and at street level, the
 // goldens of the overview and of the levels view (what drew each pixel).
 #include "CityJob.h"
+#include "CityDraw.h"
 #include "CityRendererGL.h"
 #include "Raster.h"
 #include "Scene.h"
@@ -20,16 +21,6 @@ using namespace seasonview::test;
 namespace {
 
 constexpr int kW = 320, kH = 240;
-
-std::vector<std::uint8_t> drawCity(city::CityRendererGL& city, const Camera& cam, const gl::RenderTarget& target,
-                                   city::CityFrameStats& st) {
-    target.bind();
-    glClearColor(0.2f, 0.3f, 0.4f, 1.0f);
-    glClearDepth(0.0); // reversed Z
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    st = city.draw(cam, nullptr, target);
-    return target.readRgba();
-}
 
 // PSNR over the pixels either image drew the city on (not the clear colour), and how many there were.
 std::pair<double, std::size_t> cityPsnr(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b) {

@@ -3,6 +3,7 @@
 // the first time and what a renderer that never evicts draws; the GL texture storage held never exceeds the
 // capacity, a split texture counted whole from its first band on. In atlas mode (originals at leaves nearer than
 // dmin) and original mode.
+#include "CityDraw.h"
 #include "CityRendererGL.h"
 #include "Raster.h"
 #include "Scene.h"
@@ -16,20 +17,6 @@
 
 using namespace seasonview;
 using namespace seasonview::test;
-
-namespace {
-
-std::vector<std::uint8_t> drawCity(city::CityRendererGL& city, const Camera& cam, const gl::RenderTarget& target,
-                                   city::CityFrameStats& st) {
-    target.bind();
-    glClearColor(0.2f, 0.3f, 0.4f, 1.0f);
-    glClearDepth(0.0); // reversed Z
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    st = city.draw(cam, nullptr, target);
-    return target.readRgba();
-}
-
-} // namespace
 
 TEST(CityPagingGLTest, SplitOriginalsEvictedAndUploadedAgainDrawAsBefore) {
     ASSERT_TRUE(headlessContext());
