@@ -119,8 +119,10 @@ BlockMapCut BlockMapTraversal::cut(const AtlasView& view, double maxErrorPx,
     return c;
 }
 
-std::vector<BlockRequest> BlockMapTraversal::requests(const AtlasView& view, double maxErrorPx) const {
-    const BlockMapCut c = cut(view, maxErrorPx);
+std::vector<BlockRequest> BlockMapTraversal::requests(const AtlasView& view, double maxErrorPx,
+                                                     const BlockMapCut* ideal) const {
+    const BlockMapCut own = ideal ? BlockMapCut{} : cut(view, maxErrorPx);
+    const BlockMapCut& c = ideal ? *ideal : own;
     std::vector<BlockRequest> out;
     std::vector<std::int8_t> added(c.use.size(), -1); // the category a node was asked for (the first, the highest)
     auto add = [&](std::uint32_t k, BlockCategory cat) {

@@ -75,8 +75,9 @@ public:
     /// against this frame's, is what the viewer sees pop.
     BlockMapCut cut(const AtlasView& view, double maxErrorPx, const std::function<bool(std::uint32_t)>& resident = {},
                     const BlockMapCut* previous = nullptr) const;
-    /// The maps' requests for the view (the cut with every map resident), in priority order.
-    std::vector<BlockRequest> requests(const AtlasView& view, double maxErrorPx) const;
+    /// The maps' requests for the view (the cut with every map resident: `ideal` when the caller has it), in priority
+    /// order.
+    std::vector<BlockRequest> requests(const AtlasView& view, double maxErrorPx, const BlockMapCut* ideal = nullptr) const;
     /// How much of the box [lo, hi] (local metres; x and y count) the cut's BlockMaps cover. Squares outside the
     /// frustum or without a map count for neither (nothing is drawn there); anything outside the root square is
     /// uncovered.

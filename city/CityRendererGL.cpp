@@ -544,7 +544,7 @@ void CityRendererGL::update(const Camera& camera, int width, int height) {
             VisibilityFn vis;
             if (m_settings.occlusion) vis = [o = m_occlusion[t].get()](std::uint32_t n) { return o->forPaging(n); };
             auto req = m_traversals[t]->requests(v, vis);
-            if (t == 0) req = requestsWithBlockMaps(std::move(req), v);
+            if (t == 0) req = requestsWithBlockMaps(std::move(req), v, ideal);
             apply(int(t), m_pagers[t]->update(req));
         }
         coverWith(nullptr);
@@ -575,7 +575,7 @@ void CityRendererGL::complete(const Camera& camera, int width, int height) {
         coverWith(blockMapsOn() ? &ideal : nullptr);
         for (std::size_t t = 0; t < m_pagers.size(); ++t) {
             auto req = m_traversals[t]->requests(v);
-            if (t == 0) req = requestsWithBlockMaps(std::move(req), v);
+            if (t == 0) req = requestsWithBlockMaps(std::move(req), v, ideal);
             apply(int(t), m_pagers[t]->complete(req));
         }
         coverWith(nullptr);
@@ -924,9 +924,10 @@ void CityRendererGL::coverWith(const BlockMapCut* cut) {
     }
 }
 
-std::vector<BlockRequest> CityRendererGL::requestsWithBlockMaps(std::vector<BlockRequest> req, const AtlasView& v) const {
+std::vector<BlockRequest> CityRendererGL::requestsWithBlockMaps(std::vector<BlockRequest> req, const AtlasView& v,
+                                                                const BlockMapCut& ideal) const {
     if (!blockMapsOn()) return req;
-    const auto maps = m_bmTraversal->requests(v, m_settings.blockMapErrorPx);
+    const auto maps = m_bmTraversal->requests(v, m_settings.blockMapErrorPx, &ideal);
     req.insert(req.end(), maps.begin(), maps.end());
     std::sort(req.begin(), req.end());
     return req;

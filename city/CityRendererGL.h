@@ -196,8 +196,10 @@ private:
     BlockMapCut blockMapCut(const AtlasView& v, bool ideal) const;
     /// The traversals skip what `cut` covers (an empty cut: nothing).
     void coverWith(const BlockMapCut* cut);
-    /// Tree 0's requests with the maps' (blockmap mode), in priority order.
-    std::vector<BlockRequest> requestsWithBlockMaps(std::vector<BlockRequest> requests, const AtlasView& v) const;
+    /// Tree 0's requests with the maps' (blockmap mode: from `ideal`, the view's cut with every map resident), in
+    /// priority order.
+    std::vector<BlockRequest> requestsWithBlockMaps(std::vector<BlockRequest> requests, const AtlasView& v,
+                                                    const BlockMapCut& ideal) const;
     void drawBlockMaps(const BlockMapCut& cut, DrawState& ds, const ClipmapTerrainRendererGL* terrain, int targetWidth);
     void setRoofImagery(const gl::ShaderProgram& p, const DrawState& ds, const ClipmapTerrainRendererGL* terrain,
                         int targetWidth) const;
