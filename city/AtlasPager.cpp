@@ -122,8 +122,7 @@ Result<LoadedBlock> AtlasPager::load(const BlockKey& key) const {
         auto m = m_settings.blockMaps->read(key.index);
         if (!m) return m.error();
         b.size = glm::ivec2(m->size);
-        auto walls = layOutWalls(*m, 16384);
-        if (walls) b.blockMapWalls = std::make_shared<const BlockMapWallLayout>(std::move(*walls));
+        b.blockMapPacked = std::make_shared<const BlockMapPacked>(packBlockMap(*m));
         b.blockMap = std::make_shared<const BlockMap>(std::move(*m));
         return b;
     }

@@ -59,10 +59,9 @@ struct LoadedBlock {
     /// mipFirstRows[l - 1]; the bands' shares partition every level. Empty (a custom loader): the driver's mips.
     std::vector<std::vector<std::uint8_t>> mips;
     std::vector<int> mipFirstRows;
-    /// A BlockMap block: the map, read and checked (its CRC) on the loader thread, and its walls laid out for upload
-    /// (for textures of 16,384 texels, the least GL 4.5 allows).
+    /// A BlockMap block: the map, read and checked (its CRC) on the loader thread, and packed for upload.
     std::shared_ptr<const BlockMap> blockMap;
-    std::shared_ptr<const BlockMapWallLayout> blockMapWalls;
+    std::shared_ptr<const BlockMapPacked> blockMapPacked;
 };
 
 /// Rows [first, end) of mip level `level` that the band of level-0 rows [r0, r1) of a texture `height` rows high

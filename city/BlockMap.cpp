@@ -620,27 +620,34 @@ int wallSpan(int wallTexels) {
     return span;
 }
 
-Result<BlockMapWallLayout> layOutWalls(const BlockMap& map, int maxSize) {
-    BlockMapWallLayout l;
-    l.maxTextureSize = maxSize;
-    const int columns = map.columns(), W = map.wallTexels, span = wallSpan(W);
-    const int perRow = std::max(1, std::min(std::max(columns, 1), maxSize / std::max(span, 1)));
-    const int rows = std::max(1, (columns + perRow - 1) / perRow);
-    if (span > maxSize || rows > maxSize)
-        return Error{"BlockMap: " + std::to_string(columns) + " wall columns of " + std::to_string(W) +
-                     " texels do not fit " + std::to_string(maxSize) + "-texel textures"};
-    l.perRow = perRow;
-    l.rows = rows;
-    l.span = span;
-    l.wall.assign(std::size_t(perRow) * std::size_t(span) * std::size_t(rows) * 4, 0);
-    l.normals.assign(std::size_t(perRow) * std::size_t(rows) * 3, 0);
+BlockMapPacked packBlockMap(const BlockMap& map) {
+    BlockMapPacked p;
+    const std::size_t n2 = std::size_t(map.size) * std::size_t(map.size);
+    p.texels.resize(n2 * 4);
+    for (std::size_t i = 0; i < n2; ++i) {
+        p.texels[i * 4] = map.height[i];
+        p.texels[i * 4 + 1] = map.distance[i];
+        p.texels[i * 4 + 2] = map.roofNormal[i * 2];
+        p.texels[i * 4 + 3] = map.roofNormal[i * 2 + 1];
+    }
+    const int columns = map.columns(), W = map.wallTexels;
+    p.span = wallSpan(W);
+    p.words.assign(std::size_t(columns) * std::size_t(1 + p.span), 0u);
+    auto rgba = [](const float* f) {
+        std::uint32_t w = 0;
+        for (int k = 0; k < 4; ++k) w |= std::uint32_t(std::lround(std::clamp(f[k], 0.0f, 255.0f))) << (8 * k);
+        return w;
+    };
     std::vector<float> level, next;
     for (int c = 0; c < columns; ++c) {
-        const std::size_t x = std::size_t(c % perRow), y = std::size_t(c / perRow);
-        std::uint8_t* out = &l.wall[(y * std::size_t(perRow) * std::size_t(span) + x * std::size_t(span)) * 4];
+        std::uint32_t normal = 0;
+        for (int i = 0; i < 3; ++i)
+            normal |= std::uint32_t(std::lround((map.wallNormal[std::size_t(c)][i] * 0.5f + 0.5f) * 255.0f)) << (8 * i);
+        p.words[std::size_t(c)] = normal;
+        std::uint32_t* out = &p.words[std::size_t(columns) + std::size_t(c) * std::size_t(p.span)];
         level.assign(&map.wallRgba[std::size_t(c) * std::size_t(W) * 4], &map.wallRgba[std::size_t(c + 1) * std::size_t(W) * 4]);
         for (int w = W;;) {
-            for (float f : level) *out++ = std::uint8_t(std::lround(std::clamp(f, 0.0f, 255.0f)));
+            for (int j = 0; j < w; ++j) *out++ = rgba(&level[std::size_t(j) * 4]);
             if (w == 1) break;
             const int half = (w + 1) / 2;
             next.assign(std::size_t(half) * 4, 0.0f);
@@ -653,16 +660,13 @@ Result<BlockMapWallLayout> layOutWalls(const BlockMap& map, int maxSize) {
             level.swap(next);
             w = half;
         }
-        for (int i = 0; i < 3; ++i)
-            l.normals[(y * std::size_t(perRow) + x) * 3 + std::size_t(i)] =
-                std::uint8_t(std::lround((map.wallNormal[std::size_t(c)][i] * 0.5f + 0.5f) * 255.0f));
     }
-    return l;
+    return p;
 }
 
 std::uint64_t BlockMapRecord::gpuBytes() const {
     const auto n = std::uint64_t(size), c = std::uint64_t(columns);
-    return n * n * (1 + 1 + 4 + 2) + c * std::uint64_t(wallSpan(wallTexels)) * 4 + c * 3;
+    return n * n * (4 + 4) + c * std::uint64_t(1 + wallSpan(wallTexels)) * 4;
 }
 
 namespace {

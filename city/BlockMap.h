@@ -149,18 +149,17 @@ private:
 /// Texels a wall column takes with its halved levels (BlockMapGL): W, then (W + 1) / 2, ... down to 1.
 int wallSpan(int wallTexels);
 
-/// A map's walls as BlockMapGL uploads them: the columns in rows of `perRow` (a map may have up to n² of them, past
-/// any texture's width), column c's RGBA colours and their halved levels (2×1 box means) at x = (c mod perRow) · span
-/// + j, y = c / perRow; its normal, (n + 1) / 2 as RGB8, at (c mod perRow, c / perRow). Plain C++, so the pager's
-/// loader thread lays them out and the GL thread only uploads.
-struct BlockMapWallLayout {
-    int maxTextureSize = 0; // the texture width and height it was laid out for
-    int perRow = 1, rows = 1, span = 1;
-    std::vector<std::uint8_t> wall;    // perRow · span × rows RGBA8
-    std::vector<std::uint8_t> normals; // perRow × rows RGB8
+/// A map as BlockMapPoolGL stores it. Plain C++, so the pager's loader thread packs it and the GL thread only uploads.
+struct BlockMapPacked {
+    int span = 1; // wallSpan(wallTexels)
+    /// n² × 4 bytes, row-major: the texel's height, distance, and roof normal's x and y (as BlockMap stores them).
+    std::vector<std::uint8_t> texels;
+    /// 32-bit words: each column's outward normal ((n + 1) / 2 as RGB8 in bytes 0..2), then each column's `span`
+    /// RGBA8 colours: its wallTexels colours (the foot's first), then the same halved again and again down to one
+    /// (level l has (W_{l-1} + 1) / 2 colours, 2×1 box means), for filtering.
+    std::vector<std::uint32_t> words;
 };
-/// Errors: the columns do not fit textures of `maxTextureSize` texels.
-Result<BlockMapWallLayout> layOutWalls(const BlockMap& map, int maxTextureSize);
+BlockMapPacked packBlockMap(const BlockMap& map);
 
 /// Reads every map of a file (BlockMapFile::open, then read() of each).
 Result<std::vector<BlockMap>> readBlockMaps(const std::filesystem::path& path);
@@ -172,8 +171,8 @@ struct BlockMapRecord {
     int size = 0, wallTexels = 0, columns = 0;
     std::uint64_t offset = 0, bytes = 0; // the record (header, data, CRC) in the file
     double side() const { return double(size) * texel; }
-    /// Bytes of the map's textures once uploaded (BlockMapGL: height, distance, column, wall colours with their
-    /// halved levels, normals).
+    /// Bytes of the map once uploaded (BlockMapPoolGL: height, distance, roof normal and column per texel, each
+    /// wall column's normal and colours with their halved levels).
     std::uint64_t gpuBytes() const;
 };
 

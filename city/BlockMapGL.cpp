@@ -5,7 +5,6 @@
 #include <glm/geometric.hpp>
 
 #include <algorithm>
-#include <optional>
 #include <cmath>
 #include <string>
 
@@ -13,102 +12,215 @@ namespace seasonview::city {
 
 namespace {
 
-gl::Texture texture2D(GLenum internalFormat, int width, int height, GLenum format, GLenum type, const void* data) {
-    gl::Texture t = gl::Texture::create(GL_TEXTURE_2D);
-    glTextureStorage2D(t.id(), 1, internalFormat, std::max(width, 1), std::max(height, 1));
+// Tiles per side of a layer: a layer of up to 1024² texels (16² maps of the usual 64²).
+int tilesPerSide(int n) { return std::clamp(1024 / std::max(n, 1), 1, 16); }
+
+gl::Texture arrayTexture(GLenum internalFormat, int side, int layers) {
+    gl::Texture t = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
+    glTextureStorage3D(t.id(), 1, internalFormat, side, side, layers);
     glTextureParameteri(t.id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
     glTextureParameteri(t.id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    if (width > 0 && height > 0 && data) {
-        glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-        glTextureSubImage2D(t.id(), 0, 0, 0, width, height, format, type, data);
-        glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    }
     return t;
 }
 
+// One instance record (common_blockmap.glsl's BmMap, std430).
+struct Record {
+    float geo[4];
+    float z[4];
+    std::int32_t tile[4];
+    std::int32_t wall[4];
+    float source[4];
+};
+static_assert(sizeof(Record) == 80);
+
 } // namespace
 
-Result<gl::ShaderProgram> BlockMapGL::buildProgram(bool roofImagery, bool frontFaces) {
+Result<gl::ShaderProgram> BlockMapPoolGL::buildProgram(bool roofImagery, bool frontFaces) {
     std::vector<std::string> defines;
     if (roofImagery) defines.push_back("ROOF_IMAGERY");
     if (frontFaces) defines.push_back("FRONT_FACES");
     return gl::ShaderProgram::build("blockmap.vert", "blockmap.frag", defines);
 }
 
-bool BlockMapGL::needsBackFaces(const glm::dvec3& eye, double margin) const {
-    const double side = double(m_size) * m_texel;
-    return eye.x >= m_origin.x - margin && eye.x <= m_origin.x + side + margin && eye.y >= m_origin.y - margin &&
-           eye.y <= m_origin.y + side + margin && eye.z >= m_zBase - margin && eye.z <= m_zTop + margin;
-}
+BlockMapPoolGL::BlockMapPoolGL(int mapSize)
+    : m_size(mapSize), m_tilesPerSide(tilesPerSide(mapSize)), m_instances(gl::Buffer::create()),
+      m_vao(gl::VertexArray::create()) {}
 
-Result<std::unique_ptr<BlockMapGL>> BlockMapGL::create(const BlockMap& map) {
-    auto program = buildProgram(false);
-    if (!program) return program.error();
-    auto own = std::make_unique<gl::ShaderProgram>(std::move(*program));
-    auto b = create(map, *own);
-    if (!b) return b.error();
-    (*b)->m_ownProgram = std::move(own);
-    return b;
-}
-
-Result<std::unique_ptr<BlockMapGL>> BlockMapGL::create(const BlockMap& map, const gl::ShaderProgram& program,
-                                                       const BlockMapWallLayout* walls) {
-    std::unique_ptr<BlockMapGL> b(new BlockMapGL());
-    b->m_program = &program;
-    const int n = map.size;
-    b->m_origin = map.origin;
-    b->m_texel = map.texel;
-    b->m_zBase = map.zBase;
-    b->m_zTop = map.zTop;
-    b->m_size = n;
-    b->m_height = texture2D(GL_R8UI, n, n, GL_RED_INTEGER, GL_UNSIGNED_BYTE, map.height.data());
-    b->m_distance = texture2D(GL_R8UI, n, n, GL_RED_INTEGER, GL_UNSIGNED_BYTE, map.distance.data());
-    b->m_column = texture2D(GL_R32UI, n, n, GL_RED_INTEGER, GL_UNSIGNED_INT, map.column.data());
-    b->m_roofNormal = texture2D(GL_RG8, n, n, GL_RG, GL_UNSIGNED_BYTE, map.roofNormal.data());
-    GLint maxSize = 0;
-    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &maxSize);
-    // The walls as the loader laid them out for this GL's texture width, else laid out here.
-    std::optional<BlockMapWallLayout> own;
-    if (!walls || walls->maxTextureSize > maxSize) {
-        auto laid = layOutWalls(map, maxSize);
-        if (!laid) return laid.error();
-        own = std::move(*laid);
-        walls = &*own;
+Status BlockMapPoolGL::growLayers(int layers) {
+    GLint maxLayers = 0;
+    glGetIntegerv(GL_MAX_ARRAY_TEXTURE_LAYERS, &maxLayers);
+    if (layers > maxLayers)
+        return Error{"BlockMaps: " + std::to_string(std::int64_t(layers) * m_tilesPerSide * m_tilesPerSide) +
+                     " maps resident at once do not fit this GL's " + std::to_string(maxLayers) + " texture layers"};
+    const int side = m_tilesPerSide * m_size;
+    gl::Texture texels = arrayTexture(GL_RGBA8UI, side, layers), columns = arrayTexture(GL_R32UI, side, layers);
+    if (m_layers > 0) {
+        glCopyImageSubData(m_texels.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, texels.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0,
+                           side, side, m_layers);
+        glCopyImageSubData(m_columns.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, columns.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0,
+                           0, side, side, m_layers);
     }
-    const int perRow = walls->perRow, rows = walls->rows, span = walls->span;
-    const std::vector<std::uint8_t>& wall = walls->wall;
-    const std::vector<std::uint8_t>& normals = walls->normals;
-    b->m_wall = texture2D(GL_RGBA8, perRow * span, std::max(rows, 1), GL_RGBA, GL_UNSIGNED_BYTE, wall.data());
-    b->m_normal = texture2D(GL_RGB8, perRow, std::max(rows, 1), GL_RGB, GL_UNSIGNED_BYTE, normals.data());
-    b->m_columnsPerRow = perRow;
-    b->m_wallTexels = map.wallTexels;
-    b->m_wallSpan = span;
-    b->m_bytes = std::uint64_t(n) * std::uint64_t(n) * 8 + wall.size() + normals.size();
-    b->m_vao = gl::VertexArray::create();
-    return b;
+    m_texels = std::move(texels);
+    m_columns = std::move(columns);
+    m_layers = layers;
+    return Ok{};
 }
 
-int BlockMapGL::draw(const Camera& camera, const gl::RenderTarget& target, const DrawSettings& s) const {
-    target.bind();
-    const double aspect = double(target.width()) / double(target.height());
-    const double pixelAngle = 2.0 * std::tan(camera.fovYDeg * M_PI / 360.0) / double(target.height());
-    begin(*m_program, camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix(), camera.position, pixelAngle, s);
-    drawOne();
-    end();
-    return 1;
+Status BlockMapPoolGL::growWords(std::size_t needed) {
+    GLint maxTexels = 0;
+    glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &maxTexels);
+    std::size_t capacity = std::max<std::size_t>(m_wordCapacity, 1 << 16);
+    while (capacity < needed) capacity *= 2;
+    capacity = std::min(capacity, std::size_t(maxTexels));
+    if (capacity < needed)
+        return Error{"BlockMaps: " + std::to_string(needed) + " words of walls resident at once do not fit this GL's " +
+                     std::to_string(maxTexels) + "-texel texture buffers"};
+    gl::Buffer buffer = gl::Buffer::create();
+    glNamedBufferData(buffer.id(), GLsizeiptr(capacity * 4), nullptr, GL_DYNAMIC_DRAW);
+    if (m_wordCapacity > 0)
+        glCopyNamedBufferSubData(m_wordBuffer.id(), buffer.id(), 0, 0, GLsizeiptr(m_wordCapacity * 4));
+    gl::Texture words = gl::Texture::create(GL_TEXTURE_BUFFER);
+    glTextureBuffer(words.id(), GL_R32UI, buffer.id());
+    m_wordBuffer = std::move(buffer);
+    m_words = std::move(words);
+    m_wordRanges.grow(capacity);
+    m_wordCapacity = capacity;
+    return Ok{};
 }
 
-void BlockMapGL::begin(const gl::ShaderProgram& p, const glm::dmat4& viewProj, const glm::dvec3& eye,
-                       double pixelAngle, const DrawSettings& s, bool frontFaces) {
+Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packed) {
+    if (map.size != m_size)
+        return Error{"BlockMaps: a map of " + std::to_string(map.size) + "² texels in a pool of " +
+                     std::to_string(m_size) + "² maps"};
+    BlockMapPacked own;
+    if (!packed) {
+        own = packBlockMap(map);
+        packed = &own;
+    }
+    // Its words first: a map that does not fit changes nothing.
+    const std::size_t words = packed->words.size();
+    std::size_t first = 0;
+    if (words > 0) {
+        auto r = m_wordRanges.allocate(words);
+        if (!r) {
+            // No free range holds it: the store grows (at least doubling), its new tail holds it.
+            if (auto st = growWords(m_wordCapacity + words); !st) return st.error();
+            r = m_wordRanges.allocate(words);
+            if (!r) return Error{"BlockMaps: the wall words' pool did not grow"}; // cannot happen
+        }
+        first = *r;
+    }
+    int handle;
+    if (!m_freeSlots.empty()) {
+        handle = m_freeSlots.back();
+        m_freeSlots.pop_back();
+    } else {
+        handle = int(m_slots.size());
+        const int perLayer = m_tilesPerSide * m_tilesPerSide;
+        if (handle / perLayer >= m_layers) {
+            if (auto st = growLayers(std::max(1, m_layers * 2)); !st) {
+                if (words > 0) m_wordRanges.release(first, words);
+                return st.error();
+            }
+        }
+        m_slots.emplace_back();
+    }
+    Slot& s = m_slots[std::size_t(handle)];
+    s.live = true;
+    s.origin = map.origin;
+    s.texel = map.texel;
+    s.zBase = map.zBase;
+    s.zTop = map.zTop;
+    s.wallTexels = map.wallTexels;
+    s.span = packed->span;
+    s.columns = map.columns();
+    s.words = first;
+    s.wordCount = words;
+    ++m_live;
+    const int perLayer = m_tilesPerSide * m_tilesPerSide, t = handle % perLayer, layer = handle / perLayer;
+    const int x = (t % m_tilesPerSide) * m_size, y = (t / m_tilesPerSide) * m_size;
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTextureSubImage3D(m_texels.id(), 0, x, y, layer, m_size, m_size, 1, GL_RGBA_INTEGER, GL_UNSIGNED_BYTE,
+                        packed->texels.data());
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glTextureSubImage3D(m_columns.id(), 0, x, y, layer, m_size, m_size, 1, GL_RED_INTEGER, GL_UNSIGNED_INT,
+                        map.column.data());
+    if (words > 0)
+        glNamedBufferSubData(m_wordBuffer.id(), GLintptr(first * 4), GLsizeiptr(words * 4), packed->words.data());
+    return handle;
+}
+
+void BlockMapPoolGL::remove(int handle) {
+    if (handle < 0 || std::size_t(handle) >= m_slots.size() || !m_slots[std::size_t(handle)].live) return;
+    Slot& s = m_slots[std::size_t(handle)];
+    if (s.wordCount > 0) m_wordRanges.release(s.words, s.wordCount);
+    s = Slot{};
+    m_freeSlots.push_back(handle);
+    --m_live;
+}
+
+glm::dvec3 BlockMapPoolGL::boxMin(int handle) const {
+    const Slot& s = m_slots[std::size_t(handle)];
+    return {s.origin, s.zBase};
+}
+
+glm::dvec3 BlockMapPoolGL::boxMax(int handle) const {
+    const Slot& s = m_slots[std::size_t(handle)];
+    return {s.origin + double(m_size) * s.texel, s.zTop};
+}
+
+bool BlockMapPoolGL::needsBackFaces(int handle, const glm::dvec3& eye, double margin) const {
+    const glm::dvec3 lo = boxMin(handle) - margin, hi = boxMax(handle) + margin;
+    return eye.x >= lo.x && eye.x <= hi.x && eye.y >= lo.y && eye.y <= hi.y && eye.z >= lo.z && eye.z <= hi.z;
+}
+
+std::uint64_t BlockMapPoolGL::bytes(int handle) const {
+    const Slot& s = m_slots[std::size_t(handle)];
+    return std::uint64_t(m_size) * std::uint64_t(m_size) * 8 + std::uint64_t(s.wordCount) * 4;
+}
+
+std::uint64_t BlockMapPoolGL::allocatedBytes() const {
+    const auto side = std::uint64_t(m_tilesPerSide) * std::uint64_t(m_size);
+    return side * side * 8 * std::uint64_t(m_layers) + std::uint64_t(m_wordCapacity) * 4;
+}
+
+void BlockMapPoolGL::setInstances(const std::vector<Instance>& instances) {
+    std::vector<Record> records(std::max<std::size_t>(instances.size(), 1), Record{});
+    const int perLayer = m_tilesPerSide * m_tilesPerSide;
+    for (std::size_t i = 0; i < instances.size(); ++i) {
+        const int h = instances[i].handle;
+        const Slot& s = m_slots[std::size_t(h)];
+        const int t = h % perLayer;
+        Record& r = records[i];
+        r = Record{{float(s.origin.x), float(s.origin.y), float(s.texel), float(s.zBase)},
+                   {float(s.zTop), 0.0f, 0.0f, 0.0f},
+                   {(t % m_tilesPerSide) * m_size, (t / m_tilesPerSide) * m_size, h / perLayer, std::int32_t(s.words)},
+                   {s.wallTexels, s.span, s.columns, 0},
+                   {instances[i].sourceColour.r, instances[i].sourceColour.g, instances[i].sourceColour.b,
+                    instances[i].sourceColour.a}};
+    }
+    // A new store each frame: the GL need not wait for the last frame's draws to read the old one.
+    glNamedBufferData(m_instances.id(), GLsizeiptr(records.size() * sizeof(Record)), records.data(), GL_STREAM_DRAW);
+}
+
+void BlockMapPoolGL::begin(const gl::ShaderProgram& p, const glm::dmat4& viewProj, const glm::dvec3& eye,
+                           double pixelAngle, const DrawSettings& s, bool frontFaces) const {
     p.set("uPixelAngle", float(pixelAngle));
     p.set("uViewProj", glm::mat4(viewProj));
     p.set("uEye", glm::vec3(eye));
     p.set("uRoofColour", s.roofColour);
     p.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
     p.set("uOutputKind", s.outputKind ? 1 : 0);
-    const char* names[kTextures] = {"uBmHeight", "uBmDistance", "uBmColumn", "uBmWall", "uBmNormal", "uBmRoofNormal"};
-    for (int i = 0; i < kTextures; ++i) p.set(names[i], kUnit + i);
+    p.set("uBmSize", m_size);
+    p.set("uBmTexels", kUnit);
+    p.set("uBmColumn", kUnit + 1);
+    p.set("uBmWords", kUnit + 2);
     p.use();
+    glBindTextureUnit(GLuint(kUnit), m_texels.id());
+    glBindTextureUnit(GLuint(kUnit + 1), m_columns.id());
+    glBindTextureUnit(GLuint(kUnit + 2), m_words.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, m_instances.id());
+    glBindVertexArray(m_vao.id());
     glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE); // reversed Z in [0, 1]: gl_FragDepth is the hit's clip z / w
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_GREATER);
@@ -117,30 +229,41 @@ void BlockMapGL::begin(const gl::ShaderProgram& p, const glm::dmat4& viewProj, c
     glCullFace(frontFaces ? GL_BACK : GL_FRONT);
 }
 
-void BlockMapGL::drawOne(const gl::ShaderProgram& p) const {
-    const double side = double(m_size) * m_texel;
-    p.set("uBoxMin", glm::vec3(glm::dvec3(m_origin, m_zBase)));
-    p.set("uBoxMax", glm::vec3(glm::dvec3(m_origin + side, m_zTop)));
-    p.set("uBmOrigin", glm::vec2(m_origin));
-    p.set("uBmTexel", float(m_texel));
-    p.set("uBmSize", m_size);
-    p.set("uBmZBase", float(m_zBase));
-    p.set("uBmZTop", float(m_zTop));
-    p.set("uBmColumnsPerRow", m_columnsPerRow);
-    p.set("uBmWallTexels", m_wallTexels);
-    p.set("uBmWallSpan", m_wallSpan);
-    const GLuint textures[kTextures] = {m_height.id(), m_distance.id(), m_column.id(),
-                                        m_wall.id(),   m_normal.id(),   m_roofNormal.id()};
-    for (int i = 0; i < kTextures; ++i) glBindTextureUnit(GLuint(kUnit + i), textures[i]);
-    glBindVertexArray(m_vao.id());
-    glDrawArrays(GL_TRIANGLES, 0, 36);
+void BlockMapPoolGL::draw(const gl::ShaderProgram& p, int first, int count) const {
+    if (count <= 0) return;
+    p.set("uFirstInstance", first);
+    glDrawArraysInstanced(GL_TRIANGLES, 0, 36, count);
 }
 
-void BlockMapGL::end() {
+void BlockMapPoolGL::end() {
     glBindVertexArray(0);
     glDisable(GL_CULL_FACE);
     glCullFace(GL_BACK);
     for (int i = 0; i < kTextures; ++i) glBindTextureUnit(GLuint(kUnit + i), 0);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, 0);
+}
+
+Result<std::unique_ptr<BlockMapGL>> BlockMapGL::create(const BlockMap& map) {
+    auto program = BlockMapPoolGL::buildProgram(false);
+    if (!program) return program.error();
+    std::unique_ptr<BlockMapGL> b(new BlockMapGL());
+    b->m_program = std::move(*program);
+    b->m_pool = std::make_unique<BlockMapPoolGL>(map.size);
+    auto h = b->m_pool->add(map);
+    if (!h) return h.error();
+    b->m_pool->setInstances({BlockMapPoolGL::Instance{*h, glm::vec4(0.0f)}});
+    return b;
+}
+
+int BlockMapGL::draw(const Camera& camera, const gl::RenderTarget& target, const DrawSettings& s) const {
+    target.bind();
+    const double aspect = double(target.width()) / double(target.height());
+    const double pixelAngle = 2.0 * std::tan(camera.fovYDeg * M_PI / 360.0) / double(target.height());
+    m_pool->begin(m_program, camera.projectionMatrix(aspect, kNearPlane) * camera.viewMatrix(), camera.position,
+                  pixelAngle, s);
+    m_pool->draw(m_program, 0, 1);
+    BlockMapPoolGL::end();
+    return 1;
 }
 
 } // namespace seasonview::city

@@ -1,70 +1,116 @@
 #pragma once
-// A BlockMap on the GPU (Cignoni et al. 2007 §3.2): its height, distance and column maps as integer textures, its
-// wall columns and normals as colour textures, drawn by ray casting in a fragment shader (shaders/blockmap.frag, the
-// copy of BlockMap.cpp's traceBlockMap) over its bounding box's back faces, writing each hit's colour and depth so it
-// composes with the terrain and the polygons drawn around it.
+// BlockMaps on the GPU (Cignoni et al. 2007 §3.2), drawn by ray casting in a fragment shader (shaders/blockmap.frag,
+// the copy of BlockMap.cpp's traceBlockMap) over their bounding boxes, writing each hit's colour and depth so they
+// compose with the terrain and the polygons drawn around them.
+//
+// BlockMapPoolGL holds every resident map of a city in shared storage, so that any set of them is one instanced draw
+// (§4: the paper's renderer draws a frame's BlockMaps as one batch of boxes): per texel its height, distance and roof
+// normal in one RGBA8UI array texture and its wall column in an R32UI one, both of tiles n × n texels, a map per tile;
+// the wall columns' normals and colours as 32-bit words in one texture buffer, a range per map. A draw's maps are
+// instances whose records (box, tile, wall range) come from a storage buffer.
 #include "BlockMap.h"
 #include "Camera.h"
+#include "RangeAllocator.h"
 #include "gl/GlObjects.h"
 #include "gl/RenderTarget.h"
 #include "gl/ShaderProgram.h"
 
 #include <memory>
+#include <vector>
 
 namespace seasonview::city {
 
-class BlockMapGL {
+class BlockMapPoolGL {
 public:
-    /// Texture units a map's textures are bound to: kUnit .. kUnit + kTextures - 1 (past the terrain's, so the
+    /// Texture units the pool's textures are bound to: kUnit .. kUnit + kTextures - 1 (past the terrain's, so the
     /// ROOF_IMAGERY program samples the clipmaps on theirs).
-    static constexpr int kUnit = 22, kTextures = 6;
+    static constexpr int kUnit = 22, kTextures = 3;
 
     /// The program that draws maps (shaders/blockmap.*): with `roofImagery` its ROOF_IMAGERY variant (bind the
     /// terrain's clipmaps to it: ClipmapTerrainRendererGL::bindTerrain), with `frontFaces` its FRONT_FACES variant
-    /// (for boxes the eye is well outside of: begin(..., true)). A shader that does not build is a bug.
+    /// (for boxes the eye is well outside of). A shader that does not build is a bug.
     static Result<gl::ShaderProgram> buildProgram(bool roofImagery, bool frontFaces = false);
-    /// Whether a box drawn from `eye` needs its back faces (the eye inside it, or within `margin` metres: its front
-    /// faces would be clipped by the near plane).
-    bool needsBackFaces(const glm::dvec3& eye, double margin) const;
-    /// Uploads `map` (kept on the GPU only), drawn with its own program. Errors: its wall columns do not fit the GPU's
-    /// textures, the shaders do not build (a bug).
-    static Result<std::unique_ptr<BlockMapGL>> create(const BlockMap& map);
-    /// The same, drawn with `program` (buildProgram(); kept by reference), with its walls as `walls` lays them out
-    /// (layOutWalls on a loader thread; null, or laid out for a wider texture than this GL's: laid out here).
-    static Result<std::unique_ptr<BlockMapGL>> create(const BlockMap& map, const gl::ShaderProgram& program,
-                                                      const BlockMapWallLayout* walls = nullptr);
+
+    /// A pool for maps of `mapSize`² texels.
+    explicit BlockMapPoolGL(int mapSize);
+    int mapSize() const { return m_size; }
+
+    /// Uploads `map` (packed by packBlockMap, or packed here when null); returns its handle. Errors: a map of
+    /// another size, the storage past what the GL allows (one line each).
+    Result<int> add(const BlockMap& map, const BlockMapPacked* packed = nullptr);
+    /// Frees map `handle`'s storage for later maps.
+    void remove(int handle);
+    std::size_t maps() const { return m_live; }
+
+    /// Whether map `handle`'s box drawn from `eye` needs its back faces (the eye inside it, or within `margin`
+    /// metres: its front faces would be clipped by the near plane).
+    bool needsBackFaces(int handle, const glm::dvec3& eye, double margin) const;
+    glm::dvec3 boxMin(int handle) const;
+    glm::dvec3 boxMax(int handle) const;
+    /// GPU bytes map `handle` takes (its tile and its words).
+    std::uint64_t bytes(int handle) const;
+    /// GPU bytes the pool has allocated.
+    std::uint64_t allocatedBytes() const;
+
+    struct Instance {
+        int handle = 0;
+        glm::vec4 sourceColour{0.0f}; // a > 0: the levels view, this map's colour
+    };
+    /// The maps the next draws pick from (uploaded: one buffer write per frame).
+    void setInstances(const std::vector<Instance>& instances);
 
     struct DrawSettings {
         glm::vec3 roofColour{0.6f, 0.55f, 0.5f};
         bool outputKind = false; // colour (kind, 0, 0, 1): 0.5 a roof, 1 a wall (tests)
     };
+    /// Sets what a frame's maps share and the state (into the bound target; `pixelAngle`: radians per pixel, which
+    /// filters the walls' colours), binds the pool; draw() then draws instances, end() restores the state.
+    void begin(const gl::ShaderProgram& program, const glm::dmat4& viewProj, const glm::dvec3& eye, double pixelAngle,
+               const DrawSettings& settings, bool frontFaces = false) const;
+    /// Instances [first, first + count) of setInstances() in one draw call.
+    void draw(const gl::ShaderProgram& program, int first, int count) const;
+    static void end();
+
+private:
+    struct Slot {
+        bool live = false;
+        glm::dvec2 origin{0.0};
+        double texel = 1.0, zBase = 0.0, zTop = 1.0;
+        int wallTexels = 1, span = 1, columns = 0;
+        std::size_t words = 0, wordCount = 0; // its range in the words buffer
+    };
+    Status growLayers(int layers);
+    Status growWords(std::size_t words);
+
+    int m_size = 0;
+    int m_tilesPerSide = 1, m_layers = 0;
+    gl::Texture m_texels, m_columns;     // 2D arrays of (tilesPerSide · n)² per layer
+    gl::Buffer m_wordBuffer;
+    gl::Texture m_words;                 // R32UI texture buffer over m_wordBuffer
+    std::size_t m_wordCapacity = 0;
+    RangeAllocator m_wordRanges;
+    std::vector<Slot> m_slots;
+    std::vector<int> m_freeSlots;
+    std::size_t m_live = 0;
+    gl::Buffer m_instances;
+    gl::VertexArray m_vao;
+};
+
+/// One map in a pool of its own, drawn alone (tests, tools).
+class BlockMapGL {
+public:
+    using DrawSettings = BlockMapPoolGL::DrawSettings;
+    /// Errors: the storage past the GL's limits; the shaders do not build (a bug).
+    static Result<std::unique_ptr<BlockMapGL>> create(const BlockMap& map);
     /// Draws into `target` over what it holds, depth-tested (reversed Z, GL_GREATER) and writing depth. Returns the
     /// draw calls (1).
     int draw(const Camera& camera, const gl::RenderTarget& target, const DrawSettings& settings) const;
     int draw(const Camera& camera, const gl::RenderTarget& target) const { return draw(camera, target, DrawSettings{}); }
 
-    /// Many maps with one program: begin() sets what they share and the state (into the bound target; `pixelAngle`:
-    /// radians per pixel, which filters the walls' colours), drawOne() draws each, end() restores the state.
-    static void begin(const gl::ShaderProgram& program, const glm::dmat4& viewProj, const glm::dvec3& eye,
-                      double pixelAngle, const DrawSettings& settings, bool frontFaces = false);
-    void drawOne() const { drawOne(*m_program); }
-    void drawOne(const gl::ShaderProgram& program) const;
-    static void end();
-
-    /// GPU bytes of its textures.
-    std::uint64_t bytes() const { return m_bytes; }
-
 private:
     BlockMapGL() = default;
-    std::unique_ptr<gl::ShaderProgram> m_ownProgram;
-    const gl::ShaderProgram* m_program = nullptr;
-    gl::Texture m_height, m_distance, m_column, m_wall, m_normal, m_roofNormal;
-    gl::VertexArray m_vao;
-    glm::dvec2 m_origin{0.0};
-    double m_texel = 1.0, m_zBase = 0.0, m_zTop = 1.0;
-    int m_size = 0;
-    int m_columnsPerRow = 1, m_wallTexels = 1, m_wallSpan = 1;
-    std::uint64_t m_bytes = 0;
+    gl::ShaderProgram m_program;
+    std::unique_ptr<BlockMapPoolGL> m_pool;
 };
 
 } // namespace seasonview::city

@@ -74,6 +74,10 @@ namespace {
 
 constexpr glm::vec3 kPlainColour{0.72f, 0.70f, 0.66f};
 constexpr glm::vec3 kRoofColour{0.55f, 0.35f, 0.30f};
+// A BlockMap's box is tested for occlusion (a query, then a draw of its own) only where the eye is less than this
+// many times the horizontal distance to it above its top (tan 20°): at street level the far blocks behind the near
+// buildings; seen from higher up the maps are one instanced draw.
+constexpr double kOcclusionSlope = 0.364;
 
 void setVertexLayout(GLuint vao, GLuint vbo, bool tree) {
     const GLsizei stride = tree ? GLsizei(sizeof(TreeVertex)) : GLsizei(sizeof(glm::vec3));
@@ -433,7 +437,10 @@ void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
     m_frameEvicted += frame.evict.size();
     for (const auto& k : frame.evict) {
         if (k.kind == BlockKey::Kind::BlockMap) {
-            m_blockMaps.erase(k.index);
+            if (auto it = m_blockMaps.find(k.index); it != m_blockMaps.end()) {
+                m_bmPool->remove(it->second);
+                m_blockMaps.erase(it);
+            }
             continue;
         }
         if (k.kind == BlockKey::Kind::Atlas) {
@@ -462,9 +469,8 @@ void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
     }
     for (const auto& b : frame.upload) {
         if (b.key.kind == BlockKey::Kind::BlockMap) {
-            auto g = b.blockMap ? BlockMapGL::create(*b.blockMap, m_bmProgram, b.blockMapWalls.get()) // either program
-                                : Result<std::unique_ptr<BlockMapGL>>(Error{"no map"});
-            if (g) m_blockMaps[b.key.index] = std::move(*g);
+            auto g = b.blockMap ? m_bmPool->add(*b.blockMap, b.blockMapPacked.get()) : Result<int>(Error{"no map"});
+            if (g) m_blockMaps[b.key.index] = *g;
             else if (m_uploadError.empty()) m_uploadError = m_bmFile->path().string() + ": BlockMap " +
                                                             std::to_string(b.key.index) + ": " + g.message();
         } else if (b.key.kind == BlockKey::Kind::Atlas) uploadAtlas(tree, b);
@@ -897,10 +903,17 @@ Status CityRendererGL::openBlockMaps() {
     m_bmFile = std::make_unique<BlockMapFile>(std::move(*f));
     m_bmTree = std::make_unique<BlockMapQuadtree>(std::move(*q));
     m_bmTraversal = std::make_unique<BlockMapTraversal>(*m_bmTree, m_bmFile->records());
-    auto p = BlockMapGL::buildProgram(true);
+    // One pool holds every resident map, so a frame's maps are a few instanced draws: one map size per file.
+    const auto& records = m_bmFile->records();
+    for (const BlockMapRecord& r : records)
+        if (r.size != records.front().size)
+            return Error{m_bmFile->path().string() + ": BlockMaps of " + std::to_string(records.front().size) + "² and " +
+                         std::to_string(r.size) + "² texels in one file (seasonview builds one size per city)"};
+    m_bmPool = std::make_unique<BlockMapPoolGL>(records.empty() ? 64 : records.front().size);
+    auto p = BlockMapPoolGL::buildProgram(true);
     if (!p) return p.error();
     m_bmProgram = std::move(*p);
-    auto front = BlockMapGL::buildProgram(true, true);
+    auto front = BlockMapPoolGL::buildProgram(true, true);
     if (!front) return front.error();
     m_bmFrontProgram = std::move(*front);
     return Ok{};
@@ -933,20 +946,50 @@ std::vector<BlockRequest> CityRendererGL::requestsWithBlockMaps(std::vector<Bloc
     return req;
 }
 
-// The maps of the cut over the polygons, writing depth.
+// The maps of the cut over the polygons, writing depth: a few instanced draws of the pool (BlockMapGL.h).
 void CityRendererGL::drawBlockMaps(const BlockMapCut& cut, DrawState& ds, const ClipmapTerrainRendererGL* terrain,
                                    int targetWidth) {
     ds.st.blockMapsNotResident = int(cut.notResident);
     if (cut.drawn.empty()) return;
     glBindSampler(0, 0);
-    BlockMapGL::DrawSettings s;
+    BlockMapPoolGL::DrawSettings s;
     s.roofColour = kRoofColour;
     const double pixelAngle = 2.0 * std::tan(ds.v.fovXDeg * M_PI / 360.0) / double(std::max(ds.v.screenWidth, 1));
-    // Occlusion: each box the eye is well outside of is first tested against the depth drawn so far (the terrain, the
-    // near field's polygons) with a query, writing nothing, and its map is cast only where some of it shows
-    // (conditional rendering): far maps behind the near buildings cost a box each, not a ray per pixel.
-    std::map<std::uint32_t, std::size_t> query;
-    if (m_settings.occlusion) {
+    // Three groups, each nearest first (the cut's order): the boxes the eye is well outside of, drawn over their
+    // front faces (a hidden face skips the ray cast where the GL can tell) in one draw; those of them seen at a
+    // grazing angle, which the near field may hide, each tested first (below) and drawn on its own only where some
+    // of it shows; the boxes the eye is in or next to, over their back faces, in one draw.
+    std::vector<BlockMapPoolGL::Instance> front, tested, back;
+    for (std::uint32_t k : cut.drawn) {
+        auto it = m_blockMaps.find(k);
+        if (it == m_blockMaps.end()) continue; // cannot happen: the cut checked residency
+        BlockMapPoolGL::Instance in{it->second, glm::vec4(0.0f)};
+        if (m_settings.view.sources) {
+            // Lighter for coarser maps: the finest level's colour at the leaves, towards white at the root.
+            const glm::vec4 c = sourceColour(3);
+            const float coarser = float(m_bmTree->depth - m_bmTree->nodes[k].level) / float(std::max(m_bmTree->depth, 1));
+            in.sourceColour = glm::vec4(glm::mix(glm::vec3(c), glm::vec3(1.0f), 0.75f * coarser), 1.0f);
+        }
+        if (m_bmPool->needsBackFaces(in.handle, ds.v.eye, 2.0)) {
+            back.push_back(in);
+            continue;
+        }
+        // Grazing: the eye less than kOcclusionSlope × the horizontal distance above the box's top. Seen from higher
+        // up (an overview), a block's roofs show whatever stands nearer, and a query would only cost a draw.
+        const glm::dvec3 lo = m_bmPool->boxMin(in.handle), hi = m_bmPool->boxMax(in.handle);
+        const glm::dvec2 nearest = glm::clamp(glm::dvec2(ds.v.eye), glm::dvec2(lo), glm::dvec2(hi));
+        const double distance = glm::length(glm::dvec2(ds.v.eye) - nearest);
+        const bool grazing = ds.v.eye.z - hi.z < kOcclusionSlope * distance;
+        (m_settings.occlusion && grazing ? tested : front).push_back(in);
+    }
+    std::vector<BlockMapPoolGL::Instance> all = front;
+    all.insert(all.end(), tested.begin(), tested.end());
+    all.insert(all.end(), back.begin(), back.end());
+    m_bmPool->setInstances(all);
+    // Occlusion: each tested box against the depth drawn so far (the terrain, the near field's polygons) with a
+    // query, writing nothing; its map is cast only where some of it shows (conditional rendering): far maps behind
+    // the near buildings cost a box each, not a ray per pixel.
+    if (!tested.empty()) {
         GLboolean colourMask[4] = {GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE};
         glGetBooleanv(GL_COLOR_WRITEMASK, colourMask);
         glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
@@ -956,52 +999,43 @@ void CityRendererGL::drawBlockMaps(const BlockMapCut& cut, DrawState& ds, const 
         glBindVertexArray(m_boxVao.id());
         m_boxProgram.set("uViewProj", ds.viewProj);
         m_boxProgram.use();
-        for (std::uint32_t k : cut.drawn) {
-            auto it = m_blockMaps.find(k);
-            if (it == m_blockMaps.end() || it->second->needsBackFaces(ds.v.eye, 2.0)) continue;
-            m_boxProgram.set("uBoxMin", glm::vec3(m_bmTraversal->boxMin(k)));
-            m_boxProgram.set("uBoxMax", glm::vec3(m_bmTraversal->boxMax(k)));
-            const std::size_t q = query.size();
+        for (std::size_t q = 0; q < tested.size(); ++q) {
+            m_boxProgram.set("uBoxMin", glm::vec3(m_bmPool->boxMin(tested[q].handle)));
+            m_boxProgram.set("uBoxMax", glm::vec3(m_bmPool->boxMax(tested[q].handle)));
             if (q == m_bmQueries.size()) m_bmQueries.push_back(gl::Query::create(GL_ANY_SAMPLES_PASSED_CONSERVATIVE));
             glBeginQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, m_bmQueries[q].id());
             glDrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, nullptr);
             glEndQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE);
-            query[k] = q;
         }
         glColorMask(colourMask[0], colourMask[1], colourMask[2], colourMask[3]);
         glDepthMask(GL_TRUE);
         glDepthFunc(GL_GREATER);
-        ds.st.occlusionQueries += int(query.size());
+        ds.st.occlusionQueries += int(tested.size());
     }
-    // The boxes the eye is well outside of over their front faces (a hidden face skips the ray cast where the GL can
-    // tell), the others over their back faces; each group nearest first.
-    for (const bool front : {true, false}) {
-        const gl::ShaderProgram& program = front ? m_bmFrontProgram : m_bmProgram;
-        setRoofImagery(program, ds, terrain, targetWidth);
-        BlockMapGL::begin(program, ds.v.viewProj, ds.v.eye, pixelAngle, s, front);
-        for (std::uint32_t k : cut.drawn) {
-            auto it = m_blockMaps.find(k);
-            if (it == m_blockMaps.end()) continue; // cannot happen: the cut checked residency
-            if (it->second->needsBackFaces(ds.v.eye, 2.0) == front) continue;
-            if (m_settings.view.sources) {
-                // Lighter for coarser maps: the finest level's colour at the leaves, towards white at the root.
-                const glm::vec4 c = sourceColour(3);
-                const float coarser =
-                    float(m_bmTree->depth - m_bmTree->nodes[k].level) / float(std::max(m_bmTree->depth, 1));
-                program.set("uSourceColour", glm::vec4(glm::mix(glm::vec3(c), glm::vec3(1.0f), 0.75f * coarser), 1.0f));
-            } else {
-                program.set("uSourceColour", glm::vec4(0.0f));
-            }
-            const auto q = query.find(k);
-            if (q != query.end()) glBeginConditionalRender(m_bmQueries[q->second].id(), GL_QUERY_WAIT);
-            it->second->drawOne(program);
-            if (q != query.end()) glEndConditionalRender();
+    const int nFront = int(front.size()), nTested = int(tested.size()), nBack = int(back.size());
+    if (nFront + nTested > 0) {
+        setRoofImagery(m_bmFrontProgram, ds, terrain, targetWidth);
+        m_bmPool->begin(m_bmFrontProgram, ds.v.viewProj, ds.v.eye, pixelAngle, s, true);
+        if (nFront > 0) {
+            m_bmPool->draw(m_bmFrontProgram, 0, nFront);
             ++ds.st.drawCalls;
-            ++ds.st.blockMaps;
-            ds.st.triangles += 12;
+        }
+        for (int q = 0; q < nTested; ++q) {
+            glBeginConditionalRender(m_bmQueries[std::size_t(q)].id(), GL_QUERY_WAIT);
+            m_bmPool->draw(m_bmFrontProgram, nFront + q, 1);
+            glEndConditionalRender();
+            ++ds.st.drawCalls;
         }
     }
-    BlockMapGL::end();
+    if (nBack > 0) {
+        setRoofImagery(m_bmProgram, ds, terrain, targetWidth);
+        m_bmPool->begin(m_bmProgram, ds.v.viewProj, ds.v.eye, pixelAngle, s, false);
+        m_bmPool->draw(m_bmProgram, nFront + nTested, nBack);
+        ++ds.st.drawCalls;
+    }
+    ds.st.blockMaps += int(all.size());
+    ds.st.triangles += 12 * std::int64_t(all.size());
+    BlockMapPoolGL::end();
     glDisable(GL_CULL_FACE);
     ds.bound = 0;
 }

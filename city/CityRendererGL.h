@@ -212,7 +212,8 @@ private:
     std::unique_ptr<BlockMapQuadtree> m_bmTree;
     std::unique_ptr<BlockMapTraversal> m_bmTraversal;
     BlockMapTriangleOrder m_bmRoofOrder, m_bmOtherOrder; // the plain roofs and the other plain triangles
-    std::map<std::uint32_t, std::unique_ptr<BlockMapGL>> m_blockMaps;
+    std::unique_ptr<BlockMapPoolGL> m_bmPool;    // every resident map
+    std::map<std::uint32_t, int> m_blockMaps;   // resident maps: node -> its handle in m_bmPool
     BlockMapCut m_lastCut; // the last draw()'s (not kept while holdSwitches)
     gl::ShaderProgram m_bmProgram, m_bmFrontProgram; // over the boxes' back faces, over their front faces
     std::vector<gl::Query> m_bmQueries;              // the maps' box queries, reused every frame

@@ -23,52 +23,54 @@ uniform vec2 uLookupMin, uLookupSize;
 uniform float uLookupTexels;
 uniform mat2 uLookupSlope;
 #endif
-uniform usampler2D uBmHeight;   // n × n: 0 no building, else zBase + value · (zTop − zBase) / 255
-uniform usampler2D uBmDistance; // n × n: Chebyshev distance in texels to the nearest building texel
-uniform usampler2D uBmColumn;   // n × n: 1 + a boundary texel's wall column
-// The columns in rows of uBmColumnsPerRow, each uBmWallSpan texels: its uBmWallTexels colours (the foot's first),
-// then the same halved again and again down to one (level l has (W_{l-1} + 1) / 2, 2×1 box means), for filtering.
-uniform sampler2D uBmWall;
-uniform int uBmWallSpan;
-uniform sampler2D uBmRoofNormal; // n × n: the roof's normal's x and y, (v + 1) / 2; z implied
+#include "common_blockmap.glsl"
+// Per texel of a map's tile: height (0 no building, else zBase + value · (zTop − zBase) / 255), Chebyshev distance in
+// texels to the nearest building texel, the roof's normal's x and y ((v + 1) / 2 · 255; z implied).
+uniform usampler2DArray uBmTexels;
+uniform usampler2DArray uBmColumn; // 1 + a boundary texel's wall column
+// A map's words from its first: its columns' outward normals ((n + 1) / 2, RGB8), then each column's colours (RGBA8,
+// span words): its wallTexels colours (the foot's first), then the same halved again and again down to one (level l
+// has (W_{l-1} + 1) / 2, 2×1 box means), for filtering.
+uniform usamplerBuffer uBmWords;
 uniform float uPixelAngle;      // radians per pixel at the centre of the screen (1 / focal length in pixels)
-uniform sampler2D uBmNormal;    // a column's outward normal, (n + 1) / 2, at (column mod perRow, column / perRow)
-uniform int uBmColumnsPerRow;
-uniform int uBmWallTexels;
-uniform vec2 uBmOrigin;         // local metres
-uniform float uBmTexel;
-uniform int uBmSize;
-uniform float uBmZBase, uBmZTop;
 uniform vec3 uEye;              // local metres
 uniform mat4 uViewProj;
 uniform vec3 uRoofColour;       // roofs (the renderer textures them from the terrain imagery)
 uniform vec3 uSunDir;
-uniform vec4 uSourceColour;     // a > 0: the levels view, this map's colour, shaded by the face
 // Output what was hit instead of a colour (the tests): (kind, 0, 0, 1) with kind 0.5 a roof, 1 a wall.
 uniform int uOutputKind;
 
 in vec3 vWorld;
+flat in int vMap;
 out vec4 fragColor;
+
+// The map drawn (its record: common_blockmap.glsl), set first in main().
+vec2 bmOrigin;
+float bmMetres, bmZBase, bmZTop; // metres per texel, the height range
+ivec3 bmTile;
+int bmFirstWord, bmWallTexels, bmSpan, bmColumns;
+
+uvec4 bmTexelAt(ivec2 c) { return texelFetch(uBmTexels, ivec3(bmTile.xy + c, bmTile.z), 0); }
 
 const int kNone = 0, kRoof = 1, kWall = 2;
 
-// Column `slot`'s colour at height v (0 foot, 1 top) at level `level` of its halved levels, linear between texels.
-vec4 bmWallAt(ivec2 slot, float v, int level) {
-    int size = uBmWallTexels, offset = 0;
+// Column `column`'s colour at height v (0 foot, 1 top) at level `level` of its halved levels, linear between texels.
+vec4 bmWallAt(int column, float v, int level) {
+    int size = bmWallTexels, offset = 0;
     for (int l = 0; l < level && size > 1; ++l) {
         offset += size;
         size = (size + 1) / 2;
     }
     float x = clamp(v * float(size) - 0.5, 0.0, float(size - 1));
     int j0 = int(floor(x)), j1 = min(j0 + 1, size - 1);
-    int base = slot.x * uBmWallSpan + offset;
-    return mix(texelFetch(uBmWall, ivec2(base + j0, slot.y), 0), texelFetch(uBmWall, ivec2(base + j1, slot.y), 0),
+    int base = bmFirstWord + bmColumns + column * bmSpan + offset;
+    return mix(unpackUnorm4x8(texelFetch(uBmWords, base + j0).r), unpackUnorm4x8(texelFetch(uBmWords, base + j1).r),
                x - float(j0));
 }
 
 // The roof's normal over texel `c`.
 vec3 bmRoofNormal(ivec2 c) {
-    vec2 rn = texelFetch(uBmRoofNormal, c, 0).xy * 2.0 - 1.0;
+    vec2 rn = vec2(bmTexelAt(c).ba) / 255.0 * 2.0 - 1.0;
     return vec3(rn, sqrt(max(1.0 - dot(rn, rn), 0.0)));
 }
 
@@ -100,16 +102,26 @@ vec3 bmRoof(vec2 world, ivec2 c) {
     return uRoofColour * (0.62 + 0.38 * abs(dot(bmRoofNormal(c), uSunDir)));
 }
 
-float bmTop(uint value) { return uBmZBase + float(value) * (uBmZTop - uBmZBase) / 255.0; }
+float bmTop(uint value) { return bmZBase + float(value) * (bmZTop - bmZBase) / 255.0; }
 bool bmOutside(ivec2 c) { return any(lessThan(c, ivec2(0))) || any(greaterThanEqual(c, ivec2(uBmSize))); }
 
 void main() {
-    vec3 o = vec3(uEye.xy - uBmOrigin, uEye.z);
+    BmMap m = bmMaps[vMap];
+    bmOrigin = m.geo.xy;
+    bmMetres = m.geo.z;
+    bmZBase = m.geo.w;
+    bmZTop = m.z.x;
+    bmTile = m.tile.xyz;
+    bmFirstWord = m.tile.w;
+    bmWallTexels = m.wall.x;
+    bmSpan = m.wall.y;
+    bmColumns = m.wall.z;
+    vec3 o = vec3(uEye.xy - bmOrigin, uEye.z);
     vec3 d = vWorld - uEye;
     // No component exactly 0 (the slabs divide by them); a nudge far below a texel.
     d = mix(d, vec3(1e-12), equal(d, vec3(0.0)));
-    float side = float(uBmSize) * uBmTexel;
-    vec3 ta = (vec3(0.0, 0.0, uBmZBase) - o) / d, tb = (vec3(side, side, uBmZTop) - o) / d;
+    float side = float(uBmSize) * bmMetres;
+    vec3 ta = (vec3(0.0, 0.0, bmZBase) - o) / d, tb = (vec3(side, side, bmZTop) - o) / d;
     vec3 tmin = min(ta, tb), tmax = max(ta, tb);
     float t0 = max(max(tmin.x, tmin.y), max(tmin.z, 0.0)), t1 = min(min(tmax.x, tmax.y), tmax.z);
     if (t0 > t1) discard;
@@ -117,17 +129,18 @@ void main() {
     if (enterAxis == 2 && d.z > 0.0) discard; // from under the block's floor
     ivec2 stp = ivec2(d.x > 0.0 ? 1 : -1, d.y > 0.0 ? 1 : -1);
     ivec2 up = max(stp, ivec2(0));
-    vec2 delta = uBmTexel / abs(d.xy);
-    ivec2 c = clamp(ivec2(floor((o.xy + t0 * d.xy) / uBmTexel)), ivec2(0), ivec2(uBmSize - 1));
+    vec2 delta = bmMetres / abs(d.xy);
+    ivec2 c = clamp(ivec2(floor((o.xy + t0 * d.xy) / bmMetres)), ivec2(0), ivec2(uBmSize - 1));
     int face = enterAxis == 0 ? (stp.x > 0 ? 0 : 1) : enterAxis == 1 ? (stp.y > 0 ? 2 : 3) : enterAxis == 2 ? 4 : -1;
-    vec2 nextT = (vec2(c + up) * uBmTexel - o.xy) / d.xy;
+    vec2 nextT = (vec2(c + up) * bmMetres - o.xy) / d.xy;
     float tCell = t0;
     int kind = kNone;
     float tHit = 0.0;
     float top = 0.0;
     for (int it = 0; it < 4 * uBmSize + 8 && kind == kNone; ++it) {
         float tOut = min(min(nextT.x, nextT.y), t1);
-        uint value = texelFetch(uBmHeight, c, 0).r;
+        uvec4 texel = bmTexelAt(c);
+        uint value = texel.r;
         if (value > 0u) {
             top = bmTop(value);
             if (o.z + tCell * d.z <= top) {
@@ -142,24 +155,24 @@ void main() {
                 break;
             }
         } else {
-            int r = int(texelFetch(uBmDistance, c, 0).r) - 1;
+            int r = int(texel.g) - 1;
             if (r >= 1) {
                 // Every texel within r of this one is empty: on to where the ray leaves that square.
-                vec2 ex = (vec2(c + stp * r + up) * uBmTexel - o.xy) / d.xy;
+                vec2 ex = (vec2(c + stp * r + up) * bmMetres - o.xy) / d.xy;
                 float tExit = min(ex.x, ex.y);
                 if (tExit >= t1) break;
                 if (ex.x <= ex.y) {
-                    int y = clamp(int(floor((o.y + tExit * d.y) / uBmTexel)), c.y - r, c.y + r);
+                    int y = clamp(int(floor((o.y + tExit * d.y) / bmMetres)), c.y - r, c.y + r);
                     c = ivec2(c.x + stp.x * (r + 1), y);
                     face = stp.x > 0 ? 0 : 1;
                 } else {
-                    int x = clamp(int(floor((o.x + tExit * d.x) / uBmTexel)), c.x - r, c.x + r);
+                    int x = clamp(int(floor((o.x + tExit * d.x) / bmMetres)), c.x - r, c.x + r);
                     c = ivec2(x, c.y + stp.y * (r + 1));
                     face = stp.y > 0 ? 2 : 3;
                 }
                 if (bmOutside(c)) break;
                 tCell = tExit;
-                nextT = (vec2(c + up) * uBmTexel - o.xy) / d.xy;
+                nextT = (vec2(c + up) * bmMetres - o.xy) / d.xy;
                 continue;
             }
         }
@@ -179,7 +192,7 @@ void main() {
     }
     if (kind == kNone) discard;
     vec3 hit = o + tHit * d;
-    vec4 clip = uViewProj * vec4(hit.xy + uBmOrigin, hit.z, 1.0);
+    vec4 clip = uViewProj * vec4(hit.xy + bmOrigin, hit.z, 1.0);
     gl_FragDepth = clip.z / clip.w;
     if (uOutputKind != 0) {
         fragColor = vec4(kind == kRoof ? 0.5 : 1.0, 0.0, 0.0, 1.0);
@@ -190,22 +203,21 @@ void main() {
     vec3 wall = vec3(0.0);
     vec3 faceNormal = bmRoofNormal(c);
     if (kind == kWall) {
-        int column = max(int(texelFetch(uBmColumn, c, 0).r) - 1, 0);
-        ivec2 slot = ivec2(column % uBmColumnsPerRow, column / uBmColumnsPerRow);
-        float v = clamp((hit.z - uBmZBase) / max(top - uBmZBase, 1e-6), 0.0, 1.0);
+        int column = max(int(texelFetch(uBmColumn, ivec3(bmTile.xy + c, bmTile.z), 0).r) - 1, 0);
+        float v = clamp((hit.z - bmZBase) / max(top - bmZBase, 1e-6), 0.0, 1.0);
         // The wall texels a pixel spans vertically: filtered from the column's halved levels (trilinear), so a
         // far facade shows its mean, not a few of its texels.
         float metresPerPixel = tHit * length(d) * uPixelAngle;
-        float lod = log2(max(1.0, float(uBmWallTexels) / max(top - uBmZBase, 1e-3) * metresPerPixel));
+        float lod = log2(max(1.0, float(bmWallTexels) / max(top - bmZBase, 1e-3) * metresPerPixel));
         int l0 = int(floor(lod));
-        vec4 w = mix(bmWallAt(slot, v, l0), bmWallAt(slot, v, l0 + 1), fract(lod));
-        vec3 n = texelFetch(uBmNormal, slot, 0).xyz * 2.0 - 1.0;
+        vec4 w = mix(bmWallAt(column, v, l0), bmWallAt(column, v, l0 + 1), fract(lod));
+        vec3 n = unpackUnorm4x8(texelFetch(uBmWords, bmFirstWord + column).r).xyz * 2.0 - 1.0;
         wallShare = w.a;
         wall = w.rgb * (0.62 + 0.38 * abs(dot(n, uSunDir))); // as city_building.frag lights faces
         if (wallShare >= 0.5) faceNormal = n;
     }
     vec3 roof = vec3(0.0);
-    if (wallShare < 1.0) roof = bmRoof(hit.xy + uBmOrigin, c);
+    if (wallShare < 1.0) roof = bmRoof(hit.xy + bmOrigin, c);
     fragColor = vec4(mix(roof, wall, wallShare), 1.0);
-    if (uSourceColour.a > 0.0) fragColor = vec4(uSourceColour.rgb * (0.62 + 0.38 * abs(dot(faceNormal, uSunDir))), 1.0);
+    if (m.source.a > 0.0) fragColor = vec4(m.source.rgb * (0.62 + 0.38 * abs(dot(faceNormal, uSunDir))), 1.0);
 }
