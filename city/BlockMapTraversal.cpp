@@ -255,6 +255,25 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> BlockMapTriangleOrder::rang
     };
     const std::size_t nodes = first.size();
     if (nodes > 0 && cut.use.size() == nodes) {
+        // Whether the maps drawn cover all of a node's square that is seen: drawn with its map, or refined into
+        // children all covered (children come after their parent). A refined node's own triangles (across its
+        // children's squares) are in its children's maps, which are built from every triangle over their square:
+        // where the children all show maps, those triangles are drawn already.
+        std::vector<char> covered(nodes, 0);
+        for (std::size_t k = nodes; k-- > 0;) {
+            switch (cut.use[k]) {
+            case BlockMapUse::BlockMap:
+            case BlockMapUse::Outside: covered[k] = 1; break;
+            case BlockMapUse::Refined: {
+                bool all = true;
+                for (std::int32_t c : children[k])
+                    if (c >= 0 && !covered[std::size_t(c)]) all = false;
+                covered[k] = all;
+                break;
+            }
+            default: break;
+            }
+        }
         // Pre-order again, so the ranges come in order and merge.
         std::vector<std::uint32_t> stack{0};
         while (!stack.empty()) {
@@ -263,7 +282,7 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> BlockMapTriangleOrder::rang
             switch (cut.use[k]) {
             case BlockMapUse::Polygons: add(first[k], end[k]); break;
             case BlockMapUse::Refined:
-                add(first[k], ownEnd[k]);
+                if (!covered[k]) add(first[k], ownEnd[k]);
                 for (int q = 3; q >= 0; --q) // the first quadrant pops first, as of() laid them out
                     if (children[k][std::size_t(q)] >= 0) stack.push_back(std::uint32_t(children[k][std::size_t(q)]));
                 break;

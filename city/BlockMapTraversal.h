@@ -57,7 +57,8 @@ struct BlockMapTriangleOrder {
     /// `boxes[i]`: triangle i's footprint (x, y of its lowest and highest corner).
     static BlockMapTriangleOrder of(const BlockMapQuadtree& tree, const std::vector<std::pair<glm::dvec2, glm::dvec2>>& boxes);
     /// The ranges (first, count) of what the polygons draw for `cut`: the subtrees of nodes left to the polygons, the
-    /// own triangles of refined nodes, the triangles outside; contiguous ones merged.
+    /// own triangles of refined nodes with some square under them not covered by maps, the triangles outside;
+    /// contiguous ones merged.
     std::vector<std::pair<std::uint32_t, std::uint32_t>> ranges(const BlockMapCut& cut) const;
 };
 

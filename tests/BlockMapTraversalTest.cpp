@@ -352,6 +352,8 @@ TEST(BlockMapTraversalTest, PlainTrianglesInQuadtreeOrderDrawWhatTheMapsDoNotCov
         const glm::dvec3 hi = glm::max(tri.v[0], glm::max(tri.v[1], tri.v[2]));
         boxes.emplace_back(glm::dvec2(lo), glm::dvec2(hi));
     }
+    const glm::dvec2 centre = 0.5 * (glm::dvec2(t.boxMin(0)) + glm::dvec2(t.boxMax(0)));
+    boxes.push_back({centre - 1.0, centre + 1.0});        // across the root's children: the root's own
     boxes.push_back({{-40.0, -40.0}, {-30.0, -30.0}}); // outside the root square
     const BlockMapTriangleOrder order = BlockMapTriangleOrder::of(l.tree, boxes);
     ASSERT_EQ(order.order.size(), boxes.size());
@@ -397,4 +399,21 @@ TEST(BlockMapTraversalTest, PlainTrianglesInQuadtreeOrderDrawWhatTheMapsDoNotCov
     EXPECT_TRUE(drawn.back()) << "outside the root square: always";
     const auto none = drawnSet(t.cut(viewOf(overview()), 1.0));
     EXPECT_EQ(std::count(none.begin(), none.end(), true), 1) << "only the one outside";
+    // The root refined into its children's maps: its own triangles (across the children's squares) are in those
+    // maps, not drawn again; with one child left to the polygons they are.
+    const auto& rootChildren = l.tree.nodes[0].children;
+    ASSERT_GT(order.ownEnd[0], order.first[0]) << "the root holds triangles across its children";
+    BlockMapCut refined;
+    refined.use.assign(l.tree.nodes.size(), BlockMapUse::Unvisited);
+    refined.use[0] = BlockMapUse::Refined;
+    for (std::int32_t c : rootChildren)
+        if (c >= 0) refined.use[std::size_t(c)] = BlockMapUse::BlockMap;
+    EXPECT_EQ(order.ranges(refined).size(), 1u) << "the one outside only";
+    for (std::int32_t c : rootChildren)
+        if (c >= 0) {
+            refined.use[std::size_t(c)] = BlockMapUse::Polygons;
+            break;
+        }
+    const auto some = drawnSet(refined);
+    for (std::uint32_t p = order.first[0]; p < order.ownEnd[0]; ++p) EXPECT_TRUE(some[order.order[p]]) << p;
 }
