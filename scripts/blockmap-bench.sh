@@ -12,7 +12,7 @@ WORK="${2:-/tmp/sv-blockmap-bench}"
 CAMERAS="${3:-$ROOT/data/paths/blockcity100k_street_overview.json}"
 SIZE_M="${4:-8192}"
 FRAMES="${5:-48}"
-SV="$ROOT/build/seasonview"
+SV="${SV:-$ROOT/build/seasonview}" # another binary: SV=PATH
 mkdir -p "$WORK"
 if [ ! -f "$WORK/city/.done" ]; then
     rm -rf "$WORK/city"

@@ -139,7 +139,7 @@ TEST(CityBlockMapGLTest, FarBlocksAreMapsAndThePictureIsTheAtlasModes) {
         EXPECT_GE(psnr, v.minPsnr);
         if (std::string(v.name) == "overview") {
             EXPECT_LE(sb.triangles * 10, sa.triangles) << "at the overview at least 10x fewer triangles";
-            EXPECT_LE(sb.drawCalls * 2, sa.drawCalls + 1);
+            EXPECT_LE(sb.drawCalls * 10, sa.drawCalls) << "at the overview at least 10x fewer draw calls";
             compareWithGolden("city_blockmap_overview", rgbOf(b), kW, kH, 255, 3.0);
         } else {
             EXPECT_GT(sb.triangles, 12 * sb.blockMaps) << "the near field is polygons";
@@ -157,7 +157,7 @@ TEST(CityBlockMapGLTest, FarBlocksAreMapsAndThePictureIsTheAtlasModes) {
 // Pops: along a descent from the overview to above the street, each frame drawn with the last frame's switches
 // (polygons to maps, map to finer maps; CitySettings::holdSwitches) and with its own: what changes between the two is
 // what the viewer sees pop at that frame. At the default error bound of 1 px the worst is a map level switch at the
-// overview: outlines moving by a pixel (26.0 dB over the city's pixels, 1.7 % of the picture changed by more than 16
+// overview: outlines moving by a pixel (25.8 dB over the city's pixels, 1.7 % of the picture changed by more than 16
 // levels; 29.6 dB and 0.7 % at 0.5 px).
 TEST(CityBlockMapGLTest, SwitchesAtTheDefaultErrorDoNotPop) {
     ASSERT_TRUE(headlessContext());
