@@ -125,11 +125,12 @@ nlohmann::json figure(const std::vector<double>& v) {
 /// A city mode's figures: per-frame medians/maxima of its counters and the capacity they must stay under.
 nlohmann::json cityFigures(const Mode& m) {
     std::vector<double> nodes, binds, calls, resident, queue, coarser, cpu, update, upload, uploaded, wait, occluded,
-        queries, waits, drawnTriangles, maps, mapsMissing;
+        queries, waits, drawnTriangles, maps, mapsMissing, poolBytes;
     for (const FrameRow& r : m.rows) {
         drawnTriangles.push_back(double(r.city.triangles));
         maps.push_back(r.city.blockMaps);
         mapsMissing.push_back(r.city.blockMapsNotResident);
+        poolBytes.push_back(double(r.city.blockMapPoolBytes));
         cpu.push_back(r.cityCpuMs);
         update.push_back(r.cityUpdateMs);
         upload.push_back(r.city.uploadMs);
@@ -170,6 +171,7 @@ nlohmann::json cityFigures(const Mode& m) {
             {"drawn_triangles", figure(drawnTriangles)},
             {"block_maps", figure(maps)},
             {"block_maps_not_resident", figure(mapsMissing)},
+            {"block_map_pool_bytes", figure(poolBytes)},
             {"block_map_error_px", m.city->settings().blockMapErrorPx}};
 }
 
@@ -749,14 +751,14 @@ Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>
            "trunk_searches,city_cpu_ms,city_occluded_nodes,city_occlusion_queries,city_occlusion_waits,"
            "elevation_texels_uploaded,elevation_resident_bytes,run_order,city_allocated_bytes,city_evicted_blocks,"
            "canopy_blocks_pending,canopy_blocks_unread,canopy_blocks_on_demand,city_update_ms,city_upload_ms,"
-           "city_uploaded_bytes,city_wait_ms,stream_ms,city_blockmaps,city_blockmaps_not_resident\n";
+           "city_uploaded_bytes,city_wait_ms,stream_ms,city_blockmaps,city_blockmaps_not_resident,city_blockmap_pool_bytes\n";
     for (const Mode& m : modes)
         for (const FrameRow& r : m.rows) {
             char line[640];
             std::snprintf(line, sizeof line,
                           "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s,"
                           "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f,%d,%d,%d,%lld,%lld,%d,%llu,%zu,%d,%d,%d,%.4f,%.4f,"
-                          "%llu,%.4f,%.4f,%d,%d\n",
+                          "%llu,%.4f,%.4f,%d,%d,%llu\n",
                           m.label.c_str(), r.frame, r.camera.position.x, r.camera.position.y, r.camera.position.z,
                           r.camera.yawDeg, r.camera.pitchDeg, r.cpuMs, r.gpuMs, r.frameMs, r.drawCalls,
                           (long long)r.triangles, (long long)r.texelsUploaded, (long long)r.exposedTexels,
@@ -771,7 +773,7 @@ Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>
                           (unsigned long long)r.city.allocatedBytes, r.city.evictedBlocks, r.canopyBlocksPending,
                           r.canopyBlocksUnread, r.canopyBlocksOnDemand, r.cityUpdateMs, r.city.uploadMs,
                           (unsigned long long)r.city.uploadedBytes, r.city.waitMs, r.streamMs, r.city.blockMaps,
-                          r.city.blockMapsNotResident);
+                          r.city.blockMapsNotResident, (unsigned long long)r.city.blockMapPoolBytes);
             csv << line;
         }
     std::string err;

@@ -670,6 +670,7 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
     st.uploadMs = m_frameUploadMs;
     st.evictedBlocks = std::size_t(m_frameEvicted);
     st.allocatedBytes = allocatedBytes();
+    st.blockMapPoolBytes = m_bmPool ? m_bmPool->allocatedBytes() : 0;
     return st;
 }
 
