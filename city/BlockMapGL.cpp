@@ -66,24 +66,28 @@ Status BlockMapPoolGL::growLayers(int layers) {
     return Ok{};
 }
 
-Status BlockMapPoolGL::growWords(std::size_t needed) {
+Status BlockMapPoolGL::repackWords(std::size_t capacity) {
     GLint maxTexels = 0;
     glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &maxTexels);
-    std::size_t capacity = std::max<std::size_t>(m_wordCapacity, 1 << 16);
-    while (capacity < needed) capacity *= 2;
-    capacity = std::min(capacity, std::size_t(maxTexels));
-    if (capacity < needed)
-        return Error{"BlockMaps: " + std::to_string(needed) + " words of walls resident at once do not fit this GL's " +
+    if (capacity > std::size_t(maxTexels))
+        return Error{"BlockMaps: " + std::to_string(capacity) + " words of walls resident at once do not fit this GL's " +
                      std::to_string(maxTexels) + "-texel texture buffers"};
+    // The live maps' words copied one after another to the new buffer's start: no free range left between them.
     gl::Buffer buffer = gl::Buffer::create();
-    glNamedBufferData(buffer.id(), GLsizeiptr(capacity * 4), nullptr, GL_DYNAMIC_DRAW);
-    if (m_wordCapacity > 0)
-        glCopyNamedBufferSubData(m_wordBuffer.id(), buffer.id(), 0, 0, GLsizeiptr(m_wordCapacity * 4));
+    glNamedBufferData(buffer.id(), GLsizeiptr(std::max<std::size_t>(capacity, 1) * 4), nullptr, GL_DYNAMIC_DRAW);
+    RangeAllocator ranges(capacity);
+    for (Slot& s : m_slots) {
+        if (!s.live || s.wordCount == 0) continue;
+        const std::size_t to = *ranges.allocate(s.wordCount); // they fit: capacity >= the words in use
+        glCopyNamedBufferSubData(m_wordBuffer.id(), buffer.id(), GLintptr(s.words * 4), GLintptr(to * 4),
+                                 GLsizeiptr(s.wordCount * 4));
+        s.words = to;
+    }
     gl::Texture words = gl::Texture::create(GL_TEXTURE_BUFFER);
     glTextureBuffer(words.id(), GL_R32UI, buffer.id());
     m_wordBuffer = std::move(buffer);
     m_words = std::move(words);
-    m_wordRanges.grow(capacity);
+    m_wordRanges = std::move(ranges);
     m_wordCapacity = capacity;
     return Ok{};
 }
@@ -103,8 +107,11 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
     if (words > 0) {
         auto r = m_wordRanges.allocate(words);
         if (!r) {
-            // No free range holds it: the store grows (at least doubling), its new tail holds it.
-            if (auto st = growWords(m_wordCapacity + words); !st) return st.error();
+            // No free range holds it: the live words repacked into a buffer a quarter larger than they and it need
+            // (so the pool stays within 1.25 times the words the pager counts, and copies each word a few times
+            // while it grows).
+            const std::size_t need = m_wordRanges.used() + words;
+            if (auto st = repackWords(std::max<std::size_t>(need + need / 4, kMinWords)); !st) return st.error();
             r = m_wordRanges.allocate(words);
             if (!r) return Error{"BlockMaps: the wall words' pool did not grow"}; // cannot happen
         }
@@ -118,7 +125,7 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
         handle = int(m_slots.size());
         const int perLayer = m_tilesPerSide * m_tilesPerSide;
         if (handle / perLayer >= m_layers) {
-            if (auto st = growLayers(std::max(1, m_layers * 2)); !st) {
+            if (auto st = growLayers(m_layers + std::max(1, m_layers / 4)); !st) {
                 if (words > 0) m_wordRanges.release(first, words);
                 return st.error();
             }
@@ -157,6 +164,9 @@ void BlockMapPoolGL::remove(int handle) {
     s = Slot{};
     m_freeSlots.push_back(handle);
     --m_live;
+    // Mostly free (maps evicted): repacked into less, as add() sizes it.
+    const std::size_t used = m_wordRanges.used(), fit = std::max<std::size_t>(used + used / 4, kMinWords);
+    if (used < m_wordCapacity / 2 && fit < m_wordCapacity) (void)repackWords(fit); // smaller: cannot fail
 }
 
 glm::dvec3 BlockMapPoolGL::boxMin(int handle) const {

@@ -7,7 +7,9 @@
 // (§4: the paper's renderer draws a frame's BlockMaps as one batch of boxes): per texel its height, distance and roof
 // normal in one RGBA8UI array texture and its wall column in an R32UI one, both of tiles n × n texels, a map per tile;
 // the wall columns' normals and colours as 32-bit words in one texture buffer, a range per map. A draw's maps are
-// instances whose records (box, tile, wall range) come from a storage buffer.
+// instances whose records (box, tile, wall range) come from a storage buffer. The storage follows the maps resident:
+// layers are added a quarter at a time; the words' buffer, when no free range holds a map, is remade a quarter larger
+// than the words in use with them packed at its start, and remade smaller once less than half of it is in use.
 #include "BlockMap.h"
 #include "Camera.h"
 #include "RangeAllocator.h"
@@ -79,8 +81,10 @@ private:
         int wallTexels = 1, span = 1, columns = 0;
         std::size_t words = 0, wordCount = 0; // its range in the words buffer
     };
+    static constexpr std::size_t kMinWords = 1 << 16;
     Status growLayers(int layers);
-    Status growWords(std::size_t words);
+    /// The words' buffer made `capacity` words (>= those in use), the live maps' words packed at its start.
+    Status repackWords(std::size_t capacity);
 
     int m_size = 0;
     int m_tilesPerSide = 1, m_layers = 0;

@@ -675,13 +675,12 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
 }
 
 // The GPU bytes of the resident atlases and original textures (whole, or allocated whole while their bands arrive:
-// the pagers' size of a texture).
+// the pagers' size of a texture), and of the BlockMaps' pool.
 std::uint64_t CityRendererGL::allocatedBytes() const {
     std::uint64_t bytes = 0;
     for (std::size_t t = 0; t < m_atlases.size() && t < m_pagers.size(); ++t)
         for (const auto& [node, tex] : m_atlases[t]) bytes += m_pagers[t]->blockBytes({BlockKey::Kind::Atlas, node});
-    if (!m_pagers.empty())
-        for (const auto& [k, map] : m_blockMaps) bytes += m_pagers[0]->blockBytes({BlockKey::Kind::BlockMap, k});
+    if (m_bmPool) bytes += m_bmPool->allocatedBytes(); // the maps' pool, its free room included
     const AtlasPager* pager = m_originalPager ? m_originalPager.get() : m_pagers.empty() ? nullptr : m_pagers[0].get();
     if (pager) {
         for (const auto& [i, tex] : m_textures) bytes += pager->textureBytes(i);

@@ -107,11 +107,12 @@ struct CityFrameStats {
     int blockMaps = 0;               // blockmap mode: maps drawn
     int blockMapsNotResident = 0;    // blockmap mode: maps the view wants that are loading (polygons stand in)
     // blockmap mode: GPU bytes the maps' pool has allocated (BlockMapPoolGL: layers of tiles and the wall words'
-    // buffer, grown as maps arrive, never shrunk). The pager counts each resident map's own bytes (residentBytes);
-    // this is above them by the pool's free tiles and words.
+    // buffer). The pager counts each resident map's own bytes (residentBytes); this is above them by the pool's
+    // free tiles and words.
     std::uint64_t blockMapPoolBytes = 0;
-    // GL texture storage held (atlases, original textures whole or while their parts arrive): what residentBytes
-    // accounts for, so never above the capacity.
+    // GL storage held (atlases, original textures whole or while their parts arrive, the BlockMaps' pool): what
+    // residentBytes accounts for (never above the capacity), and the pool's free tiles and words, which are not
+    // (blockMapPoolBytes).
     std::uint64_t allocatedBytes = 0;
 };
 

@@ -219,8 +219,8 @@ TEST(BlockMapGLTest, WallPixelsShowTheirSidesColours) {
     EXPECT_LT(wrong, checked / 200) << wrong << " of " << checked;
 }
 
-// A pool of many maps (BlockMapPoolGL): more than a layer of tiles and more walls than its first buffer, maps taken
-// out and others put in their slots and freed word ranges; any set of them drawn as one instanced draw is pixel for
+// A pool of many maps (BlockMapPoolGL): more than a layer of tiles and more walls than its first buffer, half the
+// maps taken out (the words repacked into less) and others put in their slots and freed word ranges; any set of them drawn as one instanced draw is pixel for
 // pixel the same picture as each map drawn alone into the same target.
 TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
     ASSERT_TRUE(headlessContext());
@@ -247,8 +247,10 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
         handles.push_back(*h);
     }
     EXPECT_GT(pool.allocatedBytes(), 2 * std::uint64_t(16 * 32) * (16 * 32) * 8) << "more than one layer";
+    const std::uint64_t full = pool.allocatedBytes();
     for (int i = 0; i < 300; i += 2) pool.remove(handles[std::size_t(i)]);
     EXPECT_EQ(pool.maps(), 150u);
+    EXPECT_LT(pool.allocatedBytes(), full) << "half the maps gone: the words repacked into less";
     for (int i = 0; i < 300; i += 2) { // back, in freed slots and ranges, as other copies
         auto h = pool.add(copyAt((i + 7) % 300));
         ASSERT_TRUE(h) << h.message();
