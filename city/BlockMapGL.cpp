@@ -107,11 +107,10 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
     if (words > 0) {
         auto r = m_wordRanges.allocate(words);
         if (!r) {
-            // No free range holds it: the live words repacked into a buffer a quarter larger than they and it need
-            // (so the pool stays within 1.25 times the words the pager counts, and copies each word a few times
-            // while it grows).
+            // No free range holds it: the live words repacked into a buffer an eighth larger than they and it need
+            // (the pool's room stays small; each word is copied a few times while the pool grows).
             const std::size_t need = m_wordRanges.used() + words;
-            if (auto st = repackWords(std::max<std::size_t>(need + need / 4, kMinWords)); !st) return st.error();
+            if (auto st = repackWords(std::max<std::size_t>(need + need / 8, kMinWords)); !st) return st.error();
             r = m_wordRanges.allocate(words);
             if (!r) return Error{"BlockMaps: the wall words' pool did not grow"}; // cannot happen
         }
@@ -165,7 +164,7 @@ void BlockMapPoolGL::remove(int handle) {
     m_freeSlots.push_back(handle);
     --m_live;
     // Mostly free (maps evicted): repacked into less, as add() sizes it.
-    const std::size_t used = m_wordRanges.used(), fit = std::max<std::size_t>(used + used / 4, kMinWords);
+    const std::size_t used = m_wordRanges.used(), fit = std::max<std::size_t>(used + used / 8, kMinWords);
     if (used < m_wordCapacity / 2 && fit < m_wordCapacity) (void)repackWords(fit); // smaller: cannot fail
 }
 

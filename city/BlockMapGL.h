@@ -8,7 +8,7 @@
 // normal in one RGBA8UI array texture and its wall column in an R32UI one, both of tiles n × n texels, a map per tile;
 // the wall columns' normals and colours as 32-bit words in one texture buffer, a range per map. A draw's maps are
 // instances whose records (box, tile, wall range) come from a storage buffer. The storage follows the maps resident:
-// layers are added a quarter at a time; the words' buffer, when no free range holds a map, is remade a quarter larger
+// layers are added a quarter at a time; the words' buffer, when no free range holds a map, is remade an eighth larger
 // than the words in use with them packed at its start, and remade smaller once less than half of it is in use.
 #include "BlockMap.h"
 #include "Camera.h"
