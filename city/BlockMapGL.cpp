@@ -143,13 +143,12 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
     s.words = first;
     s.wordCount = words;
     ++m_live;
-    const int perLayer = m_tilesPerSide * m_tilesPerSide, t = handle % perLayer, layer = handle / perLayer;
-    const int x = (t % m_tilesPerSide) * m_size, y = (t / m_tilesPerSide) * m_size;
+    const glm::ivec3 tile = tileOf(handle);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glTextureSubImage3D(m_texels.id(), 0, x, y, layer, m_size, m_size, 1, GL_RGBA_INTEGER, GL_UNSIGNED_BYTE,
+    glTextureSubImage3D(m_texels.id(), 0, tile.x, tile.y, tile.z, m_size, m_size, 1, GL_RGBA_INTEGER, GL_UNSIGNED_BYTE,
                         packed->texels.data());
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    glTextureSubImage3D(m_columns.id(), 0, x, y, layer, m_size, m_size, 1, GL_RED_INTEGER, GL_UNSIGNED_INT,
+    glTextureSubImage3D(m_columns.id(), 0, tile.x, tile.y, tile.z, m_size, m_size, 1, GL_RED_INTEGER, GL_UNSIGNED_INT,
                         map.column.data());
     if (words > 0)
         glNamedBufferSubData(m_wordBuffer.id(), GLintptr(first * 4), GLsizeiptr(words * 4), packed->words.data());
@@ -183,9 +182,9 @@ bool BlockMapPoolGL::needsBackFaces(int handle, const glm::dvec3& eye, double ma
     return eye.x >= lo.x && eye.x <= hi.x && eye.y >= lo.y && eye.y <= hi.y && eye.z >= lo.z && eye.z <= hi.z;
 }
 
-std::uint64_t BlockMapPoolGL::bytes(int handle) const {
-    const Slot& s = m_slots[std::size_t(handle)];
-    return std::uint64_t(m_size) * std::uint64_t(m_size) * 8 + std::uint64_t(s.wordCount) * 4;
+glm::ivec3 BlockMapPoolGL::tileOf(int handle) const {
+    const int perLayer = m_tilesPerSide * m_tilesPerSide, t = handle % perLayer;
+    return {(t % m_tilesPerSide) * m_size, (t / m_tilesPerSide) * m_size, handle / perLayer};
 }
 
 std::uint64_t BlockMapPoolGL::allocatedBytes() const {
@@ -195,15 +194,14 @@ std::uint64_t BlockMapPoolGL::allocatedBytes() const {
 
 void BlockMapPoolGL::setInstances(const std::vector<Instance>& instances) {
     std::vector<Record> records(std::max<std::size_t>(instances.size(), 1), Record{});
-    const int perLayer = m_tilesPerSide * m_tilesPerSide;
     for (std::size_t i = 0; i < instances.size(); ++i) {
         const int h = instances[i].handle;
         const Slot& s = m_slots[std::size_t(h)];
-        const int t = h % perLayer;
+        const glm::ivec3 tile = tileOf(h);
         Record& r = records[i];
         r = Record{{float(s.origin.x), float(s.origin.y), float(s.texel), float(s.zBase)},
                    {float(s.zTop), 0.0f, 0.0f, 0.0f},
-                   {(t % m_tilesPerSide) * m_size, (t / m_tilesPerSide) * m_size, h / perLayer, std::int32_t(s.words)},
+                   {tile.x, tile.y, tile.z, std::int32_t(s.words)},
                    {s.wallTexels, s.span, s.columns, 0},
                    {instances[i].sourceColour.r, instances[i].sourceColour.g, instances[i].sourceColour.b,
                     instances[i].sourceColour.a}};

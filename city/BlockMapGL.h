@@ -49,8 +49,6 @@ public:
     bool needsBackFaces(int handle, const glm::dvec3& eye, double margin) const;
     glm::dvec3 boxMin(int handle) const;
     glm::dvec3 boxMax(int handle) const;
-    /// GPU bytes map `handle` takes (its tile and its words).
-    std::uint64_t bytes(int handle) const;
     /// GPU bytes the pool has allocated.
     std::uint64_t allocatedBytes() const;
 
@@ -82,6 +80,8 @@ private:
         std::size_t words = 0, wordCount = 0; // its range in the words buffer
     };
     static constexpr std::size_t kMinWords = 1 << 16;
+    /// Map `handle`'s tile: its first texel's x and y in the arrays, and its layer.
+    glm::ivec3 tileOf(int handle) const;
     Status growLayers(int layers);
     /// The words' buffer made `capacity` words (>= those in use), the live maps' words packed at its start.
     Status repackWords(std::size_t capacity);
