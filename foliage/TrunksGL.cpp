@@ -83,7 +83,9 @@ int TrunksGL::find() {
     glBindImageTexture(0, m_distance.id(), 0, GL_FALSE, 0, GL_READ_WRITE, GL_R32F);
     glBindImageTexture(1, m_column.id(), 0, GL_FALSE, 0, GL_READ_WRITE, GL_RG32F);
     const GLuint groups = GLuint((L.size + 15) / 16);
-    for (const gl::ShaderProgram& find : m_find) {
+    const GLuint columnGroups = GLuint((L.size + 63) / 64); // pass 0: 64 columns × 64 rows per group
+    for (int pass = 0; pass < 3; ++pass) {
+        const gl::ShaderProgram& find = m_find[pass];
         m_imagery.bind(find, 0, "u");
         m_canopy.bind(find, kCanopyUnit);
         find.set("uLevel", m_level);
@@ -93,7 +95,10 @@ int TrunksGL::find() {
         find.set("uMaxRadius", m_maxRadius);
         find.set("uCapacity", m_options.capacity);
         find.use();
-        glDispatchCompute(groups, groups, 1);
+        if (pass == 0) // an invocation per column and 64 rows (trunk_find.comp)
+            glDispatchCompute(columnGroups, columnGroups, 1);
+        else
+            glDispatchCompute(groups, groups, 1);
         glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT |
                         GL_BUFFER_UPDATE_BARRIER_BIT);
     }

@@ -26,9 +26,9 @@ struct TrunkOptions {
     double maxCrownRadius = 8.0;  // metres: the distance search's limit
     int capacity = 16384;         // trunks kept
     float radiusFraction = 0.1f;  // trunk radius / crown radius, clamped to [0.12, 0.5] m
-    // update() searches again at most every this many frames (a search covers the whole level: ~15 ms on llvmpipe
-    // for 512² in seasonview_canopy_bench, four times that for 1024²; about a millisecond on a GPU); the trunks near
-    // the viewer move with the level's window anyway.
+    // update() searches again at most every this many frames (a search covers the whole level: 20 ms on llvmpipe
+    // in seasonview_canopy_bench, about 75 ms for the demo's 1024² level while flying); the trunks near the viewer
+    // move with the level's window anyway.
     int framesBetweenSearches = 8;
 };
 

@@ -11,7 +11,13 @@
 // The imagery clipmap's layout (ClipmapGL::bind, its layoutDefines(); common_clipmap.glsl itself needs derivatives).
 #include "common_canopy.glsl"
 
+#if PASS == 0
+// Pass 0 scans columns: an invocation per column and run of SEGMENT rows (TrunksGL::find dispatches N/64 × N/SEGMENT).
+#define SEGMENT 64
+layout(local_size_x = 64, local_size_y = 1) in;
+#else
 layout(local_size_x = 16, local_size_y = 16) in;
+#endif
 
 // PASS (0: distances along columns, 1: along rows (the distance), 2: maxima) is a compile-time constant, one program
 // each: llvmpipe runs both sides of a branch on a uniform under a mask, so every pass paid for all three.
@@ -56,40 +62,71 @@ float distanceAt(ivec2 q) {
 
 void main() {
     ivec2 t = ivec2(gl_GlobalInvocationID.xy);
+#ifdef CLIP_SIZE
+    const int n = CLIP_SIZE; // a constant: llvmpipe's remainders below by a multiply, not lane by lane
+#else
     int n = int(uClipSize);
-    if (t.x >= n || t.y >= n) return;
+#endif
     gWindow0Mod = (uWindow0 % n + n) % n;
+#if PASS == 0
+    // Along the column: per texel the nearest texel outside the canopy up or down (0 on one), and the nearest unknown
+    // one met before it (farther unknowns cannot come nearer than that outside texel), both clamped past uMaxRadius:
+    // the first texel either way that is not canopy decides that way (up first where both lie at one distance).
+    // One invocation walks its column's window rows [y0, y0 + SEGMENT) from uMaxRadius before to uMaxRadius after,
+    // each texel read once (instead of up to 2 × uMaxRadius reads per canopy texel).
+    if (t.x >= n || t.y * SEGMENT >= n) return;
+    int x = uWindow0.x + t.x, y0 = uWindow0.y + t.y * SEGMENT;
+    const int none = -(1 << 20);
+    float far = float(uMaxRadius + 1);
+    int value[SEGMENT];   // the texels' values (valueAt)
+    int upRow[SEGMENT];   // per texel the row of the nearest non-canopy texel above (none: not within the scan)
+    int lastRow = none, lastValue = 0;
+    for (int y = y0 - uMaxRadius; y < y0 + SEGMENT; ++y) {
+        int v = valueAt(ivec2(x, y));
+        if (y >= y0) {
+            value[y - y0] = v;
+            upRow[y - y0] = lastRow == none ? none : (lastValue == 0 ? lastRow : -1 - lastRow);
+        }
+        if (v <= 0) {
+            lastRow = y;
+            lastValue = v;
+        }
+    }
+    lastRow = none;
+    for (int y = y0 + SEGMENT - 1 + uMaxRadius; y >= y0; --y) {
+        int v = y < y0 + SEGMENT ? value[y - y0] : valueAt(ivec2(x, y));
+        if (y < y0 + SEGMENT) {
+            float zero = far, unknown = far;
+            if (v < 0) {
+                zero = -1.0;
+            } else if (v == 0) {
+                zero = 0.0;
+            } else {
+                // The events either way within uMaxRadius: distance and whether outside (true) or unknown.
+                int u = upRow[y - y0];
+                bool upSeen = u != none && (u >= 0 ? y - u : y - (-1 - u)) <= uMaxRadius;
+                float du = upSeen ? float(u >= 0 ? y - u : y - (-1 - u)) : far;
+                bool upZero = upSeen && u >= 0;
+                bool downSeen = lastRow != none && lastRow - y <= uMaxRadius;
+                float dd = downSeen ? float(lastRow - y) : far;
+                bool downZero = downSeen && lastValue == 0;
+                zero = min(upZero ? du : far, downZero ? dd : far);
+                // As a walk outward r = 1, 2, ... (up, then down) that stops at the first outside texel: an unknown
+                // one counts where it comes before it (up: not after; down: before).
+                if (upSeen && !upZero && du <= (downZero ? dd : far)) unknown = min(unknown, du);
+                if (downSeen && !downZero && dd < (upZero ? du : far)) unknown = min(unknown, dd);
+            }
+            imageStore(uColumn, stored(ivec2(x, y)), vec4(zero, unknown, 0.0, 0.0));
+        }
+        if (v <= 0) {
+            lastRow = y;
+            lastValue = v;
+        }
+    }
+#else
+    if (t.x >= n || t.y >= n) return;
     // The level texel stored at t: the one of the window congruent to t modulo N.
     ivec2 q = uWindow0 + clipTexelOf(t - gWindow0Mod + n);
-    if (uPass == 0) {
-        // Along the column: the nearest texel outside the canopy up or down (0 on one), and the nearest unknown one
-        // met before it (farther unknowns cannot come nearer than that outside texel), both clamped past uMaxRadius.
-        int v = valueAt(q);
-        float zero = float(uMaxRadius + 1), unknown = float(uMaxRadius + 1);
-        if (v < 0) {
-            zero = -1.0;
-        } else if (v == 0) {
-            zero = 0.0;
-        } else {
-            bool up = true, down = true;
-            for (int r = 1; r <= uMaxRadius && (up || down); ++r) {
-                for (int side = 0; side < 2; ++side) {
-                    if (side == 0 ? !up : !down) continue;
-                    int w = valueAt(q + ivec2(0, side == 0 ? -r : r));
-                    if (w < 0) {
-                        unknown = min(unknown, float(r));
-                        if (side == 0) up = false; else down = false;
-                    } else if (w == 0) {
-                        zero = min(zero, float(r));
-                        up = false;
-                        down = false;
-                    }
-                }
-            }
-        }
-        imageStore(uColumn, t, vec4(zero, unknown, 0.0, 0.0));
-        return;
-    }
     if (uPass == 1) {
         // Along the row, over the columns' nearest outside texels (a separable Euclidean distance transform, exact
         // within uMaxRadius): d² = min over dx of dx² + column(x + dx)²; unknown if an unknown texel lies nearer
@@ -125,6 +162,16 @@ void main() {
     float d = imageLoad(uDistance, t).r;
     float radius = max(0.5, d - 0.5); // the edge lies half a texel before the nearest outside texel's centre
     if (d <= 0.0 || radius < uMinRadius) return;
+    // A maximum of its 3 × 3 neighbours first (the same conditions as the window's, which holds them): most canopy
+    // texels lie on a slope and stop here with 8 reads; the window's loop then runs only for the few that remain.
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+            if (dx == 0 && dy == 0) continue;
+            float w = distanceAt(q + ivec2(dx, dy));
+            if (w < 0.0) return;
+            bool before = dy < 0 || (dy == 0 && dx < 0);
+            if (w > d || (before && w == d)) return;
+        }
     int s = max(1, int(ceil(0.75 * d)));
     for (int dy = -s; dy <= s; ++dy)
         for (int dx = -s; dx <= s; ++dx) {
@@ -138,4 +185,5 @@ void main() {
     if (int(i) >= uCapacity) return;
     float scale = exp2(float(uLevel));
     trunks[i] = vec4((vec2(q) + 0.5) * scale, radius * scale, float(valueAt(q)));
+#endif
 }
