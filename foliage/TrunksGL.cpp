@@ -12,7 +12,8 @@
 namespace seasonview {
 
 namespace {
-constexpr int kVerticesPerTrunk = 8 * 6; // trunk.vert: 8 sides, two triangles each
+constexpr int kVerticesPerTrunk = 2 * (8 + 1); // trunk.vert: a strip round 8 sides, two triangles each
+constexpr int kTrianglesPerTrunk = 2 * 8;
 constexpr GLintptr kHeader = 16;         // DrawArraysIndirectCommand before the trunks
 } // namespace
 
@@ -134,11 +135,11 @@ GeometryFrameStats TrunksGL::draw(const Camera& camera, const ClipmapTerrainRend
     // buffer's DrawArraysIndirectCommand instead, this stage held the CPU for 6.4 of the canopy view's 12 ms on the
     // NVIDIA H100 (`bench --stages issue`: the GPU's whole frame so far; 0.08 ms when the GPU had finished before it),
     // and the indirect draw was its one draw.
-    glDrawArraysInstanced(GL_TRIANGLES, 0, kVerticesPerTrunk, m_count);
+    glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, kVerticesPerTrunk, m_count);
     glBindVertexArray(0);
     GeometryFrameStats st;
     st.drawCalls = 1;
-    st.triangles = std::int64_t(m_count) * (kVerticesPerTrunk / 3);
+    st.triangles = std::int64_t(m_count) * kTrianglesPerTrunk;
     return st;
 }
 
