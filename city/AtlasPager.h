@@ -95,6 +95,7 @@ public:
     Frame complete(const std::vector<BlockRequest>& requests);
 
     bool resident(const BlockKey& key) const { return m_resident.count(key) != 0; }
+    std::uint64_t capacityBytes() const { return m_settings.capacityBytes; }
     const PagerStats& stats() const { return m_stats; }
     /// GPU bytes of a block once uploaded.
     std::uint64_t blockBytes(const BlockKey& key) const;

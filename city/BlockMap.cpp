@@ -666,7 +666,8 @@ BlockMapPacked packBlockMap(const BlockMap& map) {
 
 std::uint64_t BlockMapRecord::gpuBytes() const {
     const auto n = std::uint64_t(size), c = std::uint64_t(columns);
-    return n * n * (4 + 4) + c * std::uint64_t(1 + wallSpan(wallTexels)) * 4;
+    const std::size_t words = std::size_t(c) * std::size_t(1 + wallSpan(wallTexels));
+    return n * n * (4 + 4) + std::uint64_t(blockMapPages(words)) * kBlockMapPageWords * 4;
 }
 
 namespace {

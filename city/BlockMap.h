@@ -161,6 +161,14 @@ struct BlockMapPacked {
 };
 BlockMapPacked packBlockMap(const BlockMap& map);
 
+/// BlockMapPoolGL keeps each map's words in pages of this many (shaders/blockmap.frag, BM_PAGE_BITS), wherever pages
+/// are free; the first starts with the map's page table, one word per page.
+constexpr std::size_t kBlockMapPageWords = 1024;
+/// Pages a map of `words` words takes, its page table included.
+constexpr std::size_t blockMapPages(std::size_t words) {
+    return words == 0 ? 0 : (words + kBlockMapPageWords - 2) / (kBlockMapPageWords - 1);
+}
+
 /// Reads every map of a file (BlockMapFile::open, then read() of each).
 Result<std::vector<BlockMap>> readBlockMaps(const std::filesystem::path& path);
 
@@ -172,7 +180,7 @@ struct BlockMapRecord {
     std::uint64_t offset = 0, bytes = 0; // the record (header, data, CRC) in the file
     double side() const { return double(size) * texel; }
     /// Bytes of the map once uploaded (BlockMapPoolGL: height, distance, roof normal and column per texel, each
-    /// wall column's normal and colours with their halved levels).
+    /// wall column's normal and colours with their halved levels, in whole pages with their page table).
     std::uint64_t gpuBytes() const;
 };
 

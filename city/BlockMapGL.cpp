@@ -6,14 +6,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <string>
 
 namespace seasonview::city {
 
 namespace {
 
-// Tiles per side of a layer: a layer of up to 1024² texels (16² maps of the usual 64²).
-int tilesPerSide(int n) { return std::clamp(1024 / std::max(n, 1), 1, 16); }
+// Tiles per side of a layer: a layer of up to 256² texels (4² maps of the usual 64², 512 KiB): the room a partly
+// used last layer leaves is small next to a city's capacity; the GL's 2048 layers at least hold 32,768 such maps.
+int tilesPerSide(int n) { return std::clamp(256 / std::max(n, 1), 1, 16); }
 
 gl::Texture arrayTexture(GLenum internalFormat, int side, int layers) {
     gl::Texture t = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
@@ -39,6 +41,10 @@ Result<gl::ShaderProgram> BlockMapPoolGL::buildProgram(bool roofImagery, bool fr
     std::vector<std::string> defines;
     if (roofImagery) defines.push_back("ROOF_IMAGERY");
     if (frontFaces) defines.push_back("FRONT_FACES");
+    static_assert((kBlockMapPageWords & (kBlockMapPageWords - 1)) == 0, "pages of a power of two words");
+    int bits = 0;
+    while ((std::size_t(1) << bits) < kBlockMapPageWords) ++bits;
+    defines.push_back("BM_PAGE_BITS " + std::to_string(bits));
     return gl::ShaderProgram::build("blockmap.vert", "blockmap.frag", defines);
 }
 
@@ -60,36 +66,133 @@ Status BlockMapPoolGL::growLayers(int layers) {
         glCopyImageSubData(m_columns.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, columns.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0,
                            0, side, side, m_layers);
     }
+    const int perLayer = m_tilesPerSide * m_tilesPerSide;
+    for (int t = m_layers * perLayer; t < layers * perLayer; ++t) {
+        m_freeTiles.push_back(std::uint32_t(t));
+        std::push_heap(m_freeTiles.begin(), m_freeTiles.end(), std::greater<>());
+    }
     m_texels = std::move(texels);
     m_columns = std::move(columns);
     m_layers = layers;
     return Ok{};
 }
 
-Status BlockMapPoolGL::repackWords(std::size_t capacity) {
+Status BlockMapPoolGL::shrinkLayers(int layers) {
+    const int perLayer = m_tilesPerSide * m_tilesPerSide, end = layers * perLayer;
+    // The live tiles at or past the new end moved to the lowest free ones below it (there are enough: the live maps
+    // fit `layers`), within the same arrays.
+    for (Slot& s : m_slots) {
+        if (!s.live || s.tile < end) continue;
+        std::pop_heap(m_freeTiles.begin(), m_freeTiles.end(), std::greater<>());
+        const int to = int(m_freeTiles.back());
+        m_freeTiles.pop_back();
+        const glm::ivec3 a = tileAt(s.tile), b = tileAt(to);
+        for (const gl::Texture* t : {&m_texels, &m_columns})
+            glCopyImageSubData(t->id(), GL_TEXTURE_2D_ARRAY, 0, a.x, a.y, a.z, t->id(), GL_TEXTURE_2D_ARRAY, 0, b.x, b.y,
+                               b.z, m_size, m_size, 1);
+        s.tile = to;
+    }
+    const int side = m_tilesPerSide * m_size;
+    gl::Texture texels = arrayTexture(GL_RGBA8UI, side, layers), columns = arrayTexture(GL_R32UI, side, layers);
+    glCopyImageSubData(m_texels.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, texels.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0,
+                       side, side, layers);
+    glCopyImageSubData(m_columns.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, columns.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0,
+                       side, side, layers);
+    m_texels = std::move(texels);
+    m_columns = std::move(columns);
+    m_layers = layers;
+    m_freeTiles.clear();
+    std::vector<bool> used(std::size_t(end), false);
+    for (const Slot& s : m_slots)
+        if (s.live) used[std::size_t(s.tile)] = true;
+    for (int t = 0; t < end; ++t)
+        if (!used[std::size_t(t)]) m_freeTiles.push_back(std::uint32_t(t));
+    std::make_heap(m_freeTiles.begin(), m_freeTiles.end(), std::greater<>());
+    return Ok{};
+}
+
+Status BlockMapPoolGL::resizePages(std::size_t pages) {
     GLint maxTexels = 0;
     glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &maxTexels);
-    if (capacity > std::size_t(maxTexels))
-        return Error{"BlockMaps: " + std::to_string(capacity) + " words of walls resident at once do not fit this GL's " +
-                     std::to_string(maxTexels) + "-texel texture buffers"};
-    // The live maps' words copied one after another to the new buffer's start: no free range left between them.
+    if (pages * kBlockMapPageWords > std::size_t(maxTexels))
+        return Error{"BlockMaps: " + std::to_string(pages * kBlockMapPageWords) +
+                     " words of walls resident at once do not fit this GL's " + std::to_string(maxTexels) +
+                     "-texel texture buffers"};
     gl::Buffer buffer = gl::Buffer::create();
-    glNamedBufferData(buffer.id(), GLsizeiptr(std::max<std::size_t>(capacity, 1) * 4), nullptr, GL_DYNAMIC_DRAW);
-    RangeAllocator ranges(capacity);
-    for (Slot& s : m_slots) {
-        if (!s.live || s.wordCount == 0) continue;
-        const std::size_t to = *ranges.allocate(s.wordCount); // they fit: capacity >= the words in use
-        glCopyNamedBufferSubData(m_wordBuffer.id(), buffer.id(), GLintptr(s.words * 4), GLintptr(to * 4),
-                                 GLsizeiptr(s.wordCount * 4));
-        s.words = to;
-    }
+    const std::size_t pageBytes = kBlockMapPageWords * 4;
+    glNamedBufferData(buffer.id(), GLsizeiptr(std::max<std::size_t>(pages, 1) * pageBytes), nullptr, GL_DYNAMIC_DRAW);
+    const std::size_t kept = std::min(pages, m_pageCapacity);
+    if (kept > 0) glCopyNamedBufferSubData(m_wordBuffer.id(), buffer.id(), 0, 0, GLsizeiptr(kept * pageBytes));
     gl::Texture words = gl::Texture::create(GL_TEXTURE_BUFFER);
     glTextureBuffer(words.id(), GL_R32UI, buffer.id());
     m_wordBuffer = std::move(buffer);
     m_words = std::move(words);
-    m_wordRanges = std::move(ranges);
-    m_wordCapacity = capacity;
+    m_pageCapacity = pages;
+    m_pageOwner.resize(pages);
+    m_freePages.clear();
+    for (std::size_t p = 0; p < pages; ++p)
+        if (m_pageOwner[p].handle < 0) m_freePages.push_back(std::uint32_t(p));
+    std::make_heap(m_freePages.begin(), m_freePages.end(), std::greater<>());
     return Ok{};
+}
+
+std::uint32_t BlockMapPoolGL::takePage(int handle, std::uint32_t index) {
+    std::pop_heap(m_freePages.begin(), m_freePages.end(), std::greater<>());
+    const std::uint32_t p = m_freePages.back();
+    m_freePages.pop_back();
+    m_pageOwner[p] = {handle, index};
+    ++m_usedPages;
+    return p;
+}
+
+void BlockMapPoolGL::movePagesBelow(std::size_t target) {
+    const std::size_t pageBytes = kBlockMapPageWords * 4;
+    for (std::size_t p = target; p < m_pageCapacity; ++p) {
+        const PageOwner o = m_pageOwner[p];
+        if (o.handle < 0) continue;
+        const std::uint32_t to = takePage(o.handle, o.index); // the lowest free page: below target
+        --m_usedPages;                                       // moved, not added
+        glCopyNamedBufferSubData(m_wordBuffer.id(), m_wordBuffer.id(), GLintptr(p * pageBytes),
+                                 GLintptr(std::size_t(to) * pageBytes), GLsizeiptr(pageBytes));
+        m_pageOwner[p] = PageOwner{};
+        Slot& s = m_slots[std::size_t(o.handle)];
+        s.pages[o.index] = to;
+        // The table's entry for this page (in the map's first page, which may be this one, now moved).
+        glNamedBufferSubData(m_wordBuffer.id(), GLintptr((std::size_t(s.pages[0]) * kBlockMapPageWords + o.index) * 4),
+                             4, &to);
+    }
+    // The pages at or past target are all free now: the heap keeps only those below.
+    m_freePages.erase(std::remove_if(m_freePages.begin(), m_freePages.end(),
+                                     [&](std::uint32_t p) { return p >= target; }),
+                      m_freePages.end());
+    std::make_heap(m_freePages.begin(), m_freePages.end(), std::greater<>());
+}
+
+std::uint64_t BlockMapPoolGL::tileBytes(int layers) const {
+    const auto side = std::uint64_t(m_tilesPerSide) * std::uint64_t(m_size);
+    return side * side * 8 * std::uint64_t(layers);
+}
+
+Status BlockMapPoolGL::prepare(std::uint64_t bytes, std::size_t pagesComing, std::size_t mapsComing) {
+    m_byteLimit = bytes;
+    // Layers and pages beyond what the maps need (live and coming) given back once under half of them are in use;
+    // the pages grown once for the frame's maps when its free ones cannot hold them.
+    const int perLayer = m_tilesPerSide * m_tilesPerSide;
+    const int layersNeeded = int((m_live + mapsComing + std::size_t(perLayer) - 1) / std::size_t(perLayer));
+    if (2 * layersNeeded < m_layers)
+        if (auto st = shrinkLayers(std::max(layersNeeded + layersNeeded / 4, 1)); !st) return st;
+    const std::size_t need = m_usedPages + pagesComing;
+    if (need > m_pageCapacity) return growPages(need);
+    return Ok{};
+}
+
+Status BlockMapPoolGL::growPages(std::size_t need) {
+    // To what the maps need, and up to an eighth more (at least kMinPages in all) within the limit.
+    const std::size_t pageBytes = kBlockMapPageWords * 4;
+    const std::uint64_t needed = tileBytes(m_layers) + std::uint64_t(need) * pageBytes;
+    const std::size_t room = m_byteLimit > needed ? std::size_t((m_byteLimit - needed) / pageBytes) : 0;
+    const std::size_t extra = std::min(std::max(need / 8, kMinPages > need ? kMinPages - need : 0), room);
+    return resizePages(need + extra);
 }
 
 Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packed) {
@@ -101,20 +204,22 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
         own = packBlockMap(map);
         packed = &own;
     }
-    // Its words first: a map that does not fit changes nothing.
-    const std::size_t words = packed->words.size();
-    std::size_t first = 0;
-    if (words > 0) {
-        auto r = m_wordRanges.allocate(words);
-        if (!r) {
-            // No free range holds it: the live words repacked into a buffer an eighth larger than they and it need
-            // (the pool's room stays small; each word is copied a few times while the pool grows).
-            const std::size_t need = m_wordRanges.used() + words;
-            if (auto st = repackWords(std::max<std::size_t>(need + need / 8, kMinWords)); !st) return st.error();
-            r = m_wordRanges.allocate(words);
-            if (!r) return Error{"BlockMaps: the wall words' pool did not grow"}; // cannot happen
-        }
-        first = *r;
+    const std::size_t pageBytes = kBlockMapPageWords * 4;
+    // Room within the limit beyond what is needed (saturating).
+    auto spare = [&](std::uint64_t needed) { return m_byteLimit > needed ? m_byteLimit - needed : 0; };
+    // Its pages first: a map that does not fit changes nothing.
+    const std::size_t words = packed->words.size(), pages = blockMapPages(words);
+    if (pages > kBlockMapPageWords) // its page table must fit its first page
+        return Error{"BlockMaps: a map of " + std::to_string(words) + " wall words exceeds the pool's " +
+                     std::to_string(kBlockMapPageWords * (kBlockMapPageWords - 1)) + " a map"};
+    if (m_freePages.size() < pages)
+        if (auto st = growPages(m_usedPages + pages); !st) return st.error();
+    if (m_freeTiles.empty()) {
+        // A layer more, and up to a quarter more within the limit.
+        const std::uint64_t layerBytes = tileBytes(1);
+        const std::uint64_t need = tileBytes(m_layers + 1) + std::uint64_t(m_pageCapacity) * pageBytes;
+        const int extra = int(std::min<std::uint64_t>(std::uint64_t(m_layers / 4), spare(need) / layerBytes));
+        if (auto st = growLayers(m_layers + 1 + extra); !st) return st.error();
     }
     int handle;
     if (!m_freeSlots.empty()) {
@@ -122,13 +227,6 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
         m_freeSlots.pop_back();
     } else {
         handle = int(m_slots.size());
-        const int perLayer = m_tilesPerSide * m_tilesPerSide;
-        if (handle / perLayer >= m_layers) {
-            if (auto st = growLayers(m_layers + std::max(1, m_layers / 4)); !st) {
-                if (words > 0) m_wordRanges.release(first, words);
-                return st.error();
-            }
-        }
         m_slots.emplace_back();
     }
     Slot& s = m_slots[std::size_t(handle)];
@@ -140,8 +238,11 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
     s.wallTexels = map.wallTexels;
     s.span = packed->span;
     s.columns = map.columns();
-    s.words = first;
-    s.wordCount = words;
+    s.pages.clear();
+    for (std::size_t j = 0; j < pages; ++j) s.pages.push_back(takePage(handle, std::uint32_t(j)));
+    std::pop_heap(m_freeTiles.begin(), m_freeTiles.end(), std::greater<>());
+    s.tile = int(m_freeTiles.back());
+    m_freeTiles.pop_back();
     ++m_live;
     const glm::ivec3 tile = tileOf(handle);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
@@ -150,21 +251,38 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
     glTextureSubImage3D(m_columns.id(), 0, tile.x, tile.y, tile.z, m_size, m_size, 1, GL_RED_INTEGER, GL_UNSIGNED_INT,
                         map.column.data());
-    if (words > 0)
-        glNamedBufferSubData(m_wordBuffer.id(), GLintptr(first * 4), GLsizeiptr(words * 4), packed->words.data());
+    if (pages > 0) {
+        // The map's words as the shader reads them: its page table (a word per page), then its words; page by page.
+        std::vector<std::uint32_t> all(pages * kBlockMapPageWords, 0u);
+        std::copy(s.pages.begin(), s.pages.end(), all.begin());
+        std::copy(packed->words.begin(), packed->words.end(), all.begin() + std::ptrdiff_t(pages));
+        for (std::size_t j = 0; j < pages; ++j)
+            glNamedBufferSubData(m_wordBuffer.id(), GLintptr(std::size_t(s.pages[j]) * pageBytes), GLsizeiptr(pageBytes),
+                                 all.data() + j * kBlockMapPageWords);
+    }
     return handle;
 }
 
 void BlockMapPoolGL::remove(int handle) {
     if (handle < 0 || std::size_t(handle) >= m_slots.size() || !m_slots[std::size_t(handle)].live) return;
     Slot& s = m_slots[std::size_t(handle)];
-    if (s.wordCount > 0) m_wordRanges.release(s.words, s.wordCount);
+    for (const std::uint32_t p : s.pages) {
+        m_pageOwner[p] = PageOwner{};
+        m_freePages.push_back(p);
+        std::push_heap(m_freePages.begin(), m_freePages.end(), std::greater<>());
+        --m_usedPages;
+    }
+    m_freeTiles.push_back(std::uint32_t(s.tile));
+    std::push_heap(m_freeTiles.begin(), m_freeTiles.end(), std::greater<>());
     s = Slot{};
     m_freeSlots.push_back(handle);
     --m_live;
-    // Mostly free (maps evicted): repacked into less, as add() sizes it.
-    const std::size_t used = m_wordRanges.used(), fit = std::max<std::size_t>(used + used / 8, kMinWords);
-    if (used < m_wordCapacity / 2 && fit < m_wordCapacity) (void)repackWords(fit); // smaller: cannot fail
+    // Mostly free (maps evicted): the pages in use moved below an eighth more than they, the buffer remade that size.
+    const std::size_t fit = std::max(m_usedPages + m_usedPages / 8, kMinPages);
+    if (m_usedPages < m_pageCapacity / 2 && fit < m_pageCapacity) {
+        movePagesBelow(fit);
+        (void)resizePages(fit); // smaller: cannot fail
+    }
 }
 
 glm::dvec3 BlockMapPoolGL::boxMin(int handle) const {
@@ -182,14 +300,20 @@ bool BlockMapPoolGL::needsBackFaces(int handle, const glm::dvec3& eye, double ma
     return eye.x >= lo.x && eye.x <= hi.x && eye.y >= lo.y && eye.y <= hi.y && eye.z >= lo.z && eye.z <= hi.z;
 }
 
-glm::ivec3 BlockMapPoolGL::tileOf(int handle) const {
-    const int perLayer = m_tilesPerSide * m_tilesPerSide, t = handle % perLayer;
-    return {(t % m_tilesPerSide) * m_size, (t / m_tilesPerSide) * m_size, handle / perLayer};
+glm::ivec3 BlockMapPoolGL::tileAt(int tile) const {
+    const int perLayer = m_tilesPerSide * m_tilesPerSide, t = tile % perLayer;
+    return {(t % m_tilesPerSide) * m_size, (t / m_tilesPerSide) * m_size, tile / perLayer};
 }
 
+glm::ivec3 BlockMapPoolGL::tileOf(int handle) const { return tileAt(m_slots[std::size_t(handle)].tile); }
+
 std::uint64_t BlockMapPoolGL::allocatedBytes() const {
-    const auto side = std::uint64_t(m_tilesPerSide) * std::uint64_t(m_size);
-    return side * side * 8 * std::uint64_t(m_layers) + std::uint64_t(m_wordCapacity) * 4;
+    return tileBytes(m_layers) + std::uint64_t(m_pageCapacity) * kBlockMapPageWords * 4;
+}
+
+std::uint64_t BlockMapPoolGL::usedBytes() const {
+    const auto n = std::uint64_t(m_size);
+    return n * n * 8 * std::uint64_t(m_live) + std::uint64_t(m_usedPages) * kBlockMapPageWords * 4;
 }
 
 void BlockMapPoolGL::setInstances(const std::vector<Instance>& instances) {
@@ -201,8 +325,8 @@ void BlockMapPoolGL::setInstances(const std::vector<Instance>& instances) {
         Record& r = records[i];
         r = Record{{float(s.origin.x), float(s.origin.y), float(s.texel), float(s.zBase)},
                    {float(s.zTop), 0.0f, 0.0f, 0.0f},
-                   {tile.x, tile.y, tile.z, std::int32_t(s.words)},
-                   {s.wallTexels, s.span, s.columns, 0},
+                   {tile.x, tile.y, tile.z, std::int32_t(s.pages.size())},
+                   {s.wallTexels, s.span, s.columns, s.pages.empty() ? 0 : std::int32_t(s.pages[0])},
                    {instances[i].sourceColour.r, instances[i].sourceColour.g, instances[i].sourceColour.b,
                     instances[i].sourceColour.a}};
     }

@@ -6,13 +6,15 @@
 // BlockMapPoolGL holds every resident map of a city in shared storage, so that any set of them is one instanced draw
 // (§4: the paper's renderer draws a frame's BlockMaps as one batch of boxes): per texel its height, distance and roof
 // normal in one RGBA8UI array texture and its wall column in an R32UI one, both of tiles n × n texels, a map per tile;
-// the wall columns' normals and colours as 32-bit words in one texture buffer, a range per map. A draw's maps are
-// instances whose records (box, tile, wall range) come from a storage buffer. The storage follows the maps resident:
-// layers are added a quarter at a time; the words' buffer, when no free range holds a map, is remade an eighth larger
-// than the words in use with them packed at its start, and remade smaller once less than half of it is in use.
+// the wall columns' normals and colours as 32-bit words in one texture buffer, in pages of kBlockMapPageWords taken
+// wherever they are free (the map's first page starts with its page table), so maps come and go with no room lost
+// between them and nothing moved. A draw's maps are instances whose records (box, tile, first page) come from a
+// storage buffer. The storage follows the maps resident: layers and pages are added when none is free, up to a
+// quarter (layers) or an eighth (pages) more than needed but never past setByteLimit() (the city's capacity less what
+// else it holds); once less than half of them are in use, the live tiles or pages move below a new end and the
+// arrays or buffer are remade that size (copied on the GPU; page tables follow).
 #include "BlockMap.h"
 #include "Camera.h"
-#include "RangeAllocator.h"
 #include "gl/GlObjects.h"
 #include "gl/RenderTarget.h"
 #include "gl/ShaderProgram.h"
@@ -51,6 +53,16 @@ public:
     glm::dvec3 boxMax(int handle) const;
     /// GPU bytes the pool has allocated.
     std::uint64_t allocatedBytes() const;
+    /// GPU bytes its maps take (each map's BlockMapRecord::gpuBytes(): tile and whole pages); the rest of
+    /// allocatedBytes() is free room.
+    std::uint64_t usedBytes() const;
+    /// The most the pool may allocate when it grows (the city's capacity less what else it holds): room beyond
+    /// what the maps need is added only within it. It never holds less than its maps need.
+    void setByteLimit(std::uint64_t bytes) { m_byteLimit = bytes; }
+    /// Before a frame's `mapsComing` maps of `pagesComing` pages are added: setByteLimit(bytes); the tiles' layers
+    /// made fewer when the live and coming maps need under half of them (the live tiles moved below first); the
+    /// words' buffer grown once (as add() grows it) when the pages coming do not fit its free ones.
+    Status prepare(std::uint64_t bytes, std::size_t pagesComing, std::size_t mapsComing);
 
     struct Instance {
         int handle = 0;
@@ -77,22 +89,41 @@ private:
         glm::dvec2 origin{0.0};
         double texel = 1.0, zBase = 0.0, zTop = 1.0;
         int wallTexels = 1, span = 1, columns = 0;
-        std::size_t words = 0, wordCount = 0; // its range in the words buffer
+        std::vector<std::uint32_t> pages; // its pages in the words buffer, in order (the first holds the table)
+        int tile = 0;                     // its tile in the arrays (tileAt)
     };
-    static constexpr std::size_t kMinWords = 1 << 16;
-    /// Map `handle`'s tile: its first texel's x and y in the arrays, and its layer.
+    static constexpr std::size_t kMinPages = 64;
+    /// Tile `tile`'s first texel's x and y in the arrays, and its layer; map `handle`'s.
+    glm::ivec3 tileAt(int tile) const;
     glm::ivec3 tileOf(int handle) const;
     Status growLayers(int layers);
-    /// The words' buffer made `capacity` words (>= those in use), the live maps' words packed at its start.
-    Status repackWords(std::size_t capacity);
+    /// The arrays made `layers` layers, the live tiles past them moved into free ones below first.
+    Status shrinkLayers(int layers);
+    /// The words' buffer made at least `need` pages (growing: see add()).
+    Status growPages(std::size_t need);
+    /// The words' buffer made `pages` pages, its first ones kept (every page in use lies below `pages`).
+    Status resizePages(std::size_t pages);
+    /// Moves the pages in use at or past `target` to free pages below it (there are enough), updating their maps'
+    /// page tables.
+    void movePagesBelow(std::size_t target);
+    /// The lowest free page, taken.
+    std::uint32_t takePage(int handle, std::uint32_t index);
+    std::uint64_t tileBytes(int layers) const;
 
     int m_size = 0;
     int m_tilesPerSide = 1, m_layers = 0;
     gl::Texture m_texels, m_columns;     // 2D arrays of (tilesPerSide · n)² per layer
     gl::Buffer m_wordBuffer;
     gl::Texture m_words;                 // R32UI texture buffer over m_wordBuffer
-    std::size_t m_wordCapacity = 0;
-    RangeAllocator m_wordRanges;
+    std::size_t m_pageCapacity = 0, m_usedPages = 0;
+    struct PageOwner {
+        int handle = -1;         // -1: free
+        std::uint32_t index = 0; // which of its map's pages
+    };
+    std::vector<PageOwner> m_pageOwner;      // per page of the buffer
+    std::vector<std::uint32_t> m_freePages;  // a min-heap: the lowest taken first, so that the top ones empty
+    std::vector<std::uint32_t> m_freeTiles;  // the same for the tiles of the arrays' layers
+    std::uint64_t m_byteLimit = ~std::uint64_t(0);
     std::vector<Slot> m_slots;
     std::vector<int> m_freeSlots;
     std::size_t m_live = 0;

@@ -467,6 +467,28 @@ void CityRendererGL::apply(int tree, AtlasPager::Frame&& frame) {
             if (it->second.parts.empty()) m_partialTextures.erase(it);
         }
     }
+    if (m_bmPool && tree == 0 && !m_pagers.empty()) {
+        // The maps' pool grows its free room only within the capacity of their pager (the first tree's) less what
+        // else the city holds there once this frame's other blocks are up (the first tree's atlases, every original
+        // texture); the pager counts the maps alone (each in whole pages).
+        std::uint64_t others = 0;
+        std::size_t pagesComing = 0, mapsComing = 0;
+        if (!m_atlases.empty())
+            for (const auto& [node, tex] : m_atlases[0]) others += m_pagers[0]->blockBytes({BlockKey::Kind::Atlas, node});
+        for (const auto& [i, tex] : m_textures) others += m_pagers[0]->textureBytes(i);
+        for (const auto& [i, p] : m_partialTextures) others += m_pagers[0]->textureBytes(i);
+        for (const auto& b : frame.upload) {
+            if (b.key.kind != BlockKey::Kind::BlockMap) others += b.bytes;
+            else if (b.blockMapPacked) {
+                pagesComing += blockMapPages(b.blockMapPacked->words.size());
+                ++mapsComing;
+            }
+        }
+        const std::uint64_t capacity = m_pagers[0]->capacityBytes();
+        if (auto st = m_bmPool->prepare(capacity > others ? capacity - others : 0, pagesComing, mapsComing);
+            !st && m_uploadError.empty())
+            m_uploadError = m_bmFile->path().string() + ": " + st.message();
+    }
     for (const auto& b : frame.upload) {
         if (b.key.kind == BlockKey::Kind::BlockMap) {
             auto g = b.blockMap ? m_bmPool->add(*b.blockMap, b.blockMapPacked.get()) : Result<int>(Error{"no map"});

@@ -30,8 +30,12 @@ uniform usampler2DArray uBmTexels;
 uniform usampler2DArray uBmColumn; // 1 + a boundary texel's wall column
 // A map's words from its first: its columns' outward normals ((n + 1) / 2, RGB8), then each column's colours (RGBA8,
 // span words): its wallTexels colours (the foot's first), then the same halved again and again down to one (level l
-// has (W_{l-1} + 1) / 2, 2×1 box means), for filtering.
+// has (W_{l-1} + 1) / 2, 2×1 box means), for filtering. They lie in pages of 2^BM_PAGE_BITS words anywhere in the
+// buffer (city/BlockMapGL.h): the map's first page starts with its page table, a word per page, then its words.
 uniform usamplerBuffer uBmWords;
+#ifndef BM_PAGE_BITS // log2 of city/BlockMap.h's kBlockMapPageWords (BlockMapPoolGL::buildProgram)
+#error "blockmap.frag: BM_PAGE_BITS must be defined"
+#endif
 uniform float uPixelAngle;      // radians per pixel at the centre of the screen (1 / focal length in pixels)
 uniform vec3 uEye;              // local metres
 uniform mat4 uViewProj;
@@ -48,7 +52,15 @@ out vec4 fragColor;
 vec2 bmOrigin;
 float bmMetres, bmZBase, bmZTop; // metres per texel, the height range
 ivec3 bmTile;
-int bmFirstWord, bmWallTexels, bmSpan, bmColumns;
+int bmFirstWord, bmWallTexels, bmSpan, bmColumns; // bmFirstWord: the words' first after the page table
+int bmFirstPage;
+
+// Word w of the map (counted from its page table's first): its page through the table, in the first page.
+uint bmWord(int w) {
+    int page = w >> BM_PAGE_BITS;
+    int at = page == 0 ? bmFirstPage : int(texelFetch(uBmWords, (bmFirstPage << BM_PAGE_BITS) + page).r);
+    return texelFetch(uBmWords, (at << BM_PAGE_BITS) + (w & ((1 << BM_PAGE_BITS) - 1))).r;
+}
 
 uvec4 bmTexelAt(ivec2 c) { return texelFetch(uBmTexels, ivec3(bmTile.xy + c, bmTile.z), 0); }
 
@@ -64,8 +76,7 @@ vec4 bmWallAt(int column, float v, int level) {
     float x = clamp(v * float(size) - 0.5, 0.0, float(size - 1));
     int j0 = int(floor(x)), j1 = min(j0 + 1, size - 1);
     int base = bmFirstWord + bmColumns + column * bmSpan + offset;
-    return mix(unpackUnorm4x8(texelFetch(uBmWords, base + j0).r), unpackUnorm4x8(texelFetch(uBmWords, base + j1).r),
-               x - float(j0));
+    return mix(unpackUnorm4x8(bmWord(base + j0)), unpackUnorm4x8(bmWord(base + j1)), x - float(j0));
 }
 
 // The roof's normal over texel `c`.
@@ -116,6 +127,7 @@ void main() {
     bmWallTexels = m.wall.x;
     bmSpan = m.wall.y;
     bmColumns = m.wall.z;
+    bmFirstPage = m.wall.w;
     vec3 o = vec3(uEye.xy - bmOrigin, uEye.z);
     vec3 d = vWorld - uEye;
     // No component exactly 0 (the slabs divide by them); a nudge far below a texel.
@@ -211,7 +223,7 @@ void main() {
         float lod = log2(max(1.0, float(bmWallTexels) / max(top - bmZBase, 1e-3) * metresPerPixel));
         int l0 = int(floor(lod));
         vec4 w = mix(bmWallAt(column, v, l0), bmWallAt(column, v, l0 + 1), fract(lod));
-        vec3 n = unpackUnorm4x8(texelFetch(uBmWords, bmFirstWord + column).r).xyz * 2.0 - 1.0;
+        vec3 n = unpackUnorm4x8(bmWord(bmFirstWord + column)).xyz * 2.0 - 1.0;
         wallShare = w.a;
         wall = w.rgb * (0.62 + 0.38 * abs(dot(n, uSunDir))); // as city_building.frag lights faces
         if (wallShare >= 0.5) faceNormal = n;

@@ -246,11 +246,31 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
         ASSERT_TRUE(h) << h.message();
         handles.push_back(*h);
     }
-    EXPECT_GT(pool.allocatedBytes(), 2 * std::uint64_t(16 * 32) * (16 * 32) * 8) << "more than one layer";
+    const std::uint64_t layer = std::uint64_t(256) * 256 * 8; // 8 × 8 maps of 32² texels
+    EXPECT_GT(pool.allocatedBytes(), 2 * layer) << "more than one layer";
+    // The maps' words span pages (a page table in use), and the pool's use is what the pager counts for them.
+    const std::size_t wordsA = packBlockMap(a).words.size(), wordsB = packBlockMap(b).words.size();
+    ASSERT_GT(wordsA, kBlockMapPageWords) << "the test needs maps of several pages";
+    auto counted = [&](int i) {
+        return std::uint64_t(a.size) * std::uint64_t(a.size) * 8 +
+               std::uint64_t(blockMapPages(i % 3 == 0 ? wordsB : wordsA)) * kBlockMapPageWords * 4;
+    };
+    std::uint64_t sum = 0;
+    for (int i = 0; i < 300; ++i) sum += counted(i);
+    EXPECT_EQ(pool.usedBytes(), sum);
+    EXPECT_LE(pool.usedBytes(), pool.allocatedBytes());
+    // Maps replaced by others of the same sizes take the pages freed, wherever they lie: nothing grows.
     const std::uint64_t full = pool.allocatedBytes();
+    for (int i = 0; i < 30; i += 3) pool.remove(handles[std::size_t(i)]);
+    for (int i = 0; i < 30; i += 3) {
+        auto h = pool.add(copyAt(i));
+        ASSERT_TRUE(h) << h.message();
+        handles[std::size_t(i)] = *h;
+    }
+    EXPECT_EQ(pool.allocatedBytes(), full);
     for (int i = 0; i < 300; i += 2) pool.remove(handles[std::size_t(i)]);
     EXPECT_EQ(pool.maps(), 150u);
-    EXPECT_LT(pool.allocatedBytes(), full) << "half the maps gone: the words repacked into less";
+    EXPECT_LT(pool.allocatedBytes(), full) << "half the maps gone: the pages in use moved down, the buffer smaller";
     for (int i = 0; i < 300; i += 2) { // back, in freed slots and ranges, as other copies
         auto h = pool.add(copyAt((i + 7) % 300));
         ASSERT_TRUE(h) << h.message();
@@ -320,4 +340,50 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
         }
     });
     EXPECT_GT(compare(poolDraw(some, false), own, "the pool's against each map's own"), W * H / 50);
+
+    // Two thirds of the maps gone: the pool gives back what it no longer needs, the live tiles moved into fewer
+    // layers, the pages in use below a new end; the maps draw as before.
+    const std::uint64_t before = pool.allocatedBytes();
+    for (int i = 0; i < 300; ++i)
+        if (i % 3 != 0) pool.remove(handles[std::size_t(i)]);
+    ASSERT_TRUE(pool.prepare(~std::uint64_t(0), 0, 0));
+    EXPECT_LT(pool.allocatedBytes(), before / 2);
+    const std::vector<int> kept = {0, 3, 6, 150, 153, 294, 297};
+    const auto keptOwn = picture([&](gl::RenderTarget& t) {
+        for (int i : kept) {
+            auto g = BlockMapGL::create(shown(i));
+            ASSERT_TRUE(g) << g.message();
+            (*g)->draw(cam, t);
+        }
+    });
+    EXPECT_GT(compare(poolDraw(kept, false), keptOwn, "the pool's after it shrank"), W * H / 50);
+}
+
+TEST(BlockMapGLTest, PoolGrowsWithinItsByteLimit) {
+    ASSERT_TRUE(headlessContext());
+    const BlockMap a = blockMap({0.0, 0.0});
+    const std::uint64_t tile = std::uint64_t(a.size) * std::uint64_t(a.size) * 8,
+                        pages = std::uint64_t(blockMapPages(packBlockMap(a).words.size())) * kBlockMapPageWords * 4,
+                        one = tile + pages;
+    // What the maps need: their pages, and whole layers of 8 × 8 tiles.
+    auto needed = [&](int maps) { return (std::uint64_t(maps) + 63) / 64 * 64 * tile + std::uint64_t(maps) * pages; };
+    // Free room only within the limit, never less than the maps need: the limit of 100 maps, then none.
+    for (const std::uint64_t limit : {100 * one, std::uint64_t(0)}) {
+        BlockMapPoolGL pool(a.size);
+        pool.setByteLimit(limit);
+        std::uint64_t most = 0;
+        for (int i = 0; i < 300; ++i) {
+            auto h = pool.add(a);
+            ASSERT_TRUE(h) << h.message();
+            EXPECT_EQ(pool.usedBytes(), std::uint64_t(i + 1) * one);
+            EXPECT_LE(pool.allocatedBytes(), std::max(limit, needed(i + 1))) << "map " << i << ", limit " << limit;
+            most = std::max(most, pool.allocatedBytes() - pool.usedBytes());
+        }
+        std::printf("limit %llu B: at most %llu B free room (a map %llu B)\n", (unsigned long long)limit,
+                    (unsigned long long)most, (unsigned long long)one);
+    }
+    // With no limit the pool keeps room to grow into (an eighth more pages, a quarter more layers).
+    BlockMapPoolGL free(a.size);
+    for (int i = 0; i < 300; ++i) ASSERT_TRUE(free.add(a));
+    EXPECT_GT(free.allocatedBytes(), free.usedBytes());
 }

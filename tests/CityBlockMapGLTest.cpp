@@ -204,8 +204,8 @@ TEST(CityBlockMapGLTest, SwitchesAtTheDefaultErrorDoNotPop) {
 }
 
 // The pager's capacity with maps and atlases in it: each view's blocks fit, both views' do not; along a walk from one
-// to the other and back, the blocks the pager counts hold at most the capacity, the GL side that and the maps' pool's
-// free room; maps and atlases are
+// to the other and back, the blocks the pager counts hold at most the capacity, and so does the GL side with the maps'
+// pool's free room; maps and atlases are
 // evicted and loaded again, and the first view then draws what it drew at first and what an ample renderer draws.
 TEST(CityBlockMapGLTest, PagerCapacityHoldsWithMapsAndAtlases) {
     ASSERT_TRUE(headlessContext());
@@ -246,6 +246,7 @@ TEST(CityBlockMapGLTest, PagerCapacityHoldsWithMapsAndAtlases) {
     const auto firstA = drawCity(*tight, a, target, st);
     EXPECT_TRUE(firstA == ampleA) << "A with the tight capacity is A";
     std::size_t evicted = 0, standIns = 0;
+    std::uint64_t mostAllocated = 0;
     auto walk = [&](const Camera& from, const Camera& to) {
         for (int i = 1; i <= 12; ++i) {
             const double t = i / 12.0;
@@ -257,17 +258,18 @@ TEST(CityBlockMapGLTest, PagerCapacityHoldsWithMapsAndAtlases) {
             evicted += st.evictedBlocks;
             standIns += std::size_t(st.blockMapsNotResident + st.coarserThanWanted);
             EXPECT_LE(st.residentBytes, cs.capacityBytes) << "frame " << i;
-            // The GL side: what the pager counts, and the maps' pool's free tiles and words (at most as many words
-            // as are in use, and a quarter of the tiles in use and one layer).
+            // The GL side: what the pager counts and the maps' pool's free room, within the capacity too.
             EXPECT_GE(st.allocatedBytes, st.residentBytes) << "frame " << i;
-            EXPECT_LE(st.allocatedBytes - st.residentBytes, st.blockMapPoolBytes / 2 + (8u << 20)) << "frame " << i;
+            EXPECT_LE(st.allocatedBytes, cs.capacityBytes) << "frame " << i;
+            mostAllocated = std::max(mostAllocated, st.allocatedBytes);
         }
     };
     walk(a, b);
     walk(b, a);
     tight->complete(a, kW, kH);
     const auto againA = drawCity(*tight, a, target, st);
-    std::printf("walk: %zu blocks evicted, %zu frames' nodes drawn with a stand-in while theirs loaded\n", evicted, standIns);
+    std::printf("walk: %zu blocks evicted, %zu frames' nodes drawn with a stand-in while theirs loaded; the GL side at "
+                "most %llu bytes\n", evicted, standIns, (unsigned long long)mostAllocated);
     EXPECT_GT(evicted, 10u) << "the walk evicted blocks";
     EXPECT_LE(st.residentBytes, cs.capacityBytes);
     EXPECT_TRUE(againA == firstA) << "A after the walk is A again";
