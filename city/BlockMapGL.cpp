@@ -175,11 +175,12 @@ std::uint64_t BlockMapPoolGL::tileBytes(int layers) const {
 
 Status BlockMapPoolGL::prepare(std::uint64_t bytes, std::size_t pagesComing, std::size_t mapsComing) {
     m_byteLimit = bytes;
-    // Layers and pages beyond what the maps need (live and coming) given back once under half of them are in use;
+    // Layers and pages beyond what the maps need (live and coming) given back once under three quarters of them are
+    // in use;
     // the pages grown once for the frame's maps when its free ones cannot hold them.
     const int perLayer = m_tilesPerSide * m_tilesPerSide;
     const int layersNeeded = int((m_live + mapsComing + std::size_t(perLayer) - 1) / std::size_t(perLayer));
-    if (2 * layersNeeded < m_layers)
+    if (4 * layersNeeded < 3 * m_layers)
         if (auto st = shrinkLayers(std::max(layersNeeded + layersNeeded / 4, 1)); !st) return st;
     const std::size_t need = m_usedPages + pagesComing;
     if (need > m_pageCapacity) return growPages(need);
@@ -277,9 +278,10 @@ void BlockMapPoolGL::remove(int handle) {
     s = Slot{};
     m_freeSlots.push_back(handle);
     --m_live;
-    // Mostly free (maps evicted): the pages in use moved below an eighth more than they, the buffer remade that size.
+    // A quarter free (maps evicted): the pages in use moved below an eighth more than they, the buffer remade that
+    // size.
     const std::size_t fit = std::max(m_usedPages + m_usedPages / 8, kMinPages);
-    if (m_usedPages < m_pageCapacity / 2 && fit < m_pageCapacity) {
+    if (4 * m_usedPages < 3 * m_pageCapacity && fit < m_pageCapacity) {
         movePagesBelow(fit);
         (void)resizePages(fit); // smaller: cannot fail
     }

@@ -11,7 +11,7 @@
 // between them and nothing moved. A draw's maps are instances whose records (box, tile, first page) come from a
 // storage buffer. The storage follows the maps resident: layers and pages are added when none is free, up to a
 // quarter (layers) or an eighth (pages) more than needed but never past setByteLimit() (the city's capacity less what
-// else it holds); once less than half of them are in use, the live tiles or pages move below a new end and the
+// else it holds); once under three quarters of them are in use, the live tiles or pages move below a new end and the
 // arrays or buffer are remade that size (copied on the GPU; page tables follow).
 #include "BlockMap.h"
 #include "Camera.h"
@@ -60,8 +60,8 @@ public:
     /// what the maps need is added only within it. It never holds less than its maps need.
     void setByteLimit(std::uint64_t bytes) { m_byteLimit = bytes; }
     /// Before a frame's `mapsComing` maps of `pagesComing` pages are added: setByteLimit(bytes); the tiles' layers
-    /// made fewer when the live and coming maps need under half of them (the live tiles moved below first); the
-    /// words' buffer grown once (as add() grows it) when the pages coming do not fit its free ones.
+    /// made fewer when the live and coming maps need under three quarters of them (the live tiles moved below
+    /// first); the words' buffer grown once (as add() grows it) when the pages coming do not fit its free ones.
     Status prepare(std::uint64_t bytes, std::size_t pagesComing, std::size_t mapsComing);
 
     struct Instance {
