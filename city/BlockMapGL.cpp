@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <functional>
 #include <string>
 
 namespace seasonview::city {
@@ -67,10 +66,7 @@ Status BlockMapPoolGL::growLayers(int layers) {
                            0, side, side, m_layers);
     }
     const int perLayer = m_tilesPerSide * m_tilesPerSide;
-    for (int t = m_layers * perLayer; t < layers * perLayer; ++t) {
-        m_freeTiles.push_back(std::uint32_t(t));
-        std::push_heap(m_freeTiles.begin(), m_freeTiles.end(), std::greater<>());
-    }
+    m_freeTiles.add(std::uint32_t(m_layers * perLayer), std::uint32_t(layers * perLayer));
     m_texels = std::move(texels);
     m_columns = std::move(columns);
     m_layers = layers;
@@ -83,9 +79,7 @@ Status BlockMapPoolGL::shrinkLayers(int layers) {
     // fit `layers`), within the same arrays.
     for (Slot& s : m_slots) {
         if (!s.live || s.tile < end) continue;
-        std::pop_heap(m_freeTiles.begin(), m_freeTiles.end(), std::greater<>());
-        const int to = int(m_freeTiles.back());
-        m_freeTiles.pop_back();
+        const int to = int(m_freeTiles.take());
         const glm::ivec3 a = tileAt(s.tile), b = tileAt(to);
         for (const gl::Texture* t : {&m_texels, &m_columns})
             glCopyImageSubData(t->id(), GL_TEXTURE_2D_ARRAY, 0, a.x, a.y, a.z, t->id(), GL_TEXTURE_2D_ARRAY, 0, b.x, b.y,
@@ -101,13 +95,7 @@ Status BlockMapPoolGL::shrinkLayers(int layers) {
     m_texels = std::move(texels);
     m_columns = std::move(columns);
     m_layers = layers;
-    m_freeTiles.clear();
-    std::vector<bool> used(std::size_t(end), false);
-    for (const Slot& s : m_slots)
-        if (s.live) used[std::size_t(s.tile)] = true;
-    for (int t = 0; t < end; ++t)
-        if (!used[std::size_t(t)]) m_freeTiles.push_back(std::uint32_t(t));
-    std::make_heap(m_freeTiles.begin(), m_freeTiles.end(), std::greater<>());
+    m_freeTiles.keepBelow(std::uint32_t(end));
     return Ok{};
 }
 
@@ -123,23 +111,19 @@ Status BlockMapPoolGL::resizePages(std::size_t pages) {
     glNamedBufferData(buffer.id(), GLsizeiptr(std::max<std::size_t>(pages, 1) * pageBytes), nullptr, GL_DYNAMIC_DRAW);
     const std::size_t kept = std::min(pages, m_pageCapacity);
     if (kept > 0) glCopyNamedBufferSubData(m_wordBuffer.id(), buffer.id(), 0, 0, GLsizeiptr(kept * pageBytes));
+    if (pages > m_pageCapacity) m_freePages.add(std::uint32_t(m_pageCapacity), std::uint32_t(pages));
+    else m_freePages.keepBelow(std::uint32_t(pages));
     gl::Texture words = gl::Texture::create(GL_TEXTURE_BUFFER);
     glTextureBuffer(words.id(), GL_R32UI, buffer.id());
     m_wordBuffer = std::move(buffer);
     m_words = std::move(words);
     m_pageCapacity = pages;
     m_pageOwner.resize(pages);
-    m_freePages.clear();
-    for (std::size_t p = 0; p < pages; ++p)
-        if (m_pageOwner[p].handle < 0) m_freePages.push_back(std::uint32_t(p));
-    std::make_heap(m_freePages.begin(), m_freePages.end(), std::greater<>());
     return Ok{};
 }
 
 std::uint32_t BlockMapPoolGL::takePage(int handle, std::uint32_t index) {
-    std::pop_heap(m_freePages.begin(), m_freePages.end(), std::greater<>());
-    const std::uint32_t p = m_freePages.back();
-    m_freePages.pop_back();
+    const std::uint32_t p = m_freePages.take();
     m_pageOwner[p] = {handle, index};
     ++m_usedPages;
     return p;
@@ -161,11 +145,6 @@ void BlockMapPoolGL::movePagesBelow(std::size_t target) {
         glNamedBufferSubData(m_wordBuffer.id(), GLintptr((std::size_t(s.pages[0]) * kBlockMapPageWords + o.index) * 4),
                              4, &to);
     }
-    // The pages at or past target are all free now: the heap keeps only those below.
-    m_freePages.erase(std::remove_if(m_freePages.begin(), m_freePages.end(),
-                                     [&](std::uint32_t p) { return p >= target; }),
-                      m_freePages.end());
-    std::make_heap(m_freePages.begin(), m_freePages.end(), std::greater<>());
 }
 
 std::uint64_t BlockMapPoolGL::tileBytes(int layers) const {
@@ -241,9 +220,7 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
     s.columns = map.columns();
     s.pages.clear();
     for (std::size_t j = 0; j < pages; ++j) s.pages.push_back(takePage(handle, std::uint32_t(j)));
-    std::pop_heap(m_freeTiles.begin(), m_freeTiles.end(), std::greater<>());
-    s.tile = int(m_freeTiles.back());
-    m_freeTiles.pop_back();
+    s.tile = int(m_freeTiles.take());
     ++m_live;
     const glm::ivec3 tile = tileOf(handle);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
@@ -269,12 +246,10 @@ void BlockMapPoolGL::remove(int handle) {
     Slot& s = m_slots[std::size_t(handle)];
     for (const std::uint32_t p : s.pages) {
         m_pageOwner[p] = PageOwner{};
-        m_freePages.push_back(p);
-        std::push_heap(m_freePages.begin(), m_freePages.end(), std::greater<>());
+        m_freePages.release(p);
         --m_usedPages;
     }
-    m_freeTiles.push_back(std::uint32_t(s.tile));
-    std::push_heap(m_freeTiles.begin(), m_freeTiles.end(), std::greater<>());
+    m_freeTiles.release(std::uint32_t(s.tile));
     s = Slot{};
     m_freeSlots.push_back(handle);
     --m_live;

@@ -14,6 +14,7 @@
 // else it holds); once under three quarters of them are in use, the live tiles or pages move below a new end and the
 // arrays or buffer are remade that size (copied on the GPU; page tables follow).
 #include "BlockMap.h"
+#include "LowestFree.h"
 #include "Camera.h"
 #include "gl/GlObjects.h"
 #include "gl/RenderTarget.h"
@@ -104,9 +105,9 @@ private:
     /// The words' buffer made `pages` pages, its first ones kept (every page in use lies below `pages`).
     Status resizePages(std::size_t pages);
     /// Moves the pages in use at or past `target` to free pages below it (there are enough), updating their maps'
-    /// page tables.
+    /// page tables; resizePages(target) then cuts the buffer.
     void movePagesBelow(std::size_t target);
-    /// The lowest free page, taken.
+    /// The lowest free page, taken for page `index` of map `handle`.
     std::uint32_t takePage(int handle, std::uint32_t index);
     std::uint64_t tileBytes(int layers) const;
 
@@ -121,8 +122,7 @@ private:
         std::uint32_t index = 0; // which of its map's pages
     };
     std::vector<PageOwner> m_pageOwner;      // per page of the buffer
-    std::vector<std::uint32_t> m_freePages;  // a min-heap: the lowest taken first, so that the top ones empty
-    std::vector<std::uint32_t> m_freeTiles;  // the same for the tiles of the arrays' layers
+    LowestFree m_freePages, m_freeTiles;   // the lowest taken first, so that the top ones empty
     std::uint64_t m_byteLimit = ~std::uint64_t(0);
     std::vector<Slot> m_slots;
     std::vector<int> m_freeSlots;

@@ -330,16 +330,19 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
     std::iota(every.begin(), every.end(), 0);
     const auto batch = poolDraw(every, false);
     EXPECT_GT(compare(batch, poolDraw(every, true), "one draw against a draw per map"), W * H / 8);
-    // Maps in reused slots and ranges against each in a pool of its own.
+    // The maps `which` each drawn from a pool of its own.
+    auto eachOwn = [&](const std::vector<int>& which) {
+        return picture([&](gl::RenderTarget& t) {
+            for (int i : which) {
+                auto g = BlockMapGL::create(shown(i));
+                ASSERT_TRUE(g) << g.message();
+                (*g)->draw(cam, t);
+            }
+        });
+    };
+    // Maps in reused slots and pages against each in a pool of its own.
     const std::vector<int> some = {0, 2, 3, 150, 151, 298, 299};
-    const auto own = picture([&](gl::RenderTarget& t) {
-        for (int i : some) {
-            auto g = BlockMapGL::create(shown(i));
-            ASSERT_TRUE(g) << g.message();
-            (*g)->draw(cam, t);
-        }
-    });
-    EXPECT_GT(compare(poolDraw(some, false), own, "the pool's against each map's own"), W * H / 50);
+    EXPECT_GT(compare(poolDraw(some, false), eachOwn(some), "the pool's against each map's own"), W * H / 50);
 
     // Two thirds of the maps gone: the pool gives back what it no longer needs, the live tiles moved into fewer
     // layers, the pages in use below a new end; the maps draw as before.
@@ -349,14 +352,7 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
     ASSERT_TRUE(pool.prepare(~std::uint64_t(0), 0, 0));
     EXPECT_LT(pool.allocatedBytes(), before / 2);
     const std::vector<int> kept = {0, 3, 6, 150, 153, 294, 297};
-    const auto keptOwn = picture([&](gl::RenderTarget& t) {
-        for (int i : kept) {
-            auto g = BlockMapGL::create(shown(i));
-            ASSERT_TRUE(g) << g.message();
-            (*g)->draw(cam, t);
-        }
-    });
-    EXPECT_GT(compare(poolDraw(kept, false), keptOwn, "the pool's after it shrank"), W * H / 50);
+    EXPECT_GT(compare(poolDraw(kept, false), eachOwn(kept), "the pool's after it shrank"), W * H / 50);
 }
 
 TEST(BlockMapGLTest, PoolGrowsWithinItsByteLimit) {
