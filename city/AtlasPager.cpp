@@ -208,7 +208,7 @@ void AtlasPager::worker() {
     }
 }
 
-bool AtlasPager::evictOne(const std::set<BlockKey>& ideal, Frame& out) {
+bool AtlasPager::evictOne(const std::map<BlockKey, LoadOrder>& ideal, Frame& out) {
     // The least recently requested resident block outside the ideal set, never the root's atlas.
     auto victim = m_resident.end();
     for (auto it = m_resident.begin(); it != m_resident.end(); ++it) {
@@ -258,9 +258,14 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
     // The ideal block set: requests in priority order while they fit the capacity (the root first: it is always
     // Needed and nearest to the front). A split texture is in it with all its parts or not at all: the set never
     // stops between its bands (a partial texture cannot be drawn), and one part that failed to load fails it whole.
-    std::set<BlockKey> ideal;
+    // Each ideal block's place in the order blocks are loaded: the coarser first within a category (its tree level:
+    // §4.6's "parents of needed nodes first", for every block: a coarse atlas or map stands in for all below it, and
+    // stays useful while the eye moves on, where a fine block near the eye may be behind it by the time it is in),
+    // then the request's place in priority order (a split texture's parts share it).
+    std::map<BlockKey, LoadOrder> ideal;
     std::uint64_t idealBytes = 0;
-    for (const auto& r : asked) {
+    for (std::size_t rank = 0; rank < asked.size(); ++rank) {
+        const BlockRequest& r = asked[rank];
         if (r.category == BlockCategory::Unused) break;
         const int parts = r.key.kind == BlockKey::Kind::Texture ? textureParts(r.key.index) : 1;
         const bool failed = std::any_of(m_failed.begin(), m_failed.end(), [&](const BlockKey& k) {
@@ -270,14 +275,17 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
         const std::uint64_t b = parts > 1 ? textureBytes(r.key.index) : blockBytes(r.key);
         if (idealBytes + b > m_settings.capacityBytes) break;
         idealBytes += b;
-        if (parts == 1) ideal.insert(r.key);
+        const LoadOrder order{int(r.category), r.level, rank};
+        if (parts == 1) ideal.emplace(r.key, order);
         else
-            for (int p = 0; p < parts; ++p) ideal.insert(BlockKey{r.key.kind, r.key.index, std::uint16_t(p)});
+            for (int p = 0; p < parts; ++p) ideal.emplace(BlockKey{r.key.kind, r.key.index, std::uint16_t(p)}, order);
     }
     for (const auto& r : requests)
         if (auto it = m_resident.find(r.key); it != m_resident.end()) it->second = m_frame;
 
-    // Finished loads become ready; queued loads that left the ideal set are dropped.
+    // Finished loads become ready; queued loads that left the ideal set are dropped, the others wait in this frame's
+    // load order (the view has changed since they were queued), and so do loaded blocks waiting for the upload budget.
+    const auto inLoadOrder = [&](const BlockKey& a, const BlockKey& b) { return ideal.at(a) < ideal.at(b); };
     {
         std::lock_guard lock(m_mutex);
         for (auto& d : m_done) m_ready.push_back(std::move(d));
@@ -295,9 +303,15 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
                 ++it;
             }
         }
+        std::stable_sort(m_queue.begin(), m_queue.end(), inLoadOrder);
     }
+    std::stable_sort(m_ready.begin(), m_ready.end(), [&](const LoadedBlock& a, const LoadedBlock& b) {
+        const auto ia = ideal.find(a.key), ib = ideal.find(b.key); // one that left the ideal set: last (dropped)
+        if (ia == ideal.end() || ib == ideal.end()) return ib == ideal.end() && ia != ideal.end();
+        return ia->second < ib->second;
+    });
 
-    // Requests of this frame: missing ideal blocks in priority order, room made by evicting resident blocks outside
+    // Requests of this frame: missing ideal blocks in load order, room made by evicting resident blocks outside
     // the ideal set (least recently requested first), never the root. A split texture costs its whole bytes with its
     // first part held (the GL side allocates it whole then) and nothing more with the others; it is evicted with all
     // its resident parts at once (only then is its allocation freed).
@@ -307,10 +321,24 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
     };
     std::uint64_t used = usedBytes();
     std::size_t inFlight = m_reserved.size() - m_ready.size();
-    std::size_t missing = 0;
-    for (const auto& r : requests) {
-        if (!ideal.count(r.key) || m_resident.count(r.key) || m_reserved.count(r.key)) continue;
-        ++missing;
+    std::vector<const BlockRequest*> missingBlocks;
+    for (const auto& r : requests)
+        if (ideal.count(r.key) && !m_resident.count(r.key) && !m_reserved.count(r.key)) missingBlocks.push_back(&r);
+    std::stable_sort(missingBlocks.begin(), missingBlocks.end(),
+                     [&](const BlockRequest* a, const BlockRequest* b) { return ideal.at(a->key) < ideal.at(b->key); });
+    const std::size_t missing = missingBlocks.size();
+    for (const BlockRequest* next : missingBlocks) {
+        const BlockRequest& r = *next;
+        if (int(inFlight) >= m_settings.queueLength && m_settings.threaded) {
+            // The loader's queue is full: the last queued block (load order, not yet loading), if it comes after
+            // this one, gives it its place.
+            std::lock_guard lock(m_mutex);
+            if (m_queue.empty() || ideal.at(m_queue.back()) <= ideal.at(r.key)) continue;
+            m_reserved.erase(m_queue.back());
+            m_queue.pop_back();
+            --inFlight;
+            used = usedBytes();
+        }
         if (int(inFlight) >= m_settings.queueLength) continue;
         const std::uint64_t b = !split(r.key) ? blockBytes(r.key)
                                 : anyPart(m_resident, r.key.index) || anyPart(m_reserved, r.key.index) ? 0
@@ -321,8 +349,8 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
         m_reserved[r.key] = blockBytes(r.key);
         ++inFlight;
         if (m_settings.threaded) {
-            std::lock_guard lock(m_mutex);
-            m_queue.push_back(r.key);
+            std::lock_guard lock(m_mutex); // in load order, after the blocks that share its place
+            m_queue.insert(std::upper_bound(m_queue.begin(), m_queue.end(), r.key, inLoadOrder), r.key);
         } else {
             auto loaded = load(r.key);
             if (loaded) m_ready.push_back(std::move(*loaded));

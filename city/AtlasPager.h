@@ -1,15 +1,17 @@
 #pragma once
-// Paging of a texture-atlas tree's blocks under a byte capacity (Buchholz's thesis §4.6): each frame the view's
-// block requests (AtlasTraversal::requests, priority order) give the ideal block set — the Needed, Culled and
-// ParentNeeded blocks of highest priority whose sizes sum to at most the capacity; missing ideal blocks are queued
-// (at most `queueLength` at once) for a background loader; a block that does not fit evicts resident blocks outside
-// the ideal set, least recently requested first. Loaded blocks are handed out for upload within a per-frame byte
-// budget. The root atlas is loaded first and never evicted, so a texture is always available. Resident, queued,
-// in-flight and waiting-for-upload bytes together never exceed the capacity. Blocks are of about equal size (§4.6):
-// an original texture whose bytes exceed an atlas's more than twice is split into bands of rows of about an atlas's
-// bytes each, paged like any block; it is usable once all its parts are resident. Such a texture enters and leaves the
-// ideal set and the resident set whole (all its parts or none: a partial one is undrawable), and counts its whole
-// GPU bytes while any part is resident or reserved (the GL side allocates it whole with its first band).
+// Paging of a texture-atlas tree's blocks under a byte capacity (Buchholz's thesis §4.6): each frame the view's block
+// requests (AtlasTraversal::requests, priority order) give the ideal block set — the Needed, Culled and ParentNeeded
+// blocks of highest priority whose sizes sum to at most the capacity; missing ideal blocks are queued (at most
+// `queueLength` at once, in the latest frame's order: coarser blocks first, then by priority; a block that comes first
+// takes the place of one queued earlier that now comes after it) for a background loader; a block that does not fit
+// evicts resident blocks outside the ideal set, least recently requested first. Loaded blocks are handed out for upload
+// within a per-frame byte budget. The root atlas is loaded first and never evicted, so a texture is always available.
+// Resident, queued, in-flight and waiting-for-upload bytes together never exceed the capacity. Blocks are of about
+// equal size (§4.6): an original texture whose bytes exceed an atlas's more than twice is split into bands of rows of
+// about an atlas's bytes each, paged like any block; it is usable once all its parts are resident. Such a texture
+// enters and leaves the ideal set and the resident set whole (all its parts or none: a partial one is undrawable), and
+// counts its whole GPU bytes while any part is resident or reserved (the GL side allocates it whole with its first
+// band).
 //
 // BlockMaps (BlockMapTraversal.h) are blocks of the same pager when PagerSettings::blockMaps names their file: the
 // far field's maps and the near field's atlases share one capacity and one loader.
@@ -30,6 +32,7 @@
 #include <mutex>
 #include <set>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 namespace seasonview::city {
@@ -114,9 +117,11 @@ private:
     void worker();
     Result<LoadedBlock> load(const BlockKey& key) const;
     bool split(const BlockKey& key) const { return key.kind == BlockKey::Kind::Texture && textureParts(key.index) > 1; }
+    /// Where an ideal block comes in the order blocks are loaded (update()): category, tree level, request rank.
+    using LoadOrder = std::tuple<int, int, std::size_t>;
     /// Evicts the least recently requested resident block outside `ideal` (a split texture with all its parts) into
     /// `out`; false when there is none.
-    bool evictOne(const std::set<BlockKey>& ideal, Frame& out);
+    bool evictOne(const std::map<BlockKey, LoadOrder>& ideal, Frame& out);
     /// Whether some part of split texture `texture` is in `blocks` (m_resident or m_reserved).
     template <class Map> static bool anyPart(const Map& blocks, std::uint32_t texture);
     /// GPU bytes held by the resident and by the reserved blocks (a split texture counted whole, once).

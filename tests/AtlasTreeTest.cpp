@@ -1086,6 +1086,62 @@ TEST(AtlasPagingTest, LoaderQueueAndUploadBudget) {
     EXPECT_GT(threadedCalls, ps.queueLength);
 }
 
+// The view changes while the loader is busy (the eye comes down after an overview): the blocks that come first now
+// (coarser, then higher priority) wait before those queued earlier, and take the place of the last of them when the
+// queue is full.
+TEST(AtlasPagingTest, QueuedBlocksWaitInTheLatestFramesOrder) {
+    test::TempDir dir("atlas_paging_priority");
+    auto f = wallTree(dir.path(), 40);
+    ASSERT_TRUE(f) << f.error().message;
+    std::vector<std::uint32_t> nodes; // atlases other than the root's
+    for (std::uint32_t n = 1; n < f->trees[0].nodes.size() && nodes.size() < 6; ++n)
+        if (f->trees[0].nodes[n].atlasBytes > 0) nodes.push_back(n);
+    ASSERT_EQ(nodes.size(), 6u);
+    auto ask = [](std::uint32_t node, double distance, int level = 2) {
+        return BlockRequest{{BlockKey::Kind::Atlas, node}, BlockCategory::Needed, distance, node == 0 ? 0 : level};
+    };
+    std::mutex gate, orderMutex;
+    std::unique_lock<std::mutex> closed(gate);
+    std::vector<std::uint32_t> order; // atlases in the order the loader began them
+    PagerSettings ps;
+    ps.threaded = true;
+    ps.queueLength = 3;
+    AtlasPager probe(*f, 0, PagerSettings{});
+    AtlasPager pager(*f, 0, ps, [&](const BlockKey& k) -> Result<LoadedBlock> {
+        {
+            std::lock_guard lock(orderMutex);
+            order.push_back(k.index);
+        }
+        std::lock_guard wait(gate); // held closed by the test until it opens it
+        LoadedBlock b;
+        b.key = k;
+        b.bytes = probe.blockBytes(k);
+        return b;
+    });
+    auto begun = [&] {
+        std::lock_guard lock(orderMutex);
+        return order.size();
+    };
+    // Far blocks: the root goes to the loader (which waits at the gate), nodes[0] and nodes[1] wait in the queue.
+    const std::vector<BlockRequest> far{ask(0, 0.0), ask(nodes[0], 100.0), ask(nodes[1], 110.0), ask(nodes[2], 120.0)};
+    pager.update(far);
+    for (int i = 0; i < 5000 && begun() == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    ASSERT_EQ(begun(), 1u);
+    EXPECT_EQ(pager.stats().queued, 3u);
+    // Nearer now: nodes[5] first (coarser, though farther), then nodes[3] and nodes[4], then nodes[1] (nearer than
+    // nodes[0] now); nodes[0] last.
+    const std::vector<BlockRequest> near{ask(0, 0.0),          ask(nodes[3], 5.0),   ask(nodes[4], 6.0),
+                                         ask(nodes[1], 50.0),  ask(nodes[0], 200.0), ask(nodes[5], 300.0, 1)};
+    pager.update(near);
+    EXPECT_LE(pager.stats().queued, 3u);
+    closed.unlock();
+    pager.complete(near);
+    EXPECT_EQ(pager.stats().idealMissing, 0u);
+    std::lock_guard lock(orderMutex);
+    const std::vector<std::uint32_t> expected{0, nodes[5], nodes[3], nodes[4], nodes[1], nodes[0]};
+    EXPECT_EQ(order, expected);
+}
+
 TEST(AtlasPagingTest, ThreadedLoaderCompletesTheIdealSet) {
     test::TempDir dir("atlas_paging_thread");
     auto f = wallTree(dir.path(), 20);
