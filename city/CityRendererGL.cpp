@@ -564,9 +564,14 @@ void CityRendererGL::update(const Camera& camera, int width, int height) {
     const AtlasView v = view(camera, width, height);
     if (m_settings.mode == CityMode::Atlas || m_settings.mode == CityMode::BlockMap) {
         collectQueries(false); // the pager uses the answers if they are in, else the frame before's
-        // Blockmap mode: the atlases of what the maps will cover are not asked for.
+        // Blockmap mode: the maps of the cut the view wants are asked for, and the atlases of what the maps drawn now
+        // (those resident, or standing in) do not cover: a map still loading leaves its buildings to the polygons,
+        // which are then drawn with the atlases the atlas mode would draw them with as those arrive (coarse ones
+        // first: nearer than their children), not with the root's alone. Once the maps are in, those atlases leave
+        // the ideal set.
         const BlockMapCut ideal = blockMapsOn() ? blockMapCut(v, true) : BlockMapCut{};
-        coverWith(blockMapsOn() ? &ideal : nullptr);
+        const BlockMapCut drawn = blockMapsOn() ? blockMapCut(v, false) : BlockMapCut{};
+        coverWith(blockMapsOn() ? &drawn : nullptr);
         // Nodes the last frame found hidden are paged as if outside the frustum.
         for (std::size_t t = 0; t < m_pagers.size(); ++t) {
             VisibilityFn vis;

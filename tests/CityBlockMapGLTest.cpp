@@ -154,6 +154,47 @@ TEST(CityBlockMapGLTest, FarBlocksAreMapsAndThePictureIsTheAtlasModes) {
     }
 }
 
+// Maps loading: their buildings are drawn with polygons meanwhile, and with the atlases the atlas mode would draw
+// them with as those arrive (the pager asks for the atlases of what the drawn maps do not cover, not of what the
+// maps the view wants will cover), not with the root's alone. Once every map is in, the picture is the still's.
+TEST(CityBlockMapGLTest, PolygonsStandingInForLoadingMapsGetTheirAtlases) {
+    ASSERT_TRUE(headlessContext());
+    BlockCity& bc = blockCity();
+    ASSERT_TRUE(bc.scene);
+    gl::RenderTarget target(kW, kH);
+    const Camera overview = bc.camera(0.0, -350.0, 450.0, 0.0, -50.0);
+    city::CitySettings cs = bc.settings(city::CityMode::BlockMap);
+    cs.uploadBytesPerFrame = 1; // one block a frame
+    auto loading = bc.renderer(cs);
+    auto still = bc.renderer(bc.settings(city::CityMode::BlockMap));
+    ASSERT_TRUE(loading && still);
+    still->complete(overview, kW, kH);
+    city::CityFrameStats st;
+    const auto expected = drawCity(*still, overview, target, st);
+    int framesLoading = 0, mostAtlasesWhileLoading = 0, frame = 0;
+    for (; frame < 2000; ++frame) {
+        loading->update(overview, kW, kH);
+        drawCity(*loading, overview, target, st);
+        if (st.blockMapsNotResident == 0 && st.loaderQueue == 0 && frame > 0) break;
+        if (st.blockMapsNotResident > 0) {
+            ++framesLoading;
+            mostAtlasesWhileLoading = std::max(mostAtlasesWhileLoading, st.textureBinds);
+        }
+    }
+    auto atlas = bc.renderer(bc.settings(city::CityMode::Atlas));
+    ASSERT_TRUE(atlas);
+    atlas->complete(overview, kW, kH);
+    city::CityFrameStats sa;
+    drawCity(*atlas, overview, target, sa);
+    std::printf("%d frames to load the overview, %d of them with maps missing; at most %d textures bound meanwhile "
+                "(the atlas mode's still: %d)\n", frame, framesLoading, mostAtlasesWhileLoading, sa.textureBinds);
+    EXPECT_GT(framesLoading, 10);
+    EXPECT_GT(mostAtlasesWhileLoading, 1) << "polygons standing in for maps drawn with atlases below the root";
+    const auto loaded = drawCity(*loading, overview, target, st);
+    EXPECT_EQ(st.blockMapsNotResident, 0);
+    EXPECT_TRUE(loaded == expected) << "once loaded, the picture is the still's";
+}
+
 // Pops: along a descent from the overview to above the street, each frame drawn with the last frame's switches
 // (polygons to maps, map to finer maps; CitySettings::holdSwitches) and with its own: what changes between the two is
 // what the viewer sees pop at that frame. At the default error bound of 1 px the worst is a map level switch at the
