@@ -154,24 +154,42 @@ std::uint64_t BlockMapPoolGL::tileBytes(int layers) const {
 
 Status BlockMapPoolGL::prepare(std::uint64_t bytes, std::size_t pagesComing, std::size_t mapsComing) {
     m_byteLimit = bytes;
-    // Layers and pages beyond what the maps need (live and coming) given back once under three quarters of them are
-    // in use;
-    // the pages grown once for the frame's maps when its free ones cannot hold them.
+    // Layers beyond what the maps need (live and coming) given back once under three quarters of them have been in
+    // use for kShrinkAfterFrames frames in a row, or at once when the pool is over the limit; the pages grown once for
+    // the frame's maps when its free ones cannot hold them.
     const int perLayer = m_tilesPerSide * m_tilesPerSide;
     const int layersNeeded = int((m_live + mapsComing + std::size_t(perLayer) - 1) / std::size_t(perLayer));
-    if (4 * layersNeeded < 3 * m_layers)
+    // At once where the pool holds more than the limit (the city's other blocks need the room).
+    const bool over = allocatedBytes() > bytes;
+    m_underUsedFrames = 4 * layersNeeded < 3 * m_layers ? m_underUsedFrames + 1 : 0;
+    if (m_underUsedFrames > 0 && (over || m_underUsedFrames >= kShrinkAfterFrames)) {
+        m_underUsedFrames = 0;
         if (auto st = shrinkLayers(std::max(layersNeeded + layersNeeded / 4, 1)); !st) return st;
+    }
     const std::size_t need = m_usedPages + pagesComing;
-    if (need > m_pageCapacity) return growPages(need);
+    if (need > m_pageCapacity) {
+        m_pagesUnderUsedFrames = 0;
+        return growPages(need);
+    }
+    // The pages likewise: those in use moved below an eighth more than the maps need, the buffer remade that size.
+    const std::size_t fit = std::max(need + need / 8, kMinPages);
+    m_pagesUnderUsedFrames = 4 * need < 3 * m_pageCapacity && fit < m_pageCapacity ? m_pagesUnderUsedFrames + 1 : 0;
+    if (m_pagesUnderUsedFrames > 0 && (over || m_pagesUnderUsedFrames >= kShrinkAfterFrames)) {
+        m_pagesUnderUsedFrames = 0;
+        movePagesBelow(fit);
+        return resizePages(fit); // smaller: cannot fail
+    }
     return Ok{};
 }
 
 Status BlockMapPoolGL::growPages(std::size_t need) {
-    // To what the maps need, and up to an eighth more (at least kMinPages in all) within the limit.
+    // To what the maps need, and up to a quarter more (at least kMinPages in all) within the limit: each growth copies
+    // every page kept, so it grows by a share of what it holds (with an eighth, the 10,000-building path grew ten
+    // times in a row, up to 150 ms each on llvmpipe).
     const std::size_t pageBytes = kBlockMapPageWords * 4;
     const std::uint64_t needed = tileBytes(m_layers) + std::uint64_t(need) * pageBytes;
     const std::size_t room = m_byteLimit > needed ? std::size_t((m_byteLimit - needed) / pageBytes) : 0;
-    const std::size_t extra = std::min(std::max(need / 8, kMinPages > need ? kMinPages - need : 0), room);
+    const std::size_t extra = std::min(std::max(need / 4, kMinPages > need ? kMinPages - need : 0), room);
     return resizePages(need + extra);
 }
 
@@ -252,14 +270,7 @@ void BlockMapPoolGL::remove(int handle) {
     m_freeTiles.release(std::uint32_t(s.tile));
     s = Slot{};
     m_freeSlots.push_back(handle);
-    --m_live;
-    // A quarter free (maps evicted): the pages in use moved below an eighth more than they, the buffer remade that
-    // size.
-    const std::size_t fit = std::max(m_usedPages + m_usedPages / 8, kMinPages);
-    if (4 * m_usedPages < 3 * m_pageCapacity && fit < m_pageCapacity) {
-        movePagesBelow(fit);
-        (void)resizePages(fit); // smaller: cannot fail
-    }
+    --m_live; // its tile and pages are given back by prepare(), once the maps have needed fewer for a while
 }
 
 glm::dvec3 BlockMapPoolGL::boxMin(int handle) const {

@@ -9,10 +9,11 @@
 // the wall columns' normals and colours as 32-bit words in one texture buffer, in pages of kBlockMapPageWords taken
 // wherever they are free (the map's first page starts with its page table), so maps come and go with no room lost
 // between them and nothing moved. A draw's maps are instances whose records (box, tile, first page) come from a
-// storage buffer. The storage follows the maps resident: layers and pages are added when none is free, up to a
-// quarter (layers) or an eighth (pages) more than needed but never past setByteLimit() (the city's capacity less what
-// else it holds); once under three quarters of them are in use, the live tiles or pages move below a new end and the
-// arrays or buffer are remade that size (copied on the GPU; page tables follow).
+// storage buffer. The storage follows the maps resident: layers and pages are added when none is free, up to a quarter
+// more than needed but never past setByteLimit() (the city's capacity less what else it holds); once under three
+// quarters of them have been in use for kShrinkAfterFrames frames (at once when the pool is over the limit), the live
+// tiles or pages move below a new end and the arrays or buffer are remade that size (copied on the GPU; page tables
+// follow). Remaking copies everything kept (on llvmpipe about 0.8 ms a MB), so it is done seldom.
 #include "BlockMap.h"
 #include "LowestFree.h"
 #include "Camera.h"
@@ -61,9 +62,15 @@ public:
     /// what the maps need is added only within it. It never holds less than its maps need.
     void setByteLimit(std::uint64_t bytes) { m_byteLimit = bytes; }
     /// Before a frame's `mapsComing` maps of `pagesComing` pages are added: setByteLimit(bytes); the tiles' layers
-    /// made fewer when the live and coming maps need under three quarters of them (the live tiles moved below
+    /// or the words' pages made fewer when the live and coming maps need under three quarters of them and have for
+    /// kShrinkAfterFrames calls in a row, or the pool holds more than `bytes` (the live tiles or pages moved below
     /// first); the words' buffer grown once (as add() grows it) when the pages coming do not fit its free ones.
     Status prepare(std::uint64_t bytes, std::size_t pagesComing, std::size_t mapsComing);
+    /// Calls of prepare() (frames) the maps must need under three quarters of the layers (or pages) before they are
+    /// made fewer. That copies everything kept into new storage (160 MB of pages in about 125 ms on llvmpipe), and
+    /// while the eye moves the maps resident come and go: a dip of a few frames is not worth a copy that the next
+    /// rise undoes, and the maps evicted over several frames are given back in one copy, not one a frame.
+    static constexpr int kShrinkAfterFrames = 16;
 
     struct Instance {
         int handle = 0;
@@ -124,6 +131,8 @@ private:
     std::vector<PageOwner> m_pageOwner;      // per page of the buffer
     LowestFree m_freePages, m_freeTiles;   // the lowest taken first, so that the top ones empty
     std::uint64_t m_byteLimit = ~std::uint64_t(0);
+    int m_underUsedFrames = 0;      // prepare() calls in a row with under three quarters of the layers needed
+    int m_pagesUnderUsedFrames = 0; // the same for the pages
     std::vector<Slot> m_slots;
     std::vector<int> m_freeSlots;
     std::size_t m_live = 0;

@@ -270,6 +270,8 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
     EXPECT_EQ(pool.allocatedBytes(), full);
     for (int i = 0; i < 300; i += 2) pool.remove(handles[std::size_t(i)]);
     EXPECT_EQ(pool.maps(), 150u);
+    for (int frame = 0; frame < BlockMapPoolGL::kShrinkAfterFrames; ++frame)
+        ASSERT_TRUE(pool.prepare(~std::uint64_t(0), 0, 0));
     EXPECT_LT(pool.allocatedBytes(), full) << "half the maps gone: the pages in use moved down, the buffer smaller";
     for (int i = 0; i < 300; i += 2) { // back, in freed slots and ranges, as other copies
         auto h = pool.add(copyAt((i + 7) % 300));
@@ -344,11 +346,16 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
     const std::vector<int> some = {0, 2, 3, 150, 151, 298, 299};
     EXPECT_GT(compare(poolDraw(some, false), eachOwn(some), "the pool's against each map's own"), W * H / 50);
 
-    // Two thirds of the maps gone: the pool gives back what it no longer needs, the live tiles moved into fewer
-    // layers, the pages in use below a new end; the maps draw as before.
+    // Two thirds of the maps gone: once that has lasted kShrinkAfterFrames frames (not after a brief dip), the pool
+    // gives back what it no longer needs, the live tiles moved into fewer layers, the pages in use below a new end;
+    // the maps draw as before.
     const std::uint64_t before = pool.allocatedBytes();
     for (int i = 0; i < 300; ++i)
         if (i % 3 != 0) pool.remove(handles[std::size_t(i)]);
+    for (int frame = 1; frame < BlockMapPoolGL::kShrinkAfterFrames; ++frame) {
+        ASSERT_TRUE(pool.prepare(~std::uint64_t(0), 0, 0));
+        EXPECT_EQ(pool.allocatedBytes(), before) << "frame " << frame;
+    }
     ASSERT_TRUE(pool.prepare(~std::uint64_t(0), 0, 0));
     EXPECT_LT(pool.allocatedBytes(), before / 2);
     const std::vector<int> kept = {0, 3, 6, 150, 153, 294, 297};
