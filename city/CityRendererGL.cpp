@@ -566,9 +566,8 @@ void CityRendererGL::update(const Camera& camera, int width, int height) {
         collectQueries(false); // the pager uses the answers if they are in, else the frame before's
         // Blockmap mode: the maps of the cut the view wants are asked for, and the atlases of what the maps drawn now
         // (those resident, or standing in) do not cover: a map still loading leaves its buildings to the polygons,
-        // which are then drawn with the atlases the atlas mode would draw them with as those arrive (coarse ones
-        // first: nearer than their children), not with the root's alone. Once the maps are in, those atlases leave
-        // the ideal set.
+        // which are then drawn with the atlases the atlas mode would draw them with as those arrive (the pager loads
+        // coarser blocks first), not with the root's alone. Once the maps are in, those atlases leave the ideal set.
         const BlockMapCut ideal = blockMapsOn() ? blockMapCut(v, true) : BlockMapCut{};
         const BlockMapCut drawn = blockMapsOn() ? blockMapCut(v, false) : BlockMapCut{};
         coverWith(blockMapsOn() ? &drawn : nullptr);
