@@ -321,19 +321,21 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
     };
     std::uint64_t used = usedBytes();
     std::size_t inFlight = m_reserved.size() - m_ready.size();
-    std::vector<const BlockRequest*> missingBlocks;
+    // Each missing block with its place, looked up once (a frame may miss a thousand).
+    std::vector<std::pair<LoadOrder, const BlockRequest*>> missingBlocks;
     for (const auto& r : requests)
-        if (ideal.count(r.key) && !m_resident.count(r.key) && !m_reserved.count(r.key)) missingBlocks.push_back(&r);
+        if (auto it = ideal.find(r.key); it != ideal.end() && !m_resident.count(r.key) && !m_reserved.count(r.key))
+            missingBlocks.emplace_back(it->second, &r);
     std::stable_sort(missingBlocks.begin(), missingBlocks.end(),
-                     [&](const BlockRequest* a, const BlockRequest* b) { return ideal.at(a->key) < ideal.at(b->key); });
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
     const std::size_t missing = missingBlocks.size();
-    for (const BlockRequest* next : missingBlocks) {
+    for (const auto& [place, next] : missingBlocks) {
         const BlockRequest& r = *next;
         if (int(inFlight) >= m_settings.queueLength && m_settings.threaded) {
             // The loader's queue is full: the last queued block (load order, not yet loading), if it comes after
             // this one, gives it its place.
             std::lock_guard lock(m_mutex);
-            if (m_queue.empty() || ideal.at(m_queue.back()) <= ideal.at(r.key)) continue;
+            if (m_queue.empty() || ideal.at(m_queue.back()) <= place) continue;
             m_reserved.erase(m_queue.back());
             m_queue.pop_back();
             --inFlight;
