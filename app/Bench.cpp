@@ -125,12 +125,13 @@ nlohmann::json figure(const std::vector<double>& v) {
 /// A city mode's figures: per-frame medians/maxima of its counters and the capacity they must stay under.
 nlohmann::json cityFigures(const Mode& m) {
     std::vector<double> nodes, binds, calls, resident, queue, coarser, cpu, update, upload, uploaded, wait, occluded,
-        queries, waits, drawnTriangles, maps, mapsMissing, poolBytes;
+        queries, waits, drawnTriangles, maps, mapsMissing, poolBytes, movedBytes;
     for (const FrameRow& r : m.rows) {
         drawnTriangles.push_back(double(r.city.triangles));
         maps.push_back(r.city.blockMaps);
         mapsMissing.push_back(r.city.blockMapsNotResident);
         poolBytes.push_back(double(r.city.blockMapPoolBytes));
+        movedBytes.push_back(double(r.city.blockMapMovedBytes));
         cpu.push_back(r.cityCpuMs);
         update.push_back(r.cityUpdateMs);
         upload.push_back(r.city.uploadMs);
@@ -172,6 +173,7 @@ nlohmann::json cityFigures(const Mode& m) {
             {"block_maps", figure(maps)},
             {"block_maps_not_resident", figure(mapsMissing)},
             {"block_map_pool_bytes", figure(poolBytes)},
+            {"block_map_moved_bytes", figure(movedBytes)},
             {"block_map_error_px", m.city->settings().blockMapErrorPx}};
 }
 
@@ -751,14 +753,15 @@ Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>
            "trunk_searches,city_cpu_ms,city_occluded_nodes,city_occlusion_queries,city_occlusion_waits,"
            "elevation_texels_uploaded,elevation_resident_bytes,run_order,city_allocated_bytes,city_evicted_blocks,"
            "canopy_blocks_pending,canopy_blocks_unread,canopy_blocks_on_demand,city_update_ms,city_upload_ms,"
-           "city_uploaded_bytes,city_wait_ms,stream_ms,city_blockmaps,city_blockmaps_not_resident,city_blockmap_pool_bytes\n";
+           "city_uploaded_bytes,city_wait_ms,stream_ms,city_blockmaps,city_blockmaps_not_resident,city_blockmap_pool_bytes,"
+           "city_blockmap_moved_bytes\n";
     for (const Mode& m : modes)
         for (const FrameRow& r : m.rows) {
             char line[640];
             std::snprintf(line, sizeof line,
                           "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s,"
                           "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f,%d,%d,%d,%lld,%lld,%d,%llu,%zu,%d,%d,%d,%.4f,%.4f,"
-                          "%llu,%.4f,%.4f,%d,%d,%llu\n",
+                          "%llu,%.4f,%.4f,%d,%d,%llu,%llu\n",
                           m.label.c_str(), r.frame, r.camera.position.x, r.camera.position.y, r.camera.position.z,
                           r.camera.yawDeg, r.camera.pitchDeg, r.cpuMs, r.gpuMs, r.frameMs, r.drawCalls,
                           (long long)r.triangles, (long long)r.texelsUploaded, (long long)r.exposedTexels,
@@ -773,7 +776,8 @@ Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>
                           (unsigned long long)r.city.allocatedBytes, r.city.evictedBlocks, r.canopyBlocksPending,
                           r.canopyBlocksUnread, r.canopyBlocksOnDemand, r.cityUpdateMs, r.city.uploadMs,
                           (unsigned long long)r.city.uploadedBytes, r.city.waitMs, r.streamMs, r.city.blockMaps,
-                          r.city.blockMapsNotResident, (unsigned long long)r.city.blockMapPoolBytes);
+                          r.city.blockMapsNotResident, (unsigned long long)r.city.blockMapPoolBytes,
+                          (unsigned long long)r.city.blockMapMovedBytes);
             csv << line;
         }
     std::string err;

@@ -6,15 +6,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <string>
 
 namespace seasonview::city {
 
 namespace {
-
-// Tiles per side of a layer: a layer of up to 256² texels (4² maps of the usual 64², 512 KiB): the room a partly
-// used last layer leaves is small next to a city's capacity; the GL's 2048 layers at least hold 32,768 such maps.
-int tilesPerSide(int n) { return std::clamp(256 / std::max(n, 1), 1, 16); }
 
 gl::Texture arrayTexture(GLenum internalFormat, int side, int layers) {
     gl::Texture t = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
@@ -48,149 +45,314 @@ Result<gl::ShaderProgram> BlockMapPoolGL::buildProgram(bool roofImagery, bool fr
 }
 
 BlockMapPoolGL::BlockMapPoolGL(int mapSize)
-    : m_size(mapSize), m_tilesPerSide(tilesPerSide(mapSize)), m_instances(gl::Buffer::create()),
-      m_vao(gl::VertexArray::create()) {}
+    : m_size(mapSize), m_instances(gl::Buffer::create()), m_vao(gl::VertexArray::create()) {}
 
-Status BlockMapPoolGL::growLayers(int layers) {
-    GLint maxLayers = 0;
-    glGetIntegerv(GL_MAX_ARRAY_TEXTURE_LAYERS, &maxLayers);
-    if (layers > maxLayers)
-        return Error{"BlockMaps: " + std::to_string(std::int64_t(layers) * m_tilesPerSide * m_tilesPerSide) +
-                     " maps resident at once do not fit this GL's " + std::to_string(maxLayers) + " texture layers"};
-    const int side = m_tilesPerSide * m_size;
-    gl::Texture texels = arrayTexture(GL_RGBA8UI, side, layers), columns = arrayTexture(GL_R32UI, side, layers);
-    if (m_layers > 0) {
-        glCopyImageSubData(m_texels.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, texels.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0,
-                           side, side, m_layers);
-        glCopyImageSubData(m_columns.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, columns.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0,
-                           0, side, side, m_layers);
-    }
-    const int perLayer = m_tilesPerSide * m_tilesPerSide;
-    m_freeTiles.add(std::uint32_t(m_layers * perLayer), std::uint32_t(layers * perLayer));
-    m_texels = std::move(texels);
-    m_columns = std::move(columns);
-    m_layers = layers;
+std::uint64_t BlockMapPoolGL::tileBytes(std::uint64_t tiles) const {
+    return std::uint64_t(m_size) * std::uint64_t(m_size) * 8 * tiles;
+}
+
+std::uint64_t BlockMapPoolGL::pageBytes(std::uint64_t pages) { return pages * kBlockMapPageWords * 4; }
+
+std::uint64_t BlockMapPoolGL::tileBytesAllocated() const {
+    std::uint64_t tiles = 0;
+    for (const TileSegment& g : m_tileSegments) tiles += std::uint64_t(g.tiles);
+    return tileBytes(tiles);
+}
+
+std::uint64_t BlockMapPoolGL::pageBytesAllocated() const {
+    std::uint64_t pages = 0;
+    for (const PageSegment& g : m_pageSegments) pages += g.pages;
+    return pageBytes(pages);
+}
+
+std::size_t BlockMapPoolGL::freeTiles() const {
+    std::size_t n = 0;
+    for (const TileSegment& g : m_tileSegments) n += g.free.size();
+    return n;
+}
+
+std::size_t BlockMapPoolGL::freePages() const {
+    std::size_t n = 0;
+    for (const PageSegment& g : m_pageSegments) n += g.free.size();
+    return n;
+}
+
+namespace {
+int maxSegmentTiles() {
+    GLint layers = 0;
+    glGetIntegerv(GL_MAX_ARRAY_TEXTURE_LAYERS, &layers);
+    return std::max(layers, 1);
+}
+std::size_t maxSegmentPages() {
+    GLint texels = 0;
+    glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &texels);
+    return std::max<std::size_t>(std::size_t(texels) / kBlockMapPageWords, 1);
+}
+} // namespace
+
+Status BlockMapPoolGL::addTileSegment(int tiles) {
+    TileSegment g;
+    g.tiles = std::clamp(tiles, 1, maxSegmentTiles());
+    g.texels = arrayTexture(GL_RGBA8UI, m_size, g.tiles);
+    g.columns = arrayTexture(GL_R32UI, m_size, g.tiles);
+    g.free.add(0, std::uint32_t(g.tiles));
+    g.owner.assign(std::size_t(g.tiles), -1);
+    m_tileSegments.push_back(std::move(g));
     return Ok{};
 }
 
-Status BlockMapPoolGL::shrinkLayers(int layers) {
-    const int perLayer = m_tilesPerSide * m_tilesPerSide, end = layers * perLayer;
-    // The live tiles at or past the new end moved to the lowest free ones below it (there are enough: the live maps
-    // fit `layers`), within the same arrays.
-    for (Slot& s : m_slots) {
-        if (!s.live || s.tile < end) continue;
-        const int to = int(m_freeTiles.take());
-        const glm::ivec3 a = tileAt(s.tile), b = tileAt(to);
-        for (const gl::Texture* t : {&m_texels, &m_columns})
-            glCopyImageSubData(t->id(), GL_TEXTURE_2D_ARRAY, 0, a.x, a.y, a.z, t->id(), GL_TEXTURE_2D_ARRAY, 0, b.x, b.y,
-                               b.z, m_size, m_size, 1);
-        s.tile = to;
-    }
-    const int side = m_tilesPerSide * m_size;
-    gl::Texture texels = arrayTexture(GL_RGBA8UI, side, layers), columns = arrayTexture(GL_R32UI, side, layers);
-    glCopyImageSubData(m_texels.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, texels.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0,
-                       side, side, layers);
-    glCopyImageSubData(m_columns.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, columns.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0,
-                       side, side, layers);
-    m_texels = std::move(texels);
-    m_columns = std::move(columns);
-    m_layers = layers;
-    m_freeTiles.keepBelow(std::uint32_t(end));
-    return Ok{};
-}
-
-Status BlockMapPoolGL::resizePages(std::size_t pages) {
-    GLint maxTexels = 0;
-    glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &maxTexels);
-    if (pages * kBlockMapPageWords > std::size_t(maxTexels))
+Status BlockMapPoolGL::addPageSegment(std::size_t pages) {
+    const std::size_t most = maxSegmentPages();
+    if (pages > most)
         return Error{"BlockMaps: " + std::to_string(pages * kBlockMapPageWords) +
-                     " words of walls resident at once do not fit this GL's " + std::to_string(maxTexels) +
-                     "-texel texture buffers"};
-    gl::Buffer buffer = gl::Buffer::create();
-    const std::size_t pageBytes = kBlockMapPageWords * 4;
-    glNamedBufferData(buffer.id(), GLsizeiptr(std::max<std::size_t>(pages, 1) * pageBytes), nullptr, GL_DYNAMIC_DRAW);
-    const std::size_t kept = std::min(pages, m_pageCapacity);
-    if (kept > 0) glCopyNamedBufferSubData(m_wordBuffer.id(), buffer.id(), 0, 0, GLsizeiptr(kept * pageBytes));
-    if (pages > m_pageCapacity) m_freePages.add(std::uint32_t(m_pageCapacity), std::uint32_t(pages));
-    else m_freePages.keepBelow(std::uint32_t(pages));
-    gl::Texture words = gl::Texture::create(GL_TEXTURE_BUFFER);
-    glTextureBuffer(words.id(), GL_R32UI, buffer.id());
-    m_wordBuffer = std::move(buffer);
-    m_words = std::move(words);
-    m_pageCapacity = pages;
-    m_pageOwner.resize(pages);
+                     " words of walls in one segment do not fit this GL's " +
+                     std::to_string(most * kBlockMapPageWords) + "-texel texture buffers"};
+    PageSegment g;
+    g.pages = std::max<std::size_t>(pages, 1);
+    g.buffer = gl::Buffer::create();
+    glNamedBufferData(g.buffer.id(), GLsizeiptr(pageBytes(g.pages)), nullptr, GL_DYNAMIC_DRAW);
+    g.words = gl::Texture::create(GL_TEXTURE_BUFFER);
+    glTextureBuffer(g.words.id(), GL_R32UI, g.buffer.id());
+    g.free.add(0, std::uint32_t(g.pages));
+    g.owner.assign(g.pages, -1);
+    m_pageSegments.push_back(std::move(g));
     return Ok{};
 }
 
-std::uint32_t BlockMapPoolGL::takePage(int handle, std::uint32_t index) {
-    const std::uint32_t p = m_freePages.take();
-    m_pageOwner[p] = {handle, index};
-    ++m_usedPages;
-    return p;
+namespace {
+// The two of `used` (per segment) with the fewest in use, the lower index first.
+std::pair<int, int> twoLeastUsed(const std::vector<std::size_t>& used) {
+    std::vector<int> order(used.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(), [&](int x, int y) { return used[std::size_t(x)] < used[std::size_t(y)]; });
+    return {std::min(order[0], order[1]), std::max(order[0], order[1])};
+}
+// A segment index after segments a < b are erased.
+int afterErasing(int i, int a, int b) { return i - (i > a ? 1 : 0) - (i > b ? 1 : 0); }
+} // namespace
+
+std::size_t BlockMapPoolGL::pagesPerMap() const {
+    return m_live > 0 ? std::max<std::size_t>((m_usedPages + m_live - 1) / m_live, 1) : 1;
 }
 
-void BlockMapPoolGL::movePagesBelow(std::size_t target) {
-    const std::size_t pageBytes = kBlockMapPageWords * 4;
-    for (std::size_t p = target; p < m_pageCapacity; ++p) {
-        const PageOwner o = m_pageOwner[p];
-        if (o.handle < 0) continue;
-        const std::uint32_t to = takePage(o.handle, o.index); // the lowest free page: below target
-        --m_usedPages;                                       // moved, not added
-        glCopyNamedBufferSubData(m_wordBuffer.id(), m_wordBuffer.id(), GLintptr(p * pageBytes),
-                                 GLintptr(std::size_t(to) * pageBytes), GLsizeiptr(pageBytes));
-        m_pageOwner[p] = PageOwner{};
-        Slot& s = m_slots[std::size_t(o.handle)];
-        s.pages[o.index] = to;
-        // The table's entry for this page (in the map's first page, which may be this one, now moved).
-        glNamedBufferSubData(m_wordBuffer.id(), GLintptr((std::size_t(s.pages[0]) * kBlockMapPageWords + o.index) * 4),
-                             4, &to);
+Status BlockMapPoolGL::growTiles(std::size_t tiles) {
+    // What is needed, and up to half the tiles held more (at least kMinTiles in all) within the limit: nothing
+    // resident moves, so a generous segment costs only the memory the limit allows.
+    std::size_t held = 0;
+    for (const TileSegment& g : m_tileSegments) held += std::size_t(g.tiles);
+    const std::uint64_t needed = allocatedBytes() + tileBytes(tiles);
+    // Room for whole maps: each extra tile with the pages a map takes on average (free tiles without pages for
+    // their maps would be room lost under the limit).
+    const std::uint64_t perMap = tileBytes(1) + pageBytes(pagesPerMap());
+    const std::size_t room = m_byteLimit > needed ? std::size_t((m_byteLimit - needed) / perMap) : 0;
+    const std::size_t wanted = std::max(held / 2, tiles < std::size_t(kMinTiles) ? kMinTiles - tiles : 0);
+    std::size_t n = tiles + std::min(wanted, room);
+    // At kMaxSegments, the two segments with the fewest live tiles and the new room made one (their tiles copied).
+    if (m_tileSegments.size() >= std::size_t(kMaxSegments)) {
+        std::vector<std::size_t> used;
+        for (const TileSegment& g : m_tileSegments) used.push_back(std::size_t(g.used));
+        const auto [a, b] = twoLeastUsed(used);
+        if (used[std::size_t(a)] + used[std::size_t(b)] + n <= std::size_t(maxSegmentTiles())) return mergeTiles(a, b, n);
+    }
+    while (n > 0) {
+        const int part = int(std::min<std::size_t>(n, std::size_t(maxSegmentTiles())));
+        if (auto st = addTileSegment(part); !st) return st;
+        n -= std::size_t(part);
+    }
+    return Ok{};
+}
+
+Status BlockMapPoolGL::growPages(std::size_t pages) {
+    // As growTiles: what is needed in one segment (a map's pages lie in one), and up to half the pages held more.
+    std::size_t held = 0;
+    for (const PageSegment& g : m_pageSegments) held += g.pages;
+    const std::uint64_t needed = allocatedBytes() + pageBytes(pages);
+    // Room for whole maps, as growTiles: the extra pages with a tile for each map's worth of them.
+    const std::size_t perMap = pagesPerMap();
+    const std::size_t room =
+        m_byteLimit > needed ? std::size_t((m_byteLimit - needed) / (tileBytes(1) + pageBytes(perMap))) * perMap : 0;
+    const std::size_t wanted = std::max(held / 2, pages < kMinPages ? kMinPages - pages : 0);
+    const std::size_t n = std::min(pages + std::min(wanted, room), std::max(pages, maxSegmentPages()));
+    if (m_pageSegments.size() >= std::size_t(kMaxSegments)) {
+        std::vector<std::size_t> used;
+        for (const PageSegment& g : m_pageSegments) used.push_back(g.used);
+        const auto [a, b] = twoLeastUsed(used);
+        if (used[std::size_t(a)] + used[std::size_t(b)] + n <= maxSegmentPages()) return mergePages(a, b, n);
+    }
+    return addPageSegment(n);
+}
+
+void BlockMapPoolGL::moveTile(int handle, int to) {
+    Slot& s = m_slots[std::size_t(handle)];
+    TileSegment &from = m_tileSegments[std::size_t(s.tileSegment)], &dst = m_tileSegments[std::size_t(to)];
+    const int t = int(dst.free.take());
+    for (int k = 0; k < 2; ++k) {
+        const GLuint a = k == 0 ? from.texels.id() : from.columns.id(), b = k == 0 ? dst.texels.id() : dst.columns.id();
+        glCopyImageSubData(a, GL_TEXTURE_2D_ARRAY, 0, 0, 0, s.tile, b, GL_TEXTURE_2D_ARRAY, 0, 0, 0, t, m_size, m_size, 1);
+    }
+    from.owner[std::size_t(s.tile)] = -1;
+    from.free.release(std::uint32_t(s.tile));
+    --from.used;
+    dst.owner[std::size_t(t)] = handle;
+    ++dst.used;
+    s.tileSegment = to;
+    s.tile = t;
+    m_movedBytes += tileBytes(1);
+}
+
+void BlockMapPoolGL::movePages(int handle, int to) {
+    Slot& s = m_slots[std::size_t(handle)];
+    PageSegment &from = m_pageSegments[std::size_t(s.pageSegment)], &dst = m_pageSegments[std::size_t(to)];
+    const GLsizeiptr bytes = GLsizeiptr(pageBytes(1));
+    for (std::uint32_t& p : s.pages) {
+        const std::uint32_t q = dst.free.take();
+        glCopyNamedBufferSubData(from.buffer.id(), dst.buffer.id(), GLintptr(p) * bytes, GLintptr(q) * bytes, bytes);
+        from.owner[p] = -1;
+        from.free.release(p);
+        --from.used;
+        dst.owner[q] = handle;
+        ++dst.used;
+        p = q;
+    }
+    s.pageSegment = to;
+    writePageTable(handle);
+    m_movedBytes += pageBytes(s.pages.size());
+}
+
+void BlockMapPoolGL::writePageTable(int handle) {
+    const Slot& s = m_slots[std::size_t(handle)];
+    if (s.pages.empty()) return;
+    glNamedBufferSubData(m_pageSegments[std::size_t(s.pageSegment)].buffer.id(), GLintptr(pageBytes(s.pages[0])),
+                         GLsizeiptr(s.pages.size() * 4), s.pages.data());
+}
+
+void BlockMapPoolGL::shrinkTiles(std::size_t need, bool over) {
+    for (bool gave = true; gave && !m_tileSegments.empty();) {
+        gave = false;
+        std::size_t held = 0;
+        for (const TileSegment& g : m_tileSegments) held += std::size_t(g.tiles);
+        // The segment with the most free tiles whose live ones the others' free tiles can take, leaving what is needed
+        // (over the limit) or a quarter more.
+        int pick = -1;
+        for (int i = 0; i < int(m_tileSegments.size()); ++i) {
+            const TileSegment& g = m_tileSegments[std::size_t(i)];
+            const std::size_t left = held - std::size_t(g.tiles);
+            if (left < (over ? need : need + need / 4) || freeTiles() - g.free.size() < std::size_t(g.used)) continue;
+            if (pick < 0 || g.free.size() > m_tileSegments[std::size_t(pick)].free.size()) pick = i;
+        }
+        if (pick < 0) return;
+        for (std::size_t t = 0; t < m_tileSegments[std::size_t(pick)].owner.size(); ++t) {
+            const int h = m_tileSegments[std::size_t(pick)].owner[t];
+            if (h < 0) continue;
+            int to = 0;
+            while (to == pick || m_tileSegments[std::size_t(to)].free.empty()) ++to;
+            moveTile(h, to);
+        }
+        m_tileSegments.erase(m_tileSegments.begin() + pick);
+        for (Slot& s : m_slots)
+            if (s.live && s.tileSegment > pick) --s.tileSegment;
+        gave = !over || allocatedBytes() > m_byteLimit;
     }
 }
 
-std::uint64_t BlockMapPoolGL::tileBytes(int layers) const {
-    const auto side = std::uint64_t(m_tilesPerSide) * std::uint64_t(m_size);
-    return side * side * 8 * std::uint64_t(layers);
+void BlockMapPoolGL::shrinkPages(std::size_t need, bool over) {
+    for (bool gave = true; gave && !m_pageSegments.empty();) {
+        gave = false;
+        std::size_t held = 0;
+        for (const PageSegment& g : m_pageSegments) held += g.pages;
+        // As shrinkTiles; each map of the segment must find one other segment with room for all its pages.
+        int pick = -1;
+        std::vector<int> maps, target;
+        for (int i = 0; i < int(m_pageSegments.size()); ++i) {
+            const PageSegment& g = m_pageSegments[std::size_t(i)];
+            if (held - g.pages < (over ? need : need + need / 4)) continue;
+            if (pick >= 0 && g.free.size() <= m_pageSegments[std::size_t(pick)].free.size()) continue;
+            std::vector<int> its;
+            for (const int h : g.owner)
+                if (h >= 0 && (its.empty() || its.back() != h)) its.push_back(h);
+            std::sort(its.begin(), its.end());
+            its.erase(std::unique(its.begin(), its.end()), its.end());
+            std::vector<std::size_t> room(m_pageSegments.size());
+            for (std::size_t j = 0; j < room.size(); ++j) room[j] = int(j) == i ? 0 : m_pageSegments[j].free.size();
+            std::vector<int> to(its.size(), -1);
+            bool fits = true;
+            for (std::size_t k = 0; k < its.size() && fits; ++k) {
+                const std::size_t n = m_slots[std::size_t(its[k])].pages.size();
+                for (std::size_t j = 0; j < room.size() && to[k] < 0; ++j)
+                    if (room[j] >= n) {
+                        room[j] -= n;
+                        to[k] = int(j);
+                    }
+                fits = to[k] >= 0;
+            }
+            if (!fits) continue;
+            pick = i;
+            maps = std::move(its);
+            target = std::move(to);
+        }
+        if (pick < 0) return;
+        for (std::size_t k = 0; k < maps.size(); ++k) movePages(maps[k], target[k]);
+        m_pageSegments.erase(m_pageSegments.begin() + pick);
+        for (Slot& s : m_slots)
+            if (s.live && s.pageSegment > pick) --s.pageSegment;
+        gave = !over || allocatedBytes() > m_byteLimit;
+    }
+}
+
+
+Status BlockMapPoolGL::mergeTiles(int a, int b, std::size_t extra) {
+    const std::size_t tiles = std::size_t(m_tileSegments[std::size_t(a)].used + m_tileSegments[std::size_t(b)].used);
+    if (auto st = addTileSegment(int(tiles + extra)); !st) return st;
+    const int into = int(m_tileSegments.size()) - 1;
+    for (int h = 0; h < int(m_slots.size()); ++h) {
+        const Slot& s = m_slots[std::size_t(h)];
+        if (s.live && (s.tileSegment == a || s.tileSegment == b)) moveTile(h, into);
+    }
+    m_tileSegments.erase(m_tileSegments.begin() + b);
+    m_tileSegments.erase(m_tileSegments.begin() + a);
+    for (Slot& s : m_slots)
+        if (s.live) s.tileSegment = afterErasing(s.tileSegment, a, b);
+    return Ok{};
+}
+
+Status BlockMapPoolGL::mergePages(int a, int b, std::size_t extra) {
+    if (auto st = addPageSegment(m_pageSegments[std::size_t(a)].used + m_pageSegments[std::size_t(b)].used + extra); !st)
+        return st;
+    const int into = int(m_pageSegments.size()) - 1;
+    for (int h = 0; h < int(m_slots.size()); ++h) {
+        const Slot& s = m_slots[std::size_t(h)];
+        if (s.live && !s.pages.empty() && (s.pageSegment == a || s.pageSegment == b)) movePages(h, into);
+    }
+    m_pageSegments.erase(m_pageSegments.begin() + b);
+    m_pageSegments.erase(m_pageSegments.begin() + a);
+    for (Slot& s : m_slots)
+        if (s.live) s.pageSegment = afterErasing(s.pageSegment, a, b);
+    return Ok{};
 }
 
 Status BlockMapPoolGL::prepare(std::uint64_t bytes, std::size_t pagesComing, std::size_t mapsComing) {
     m_byteLimit = bytes;
-    // Layers beyond what the maps need (live and coming) given back once under three quarters of them have been in
-    // use for kShrinkAfterFrames frames in a row, or at once when the pool is over the limit; the pages grown once for
-    // the frame's maps when its free ones cannot hold them.
-    const int perLayer = m_tilesPerSide * m_tilesPerSide;
-    const int layersNeeded = int((m_live + mapsComing + std::size_t(perLayer) - 1) / std::size_t(perLayer));
-    // At once where the pool holds more than the limit (the city's other blocks need the room).
-    const bool over = allocatedBytes() > bytes;
-    m_underUsedFrames = 4 * layersNeeded < 3 * m_layers ? m_underUsedFrames + 1 : 0;
-    if (m_underUsedFrames > 0 && (over || m_underUsedFrames >= kShrinkAfterFrames)) {
+    // Segments given back once the live and coming maps have needed under three quarters of the tiles (pages) for
+    // kShrinkAfterFrames frames in a row, or at once when the pool holds more than the limit (the city's other
+    // blocks need the room); one added when the free room cannot hold what comes.
+    std::size_t tilesHeld = 0, pagesHeld = 0;
+    for (const TileSegment& g : m_tileSegments) tilesHeld += std::size_t(g.tiles);
+    for (const PageSegment& g : m_pageSegments) pagesHeld += g.pages;
+    const std::size_t tilesNeed = m_live + mapsComing, pagesNeed = m_usedPages + pagesComing;
+    m_underUsedFrames = 4 * tilesNeed < 3 * tilesHeld ? m_underUsedFrames + 1 : 0;
+    if (m_underUsedFrames > 0 && (allocatedBytes() > bytes || m_underUsedFrames >= kShrinkAfterFrames)) {
         m_underUsedFrames = 0;
-        if (auto st = shrinkLayers(std::max(layersNeeded + layersNeeded / 4, 1)); !st) return st;
+        shrinkTiles(tilesNeed, allocatedBytes() > bytes);
     }
-    const std::size_t need = m_usedPages + pagesComing;
-    if (need > m_pageCapacity) {
+    m_pagesUnderUsedFrames = 4 * pagesNeed < 3 * pagesHeld ? m_pagesUnderUsedFrames + 1 : 0;
+    if (m_pagesUnderUsedFrames > 0 && (allocatedBytes() > bytes || m_pagesUnderUsedFrames >= kShrinkAfterFrames)) {
         m_pagesUnderUsedFrames = 0;
-        return growPages(need);
+        shrinkPages(pagesNeed, allocatedBytes() > bytes);
     }
-    // The pages likewise: those in use moved below an eighth more than the maps need, the buffer remade that size.
-    const std::size_t fit = std::max(need + need / 8, kMinPages);
-    m_pagesUnderUsedFrames = 4 * need < 3 * m_pageCapacity && fit < m_pageCapacity ? m_pagesUnderUsedFrames + 1 : 0;
-    if (m_pagesUnderUsedFrames > 0 && (over || m_pagesUnderUsedFrames >= kShrinkAfterFrames)) {
-        m_pagesUnderUsedFrames = 0;
-        movePagesBelow(fit);
-        return resizePages(fit); // smaller: cannot fail
-    }
+    if (freeTiles() < mapsComing)
+        if (auto st = growTiles(mapsComing - freeTiles()); !st) return st;
+    if (freePages() < pagesComing) return growPages(pagesComing);
     return Ok{};
-}
-
-Status BlockMapPoolGL::growPages(std::size_t need) {
-    // To what the maps need, and up to a quarter more (at least kMinPages in all) within the limit: each growth copies
-    // every page kept, so it grows by a share of what it holds (with an eighth, the 10,000-building path grew ten
-    // times in a row, up to 150 ms each on llvmpipe).
-    const std::size_t pageBytes = kBlockMapPageWords * 4;
-    const std::uint64_t needed = tileBytes(m_layers) + std::uint64_t(need) * pageBytes;
-    const std::size_t room = m_byteLimit > needed ? std::size_t((m_byteLimit - needed) / pageBytes) : 0;
-    const std::size_t extra = std::min(std::max(need / 4, kMinPages > need ? kMinPages - need : 0), room);
-    return resizePages(need + extra);
 }
 
 Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packed) {
@@ -202,22 +364,32 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
         own = packBlockMap(map);
         packed = &own;
     }
-    const std::size_t pageBytes = kBlockMapPageWords * 4;
-    // Room within the limit beyond what is needed (saturating).
-    auto spare = [&](std::uint64_t needed) { return m_byteLimit > needed ? m_byteLimit - needed : 0; };
     // Its pages first: a map that does not fit changes nothing.
     const std::size_t words = packed->words.size(), pages = blockMapPages(words);
     if (pages > kBlockMapPageWords) // its page table must fit its first page
         return Error{"BlockMaps: a map of " + std::to_string(words) + " wall words exceeds the pool's " +
                      std::to_string(kBlockMapPageWords * (kBlockMapPageWords - 1)) + " a map"};
-    if (m_freePages.size() < pages)
-        if (auto st = growPages(m_usedPages + pages); !st) return st.error();
-    if (m_freeTiles.empty()) {
-        // A layer more, and up to a quarter more within the limit.
-        const std::uint64_t layerBytes = tileBytes(1);
-        const std::uint64_t need = tileBytes(m_layers + 1) + std::uint64_t(m_pageCapacity) * pageBytes;
-        const int extra = int(std::min<std::uint64_t>(std::uint64_t(m_layers / 4), spare(need) / layerBytes));
-        if (auto st = growLayers(m_layers + 1 + extra); !st) return st.error();
+    // The lowest segments with room: what is in use gathers there, and the others empty as maps leave.
+    auto pageSegment = [&] {
+        for (int i = 0; i < int(m_pageSegments.size()); ++i)
+            if (m_pageSegments[std::size_t(i)].free.size() >= pages) return i;
+        return -1;
+    };
+    auto tileSegment = [&] {
+        for (int i = 0; i < int(m_tileSegments.size()); ++i)
+            if (!m_tileSegments[std::size_t(i)].free.empty()) return i;
+        return -1;
+    };
+    int ps = pages > 0 ? pageSegment() : 0;
+    if (ps < 0) {
+        if (auto st = growPages(pages); !st) return st.error();
+        ps = pageSegment();
+    }
+    int ts = tileSegment();
+    if (ts < 0) {
+        if (auto st = growTiles(1); !st) return st.error();
+        ts = tileSegment();
+        if (pages > 0) ps = pageSegment(); // (a merge of tiles leaves the pages as they are; looked up again anyway)
     }
     int handle;
     if (!m_freeSlots.empty()) {
@@ -237,23 +409,37 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
     s.span = packed->span;
     s.columns = map.columns();
     s.pages.clear();
-    for (std::size_t j = 0; j < pages; ++j) s.pages.push_back(takePage(handle, std::uint32_t(j)));
-    s.tile = int(m_freeTiles.take());
+    s.pageSegment = pages > 0 ? ps : 0;
+    if (pages > 0) {
+        PageSegment& g = m_pageSegments[std::size_t(ps)];
+        for (std::size_t j = 0; j < pages; ++j) {
+            const std::uint32_t p = g.free.take();
+            g.owner[p] = handle;
+            s.pages.push_back(p);
+        }
+        g.used += pages;
+        m_usedPages += pages;
+    }
+    TileSegment& tg = m_tileSegments[std::size_t(ts)];
+    s.tileSegment = ts;
+    s.tile = int(tg.free.take());
+    tg.owner[std::size_t(s.tile)] = handle;
+    ++tg.used;
     ++m_live;
-    const glm::ivec3 tile = tileOf(handle);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glTextureSubImage3D(m_texels.id(), 0, tile.x, tile.y, tile.z, m_size, m_size, 1, GL_RGBA_INTEGER, GL_UNSIGNED_BYTE,
+    glTextureSubImage3D(tg.texels.id(), 0, 0, 0, s.tile, m_size, m_size, 1, GL_RGBA_INTEGER, GL_UNSIGNED_BYTE,
                         packed->texels.data());
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    glTextureSubImage3D(m_columns.id(), 0, tile.x, tile.y, tile.z, m_size, m_size, 1, GL_RED_INTEGER, GL_UNSIGNED_INT,
+    glTextureSubImage3D(tg.columns.id(), 0, 0, 0, s.tile, m_size, m_size, 1, GL_RED_INTEGER, GL_UNSIGNED_INT,
                         map.column.data());
     if (pages > 0) {
         // The map's words as the shader reads them: its page table (a word per page), then its words; page by page.
         std::vector<std::uint32_t> all(pages * kBlockMapPageWords, 0u);
         std::copy(s.pages.begin(), s.pages.end(), all.begin());
         std::copy(packed->words.begin(), packed->words.end(), all.begin() + std::ptrdiff_t(pages));
+        const GLuint buffer = m_pageSegments[std::size_t(ps)].buffer.id();
         for (std::size_t j = 0; j < pages; ++j)
-            glNamedBufferSubData(m_wordBuffer.id(), GLintptr(std::size_t(s.pages[j]) * pageBytes), GLsizeiptr(pageBytes),
+            glNamedBufferSubData(buffer, GLintptr(pageBytes(s.pages[j])), GLsizeiptr(pageBytes(1)),
                                  all.data() + j * kBlockMapPageWords);
     }
     return handle;
@@ -262,15 +448,22 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
 void BlockMapPoolGL::remove(int handle) {
     if (handle < 0 || std::size_t(handle) >= m_slots.size() || !m_slots[std::size_t(handle)].live) return;
     Slot& s = m_slots[std::size_t(handle)];
-    for (const std::uint32_t p : s.pages) {
-        m_pageOwner[p] = PageOwner{};
-        m_freePages.release(p);
-        --m_usedPages;
+    if (!s.pages.empty()) {
+        PageSegment& g = m_pageSegments[std::size_t(s.pageSegment)];
+        for (const std::uint32_t p : s.pages) {
+            g.owner[p] = -1;
+            g.free.release(p);
+        }
+        g.used -= s.pages.size();
+        m_usedPages -= s.pages.size();
     }
-    m_freeTiles.release(std::uint32_t(s.tile));
+    TileSegment& tg = m_tileSegments[std::size_t(s.tileSegment)];
+    tg.owner[std::size_t(s.tile)] = -1;
+    tg.free.release(std::uint32_t(s.tile));
+    --tg.used;
     s = Slot{};
     m_freeSlots.push_back(handle);
-    --m_live; // its tile and pages are given back by prepare(), once the maps have needed fewer for a while
+    --m_live; // its segments are given back by prepare(), once the maps have needed fewer for a while
 }
 
 glm::dvec3 BlockMapPoolGL::boxMin(int handle) const {
@@ -288,32 +481,22 @@ bool BlockMapPoolGL::needsBackFaces(int handle, const glm::dvec3& eye, double ma
     return eye.x >= lo.x && eye.x <= hi.x && eye.y >= lo.y && eye.y <= hi.y && eye.z >= lo.z && eye.z <= hi.z;
 }
 
-glm::ivec3 BlockMapPoolGL::tileAt(int tile) const {
-    const int perLayer = m_tilesPerSide * m_tilesPerSide, t = tile % perLayer;
-    return {(t % m_tilesPerSide) * m_size, (t / m_tilesPerSide) * m_size, tile / perLayer};
-}
+std::uint64_t BlockMapPoolGL::allocatedBytes() const { return tileBytesAllocated() + pageBytesAllocated(); }
 
-glm::ivec3 BlockMapPoolGL::tileOf(int handle) const { return tileAt(m_slots[std::size_t(handle)].tile); }
-
-std::uint64_t BlockMapPoolGL::allocatedBytes() const {
-    return tileBytes(m_layers) + std::uint64_t(m_pageCapacity) * kBlockMapPageWords * 4;
-}
-
-std::uint64_t BlockMapPoolGL::usedBytes() const {
-    const auto n = std::uint64_t(m_size);
-    return n * n * 8 * std::uint64_t(m_live) + std::uint64_t(m_usedPages) * kBlockMapPageWords * 4;
-}
+std::uint64_t BlockMapPoolGL::usedBytes() const { return tileBytes(m_live) + pageBytes(m_usedPages); }
 
 void BlockMapPoolGL::setInstances(const std::vector<Instance>& instances) {
     std::vector<Record> records(std::max<std::size_t>(instances.size(), 1), Record{});
+    m_instancePair.resize(instances.size());
     for (std::size_t i = 0; i < instances.size(); ++i) {
         const int h = instances[i].handle;
         const Slot& s = m_slots[std::size_t(h)];
-        const glm::ivec3 tile = tileOf(h);
+        const int pair = s.tileSegment * kPairStride + s.pageSegment;
+        m_instancePair[i] = pair;
         Record& r = records[i];
         r = Record{{float(s.origin.x), float(s.origin.y), float(s.texel), float(s.zBase)},
-                   {float(s.zTop), 0.0f, 0.0f, 0.0f},
-                   {tile.x, tile.y, tile.z, std::int32_t(s.pages.size())},
+                   {float(s.zTop), float(pair), 0.0f, 0.0f},
+                   {0, 0, s.tile, std::int32_t(s.pages.size())},
                    {s.wallTexels, s.span, s.columns, s.pages.empty() ? 0 : std::int32_t(s.pages[0])},
                    {instances[i].sourceColour.r, instances[i].sourceColour.g, instances[i].sourceColour.b,
                     instances[i].sourceColour.a}};
@@ -335,9 +518,6 @@ void BlockMapPoolGL::begin(const gl::ShaderProgram& p, const glm::dmat4& viewPro
     p.set("uBmColumn", kUnit + 1);
     p.set("uBmWords", kUnit + 2);
     p.use();
-    glBindTextureUnit(GLuint(kUnit), m_texels.id());
-    glBindTextureUnit(GLuint(kUnit + 1), m_columns.id());
-    glBindTextureUnit(GLuint(kUnit + 2), m_words.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, m_instances.id());
     glBindVertexArray(m_vao.id());
     glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE); // reversed Z in [0, 1]: gl_FragDepth is the hit's clip z / w
@@ -348,10 +528,25 @@ void BlockMapPoolGL::begin(const gl::ShaderProgram& p, const glm::dmat4& viewPro
     glCullFace(frontFaces ? GL_BACK : GL_FRONT);
 }
 
-void BlockMapPoolGL::draw(const gl::ShaderProgram& p, int first, int count) const {
-    if (count <= 0) return;
+int BlockMapPoolGL::draw(const gl::ShaderProgram& p, int first, int count) const {
+    if (count <= 0) return 0;
+    // The pairs of segments the instances use, in order of first use: a draw call each, with that pair's storage
+    // bound; the vertex shader drops the boxes of the other pairs (uBmPair; -1: every instance is of the one pair).
+    std::vector<int> pairs;
+    for (int i = first; i < first + count; ++i)
+        if (std::find(pairs.begin(), pairs.end(), m_instancePair[std::size_t(i)]) == pairs.end())
+            pairs.push_back(m_instancePair[std::size_t(i)]);
     p.set("uFirstInstance", first);
-    glDrawArraysInstanced(GL_TRIANGLES, 0, 36, count);
+    for (const int pair : pairs) {
+        const TileSegment& t = m_tileSegments[std::size_t(pair / kPairStride)];
+        const std::size_t ps = std::size_t(pair % kPairStride);
+        glBindTextureUnit(GLuint(kUnit), t.texels.id());
+        glBindTextureUnit(GLuint(kUnit + 1), t.columns.id());
+        glBindTextureUnit(GLuint(kUnit + 2), ps < m_pageSegments.size() ? m_pageSegments[ps].words.id() : 0);
+        p.set("uBmPair", pairs.size() == 1 ? -1 : pair);
+        glDrawArraysInstanced(GL_TRIANGLES, 0, 36, count);
+    }
+    return int(pairs.size());
 }
 
 void BlockMapPoolGL::end() {

@@ -3,17 +3,21 @@
 // the copy of BlockMap.cpp's traceBlockMap) over their bounding boxes, writing each hit's colour and depth so they
 // compose with the terrain and the polygons drawn around them.
 //
-// BlockMapPoolGL holds every resident map of a city in shared storage, so that any set of them is one instanced draw
-// (§4: the paper's renderer draws a frame's BlockMaps as one batch of boxes): per texel its height, distance and roof
-// normal in one RGBA8UI array texture and its wall column in an R32UI one, both of tiles n × n texels, a map per tile;
-// the wall columns' normals and colours as 32-bit words in one texture buffer, in pages of kBlockMapPageWords taken
-// wherever they are free (the map's first page starts with its page table), so maps come and go with no room lost
-// between them and nothing moved. A draw's maps are instances whose records (box, tile, first page) come from a
-// storage buffer. The storage follows the maps resident: layers and pages are added when none is free, up to a quarter
-// more than needed but never past setByteLimit() (the city's capacity less what else it holds); once under three
-// quarters of them have been in use for kShrinkAfterFrames frames (at once when the pool is over the limit), the live
-// tiles or pages move below a new end and the arrays or buffer are remade that size (copied on the GPU; page tables
-// follow). Remaking copies everything kept (on llvmpipe about 0.8 ms a MB), so it is done seldom.
+// BlockMapPoolGL holds every resident map of a city in storage shared by all of them, so that any set of them is a few
+// instanced draws (§4: the paper's renderer draws a frame's BlockMaps as one batch of boxes): per texel its height,
+// distance and roof normal in an RGBA8UI array texture and its wall column in an R32UI one, a map per layer; the wall
+// columns' normals and colours as 32-bit words in a texture buffer, in pages of kBlockMapPageWords taken wherever
+// they are free (the map's first page starts with its page table), so maps come and go with no room lost between
+// them. The storage is segments that are never resized: tile segments (the two arrays) and page segments (a buffer);
+// a map's tile lies in one tile segment and all its pages in one page segment. A draw's maps are instances whose
+// records (box, tile, first page) come from a storage buffer; a draw call per pair of segments its maps use.
+// When the maps coming do not fit the free room, a segment is added, of what they need and up to half the pool more,
+// but never past setByteLimit() (the city's capacity less what else it holds): nothing already resident is copied
+// (remaking one store copied all it kept: on llvmpipe about 0.8 ms a MB, 150 ms for a growth on the 10,000-building
+// path). Once under three quarters of the tiles (or pages) have been in use for kShrinkAfterFrames frames, or at
+// once when the pool is over the limit, segments are given back: an empty one as it is, another after its live maps
+// moved into the others' free room (a copy of those maps alone); at kMaxSegments of a kind, the two least used are
+// merged into the next one added.
 #include "BlockMap.h"
 #include "LowestFree.h"
 #include "Camera.h"
@@ -61,15 +65,13 @@ public:
     /// The most the pool may allocate when it grows (the city's capacity less what else it holds): room beyond
     /// what the maps need is added only within it. It never holds less than its maps need.
     void setByteLimit(std::uint64_t bytes) { m_byteLimit = bytes; }
-    /// Before a frame's `mapsComing` maps of `pagesComing` pages are added: setByteLimit(bytes); the tiles' layers
-    /// or the words' pages made fewer when the live and coming maps need under three quarters of them and have for
-    /// kShrinkAfterFrames calls in a row, or the pool holds more than `bytes` (the live tiles or pages moved below
-    /// first); the words' buffer grown once (as add() grows it) when the pages coming do not fit its free ones.
+    /// Before a frame's `mapsComing` maps of `pagesComing` pages are added: setByteLimit(bytes); segments given back
+    /// when the live and coming maps have needed under three quarters of the tiles (or pages) for kShrinkAfterFrames
+    /// calls in a row, or the pool holds more than `bytes`; a segment added when the free room cannot hold what comes.
     Status prepare(std::uint64_t bytes, std::size_t pagesComing, std::size_t mapsComing);
-    /// Calls of prepare() (frames) the maps must need under three quarters of the layers (or pages) before they are
-    /// made fewer. That copies everything kept into new storage (160 MB of pages in about 125 ms on llvmpipe), and
-    /// while the eye moves the maps resident come and go: a dip of a few frames is not worth a copy that the next
-    /// rise undoes, and the maps evicted over several frames are given back in one copy, not one a frame.
+    /// Calls of prepare() (frames) the maps must need under three quarters of the tiles (or pages) before segments are
+    /// given back. Giving one back copies its live maps, and while the eye moves the maps resident come and go: a dip
+    /// of a few frames is not worth a copy that the next rise undoes.
     static constexpr int kShrinkAfterFrames = 16;
 
     struct Instance {
@@ -87,9 +89,18 @@ public:
     /// filters the walls' colours), binds the pool; draw() then draws instances, end() restores the state.
     void begin(const gl::ShaderProgram& program, const glm::dmat4& viewProj, const glm::dvec3& eye, double pixelAngle,
                const DrawSettings& settings, bool frontFaces = false) const;
-    /// Instances [first, first + count) of setInstances() in one draw call.
-    void draw(const gl::ShaderProgram& program, int first, int count) const;
+    /// Instances [first, first + count) of setInstances(): a draw call per pair of segments they use (returned).
+    int draw(const gl::ShaderProgram& program, int first, int count) const;
     static void end();
+
+    /// Segments of each kind at most: the two least used are merged into the next (each pair of segments a draw's
+    /// maps lie in is a draw call).
+    static constexpr int kMaxSegments = 8;
+    /// Bytes of resident maps copied within the pool so far (segments given back or merged; growing copies none).
+    std::uint64_t movedBytes() const { return m_movedBytes; }
+    /// Tile and page segments held (tests).
+    int tileSegments() const { return int(m_tileSegments.size()); }
+    int pageSegments() const { return int(m_pageSegments.size()); }
 
 private:
     struct Slot {
@@ -97,46 +108,66 @@ private:
         glm::dvec2 origin{0.0};
         double texel = 1.0, zBase = 0.0, zTop = 1.0;
         int wallTexels = 1, span = 1, columns = 0;
-        std::vector<std::uint32_t> pages; // its pages in the words buffer, in order (the first holds the table)
-        int tile = 0;                     // its tile in the arrays (tileAt)
+        int tileSegment = 0, tile = 0;    // its layer in that tile segment's arrays
+        int pageSegment = 0;
+        std::vector<std::uint32_t> pages; // its pages in that page segment, in order (the first holds the table)
+    };
+    struct TileSegment {
+        gl::Texture texels, columns; // 2D arrays of n² texels, a map per layer
+        int tiles = 0, used = 0;
+        LowestFree free;
+        std::vector<int> owner; // per tile: the map's handle, -1 free
+    };
+    struct PageSegment {
+        gl::Buffer buffer;
+        gl::Texture words; // R32UI texture buffer over `buffer`
+        std::size_t pages = 0, used = 0;
+        LowestFree free;
+        std::vector<int> owner; // per page: the map's handle, -1 free
     };
     static constexpr std::size_t kMinPages = 64;
-    /// Tile `tile`'s first texel's x and y in the arrays, and its layer; map `handle`'s.
-    glm::ivec3 tileAt(int tile) const;
-    glm::ivec3 tileOf(int handle) const;
-    Status growLayers(int layers);
-    /// The arrays made `layers` layers, the live tiles past them moved into free ones below first.
-    Status shrinkLayers(int layers);
-    /// The words' buffer made at least `need` pages (growing: see add()).
-    Status growPages(std::size_t need);
-    /// The words' buffer made `pages` pages, its first ones kept (every page in use lies below `pages`).
-    Status resizePages(std::size_t pages);
-    /// Moves the pages in use at or past `target` to free pages below it (there are enough), updating their maps'
-    /// page tables; resizePages(target) then cuts the buffer.
-    void movePagesBelow(std::size_t target);
-    /// The lowest free page, taken for page `index` of map `handle`.
-    std::uint32_t takePage(int handle, std::uint32_t index);
-    std::uint64_t tileBytes(int layers) const;
+    static constexpr int kMinTiles = 16;
+    static constexpr int kPairStride = 256; // an instance's pair of segments: tile segment × this + page segment
+    std::uint64_t tileBytes(std::uint64_t tiles) const;
+    static std::uint64_t pageBytes(std::uint64_t pages);
+    std::uint64_t tileBytesAllocated() const;
+    std::uint64_t pageBytesAllocated() const;
+    std::size_t freeTiles() const;
+    std::size_t pagesPerMap() const; // the live maps' pages on average, rounded up (1 with none)
+    std::size_t freePages() const;
+    /// A new segment of `tiles` tiles (or `pages` pages), within the GL's limits.
+    Status addTileSegment(int tiles);
+    Status addPageSegment(std::size_t pages);
+    /// Room for `tiles` (`pages`) more: a segment of at least that and up to half the pool more within the limit.
+    Status growTiles(std::size_t tiles);
+    Status growPages(std::size_t pages);
+    /// Map `handle`'s tile (pages) moved to segment `to`'s free room; its old ones freed.
+    void moveTile(int handle, int to);
+    void movePages(int handle, int to);
+    /// Gives back tile (page) segments while the live and coming tiles (pages) fit the others with room to spare
+    /// (or, `over`, the pool holds more than the limit), moving their live maps.
+    void shrinkTiles(std::size_t need, bool over);
+    void shrinkPages(std::size_t need, bool over);
+    /// Segments a < b (the two with the fewest live tiles, or pages) made one new segment with `extra` more room, their
+    /// maps moved (it fits the GL's limits: checked by the caller).
+    Status mergeTiles(int a, int b, std::size_t extra);
+    Status mergePages(int a, int b, std::size_t extra);
+    /// Writes map `handle`'s page table (the page numbers, at the start of its first page).
+    void writePageTable(int handle);
 
     int m_size = 0;
-    int m_tilesPerSide = 1, m_layers = 0;
-    gl::Texture m_texels, m_columns;     // 2D arrays of (tilesPerSide · n)² per layer
-    gl::Buffer m_wordBuffer;
-    gl::Texture m_words;                 // R32UI texture buffer over m_wordBuffer
-    std::size_t m_pageCapacity = 0, m_usedPages = 0;
-    struct PageOwner {
-        int handle = -1;         // -1: free
-        std::uint32_t index = 0; // which of its map's pages
-    };
-    std::vector<PageOwner> m_pageOwner;      // per page of the buffer
-    LowestFree m_freePages, m_freeTiles;   // the lowest taken first, so that the top ones empty
+    std::vector<TileSegment> m_tileSegments;
+    std::vector<PageSegment> m_pageSegments;
+    std::size_t m_usedPages = 0;
+    std::uint64_t m_movedBytes = 0;
     std::uint64_t m_byteLimit = ~std::uint64_t(0);
-    int m_underUsedFrames = 0;      // prepare() calls in a row with under three quarters of the layers needed
+    int m_underUsedFrames = 0;      // prepare() calls in a row with under three quarters of the tiles needed
     int m_pagesUnderUsedFrames = 0; // the same for the pages
     std::vector<Slot> m_slots;
     std::vector<int> m_freeSlots;
     std::size_t m_live = 0;
     gl::Buffer m_instances;
+    std::vector<int> m_instancePair; // per instance of setInstances(): tile segment × kMaxSegments + page segment
     gl::VertexArray m_vao;
 };
 

@@ -697,6 +697,10 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
     st.evictedBlocks = std::size_t(m_frameEvicted);
     st.allocatedBytes = allocatedBytes();
     st.blockMapPoolBytes = m_bmPool ? m_bmPool->allocatedBytes() : 0;
+    if (m_bmPool) {
+        st.blockMapMovedBytes = m_bmPool->movedBytes() - m_bmMovedReported;
+        m_bmMovedReported = m_bmPool->movedBytes();
+    }
     return st;
 }
 
@@ -1042,22 +1046,17 @@ void CityRendererGL::drawBlockMaps(const BlockMapCut& cut, DrawState& ds, const 
     if (nFront + nTested > 0) {
         setRoofImagery(m_bmFrontProgram, ds, terrain, targetWidth);
         m_bmPool->begin(m_bmFrontProgram, ds.v.viewProj, ds.v.eye, pixelAngle, s, true);
-        if (nFront > 0) {
-            m_bmPool->draw(m_bmFrontProgram, 0, nFront);
-            ++ds.st.drawCalls;
-        }
+        if (nFront > 0) ds.st.drawCalls += m_bmPool->draw(m_bmFrontProgram, 0, nFront);
         for (int q = 0; q < nTested; ++q) {
             glBeginConditionalRender(m_bmQueries[std::size_t(q)].id(), GL_QUERY_WAIT);
-            m_bmPool->draw(m_bmFrontProgram, nFront + q, 1);
+            ds.st.drawCalls += m_bmPool->draw(m_bmFrontProgram, nFront + q, 1);
             glEndConditionalRender();
-            ++ds.st.drawCalls;
         }
     }
     if (nBack > 0) {
         setRoofImagery(m_bmProgram, ds, terrain, targetWidth);
         m_bmPool->begin(m_bmProgram, ds.v.viewProj, ds.v.eye, pixelAngle, s, false);
-        m_bmPool->draw(m_bmProgram, nFront + nTested, nBack);
-        ++ds.st.drawCalls;
+        ds.st.drawCalls += m_bmPool->draw(m_bmProgram, nFront + nTested, nBack);
     }
     ds.st.blockMaps += int(all.size());
     ds.st.triangles += 12 * std::int64_t(all.size());

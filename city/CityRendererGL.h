@@ -110,6 +110,9 @@ struct CityFrameStats {
     // buffer). The pager counts each resident map's own bytes (residentBytes); this is above them by the pool's
     // free tiles and words.
     std::uint64_t blockMapPoolBytes = 0;
+    // blockmap mode, this frame: bytes of resident maps the pool copied (segments given back or merged; growing copies
+    // none).
+    std::uint64_t blockMapMovedBytes = 0;
     // GL storage held (atlases, original textures whole or while their parts arrive, the BlockMaps' pool): what
     // residentBytes accounts for (never above the capacity), and the pool's free tiles and words, which are not
     // (blockMapPoolBytes).
@@ -219,6 +222,7 @@ private:
     BlockMapTriangleOrder m_bmRoofOrder, m_bmOtherOrder; // the plain roofs and the other plain triangles
     std::unique_ptr<BlockMapPoolGL> m_bmPool;    // every resident map
     std::map<std::uint32_t, int> m_blockMaps;   // resident maps: node -> its handle in m_bmPool
+    std::uint64_t m_bmMovedReported = 0;        // m_bmPool->movedBytes() at the last frame's stats
     BlockMapCut m_lastCut; // the last draw()'s (not kept while holdSwitches)
     gl::ShaderProgram m_bmProgram, m_bmFrontProgram; // over the boxes' back faces, over their front faces
     std::vector<gl::Query> m_bmQueries;              // the maps' box queries, reused every frame

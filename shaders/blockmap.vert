@@ -6,6 +6,7 @@
 #include "common_blockmap.glsl"
 uniform mat4 uViewProj;
 uniform int uFirstInstance; // the draw's first record
+uniform int uBmPair;        // the pair of storage segments this draw binds (BmMap.z.y); -1: every map's
 
 out vec3 vWorld;
 flat out int vMap;
@@ -17,6 +18,12 @@ const int kCorner[36] = int[36](0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5, 0, 1, 5, 0, 
 void main() {
     vMap = uFirstInstance + gl_InstanceID;
     BmMap m = bmMaps[vMap];
+    if (uBmPair >= 0 && int(m.z.y) != uBmPair) {
+        // Another draw's map (its storage is bound there): every corner at one point, nothing rasterised.
+        vWorld = vec3(0.0);
+        gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
+        return;
+    }
     int c = kCorner[gl_VertexID];
     vec3 corner = vec3(float(c & 1), float((c >> 1) & 1), float((c >> 2) & 1));
     vec3 lo = vec3(m.geo.xy, m.geo.w), hi = vec3(m.geo.xy + float(uBmSize) * m.geo.z, m.z.x);

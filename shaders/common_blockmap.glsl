@@ -1,8 +1,8 @@
 // The maps of a BlockMap pool (city/BlockMapGL.h, BlockMapPoolGL): one record per instance of a draw.
 struct BmMap {
     vec4 geo;     // origin x, y (local metres), metres per texel, zBase
-    vec4 z;       // zTop
-    ivec4 tile;   // the map's tile: first texel x, y in the pool's arrays, their layer; its first word after its
+    vec4 z;       // zTop, the pair of storage segments it lies in (BlockMapPoolGL::draw)
+    ivec4 tile;   // the map's tile: first texel x, y in its segment's arrays, their layer; its first word after its
                   // page table
     ivec4 wall;   // wallTexels, span (texels a column takes with its halved levels), columns; its first page
     vec4 source;  // a > 0: the levels view, this map's colour, shaded by the face

@@ -241,13 +241,20 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
     ASSERT_TRUE(program) << program.message();
     BlockMapPoolGL pool(a.size);
     std::vector<int> handles;
+    int mostSegments = 0;
     for (int i = 0; i < 300; ++i) {
         auto h = pool.add(copyAt(i));
         ASSERT_TRUE(h) << h.message();
         handles.push_back(*h);
+        mostSegments = std::max({mostSegments, pool.tileSegments(), pool.pageSegments()});
+        // Growing adds segments and copies nothing resident, until there are kMaxSegments of a kind (then merged).
+        if (mostSegments < BlockMapPoolGL::kMaxSegments) {
+            EXPECT_EQ(pool.movedBytes(), 0u) << "map " << i;
+        }
+        EXPECT_LE(pool.tileSegments(), BlockMapPoolGL::kMaxSegments);
+        EXPECT_LE(pool.pageSegments(), BlockMapPoolGL::kMaxSegments);
     }
-    const std::uint64_t layer = std::uint64_t(256) * 256 * 8; // 8 × 8 maps of 32² texels
-    EXPECT_GT(pool.allocatedBytes(), 2 * layer) << "more than one layer";
+    EXPECT_EQ(mostSegments, BlockMapPoolGL::kMaxSegments) << "the test covers several segments";
     // The maps' words span pages (a page table in use), and the pool's use is what the pager counts for them.
     const std::size_t wordsA = packBlockMap(a).words.size(), wordsB = packBlockMap(b).words.size();
     ASSERT_GT(wordsA, kBlockMapPageWords) << "the test needs maps of several pages";
@@ -272,7 +279,7 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
     EXPECT_EQ(pool.maps(), 150u);
     for (int frame = 0; frame < BlockMapPoolGL::kShrinkAfterFrames; ++frame)
         ASSERT_TRUE(pool.prepare(~std::uint64_t(0), 0, 0));
-    EXPECT_LT(pool.allocatedBytes(), full) << "half the maps gone: the pages in use moved down, the buffer smaller";
+    EXPECT_LT(pool.allocatedBytes(), full) << "half the maps gone: segments given back, their live maps moved";
     for (int i = 0; i < 300; i += 2) { // back, in freed slots and ranges, as other copies
         auto h = pool.add(copyAt((i + 7) % 300));
         ASSERT_TRUE(h) << h.message();
@@ -356,8 +363,10 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
         ASSERT_TRUE(pool.prepare(~std::uint64_t(0), 0, 0));
         EXPECT_EQ(pool.allocatedBytes(), before) << "frame " << frame;
     }
+    const std::uint64_t moved = pool.movedBytes(), live = pool.usedBytes();
     ASSERT_TRUE(pool.prepare(~std::uint64_t(0), 0, 0));
     EXPECT_LT(pool.allocatedBytes(), before / 2);
+    EXPECT_LE(pool.movedBytes() - moved, live) << "only maps of the segments given back are copied, each once";
     const std::vector<int> kept = {0, 3, 6, 150, 153, 294, 297};
     EXPECT_GT(compare(poolDraw(kept, false), eachOwn(kept), "the pool's after it shrank"), W * H / 50);
 }
@@ -368,8 +377,11 @@ TEST(BlockMapGLTest, PoolGrowsWithinItsByteLimit) {
     const std::uint64_t tile = std::uint64_t(a.size) * std::uint64_t(a.size) * 8,
                         pages = std::uint64_t(blockMapPages(packBlockMap(a).words.size())) * kBlockMapPageWords * 4,
                         one = tile + pages;
-    // What the maps need: their pages, and whole layers of 8 × 8 tiles.
-    auto needed = [&](int maps) { return (std::uint64_t(maps) + 63) / 64 * 64 * tile + std::uint64_t(maps) * pages; };
+    // What the maps need: their tiles and pages. A map's pages lie in one segment, so past the limit each segment may
+    // keep fewer free pages than a map takes: at most a map's pages a segment.
+    auto needed = [&](int maps) {
+        return std::uint64_t(maps) * one + std::uint64_t(BlockMapPoolGL::kMaxSegments) * (pages - kBlockMapPageWords * 4);
+    };
     // Free room only within the limit, never less than the maps need: the limit of 100 maps, then none.
     for (const std::uint64_t limit : {100 * one, std::uint64_t(0)}) {
         BlockMapPoolGL pool(a.size);
@@ -381,6 +393,13 @@ TEST(BlockMapGLTest, PoolGrowsWithinItsByteLimit) {
             EXPECT_EQ(pool.usedBytes(), std::uint64_t(i + 1) * one);
             EXPECT_LE(pool.allocatedBytes(), std::max(limit, needed(i + 1))) << "map " << i << ", limit " << limit;
             most = std::max(most, pool.allocatedBytes() - pool.usedBytes());
+            EXPECT_LE(pool.tileSegments(), BlockMapPoolGL::kMaxSegments);
+            EXPECT_LE(pool.pageSegments(), BlockMapPoolGL::kMaxSegments);
+        }
+        // Past the limit every growth is a segment of what the map needs: at kMaxSegments the two least used are merged
+        // (the maps copied), and the maps draw from wherever they went (PoolDrawsManyMapsInOneDrawAsEachAlone).
+        if (limit == 0) {
+            EXPECT_GT(pool.movedBytes(), 0u);
         }
         std::printf("limit %llu B: at most %llu B free room (a map %llu B)\n", (unsigned long long)limit,
                     (unsigned long long)most, (unsigned long long)one);

@@ -669,12 +669,15 @@ TEST(CityCliTest, BlockmapModeRendersAndBenches) {
     std::ifstream csv(s.dir / "bmbench/frames.csv");
     std::string header;
     std::getline(csv, header);
-    EXPECT_NE(header.find(",city_blockmaps,city_blockmaps_not_resident,city_blockmap_pool_bytes"), std::string::npos)
+    EXPECT_NE(header.find(",city_blockmaps,city_blockmaps_not_resident,city_blockmap_pool_bytes,"
+                          "city_blockmap_moved_bytes"),
+              std::string::npos)
         << header;
     // The maps' pool: none in atlas mode, allocated once maps were drawn.
     EXPECT_EQ(at["block_map_pool_bytes"]["max"].get<double>(), 0.0);
     ASSERT_GT(bm["block_maps"]["max"].get<double>(), 0.0) << "the orbit sees the houses as maps";
     EXPECT_GT(bm["block_map_pool_bytes"]["max"].get<double>(), 0.0);
+    EXPECT_TRUE(bm["block_map_moved_bytes"].is_object());
 
     // A cached file whose maps rot (every map's checksum flipped; the headers intact, so it opens): the still stops
     // at the first map paged in, with one line naming the file, and the cached file is removed to be built again.
