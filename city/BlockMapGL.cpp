@@ -6,20 +6,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <numeric>
 #include <string>
 
 namespace seasonview::city {
 
 namespace {
-
-gl::Texture arrayTexture(GLenum internalFormat, int side, int layers) {
-    gl::Texture t = gl::Texture::create(GL_TEXTURE_2D_ARRAY);
-    glTextureStorage3D(t.id(), 1, internalFormat, side, side, layers);
-    glTextureParameteri(t.id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTextureParameteri(t.id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    return t;
-}
 
 // One instance record (common_blockmap.glsl's BmMap, std430).
 struct Record {
@@ -78,23 +71,29 @@ std::size_t BlockMapPoolGL::freePages() const {
 }
 
 namespace {
-int maxSegmentTiles() {
-    GLint layers = 0;
-    glGetIntegerv(GL_MAX_ARRAY_TEXTURE_LAYERS, &layers);
-    return std::max(layers, 1);
-}
-std::size_t maxSegmentPages() {
+std::size_t maxBufferTexels() {
     GLint texels = 0;
     glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &texels);
-    return std::max<std::size_t>(std::size_t(texels) / kBlockMapPageWords, 1);
+    return std::size_t(std::max(texels, 1));
 }
+std::size_t maxSegmentPages() { return std::max<std::size_t>(maxBufferTexels() / kBlockMapPageWords, 1); }
 } // namespace
+
+int BlockMapPoolGL::maxSegmentTiles() const {
+    const std::size_t n2 = std::size_t(m_size) * std::size_t(m_size);
+    return int(std::clamp<std::size_t>(maxBufferTexels() / std::max<std::size_t>(n2, 1), 1, 1u << 30));
+}
 
 Status BlockMapPoolGL::addTileSegment(int tiles) {
     TileSegment g;
     g.tiles = std::clamp(tiles, 1, maxSegmentTiles());
-    g.texels = arrayTexture(GL_RGBA8UI, m_size, g.tiles);
-    g.columns = arrayTexture(GL_R32UI, m_size, g.tiles);
+    // Never a power of two, as no other segment is: llvmpipe builds a shader variant for each kind of texture bound,
+    // power-of-two sizes apart (a first draw with the other kind waited 340 ms for it).
+    while ((g.tiles & (g.tiles - 1)) == 0 && g.tiles < maxSegmentTiles()) ++g.tiles;
+    g.buffer = gl::Buffer::create();
+    glNamedBufferData(g.buffer.id(), GLsizeiptr(tileBytes(std::uint64_t(g.tiles))), nullptr, GL_DYNAMIC_DRAW);
+    g.texels = gl::Texture::create(GL_TEXTURE_BUFFER);
+    glTextureBuffer(g.texels.id(), GL_RG32UI, g.buffer.id());
     g.free.add(0, std::uint32_t(g.tiles));
     g.owner.assign(std::size_t(g.tiles), -1);
     m_tileSegments.push_back(std::move(g));
@@ -109,6 +108,7 @@ Status BlockMapPoolGL::addPageSegment(std::size_t pages) {
                      std::to_string(most * kBlockMapPageWords) + "-texel texture buffers"};
     PageSegment g;
     g.pages = std::max<std::size_t>(pages, 1);
+    while ((g.pages & (g.pages - 1)) == 0 && g.pages < most) ++g.pages; // as addTileSegment
     g.buffer = gl::Buffer::create();
     glNamedBufferData(g.buffer.id(), GLsizeiptr(pageBytes(g.pages)), nullptr, GL_DYNAMIC_DRAW);
     g.words = gl::Texture::create(GL_TEXTURE_BUFFER);
@@ -186,10 +186,8 @@ void BlockMapPoolGL::moveTile(int handle, int to) {
     Slot& s = m_slots[std::size_t(handle)];
     TileSegment &from = m_tileSegments[std::size_t(s.tileSegment)], &dst = m_tileSegments[std::size_t(to)];
     const int t = int(dst.free.take());
-    for (int k = 0; k < 2; ++k) {
-        const GLuint a = k == 0 ? from.texels.id() : from.columns.id(), b = k == 0 ? dst.texels.id() : dst.columns.id();
-        glCopyImageSubData(a, GL_TEXTURE_2D_ARRAY, 0, 0, 0, s.tile, b, GL_TEXTURE_2D_ARRAY, 0, 0, 0, t, m_size, m_size, 1);
-    }
+    const GLsizeiptr bytes = GLsizeiptr(tileBytes(1));
+    glCopyNamedBufferSubData(from.buffer.id(), dst.buffer.id(), GLintptr(s.tile) * bytes, GLintptr(t) * bytes, bytes);
     from.owner[std::size_t(s.tile)] = -1;
     from.free.release(std::uint32_t(s.tile));
     --from.used;
@@ -426,12 +424,18 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
     tg.owner[std::size_t(s.tile)] = handle;
     ++tg.used;
     ++m_live;
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glTextureSubImage3D(tg.texels.id(), 0, 0, 0, s.tile, m_size, m_size, 1, GL_RGBA_INTEGER, GL_UNSIGNED_BYTE,
-                        packed->texels.data());
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    glTextureSubImage3D(tg.columns.id(), 0, 0, 0, s.tile, m_size, m_size, 1, GL_RED_INTEGER, GL_UNSIGNED_INT,
-                        map.column.data());
+    {
+        // Its texels as the shader reads them: per texel its height, distance and roof normal (a byte each), then its
+        // wall column.
+        const std::size_t n2 = std::size_t(m_size) * std::size_t(m_size);
+        std::vector<std::uint32_t> tile(2 * n2);
+        for (std::size_t i = 0; i < n2; ++i) {
+            std::memcpy(&tile[2 * i], packed->texels.data() + 4 * i, 4);
+            tile[2 * i + 1] = map.column[i];
+        }
+        glNamedBufferSubData(tg.buffer.id(), GLintptr(tileBytes(std::uint64_t(s.tile))), GLsizeiptr(tileBytes(1)),
+                             tile.data());
+    }
     if (pages > 0) {
         // The map's words as the shader reads them: its page table (a word per page), then its words; page by page.
         std::vector<std::uint32_t> all(pages * kBlockMapPageWords, 0u);
@@ -496,7 +500,7 @@ void BlockMapPoolGL::setInstances(const std::vector<Instance>& instances) {
         Record& r = records[i];
         r = Record{{float(s.origin.x), float(s.origin.y), float(s.texel), float(s.zBase)},
                    {float(s.zTop), float(pair), 0.0f, 0.0f},
-                   {0, 0, s.tile, std::int32_t(s.pages.size())},
+                   {0, 0, s.tile * m_size * m_size, std::int32_t(s.pages.size())},
                    {s.wallTexels, s.span, s.columns, s.pages.empty() ? 0 : std::int32_t(s.pages[0])},
                    {instances[i].sourceColour.r, instances[i].sourceColour.g, instances[i].sourceColour.b,
                     instances[i].sourceColour.a}};
@@ -515,8 +519,7 @@ void BlockMapPoolGL::begin(const gl::ShaderProgram& p, const glm::dmat4& viewPro
     p.set("uOutputKind", s.outputKind ? 1 : 0);
     p.set("uBmSize", m_size);
     p.set("uBmTexels", kUnit);
-    p.set("uBmColumn", kUnit + 1);
-    p.set("uBmWords", kUnit + 2);
+    p.set("uBmWords", kUnit + 1);
     p.use();
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, m_instances.id());
     glBindVertexArray(m_vao.id());
@@ -541,8 +544,7 @@ int BlockMapPoolGL::draw(const gl::ShaderProgram& p, int first, int count) const
         const TileSegment& t = m_tileSegments[std::size_t(pair / kPairStride)];
         const std::size_t ps = std::size_t(pair % kPairStride);
         glBindTextureUnit(GLuint(kUnit), t.texels.id());
-        glBindTextureUnit(GLuint(kUnit + 1), t.columns.id());
-        glBindTextureUnit(GLuint(kUnit + 2), ps < m_pageSegments.size() ? m_pageSegments[ps].words.id() : 0);
+        glBindTextureUnit(GLuint(kUnit + 1), ps < m_pageSegments.size() ? m_pageSegments[ps].words.id() : 0);
         p.set("uBmPair", pairs.size() == 1 ? -1 : pair);
         glDrawArraysInstanced(GL_TRIANGLES, 0, 36, count);
     }

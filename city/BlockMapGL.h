@@ -5,10 +5,11 @@
 //
 // BlockMapPoolGL holds every resident map of a city in storage shared by all of them, so that any set of them is a few
 // instanced draws (§4: the paper's renderer draws a frame's BlockMaps as one batch of boxes): per texel its height,
-// distance and roof normal in an RGBA8UI array texture and its wall column in an R32UI one, a map per layer; the wall
-// columns' normals and colours as 32-bit words in a texture buffer, in pages of kBlockMapPageWords taken wherever
-// they are free (the map's first page starts with its page table), so maps come and go with no room lost between
-// them. The storage is segments that are never resized: tile segments (the two arrays) and page segments (a buffer);
+// distance and roof normal (a byte each) and its wall column in an RG32UI texture buffer, n² texels a map (a tile;
+// buffers, as texture uploads cost llvmpipe about 17 ms a MB against 1 ms for buffers); the wall columns' normals and
+// colours as 32-bit words in another texture buffer, in pages of kBlockMapPageWords taken wherever they are free (the
+// map's first page starts with its page table), so maps come and go with no room lost between them. The storage is
+// segments that are never resized: tile segments and page segments (a buffer each);
 // a map's tile lies in one tile segment and all its pages in one page segment. A draw's maps are instances whose
 // records (box, tile, first page) come from a storage buffer; a draw call per pair of segments its maps use.
 // When the maps coming do not fit the free room, a segment is added, of what they need and up to half the pool more,
@@ -34,7 +35,7 @@ class BlockMapPoolGL {
 public:
     /// Texture units the pool's textures are bound to: kUnit .. kUnit + kTextures - 1 (past the terrain's, so the
     /// ROOF_IMAGERY program samples the clipmaps on theirs).
-    static constexpr int kUnit = 22, kTextures = 3;
+    static constexpr int kUnit = 22, kTextures = 2;
 
     /// The program that draws maps (shaders/blockmap.*): with `roofImagery` its ROOF_IMAGERY variant (bind the
     /// terrain's clipmaps to it: ClipmapTerrainRendererGL::bindTerrain), with `frontFaces` its FRONT_FACES variant
@@ -108,12 +109,13 @@ private:
         glm::dvec2 origin{0.0};
         double texel = 1.0, zBase = 0.0, zTop = 1.0;
         int wallTexels = 1, span = 1, columns = 0;
-        int tileSegment = 0, tile = 0;    // its layer in that tile segment's arrays
+        int tileSegment = 0, tile = 0;    // its tile in that tile segment
         int pageSegment = 0;
         std::vector<std::uint32_t> pages; // its pages in that page segment, in order (the first holds the table)
     };
     struct TileSegment {
-        gl::Texture texels, columns; // 2D arrays of n² texels, a map per layer
+        gl::Buffer buffer;
+        gl::Texture texels; // RG32UI texture buffer over `buffer`: n² texels a map (BlockMapGL.h's top)
         int tiles = 0, used = 0;
         LowestFree free;
         std::vector<int> owner; // per tile: the map's handle, -1 free
@@ -137,6 +139,7 @@ private:
     std::size_t freePages() const;
     /// A new segment of `tiles` tiles (or `pages` pages), within the GL's limits.
     Status addTileSegment(int tiles);
+    int maxSegmentTiles() const; // the GL's texture buffers hold this many tiles
     Status addPageSegment(std::size_t pages);
     /// Room for `tiles` (`pages`) more: a segment of at least that and up to half the pool more within the limit.
     Status growTiles(std::size_t tiles);

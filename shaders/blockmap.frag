@@ -24,10 +24,10 @@ uniform float uLookupTexels;
 uniform mat2 uLookupSlope;
 #endif
 #include "common_blockmap.glsl"
-// Per texel of a map's tile: height (0 no building, else zBase + value · (zTop − zBase) / 255), Chebyshev distance in
-// texels to the nearest building texel, the roof's normal's x and y ((v + 1) / 2 · 255; z implied).
-uniform usampler2DArray uBmTexels;
-uniform usampler2DArray uBmColumn; // 1 + a boundary texel's wall column
+// Per texel of a map's tile (n² texels from its first, row by row): x: a byte each, lowest first, its height (0 no
+// building, else zBase + value · (zTop − zBase) / 255), Chebyshev distance in texels to the nearest building texel,
+// the roof's normal's x and y ((v + 1) / 2 · 255; z implied); y: 1 + a boundary texel's wall column.
+uniform usamplerBuffer uBmTexels;
 // A map's words from its first: its columns' outward normals ((n + 1) / 2, RGB8), then each column's colours (RGBA8,
 // span words): its wallTexels colours (the foot's first), then the same halved again and again down to one (level l
 // has (W_{l-1} + 1) / 2, 2×1 box means), for filtering. They lie in pages of 2^BM_PAGE_BITS words anywhere in the
@@ -51,7 +51,7 @@ out vec4 fragColor;
 // The map drawn (its record: common_blockmap.glsl), set first in main().
 vec2 bmOrigin;
 float bmMetres, bmZBase, bmZTop; // metres per texel, the height range
-ivec3 bmTile;
+int bmTile; // the map's first texel in uBmTexels
 int bmFirstWord, bmWallTexels, bmSpan, bmColumns; // bmFirstWord: the words' first after the page table
 int bmFirstPage;
 
@@ -62,7 +62,10 @@ uint bmWord(int w) {
     return texelFetch(uBmWords, (at << BM_PAGE_BITS) + (w & ((1 << BM_PAGE_BITS) - 1))).r;
 }
 
-uvec4 bmTexelAt(ivec2 c) { return texelFetch(uBmTexels, ivec3(bmTile.xy + c, bmTile.z), 0); }
+uvec4 bmTexelAt(ivec2 c) {
+    uint w = texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).x;
+    return uvec4(w & 255u, (w >> 8) & 255u, (w >> 16) & 255u, w >> 24);
+}
 
 const int kNone = 0, kRoof = 1, kWall = 2;
 
@@ -122,7 +125,7 @@ void main() {
     bmMetres = m.geo.z;
     bmZBase = m.geo.w;
     bmZTop = m.z.x;
-    bmTile = m.tile.xyz;
+    bmTile = m.tile.z;
     bmFirstWord = m.tile.w;
     bmWallTexels = m.wall.x;
     bmSpan = m.wall.y;
@@ -215,7 +218,7 @@ void main() {
     vec3 wall = vec3(0.0);
     vec3 faceNormal = bmRoofNormal(c);
     if (kind == kWall) {
-        int column = max(int(texelFetch(uBmColumn, ivec3(bmTile.xy + c, bmTile.z), 0).r) - 1, 0);
+        int column = max(int(texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).y) - 1, 0);
         float v = clamp((hit.z - bmZBase) / max(top - bmZBase, 1e-6), 0.0, 1.0);
         // The wall texels a pixel spans vertically: filtered from the column's halved levels (trilinear), so a
         // far facade shows its mean, not a few of its texels.

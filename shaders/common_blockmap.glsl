@@ -2,8 +2,7 @@
 struct BmMap {
     vec4 geo;     // origin x, y (local metres), metres per texel, zBase
     vec4 z;       // zTop, the pair of storage segments it lies in (BlockMapPoolGL::draw)
-    ivec4 tile;   // the map's tile: first texel x, y in its segment's arrays, their layer; its first word after its
-                  // page table
+    ivec4 tile;   // z: the map's first texel in its tile segment (x, y: 0); w: its first word after its page table
     ivec4 wall;   // wallTexels, span (texels a column takes with its halved levels), columns; its first page
     vec4 source;  // a > 0: the levels view, this map's colour, shaded by the face
 };
