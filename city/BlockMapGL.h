@@ -87,7 +87,8 @@ public:
         bool outputKind = false; // colour (kind, 0, 0, 1): 0.5 a roof, 1 a wall (tests)
     };
     /// Sets what a frame's maps share and the state (into the bound target; `pixelAngle`: radians per pixel, which
-    /// filters the walls' colours), binds the pool; draw() then draws instances, end() restores the state.
+    /// filters the walls' colours), binds the instances' records; draw() then binds each pair of segments' storage and
+    /// draws instances, end() restores the state.
     void begin(const gl::ShaderProgram& program, const glm::dmat4& viewProj, const glm::dvec3& eye, double pixelAngle,
                const DrawSettings& settings, bool frontFaces = false) const;
     /// Instances [first, first + count) of setInstances(): a draw call per pair of segments they use (returned).
