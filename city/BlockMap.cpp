@@ -623,12 +623,11 @@ int wallSpan(int wallTexels) {
 BlockMapPacked packBlockMap(const BlockMap& map) {
     BlockMapPacked p;
     const std::size_t n2 = std::size_t(map.size) * std::size_t(map.size);
-    p.texels.resize(n2 * 4);
+    p.tile.resize(n2 * 2);
     for (std::size_t i = 0; i < n2; ++i) {
-        p.texels[i * 4] = map.height[i];
-        p.texels[i * 4 + 1] = map.distance[i];
-        p.texels[i * 4 + 2] = map.roofNormal[i * 2];
-        p.texels[i * 4 + 3] = map.roofNormal[i * 2 + 1];
+        p.tile[i * 2] = std::uint32_t(map.height[i]) | std::uint32_t(map.distance[i]) << 8 |
+                        std::uint32_t(map.roofNormal[i * 2]) << 16 | std::uint32_t(map.roofNormal[i * 2 + 1]) << 24;
+        p.tile[i * 2 + 1] = map.column[i];
     }
     const int columns = map.columns(), W = map.wallTexels;
     p.span = wallSpan(W);

@@ -152,8 +152,9 @@ int wallSpan(int wallTexels);
 /// A map as BlockMapPoolGL stores it. Plain C++, so the pager's loader thread packs it and the GL thread only uploads.
 struct BlockMapPacked {
     int span = 1; // wallSpan(wallTexels)
-    /// n² × 4 bytes, row-major: the texel's height, distance, and roof normal's x and y (as BlockMap stores them).
-    std::vector<std::uint8_t> texels;
+    /// n² × 2 words, row-major (BlockMapPoolGL's tiles): the texel's height, distance, and roof normal's x and y (as
+    /// BlockMap stores them, a byte each, lowest first), then its wall column (BlockMap::column).
+    std::vector<std::uint32_t> tile;
     /// 32-bit words: each column's outward normal ((n + 1) / 2 as RGB8 in bytes 0..2), then each column's `span`
     /// RGBA8 colours: its wallTexels colours (the foot's first), then the same halved again and again down to one
     /// (level l has (W_{l-1} + 1) / 2 colours, 2×1 box means), for filtering.

@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <numeric>
 #include <string>
 
@@ -86,10 +85,11 @@ int BlockMapPoolGL::maxSegmentTiles() const {
 
 Status BlockMapPoolGL::addTileSegment(int tiles) {
     TileSegment g;
-    g.tiles = std::clamp(tiles, 1, maxSegmentTiles());
+    const int most = maxSegmentTiles();
+    g.tiles = std::clamp(tiles, 1, most);
     // Never a power of two, as no other segment is: llvmpipe builds a shader variant for each kind of texture bound,
     // power-of-two sizes apart (a first draw with the other kind waited 340 ms for it).
-    while ((g.tiles & (g.tiles - 1)) == 0 && g.tiles < maxSegmentTiles()) ++g.tiles;
+    while ((g.tiles & (g.tiles - 1)) == 0 && g.tiles < most) ++g.tiles;
     g.buffer = gl::Buffer::create();
     glNamedBufferData(g.buffer.id(), GLsizeiptr(tileBytes(std::uint64_t(g.tiles))), nullptr, GL_DYNAMIC_DRAW);
     g.texels = gl::Texture::create(GL_TEXTURE_BUFFER);
@@ -424,18 +424,8 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
     tg.owner[std::size_t(s.tile)] = handle;
     ++tg.used;
     ++m_live;
-    {
-        // Its texels as the shader reads them: per texel its height, distance and roof normal (a byte each), then its
-        // wall column.
-        const std::size_t n2 = std::size_t(m_size) * std::size_t(m_size);
-        std::vector<std::uint32_t> tile(2 * n2);
-        for (std::size_t i = 0; i < n2; ++i) {
-            std::memcpy(&tile[2 * i], packed->texels.data() + 4 * i, 4);
-            tile[2 * i + 1] = map.column[i];
-        }
-        glNamedBufferSubData(tg.buffer.id(), GLintptr(tileBytes(std::uint64_t(s.tile))), GLsizeiptr(tileBytes(1)),
-                             tile.data());
-    }
+    glNamedBufferSubData(tg.buffer.id(), GLintptr(tileBytes(std::uint64_t(s.tile))), GLsizeiptr(tileBytes(1)),
+                         packed->tile.data());
     if (pages > 0) {
         // The map's words as the shader reads them: its page table (a word per page), then its words; page by page.
         std::vector<std::uint32_t> all(pages * kBlockMapPageWords, 0u);

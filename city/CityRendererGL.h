@@ -106,8 +106,8 @@ struct CityFrameStats {
     std::size_t evictedBlocks = 0;   // this frame
     int blockMaps = 0;               // blockmap mode: maps drawn
     int blockMapsNotResident = 0;    // blockmap mode: maps the view wants that are loading (polygons stand in)
-    // blockmap mode: GPU bytes the maps' pool has allocated (BlockMapPoolGL: layers of tiles and the wall words'
-    // buffer). The pager counts each resident map's own bytes (residentBytes); this is above them by the pool's
+    // blockmap mode: GPU bytes the maps' pool has allocated (BlockMapPoolGL: its segments of tiles and of wall
+    // words). The pager counts each resident map's own bytes (residentBytes); this is above them by the pool's
     // free tiles and words.
     std::uint64_t blockMapPoolBytes = 0;
     // blockmap mode, this frame: bytes of resident maps the pool copied (segments given back or merged; growing copies
