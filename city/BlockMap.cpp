@@ -24,6 +24,8 @@ namespace {
 
 constexpr int kMaxSize = 4096;
 constexpr int kMaxWallTexels = 1024;
+// Wall columns a map may have: 1 + the index shares a tile word with the foot (BlockMapPacked::tile).
+constexpr int kMaxColumns = (1 << 24) - 2;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Sides of a texel: the neighbour's offset and the side's outward normal (-x, +x, -y, +y).
@@ -77,6 +79,48 @@ void distanceField(BlockMap& m) {
         }
     m.distance.resize(d.size());
     for (std::size_t i = 0; i < d.size(); ++i) m.distance[i] = std::uint8_t(std::min(d[i], 255));
+}
+
+// The prisms' feet (BlockMap::foot): a boundary texel's, the lowest of the triangles over it and its 8 neighbours
+// (`cells` lists per texel indices into `tris`; the wall a prism's side stands for may lie in the next texel, whose
+// centre is outside the building), rounded down to a height step; an inner texel's, the lowest of its building
+// neighbours' (two sweeps).
+void feet(BlockMap& m, const CityModel& model, const std::vector<std::size_t>& tris,
+          const std::vector<std::vector<std::uint32_t>>& cells, double step) {
+    const int n = m.size;
+    m.foot.assign(std::size_t(n) * std::size_t(n), 0);
+    auto at = [n](int x, int y) { return std::size_t(y) * std::size_t(n) + std::size_t(x); };
+    auto boundary = [&](int x, int y) {
+        for (const glm::ivec2 s : kSides) {
+            const int nx = x + s.x, ny = y + s.y;
+            if (nx < 0 || ny < 0 || nx >= n || ny >= n || m.heightAt(nx, ny) < m.heightAt(x, y)) return true;
+        }
+        return false;
+    };
+    std::vector<int> inner;
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+            if (m.heightAt(x, y) == 0) continue;
+            double lowest = m.topAt(x, y);
+            for (int ny = std::max(y - 1, 0); ny <= std::min(y + 1, n - 1); ++ny)
+                for (int nx = std::max(x - 1, 0); nx <= std::min(x + 1, n - 1); ++nx)
+                    for (const std::uint32_t k : cells[at(nx, ny)]) {
+                        const auto& v = model.triangles[tris[k]].v;
+                        lowest = std::min({lowest, v[0].z, v[1].z, v[2].z});
+                    }
+            // (A millionth of a step up: a foot on the grid stays on it.)
+            m.foot[at(x, y)] =
+                std::uint8_t(std::clamp(std::floor((lowest - m.zBase) / step + 1e-6), 0.0, double(m.heightAt(x, y))));
+            if (!boundary(x, y)) inner.push_back(int(at(x, y)));
+        }
+    for (int pass = 0; pass < 2; ++pass)
+        for (std::size_t j = 0; j < inner.size(); ++j) {
+            const int i = inner[pass == 0 ? j : inner.size() - 1 - j], x = i % n, y = i / n;
+            for (const glm::ivec2 s : kSides) {
+                const int nx = x + s.x, ny = y + s.y; // within the map: an inner texel is not on its edge
+                if (m.heightAt(nx, ny) > 0) m.foot[std::size_t(i)] = std::min(m.foot[std::size_t(i)], m.foot[at(nx, ny)]);
+            }
+        }
 }
 
 } // namespace
@@ -170,6 +214,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
     for (std::size_t i = 0; i < cellsCount; ++i)
         if (top[i] > -kInf) m.height[i] = std::uint8_t(std::clamp(std::lround((top[i] - m.zBase) / step), 1L, 255L));
     distanceField(m);
+    feet(m, model, tris, cells, step);
 
     // Wall columns of the boundary texels (§3.3, Fig. 4): per exposed side, horizontal rays into the texel.
     auto neighbourTop = [&](int x, int y) {
@@ -200,6 +245,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
             const int col = m.columns();
             m.column[std::size_t(y) * std::size_t(n) + std::size_t(x)] = std::uint32_t(col + 1);
             m.wallNormal.push_back(glm::length(normal) > 0.0 ? glm::vec3(glm::normalize(normal)) : glm::vec3(0.0f));
+            m.wallOnGrid.push_back(2); // no wall met yet
             sums.resize(sums.size() + std::size_t(W), glm::dvec3(0.0));
             counts.resize(counts.size() + std::size_t(W), 0);
             wallCounts.resize(wallCounts.size() + std::size_t(W), 0);
@@ -242,11 +288,20 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                         if (roofLike(bestTri)) continue;
                         sums[at] += colour(bestTri, bestBary);
                         ++wallCounts[at];
+                        // A wall more than 10° off the side takes the column off the grid; else the first puts it on.
+                        const auto& tv = model.triangles[bestTri].v;
+                        const glm::dvec3 tn = glm::cross(tv[1] - tv[0], tv[2] - tv[0]);
+                        const double facing = std::abs(tn.x * double(s.x) + tn.y * double(s.y));
+                        std::uint8_t& g = m.wallOnGrid[std::size_t(col)];
+                        g = facing < 0.985 * std::hypot(tn.x, tn.y) ? 0 : g == 2 ? 1 : g;
                     }
                 }
             }
         }
 
+    for (std::uint8_t& g : m.wallOnGrid) g = g == 1; // a column that met no wall: by its normal
+    if (m.columns() > kMaxColumns)
+        return Error{"BlockMap: " + std::to_string(m.columns()) + " wall columns, more than " + std::to_string(kMaxColumns)};
     // Column texels no ray saw: the nearest seen one in the column; a column that saw nothing: the block's mean.
     // The colour is the walls' (the nearest texel that saw walls where this one saw only roofs), A the walls' share.
     glm::dvec3 mean(0.0);
@@ -329,8 +384,11 @@ BlockMapHit traceBlockMap(const BlockMap& m, const glm::dvec3& o, const glm::dve
             double t = -1.0;
             BlockMapHit::Kind kind = BlockMapHit::Kind::None;
             if (zIn <= top) {
-                t = tCell;
-                kind = face == 4 ? BlockMapHit::Kind::Roof : BlockMapHit::Kind::Wall;
+                // Below the prism's foot the ray passes under it (in the ground there).
+                if (zIn >= m.footAt(cx, cy)) {
+                    t = tCell;
+                    kind = face == 4 ? BlockMapHit::Kind::Roof : BlockMapHit::Kind::Wall;
+                }
             } else if (zOut <= top) {
                 t = (top - o.z) / d.z; // d.z < 0 here: the ray comes down through the roof's plane in the texel
                 kind = BlockMapHit::Kind::Roof;
@@ -510,7 +568,7 @@ Result<CityBlockMapReport> buildCityBlockMaps(const CityModel& model, const City
 namespace {
 
 constexpr char kMagic[8] = {'S', 'V', 'B', 'L', 'O', 'C', 'K', 'M'};
-constexpr std::uint32_t kVersion = 2; // 2: wall texels RGBA (A: walls' share), per-texel roof normals
+constexpr std::uint32_t kVersion = 3; // 2: wall texels RGBA (A: walls' share), per-texel roof normals; 3: prisms' feet, walls on the grid
 constexpr std::size_t kMapHeaderBytes = 5 * 8 + 3 * 4;
 
 template <typename T> void put(std::vector<std::uint8_t>& out, const T& v) {
@@ -524,7 +582,7 @@ template <typename T> T get(const std::uint8_t* p) {
 }
 
 std::size_t dataBytes(std::size_t n, std::size_t W, std::size_t columns) {
-    return n * n * (1 + 1 + 4 + 2) + columns * W * 4 + columns * 3 * 4;
+    return n * n * (1 + 1 + 4 + 2 + 1) + columns * W * 4 + columns * (3 * 4 + 1);
 }
 
 std::vector<std::uint8_t> serializeMap(const BlockMap& m) {
@@ -540,6 +598,9 @@ std::vector<std::uint8_t> serializeMap(const BlockMap& m) {
     out.insert(out.end(), m.wallRgba.begin(), m.wallRgba.end());
     for (const glm::vec3& nrm : m.wallNormal)
         for (int i = 0; i < 3; ++i) put(out, float(nrm[i]));
+    if (m.foot.empty()) out.resize(out.size() + m.height.size(), 0);
+    else out.insert(out.end(), m.foot.begin(), m.foot.end());
+    for (int c = 0; c < m.columns(); ++c) put(out, std::uint8_t(m.wallOnGrid.empty() ? 0 : m.wallOnGrid[std::size_t(c)]));
     put(out, std::uint32_t(libdeflate_crc32(0, out.data(), out.size())));
     return out;
 }
@@ -627,7 +688,7 @@ BlockMapPacked packBlockMap(const BlockMap& map) {
     for (std::size_t i = 0; i < n2; ++i) {
         p.tile[i * 2] = std::uint32_t(map.height[i]) | std::uint32_t(map.distance[i]) << 8 |
                         std::uint32_t(map.roofNormal[i * 2]) << 16 | std::uint32_t(map.roofNormal[i * 2 + 1]) << 24;
-        p.tile[i * 2 + 1] = map.column[i];
+        p.tile[i * 2 + 1] = map.column[i] | (map.foot.empty() ? 0u : std::uint32_t(map.foot[i]) << 24);
     }
     const int columns = map.columns(), W = map.wallTexels;
     p.span = wallSpan(W);
@@ -642,6 +703,7 @@ BlockMapPacked packBlockMap(const BlockMap& map) {
         std::uint32_t normal = 0;
         for (int i = 0; i < 3; ++i)
             normal |= std::uint32_t(std::lround((map.wallNormal[std::size_t(c)][i] * 0.5f + 0.5f) * 255.0f)) << (8 * i);
+        if (!map.wallOnGrid.empty() && map.wallOnGrid[std::size_t(c)]) normal |= 1u << 24;
         p.words[std::size_t(c)] = normal;
         std::uint32_t* out = &p.words[std::size_t(columns) + std::size_t(c) * std::size_t(p.span)];
         level.assign(&map.wallRgba[std::size_t(c) * std::size_t(W) * 4], &map.wallRgba[std::size_t(c + 1) * std::size_t(W) * 4]);
@@ -681,7 +743,7 @@ std::string parseHeader(const std::uint8_t* h, BlockMapRecord& r) {
     r.wallTexels = get<std::int32_t>(h + 44);
     r.columns = get<std::int32_t>(h + 48);
     if (r.size < 2 || r.size > kMaxSize || r.wallTexels < 1 || r.wallTexels > kMaxWallTexels || r.columns < 0 ||
-        std::int64_t(r.columns) > std::int64_t(r.size) * r.size || !std::isfinite(r.origin.x) ||
+        std::int64_t(r.columns) > std::int64_t(r.size) * r.size || r.columns > kMaxColumns || !std::isfinite(r.origin.x) ||
         !std::isfinite(r.origin.y) || !(r.texel > 0.0) || !std::isfinite(r.texel) || !std::isfinite(r.zBase) ||
         !std::isfinite(r.zTop) || !(r.zTop > r.zBase))
         return "impossible header";
@@ -772,6 +834,14 @@ Result<BlockMap> BlockMapFile::read(std::size_t k) const {
         nrm = {get<float>(p), get<float>(p + 4), get<float>(p + 8)};
         p += 12;
     }
+    m.foot.assign(p, p + cells);
+    p += cells;
+    for (std::size_t i = 0; i < cells; ++i)
+        if (m.foot[i] > m.height[i]) return fileError(name, "damaged (" + which + ": a foot above its top)");
+    m.wallOnGrid.assign(p, p + r.columns);
+    p += r.columns;
+    for (const std::uint8_t g : m.wallOnGrid)
+        if (g > 1) return fileError(name, "damaged (" + which + ": a wall column neither on the grid nor off it)");
     return m;
 }
 

@@ -7,9 +7,10 @@
 // §3.1 as stored here: per texel a height (8 bits over the block's height range, 0: no building), a wall column
 // index for boundary texels (those with a lower 4-neighbour, the block's edge counting as lower) and a discrete
 // distance field over the empty space (the Chebyshev distance in texels to the nearest building texel) for leaping.
-// Each wall column holds `wallTexels` colours from the prism's foot to its top, the mean of what its exposed sides
-// show (and how much of it is wall rather than the steps of a sloped roof), and the mean outward normal of those
-// sides; each texel its roof's normal. Roofs store no colour: seasonview textures them from the terrain
+// Each wall column holds `wallTexels` colours from the block's floor to the prism's top, the mean of what its exposed
+// sides show (and how much of it is wall rather than the steps of a sloped roof), the mean outward normal of those
+// sides; each texel its roof's normal and its prism's foot (the paper's blocks stand on flat ground; here a building
+// may stand higher than the block's floor, and its prisms end where it meets the ground). Roofs store no colour: seasonview textures them from the terrain
 // imagery, as it draws the polygon roofs. The ground is not part of a BlockMap: a ray that meets no prism goes on to
 // the terrain drawn under it.
 #include "CityModel.h"
@@ -42,17 +43,33 @@ struct BlockMap {
     std::vector<std::uint8_t> distance; // n²: Chebyshev distance in texels to the nearest building texel (0 on one)
     std::vector<std::uint32_t> column;  // n²: 1 + the wall column of a boundary texel, 0 elsewhere
     // Per wall texel RGB and A, the share of its rays that met walls (255) rather than roofs (0: a step of a sloped
-    // roof seen from the side, drawn as roof); columns × wallTexels × 4, the foot's first.
+    // roof seen from the side, drawn as roof); columns × wallTexels × 4, the lowest first.
     std::vector<std::uint8_t> wallRgba;
     std::vector<glm::vec3> wallNormal;  // per column, unit and horizontal
+    // Per column 1 where every wall its rays met runs along the grid (across the side they went in by, within
+    // 10°): a wall pixel there is shaded by the side its ray enters the texel through, as the polygons shade a
+    // corner's two walls each by its own normal; 0 (or empty): by the column's normal (a wall at an angle to the grid,
+    // whose steps would otherwise be shaded in stripes).
+    std::vector<std::uint8_t> wallOnGrid;
     // Per texel the roof's normal (the highest triangle's, facing up) as x and y in 0..255 for -1..1 (z is implied):
     // the roofs are shaded as the polygons' are (the paper's per-texel normals, §3.1).
     std::vector<std::uint8_t> roofNormal; // n² × 2
+    // Per texel the prism's foot, as heights are stored (0 on an empty texel): a ray below it at the texel passes
+    // under the prism (it is in the ground there: the terrain drawn under the block hides it; with no terrain, it
+    // goes on to what is behind, as under the polygons). So walls do not hang below a building that stands higher
+    // than the block's lowest. A boundary texel's foot is at or below the lowest triangle over it; an inner
+    // texel's the lowest of its neighbours'. Empty: every foot at zBase.
+    std::vector<std::uint8_t> foot;
 
     int columns() const { return int(wallNormal.size()); }
     std::uint8_t heightAt(int x, int y) const { return height[std::size_t(y) * std::size_t(size) + std::size_t(x)]; }
     /// The top of the prism at texel (x, y) in metres (zBase where there is none).
     double topAt(int x, int y) const { return zBase + double(heightAt(x, y)) * (zTop - zBase) / 255.0; }
+    /// The foot of the prism at texel (x, y) in metres.
+    double footAt(int x, int y) const {
+        return foot.empty() ? zBase
+                            : zBase + double(foot[std::size_t(y) * std::size_t(size) + std::size_t(x)]) * (zTop - zBase) / 255.0;
+    }
 };
 
 /// What a triangle shows at a point (its barycentric coordinates): e.g. its texture there.
@@ -153,10 +170,12 @@ int wallSpan(int wallTexels);
 struct BlockMapPacked {
     int span = 1; // wallSpan(wallTexels)
     /// n² × 2 words, row-major (BlockMapPoolGL's tiles): the texel's height, distance, and roof normal's x and y (as
-    /// BlockMap stores them, a byte each, lowest first), then its wall column (BlockMap::column).
+    /// BlockMap stores them, a byte each, lowest first), then its wall column (BlockMap::column, 24 bits) and foot
+    /// (BlockMap::foot, the top byte).
     std::vector<std::uint32_t> tile;
-    /// 32-bit words: each column's outward normal ((n + 1) / 2 as RGB8 in bytes 0..2), then each column's `span`
-    /// RGBA8 colours: its wallTexels colours (the foot's first), then the same halved again and again down to one
+    /// 32-bit words: each column's outward normal ((n + 1) / 2 as RGB8 in bytes 0..2) and on-the-grid flag (byte 3,
+    /// BlockMap::wallOnGrid), then each column's `span`
+    /// RGBA8 colours: its wallTexels colours (the lowest first), then the same halved again and again down to one
     /// (level l has (W_{l-1} + 1) / 2 colours, 2×1 box means), for filtering.
     std::vector<std::uint32_t> words;
 };

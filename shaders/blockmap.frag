@@ -26,11 +26,12 @@ uniform mat2 uLookupSlope;
 #include "common_blockmap.glsl"
 // Per texel of a map's tile (n² texels from its first, row by row): x: a byte each, lowest first, its height (0 no
 // building, else zBase + value · (zTop − zBase) / 255), Chebyshev distance in texels to the nearest building texel,
-// the roof's normal's x and y ((v + 1) / 2 · 255; z implied); y: 1 + a boundary texel's wall column.
+// the roof's normal's x and y ((v + 1) / 2 · 255; z implied); y: 1 + a boundary texel's wall column (24 bits) and
+// the prism's foot (the top byte, as heights: a ray below it passes under the prism).
 uniform usamplerBuffer uBmTexels;
-// A map's words from its first: its columns' outward normals ((n + 1) / 2, RGB8), then each column's colours (RGBA8,
-// span words): its wallTexels colours (the foot's first), then the same halved again and again down to one (level l
-// has (W_{l-1} + 1) / 2, 2×1 box means), for filtering. They lie in pages of 2^BM_PAGE_BITS words anywhere in the
+// A map's words from its first: its columns' outward normals ((n + 1) / 2, RGB8; A: 1 for walls along the grid),
+// then each column's colours (RGBA8, span words): its wallTexels colours (the lowest first), then the same halved
+// again and again down to one (level l has (W_{l-1} + 1) / 2, 2×1 box means), for filtering. They lie in pages of 2^BM_PAGE_BITS words anywhere in the
 // buffer (city/BlockMapGL.h): the map's first page starts with its page table, a word per page, then its words.
 uniform usamplerBuffer uBmWords;
 #ifndef BM_PAGE_BITS // log2 of city/BlockMap.h's kBlockMapPageWords (BlockMapPoolGL::buildProgram)
@@ -65,6 +66,11 @@ uint bmWord(int w) {
 uvec4 bmTexelAt(ivec2 c) {
     uint w = texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).x;
     return uvec4(w & 255u, (w >> 8) & 255u, (w >> 16) & 255u, w >> 24);
+}
+// The foot of the prism at texel `c` (as heights), and its height, distance: one fetch for the traversal.
+uvec3 bmStepAt(ivec2 c) {
+    uvec2 w = texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).xy;
+    return uvec3(w.x & 255u, (w.x >> 8) & 255u, w.y >> 24);
 }
 
 const int kNone = 0, kRoof = 1, kWall = 2;
@@ -154,16 +160,19 @@ void main() {
     float top = 0.0;
     for (int it = 0; it < 4 * uBmSize + 8 && kind == kNone; ++it) {
         float tOut = min(min(nextT.x, nextT.y), t1);
-        uvec4 texel = bmTexelAt(c);
+        uvec3 texel = bmStepAt(c);
         uint value = texel.r;
         if (value > 0u) {
             top = bmTop(value);
-            if (o.z + tCell * d.z <= top) {
-                kind = face == 4 ? kRoof : kWall;
-                tHit = tCell;
-                break;
-            }
-            if (o.z + tOut * d.z <= top) {
+            float zIn = o.z + tCell * d.z;
+            if (zIn <= top) {
+                // Below the prism's foot the ray passes under it (in the ground there).
+                if (zIn >= bmTop(texel.b)) {
+                    kind = face == 4 ? kRoof : kWall;
+                    tHit = tCell;
+                    break;
+                }
+            } else if (o.z + tOut * d.z <= top) {
                 kind = kRoof;
                 tHit = (top - o.z) / d.z;
                 face = 4;
@@ -218,7 +227,7 @@ void main() {
     vec3 wall = vec3(0.0);
     vec3 faceNormal = bmRoofNormal(c);
     if (kind == kWall) {
-        int column = max(int(texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).y) - 1, 0);
+        int column = max(int(texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).y & 0xFFFFFFu) - 1, 0);
         float v = clamp((hit.z - bmZBase) / max(top - bmZBase, 1e-6), 0.0, 1.0);
         // The wall texels a pixel spans vertically: filtered from the column's halved levels (trilinear), so a
         // far facade shows its mean, not a few of its texels.
@@ -226,7 +235,12 @@ void main() {
         float lod = log2(max(1.0, float(bmWallTexels) / max(top - bmZBase, 1e-3) * metresPerPixel));
         int l0 = int(floor(lod));
         vec4 w = mix(bmWallAt(column, v, l0), bmWallAt(column, v, l0 + 1), fract(lod));
-        vec3 n = unpackUnorm4x8(bmWord(bmFirstWord + column)).xyz * 2.0 - 1.0;
+        uint normalWord = bmWord(bmFirstWord + column);
+        vec3 n = unpackUnorm4x8(normalWord).xyz * 2.0 - 1.0;
+        // Walls along the grid: shaded by the side the ray came in by (a corner's two walls each by its own).
+        if ((normalWord >> 24) != 0u && face >= 0 && face < 4)
+            n = face == 0 ? vec3(-1.0, 0.0, 0.0) : face == 1 ? vec3(1.0, 0.0, 0.0) : face == 2 ? vec3(0.0, -1.0, 0.0)
+                                                                                           : vec3(0.0, 1.0, 0.0);
         wallShare = w.a;
         wall = w.rgb * (0.62 + 0.38 * abs(dot(n, uSunDir))); // as city_building.frag lights faces
         if (wallShare >= 0.5) faceNormal = n;

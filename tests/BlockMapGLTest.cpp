@@ -24,10 +24,11 @@ namespace {
 
 using test::Prism;
 
-// Buildings of different heights, touching, and a courtyard, on 1 m texels, heights on the 0.1 m grid of 25.5 m.
+// Buildings of different heights, touching, a courtyard, and one standing higher than the block's floor (two texels
+// of street around it), on 1 m texels, heights on the 0.1 m grid of 25.5 m.
 const std::vector<Prism> kPrisms = {{2, 2, 14, 14, 25.5}, {14, 2, 26, 14, 12.3}, {2, 16, 9, 30, 7.0},
                                     {17, 17, 30, 20, 18.8}, {17, 27, 30, 30, 18.8}, {17, 20, 20, 27, 18.8},
-                                    {27, 20, 30, 27, 18.8}};
+                                    {27, 20, 30, 27, 18.8}, {11, 22, 15, 29, 14.2, 6.0}};
 
 CityModel modelOf(const std::vector<Prism>& prisms) { return test::prismModel(prisms); }
 
@@ -142,7 +143,7 @@ TEST(BlockMapGLTest, DepthIsThePolygonsDepth) {
         boxes->use();
         glBindVertexArray(vao.id());
         for (const Prism& p : kPrisms) {
-            boxes->set("uBoxMin", glm::vec3(glm::dvec3(origin.x + p.x0, origin.y + p.y0, 0.0)));
+            boxes->set("uBoxMin", glm::vec3(glm::dvec3(origin.x + p.x0, origin.y + p.y0, p.base)));
             boxes->set("uBoxMax", glm::vec3(glm::dvec3(origin.x + p.x1, origin.y + p.y1, p.top)));
             glDrawArrays(GL_TRIANGLES, 0, 36);
         }
@@ -172,7 +173,8 @@ TEST(BlockMapGLTest, DepthIsThePolygonsDepth) {
 
 // Wall colours reach the screen from the right column, also with 1,024 colours per column (a column's span past
 // 2,000 words of the pool's buffer): each side of a box in its own colour, every wall pixel the CPU traversal says
-// shows a side is that side's colour (shaded, so by its dominant channels).
+// shows a side is that side's colour (shaded, so by its dominant channels); a corner's, its column's colour shaded by
+// the side the ray came in by.
 TEST(BlockMapGLTest, WallPixelsShowTheirSidesColours) {
     ASSERT_TRUE(headlessContext());
     const std::vector<Prism> box = {{6, 8, 26, 20, 25.5}};
@@ -189,7 +191,8 @@ TEST(BlockMapGLTest, WallPixelsShowTheirSidesColours) {
     auto gpu = BlockMapGL::create(*map);
     ASSERT_TRUE(gpu) << gpu.message();
     gl::RenderTarget target(kW, kH);
-    int checked = 0, wrong = 0;
+    int checked = 0, wrong = 0, corners = 0, wrongCorners = 0;
+    const glm::dvec3 sun = glm::normalize(glm::dvec3(-0.5, 0.6, 0.75)); // BlockMapGL::draw's
     for (const Camera& cam : cameras({0.0, 0.0})) {
         target.bind();
         beginTerrainPass(0.0f, 0.0f, 0.0f, 0.0f);
@@ -201,13 +204,23 @@ TEST(BlockMapGLTest, WallPixelsShowTheirSidesColours) {
                 const glm::dvec4 w = inv * glm::dvec4((x + 0.5) / kW * 2.0 - 1.0, 1.0 - (y + 0.5) / kH * 2.0, 0.5, 1.0);
                 const BlockMapHit h = traceBlockMap(*map, cam.position, glm::normalize(glm::dvec3(w) / w.w - cam.position));
                 if (h.kind != BlockMapHit::Kind::Wall) continue;
-                // A texel whose column averages two sides (a corner) has no single colour: only mid-side texels.
                 const std::uint32_t c = map->column[std::size_t(h.texel.y) * 32 + std::size_t(h.texel.x)];
                 const glm::vec3 n = map->wallNormal[c - 1];
-                if (std::abs(n.x) > 0.01f && std::abs(n.y) > 0.01f) continue;
-                const int side = n.x < -0.5f ? 0 : n.x > 0.5f ? 1 : n.y < -0.5f ? 2 : 3;
                 const std::uint8_t* p = &rgba[(std::size_t(y) * kW + std::size_t(x)) * 4];
                 const glm::ivec3 got(p[0], p[1], p[2]);
+                if (std::abs(n.x) > 0.01f && std::abs(n.y) > 0.01f) {
+                    // A corner texel's column averages its two sides' colours; its walls are on the grid, so the
+                    // pixel is shaded by the side its ray came in by (the polygons' face), not by the mean normal.
+                    EXPECT_EQ(map->wallOnGrid[c - 1], 1);
+                    const std::uint8_t* col = &map->wallRgba[std::size_t(c - 1) * std::size_t(o.wallTexels) * 4];
+                    const double shade = 0.62 + 0.38 * std::abs(glm::dot(h.normal, sun));
+                    bool ok = true;
+                    for (int i = 0; i < 3; ++i) ok = ok && std::abs(got[i] - col[i] * shade) < 6.0;
+                    ++corners;
+                    wrongCorners += !ok;
+                    continue;
+                }
+                const int side = n.x < -0.5f ? 0 : n.x > 0.5f ? 1 : n.y < -0.5f ? 2 : 3;
                 const glm::ivec3 want = glm::ivec3(colours[side] * 255.0);
                 bool ok = true;
                 for (int i = 0; i < 3; ++i) ok = ok && ((want[i] > 0) == (got[i] > 40));
@@ -217,6 +230,8 @@ TEST(BlockMapGLTest, WallPixelsShowTheirSidesColours) {
     }
     EXPECT_GT(checked, 1000);
     EXPECT_LT(wrong, checked / 200) << wrong << " of " << checked;
+    EXPECT_GT(corners, 20);
+    EXPECT_LT(wrongCorners, corners / 20 + 1) << wrongCorners << " of " << corners;
 }
 
 // A pool of many maps (BlockMapPoolGL): more than a layer of tiles and more walls than its first buffer, half the
@@ -231,6 +246,7 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
     std::reverse(b.distance.begin(), b.distance.end());
     std::reverse(b.column.begin(), b.column.end());
     std::reverse(b.roofNormal.begin(), b.roofNormal.end());
+    std::reverse(b.foot.begin(), b.foot.end());
     auto copyAt = [&](int i) {
         BlockMap m = i % 3 == 0 ? b : a;
         m.origin = glm::dvec2(40.0 * (i % 20), 40.0 * (i / 20));

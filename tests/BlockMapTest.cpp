@@ -53,7 +53,7 @@ Exact exactHit(const std::vector<Prism>& prisms, glm::dvec3 o, glm::dvec3 d) {
     for (const Prism& p : prisms) {
         double t0 = 0.0, t1 = 1e300;
         int axis = -1;
-        const double lo[3] = {p.x0, p.y0, 0.0}, hi[3] = {p.x1, p.y1, p.top};
+        const double lo[3] = {p.x0, p.y0, p.base}, hi[3] = {p.x1, p.y1, p.top};
         bool miss = false;
         for (int a = 0; a < 3; ++a) {
             if (d[a] == 0.0) {
@@ -134,6 +134,25 @@ TEST(BlockMapTest, BuildingsOfDifferentHeightsMatchTheExactIntersection) {
     expectExact({{2, 2, 14, 14, 25.5}, {14, 2, 26, 14, 12.3}, {2, 16, 9, 30, 7.0}, {20, 20, 30, 30, 18.8}}, "heights");
 }
 
+TEST(BlockMapTest, RaisedBuildingsEndAtTheirFeet) {
+    // Buildings standing higher than the block's floor (on a slope): their walls end at their feet, and a ray below
+    // a foot passes under the building (in the ground there) to what is behind, as under the polygons. Two texels
+    // of street around the raised ones, so no lower neighbour's walls lower their feet.
+    const std::vector<Prism> prisms = {{2, 2, 12, 12, 20.0}, {16, 4, 28, 12, 22.4, 6.0}, {4, 17, 11, 29, 17.1, 9.3},
+                                       {16, 17, 30, 30, 25.5, 2.5}};
+    const BlockMap m = build(prisms);
+    EXPECT_DOUBLE_EQ(m.footAt(20, 8), 6.0) << "an inner texel's foot is its building's";
+    EXPECT_DOUBLE_EQ(m.footAt(16, 8), 6.0);
+    EXPECT_DOUBLE_EQ(m.footAt(5, 5), 0.0);
+    expectExact(prisms, "raised");
+    // Level rays under the raised building: below the foot of the one behind it too, nothing; above that, its wall.
+    const BlockMapHit h = traceBlockMap(m, {22.0, -10.0, 2.0}, {0.0, 1.0, 0.0});
+    EXPECT_EQ(int(h.kind), int(BlockMapHit::Kind::None));
+    const BlockMapHit g = traceBlockMap(m, {20.0, -10.0, 4.0}, {0.0, 1.0, 0.0});
+    ASSERT_EQ(int(g.kind), int(BlockMapHit::Kind::Wall));
+    EXPECT_NEAR(g.point.y, 17.0, 1e-9) << "under the raised building to the wall of the one behind";
+}
+
 TEST(BlockMapTest, LeapingVisitsFewerTexels) {
     const std::vector<Prism> prisms = {{28, 28, 31, 31, 25.5}};
     const BlockMap m = build(prisms);
@@ -195,6 +214,46 @@ TEST(BlockMapTest, WallColumnsShowTheirSidesColours) {
     EXPECT_EQ(rgbOf(8, 10, 4), glm::ivec3(128, 0, 128));
     EXPECT_NEAR(normalOf(8, 10).x, -0.70710678f, 1e-6f);
     EXPECT_NEAR(normalOf(8, 10).y, -0.70710678f, 1e-6f);
+    // Every wall runs along the grid: each column is shaded by the side a ray enters by.
+    for (std::uint8_t g : m.wallOnGrid) EXPECT_EQ(g, 1);
+}
+
+// A building turned 30° from the grid: its walls cross the texels' sides at an angle, so its columns are shaded by
+// their normals (a face-by-face shading would stripe its stepped outline), which follow its walls.
+TEST(BlockMapTest, WallsAtAnAngleAreOffTheGrid) {
+    CityModel model;
+    model.buildingIds = {"b"};
+    const double a = 30.0 * 3.141592653589793 / 180.0, half = 6.0, top = 10.0;
+    std::array<glm::dvec3, 4> c;
+    for (int k = 0; k < 4; ++k) {
+        const double u = (k == 1 || k == 2) ? half : -half, v = k >= 2 ? half : -half;
+        c[std::size_t(k)] = glm::dvec3(16.0 + u * std::cos(a) - v * std::sin(a), 16.0 + u * std::sin(a) + v * std::cos(a), 0.0);
+    }
+    auto tri = [&](glm::dvec3 p, glm::dvec3 q, glm::dvec3 r) {
+        TexturedTriangle t;
+        t.v = {p, q, r};
+        t.texture = -1;
+        model.triangles.push_back(t);
+        model.building.push_back(0);
+        model.surface.push_back(p.z == q.z && q.z == r.z ? Surface::Roof : Surface::Wall);
+    };
+    const glm::dvec3 up(0.0, 0.0, top);
+    for (int k = 0; k < 4; ++k) {
+        const glm::dvec3 p = c[std::size_t(k)], q = c[std::size_t((k + 1) % 4)];
+        tri(p, q, q + up);
+        tri(p, q + up, p + up);
+    }
+    tri(c[0] + up, c[1] + up, c[2] + up);
+    tri(c[0] + up, c[2] + up, c[3] + up);
+    BlockMapOptions o;
+    o.size = 32;
+    o.wallTexels = 8;
+    auto m = buildBlockMap(model, {0.0, 0.0}, 32.0, o, [](std::size_t, const glm::dvec3&) { return glm::dvec3(0.5); });
+    ASSERT_TRUE(m) << m.message();
+    ASSERT_GT(m->columns(), 20);
+    int off = 0;
+    for (std::uint8_t g : m->wallOnGrid) off += g == 0;
+    EXPECT_EQ(off, m->columns());
 }
 
 // A gabled roof (45° slopes, the ridge along x): each texel's roof normal is its slope's, and the steps the slope

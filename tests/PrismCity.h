@@ -7,9 +7,10 @@
 
 namespace seasonview::test {
 
-// An axis-aligned prism: x0..x1, y0..y1 (metres), from z 0 to `top`.
+// An axis-aligned prism: x0..x1, y0..y1 (metres), from z `base` to `top`.
 struct Prism {
     double x0, y0, x1, y1, top;
+    double base = 0.0;
 };
 
 /// The prisms as a model, untextured: four walls and a roof each (a courtyard is four prisms around it). `faceOf`,
@@ -30,7 +31,8 @@ inline city::CityModel prismModel(const std::vector<Prism>& prisms, std::vector<
         }
     };
     for (const Prism& p : prisms) {
-        const glm::dvec3 a(p.x0, p.y0, 0), b(p.x1, p.y0, 0), c(p.x1, p.y1, 0), d(p.x0, p.y1, 0), up(0, 0, p.top);
+        const glm::dvec3 a(p.x0, p.y0, p.base), b(p.x1, p.y0, p.base), c(p.x1, p.y1, p.base), d(p.x0, p.y1, p.base),
+            up(0, 0, p.top - p.base);
         quad(a, d, d + up, a + up, 0);
         quad(b, c, c + up, b + up, 1);
         quad(a, b, b + up, a + up, 2);
