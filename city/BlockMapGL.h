@@ -18,9 +18,10 @@
 // path). Once under three quarters of the tiles (or pages) have been in use for kShrinkAfterFrames frames, or at
 // once when the pool is over the limit, segments are given back: an empty one as it is, another after its live maps
 // moved into the others' free room (a copy of those maps alone); at kMaxSegments of a kind, the two least used are
-// merged into the next one added.
+// merged into the next one added. That policy is SegmentPool's (plain C++, one for the tiles and one for the pages);
+// this class is the GL storage under it and the drawing.
 #include "BlockMap.h"
-#include "LowestFree.h"
+#include "SegmentPool.h"
 #include "Camera.h"
 #include "gl/GlObjects.h"
 #include "gl/RenderTarget.h"
@@ -44,6 +45,8 @@ public:
 
     /// A pool for maps of `mapSize`² texels.
     explicit BlockMapPoolGL(int mapSize);
+    BlockMapPoolGL(const BlockMapPoolGL&) = delete; // its SegmentPools hold references to its storage
+    BlockMapPoolGL& operator=(const BlockMapPoolGL&) = delete;
     int mapSize() const { return m_size; }
 
     /// Uploads `map` (packed by packBlockMap, or packed here when null); returns its handle. Errors: a map of
@@ -97,12 +100,12 @@ public:
 
     /// Segments of each kind at most: the two least used are merged into the next (each pair of segments a draw's
     /// maps lie in is a draw call).
-    static constexpr int kMaxSegments = 8;
+    static constexpr int kMaxSegments = SegmentPool::kMaxSegments;
     /// Bytes of resident maps copied within the pool so far (segments given back or merged; growing copies none).
     std::uint64_t movedBytes() const { return m_movedBytes; }
     /// Tile and page segments held (tests).
-    int tileSegments() const { return int(m_tileSegments.size()); }
-    int pageSegments() const { return int(m_pageSegments.size()); }
+    int tileSegments() const { return m_tiles.segments(); }
+    int pageSegments() const { return m_pages.segments(); }
 
 private:
     struct Slot {
@@ -110,60 +113,42 @@ private:
         glm::dvec2 origin{0.0};
         double texel = 1.0, zBase = 0.0, zTop = 1.0;
         int wallTexels = 1, span = 1, columns = 0;
-        int tileSegment = 0, tile = 0;    // its tile in that tile segment
-        int pageSegment = 0;
-        std::vector<std::uint32_t> pages; // its pages in that page segment, in order (the first holds the table)
     };
-    struct TileSegment {
-        gl::Buffer buffer;
-        gl::Texture texels; // RG32UI texture buffer over `buffer`: n² texels a map (BlockMapGL.h's top)
-        int tiles = 0, used = 0;
-        LowestFree free;
-        std::vector<int> owner; // per tile: the map's handle, -1 free
-    };
-    struct PageSegment {
-        gl::Buffer buffer;
-        gl::Texture words; // R32UI texture buffer over `buffer`
-        std::size_t pages = 0, used = 0;
-        LowestFree free;
-        std::vector<int> owner; // per page: the map's handle, -1 free
+    // The GL side of a SegmentPool: a buffer and a texture buffer over it per segment, `unitBytes` a unit (a map's
+    // tile, or a page); moving an owner copies its units (and, for pages, writes its page table where they now are).
+    struct Segments : SegmentPool::Storage {
+        struct Segment {
+            gl::Buffer buffer;
+            gl::Texture texture;
+        };
+        GLenum format = GL_R32UI;
+        std::uint64_t unitBytes = 4;
+        bool pageTables = false;
+        std::uint64_t* movedBytes = nullptr;
+        std::vector<Segment> segments;
+        Status addSegment(std::size_t units) override;
+        void moveOwner(int owner, int fromSegment, const std::vector<std::uint32_t>& from, int toSegment,
+                       const std::vector<std::uint32_t>& to) override;
+        void eraseSegment(int segment) override;
+        /// `pages`' numbers at the start of the first of them, in `segment` (the map's page table).
+        void writePageTable(int segment, const std::vector<std::uint32_t>& pages) const;
     };
     static constexpr std::size_t kMinPages = 64;
-    static constexpr int kMinTiles = 16;
+    static constexpr std::size_t kMinTiles = 16;
     static constexpr int kPairStride = 256; // an instance's pair of segments: tile segment × this + page segment
     std::uint64_t tileBytes(std::uint64_t tiles) const;
     static std::uint64_t pageBytes(std::uint64_t pages);
-    std::uint64_t tileBytesAllocated() const;
-    std::uint64_t pageBytesAllocated() const;
-    std::size_t freeTiles() const;
     std::size_t pagesPerMap() const; // the live maps' pages on average, rounded up (1 with none)
-    std::size_t freePages() const;
-    /// A new segment of `tiles` tiles (or `pages` pages), within the GL's limits.
-    Status addTileSegment(int tiles);
-    int maxSegmentTiles() const; // the GL's texture buffers hold this many tiles
-    Status addPageSegment(std::size_t pages);
-    /// Room for `tiles` (`pages`) more: a segment of at least that and up to half the pool more within the limit.
+    /// Room for `tiles` (`pages`) more (SegmentPool::grow), with what the limit allows beyond them: room for whole
+    /// maps, each extra tile with the pages a map takes on average (free tiles without pages for their maps, or pages
+    /// without tiles, would be room lost under the limit).
     Status growTiles(std::size_t tiles);
     Status growPages(std::size_t pages);
-    /// Map `handle`'s tile (pages) moved to segment `to`'s free room; its old ones freed.
-    void moveTile(int handle, int to);
-    void movePages(int handle, int to);
-    /// Gives back tile (page) segments while the live and coming tiles (pages) fit the others with room to spare
-    /// (or, `over`, the pool holds more than the limit), moving their live maps.
-    void shrinkTiles(std::size_t need, bool over);
-    void shrinkPages(std::size_t need, bool over);
-    /// Segments a < b (the two with the fewest live tiles, or pages) made one new segment with `extra` more room, their
-    /// maps moved (it fits the GL's limits: checked by the caller).
-    Status mergeTiles(int a, int b, std::size_t extra);
-    Status mergePages(int a, int b, std::size_t extra);
-    /// Writes map `handle`'s page table (the page numbers, at the start of its first page).
-    void writePageTable(int handle);
 
     int m_size = 0;
-    std::vector<TileSegment> m_tileSegments;
-    std::vector<PageSegment> m_pageSegments;
-    std::size_t m_usedPages = 0;
     std::uint64_t m_movedBytes = 0;
+    Segments m_tileStore, m_pageStore;
+    SegmentPool m_tiles, m_pages; // owners: the maps' handles
     std::uint64_t m_byteLimit = ~std::uint64_t(0);
     int m_underUsedFrames = 0;      // prepare() calls in a row with under three quarters of the tiles needed
     int m_pagesUnderUsedFrames = 0; // the same for the pages
@@ -171,7 +156,7 @@ private:
     std::vector<int> m_freeSlots;
     std::size_t m_live = 0;
     gl::Buffer m_instances;
-    std::vector<int> m_instancePair; // per instance of setInstances(): tile segment × kMaxSegments + page segment
+    std::vector<int> m_instancePair; // per instance of setInstances(): tile segment × kPairStride + page segment
     gl::VertexArray m_vao;
 };
 
