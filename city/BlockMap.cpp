@@ -384,10 +384,16 @@ BlockMapHit traceBlockMap(const BlockMap& m, const glm::dvec3& o, const glm::dve
             double t = -1.0;
             BlockMapHit::Kind kind = BlockMapHit::Kind::None;
             if (zIn <= top) {
-                // Below the prism's foot the ray passes under it (in the ground there).
-                if (zIn >= m.footAt(cx, cy)) {
+                // Below the prism's foot the ray passes under it (in the ground there); rising into it from below
+                // (from under the ground), it meets nothing, as a ray that reaches the block's floor.
+                const double foot = m.footAt(cx, cy);
+                if (zIn >= foot) {
                     t = tCell;
                     kind = face == 4 ? BlockMapHit::Kind::Roof : BlockMapHit::Kind::Wall;
+                } else if (zOut >= foot) {
+                    BlockMapHit none;
+                    none.texelsVisited = hit.texelsVisited;
+                    return none;
                 }
             } else if (zOut <= top) {
                 t = (top - o.z) / d.z; // d.z < 0 here: the ray comes down through the roof's plane in the texel

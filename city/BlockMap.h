@@ -10,8 +10,8 @@
 // Each wall column holds `wallTexels` colours from the block's floor to the prism's top, the mean of what its exposed
 // sides show (and how much of it is wall rather than the steps of a sloped roof), the mean outward normal of those
 // sides; each texel its roof's normal and its prism's foot (the paper's blocks stand on flat ground; here a building
-// may stand higher than the block's floor, and its prisms end where it meets the ground). Roofs store no colour: seasonview textures them from the terrain
-// imagery, as it draws the polygon roofs. The ground is not part of a BlockMap: a ray that meets no prism goes on to
+// may stand higher than the block's floor, and its prisms end where it meets the ground). Roofs store no colour:
+// seasonview textures them from the terrain imagery, as it draws the polygon roofs. The ground is not part of a BlockMap: a ray that meets no prism goes on to
 // the terrain drawn under it.
 #include "CityModel.h"
 #include "Result.h"
@@ -56,8 +56,8 @@ struct BlockMap {
     std::vector<std::uint8_t> roofNormal; // n² × 2
     // Per texel the prism's foot, as heights are stored (0 on an empty texel): a ray below it at the texel passes
     // under the prism (it is in the ground there: the terrain drawn under the block hides it; with no terrain, it
-    // goes on to what is behind, as under the polygons). So walls do not hang below a building that stands higher
-    // than the block's lowest. A boundary texel's foot is at or below the lowest triangle over it; an inner
+    // goes on to what is behind, as under the polygons; rising into the prism from below, it meets nothing). So walls
+    // do not hang below a building that stands higher than the block's lowest. A boundary texel's foot is at or below the lowest triangle over it; an inner
     // texel's the lowest of its neighbours'. Empty: every foot at zBase.
     std::vector<std::uint8_t> foot;
 
@@ -128,7 +128,8 @@ struct BlockMapHit {
 /// Casts a ray (origin and direction in local metres, direction not zero) against the BlockMap's prisms (§3.2): the
 /// nearest roof or wall it meets at t > 0 inside the block's box [origin, origin + n · texel]² × [zBase, zTop],
 /// found by stepping texel by texel along the ray's path over the height map (Amanatides & Woo 1987), a texel hit
-/// where the ray is at or below its top there. `leap`: over empty texels the distance map moves the ray to the edge
+/// where the ray is at or below its top there and not below its foot (below it, the ray passes under the prism; rising
+/// into it from below, it meets nothing). `leap`: over empty texels the distance map moves the ray to the edge
 /// of the empty square around it in one step (§3.2's space leaping); false steps every texel (the reference). A ray
 /// that leaves the box, or reaches its floor, meets nothing (the terrain is drawn under the block); a ray that starts
 /// inside a prism hits it at once.

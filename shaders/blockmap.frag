@@ -166,12 +166,15 @@ void main() {
             top = bmTop(value);
             float zIn = o.z + tCell * d.z;
             if (zIn <= top) {
-                // Below the prism's foot the ray passes under it (in the ground there).
-                if (zIn >= bmTop(texel.b)) {
+                // Below the prism's foot the ray passes under it (in the ground there); rising into it from below
+                // (from under the ground), it meets nothing.
+                float foot = bmTop(texel.b);
+                if (zIn >= foot) {
                     kind = face == 4 ? kRoof : kWall;
                     tHit = tCell;
                     break;
                 }
+                if (o.z + tOut * d.z >= foot) break;
             } else if (o.z + tOut * d.z <= top) {
                 kind = kRoof;
                 tHit = (top - o.z) / d.z;

@@ -151,6 +151,10 @@ TEST(BlockMapTest, RaisedBuildingsEndAtTheirFeet) {
     const BlockMapHit g = traceBlockMap(m, {20.0, -10.0, 4.0}, {0.0, 1.0, 0.0});
     ASSERT_EQ(int(g.kind), int(BlockMapHit::Kind::Wall));
     EXPECT_NEAR(g.point.y, 17.0, 1e-9) << "under the raised building to the wall of the one behind";
+    // A ray rising from under the raised building into it (from under the ground) meets nothing, not the inside of
+    // its prisms (whose texels have no wall column).
+    const BlockMapHit r = traceBlockMap(m, {22.0, -10.0, 1.0}, glm::normalize(glm::dvec3(0.0, 1.0, 0.3)));
+    EXPECT_EQ(int(r.kind), int(BlockMapHit::Kind::None));
 }
 
 TEST(BlockMapTest, LeapingVisitsFewerTexels) {
