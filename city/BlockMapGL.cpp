@@ -163,13 +163,14 @@ Result<int> BlockMapPoolGL::add(const BlockMap& map, const BlockMapPacked* packe
         m_freeSlots.push_back(handle);
         return st.error();
     };
+    // (A growth leaves a segment with room for what it was asked: SegmentPool::grow.)
     if (!m_pages.place(handle, pages)) {
         if (auto st = growPages(pages); !st) return fail(st);
-        m_pages.place(handle, pages);
+        if (!m_pages.place(handle, pages)) return fail(Error{"BlockMaps: no room for a map's pages after growing"});
     }
     if (!m_tiles.place(handle, 1)) {
         if (auto st = growTiles(1); !st) return fail(st);
-        m_tiles.place(handle, 1);
+        if (!m_tiles.place(handle, 1)) return fail(Error{"BlockMaps: no room for a map's tile after growing"});
     }
     Slot& s = m_slots[std::size_t(handle)];
     s.live = true;
