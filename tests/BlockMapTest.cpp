@@ -113,6 +113,16 @@ void expectExact(const std::vector<Prism>& prisms, const char* what) {
     EXPECT_GT(4000 - hits, 100) << what;
 }
 
+// An untextured triangle of building 0 added to `model`.
+void addTriangle(CityModel& model, glm::dvec3 a, glm::dvec3 b, glm::dvec3 c, Surface surface) {
+    TexturedTriangle t;
+    t.v = {a, b, c};
+    t.texture = -1;
+    model.triangles.push_back(t);
+    model.building.push_back(0);
+    model.surface.push_back(surface);
+}
+
 } // namespace
 
 // Heights on the 8-bit grid of the block's range (25.5 m / 255 = 0.1 m), walls on texel edges (1 m): the BlockMap
@@ -234,12 +244,7 @@ TEST(BlockMapTest, WallsAtAnAngleAreOffTheGrid) {
         c[std::size_t(k)] = glm::dvec3(16.0 + u * std::cos(a) - v * std::sin(a), 16.0 + u * std::sin(a) + v * std::cos(a), 0.0);
     }
     auto tri = [&](glm::dvec3 p, glm::dvec3 q, glm::dvec3 r) {
-        TexturedTriangle t;
-        t.v = {p, q, r};
-        t.texture = -1;
-        model.triangles.push_back(t);
-        model.building.push_back(0);
-        model.surface.push_back(p.z == q.z && q.z == r.z ? Surface::Roof : Surface::Wall);
+        addTriangle(model, p, q, r, p.z == q.z && q.z == r.z ? Surface::Roof : Surface::Wall);
     };
     const glm::dvec3 up(0.0, 0.0, top);
     for (int k = 0; k < 4; ++k) {
@@ -265,14 +270,7 @@ TEST(BlockMapTest, WallsAtAnAngleAreOffTheGrid) {
 TEST(BlockMapTest, SlopedRoofsAreShadedAsRoofsAndTheirStepsAreRoof) {
     CityModel model;
     model.buildingIds = {"b"};
-    auto tri = [&](glm::dvec3 a, glm::dvec3 b, glm::dvec3 c) {
-        TexturedTriangle t;
-        t.v = {a, b, c};
-        t.texture = -1;
-        model.triangles.push_back(t);
-        model.building.push_back(0);
-        model.surface.push_back(Surface::Wall);
-    };
+    auto tri = [&](glm::dvec3 a, glm::dvec3 b, glm::dvec3 c) { addTriangle(model, a, b, c, Surface::Wall); };
     auto quad = [&](glm::dvec3 a, glm::dvec3 b, glm::dvec3 c, glm::dvec3 d) {
         tri(a, b, c);
         tri(a, c, d);
