@@ -7,14 +7,22 @@
 #   2. the canopy view against the leaf-on view (`--compare canopy=off,16`, goal ≤ 1.3) and the swipe view alone at
 #      $SIZE and 1280×720
 #      and the same with --stages finish and --stages issue (where each stage's time goes: stages.csv, summary.json
-#      "stages"; the city's too in step 3)
+#      "stages"; the city's too in step 3); the terrain shaded forward against deferred in the canopy and leaf-on
+#      views, the canopy ratio with forward shading, and the canopy's layers rasterised against marched
 #   3. the 10,000-building block city: its atlas tree, then `bench --compare city=atlas,original,flat` along the
 #      pedestrian-to-overview path at 1920×1080 (goals: atlas ÷ flat ≤ 1.1, original ÷ atlas ≥ 3 at the
 #      overview, nodes per frame), the same with `--terrain off` (the city alone, as the paper timed it),
 #      `--compare city-flush=off,on` and
-#      `--compare city-occlusion=off,on`
+#      `--compare city-occlusion=off,on`, and the far field as BlockMaps against the atlas tree alone
+#      (`--compare city=atlas,blockmap`: frame time, triangles and draw calls per frame; the BlockMaps' build time
+#      in blockmap.log)
+#   4. streaming (scripts/stream-bench.sh, after step 2 as it needs the demo scene): the demo's leaf-on as zoom 12–19
+#      XYZ tiles served with 100 ms latency, `--compare source=prepared,stream` over `flyover` at 640×360 and $SIZE.
+#      The GPU machine has no gdal2tiles: WebP tiles made here travel as .stream-carry/xyz_webp.tar (after
+#      `TILES=webp scripts/stream-bench.sh` here: tar -cf .stream-carry/xyz_webp.tar -C /tmp/sv-stream-bench
+#      xyz_webp); skipped without it
 # Environment: OUT (default out/gpu), SIZE (1920x1080), FRAMES (300), CITY_FRAMES (240), WORK (work folder,
-# default /tmp/seasonview-gpu), CITY_TREE_WIDTH (the screen width the city's atlas tree is built for; default the
+# default /tmp/seasonview-gpu), SKIP_STREAM=1 to leave step 4 out, CITY_TREE_WIDTH (the screen width the city's atlas tree is built for; default the
 # frame's), SKIP_CITY=1 to stop after step 2, SKIP_DEMO=1 to run step 3 alone (on the H200
 # machine steps 1–2 take 1.5 minutes, while step 3's atlas tree for 1920 pixels did not finish in 6.5: give it a
 # call of its own). Locally (llvmpipe) the same script checks the
@@ -89,6 +97,38 @@ sv bench "$WORK/demo/scene/scene.json" --path flyover --frames 60 --warmup 20 --
 sv bench "$WORK/demo/scene/scene.json" --path flyover --frames 60 --warmup 20 --size "$SIZE" \
     --view canopy --compare canopy=off,16 --coverage-every 0 --stages issue --out "$RES/canopy_issue" 2>&1 |
     tee "$RES/canopy_issue.log" | tail -3
+log "the terrain shaded forward or deferred (terrain-shading=forward,deferred), canopy and leaf-on views, $SIZE"
+sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmup 20 --size "$SIZE" \
+    --view canopy --compare terrain-shading=forward,deferred --coverage-every 0 --out "$RES/shading_canopy" 2>&1 |
+    tee "$RES/shading_canopy.log" | tail -3
+sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmup 20 --size "$SIZE" \
+    --view leafon --compare terrain-shading=forward,deferred --coverage-every 0 --out "$RES/shading_leafon" 2>&1 |
+    tee "$RES/shading_leafon.log" | tail -3
+log "canopy view vs the leaf-on view with forward shading; the canopy rasterised as layers or marched"
+sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmup 20 --size "$SIZE" \
+    --view canopy --terrain-shading forward --compare canopy=off,16 --coverage-every 0 --out "$RES/canopy_forward" 2>&1 |
+    tee "$RES/canopy_forward.log" | tail -3
+sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmup 20 --size "$SIZE" \
+    --view canopy --compare canopy-draw=layers,march --coverage-every 0 --out "$RES/canopy_draw" 2>&1 |
+    tee "$RES/canopy_draw.log" | tail -3
+fi
+
+if [[ ${SKIP_STREAM:-0} != 1 && ${SKIP_DEMO:-0} != 1 && -f $ROOT/.stream-carry/xyz_webp.tar ]]; then
+    log "streaming: the demo's leaf-on from a local XYZ service (100 ms latency) against prepared, 640x360 and $SIZE"
+    rm -rf "$WORK/stream" && mkdir -p "$WORK/stream"
+    tar -xf "$ROOT/.stream-carry/xyz_webp.tar" -C "$WORK/stream"
+    touch "$WORK/stream/xyz_webp/.done"
+    # stream-bench.sh runs the binary by path: a wrapper gives it the bundle's libraries (and nothing else).
+    printf '#!/bin/sh\nLD_LIBRARY_PATH=%s exec %s "$@"\n' "$LIBS" "$BUNDLE/seasonview" > "$WORK/sv" && chmod +x "$WORK/sv"
+    SV=$WORK/sv SIZE=640x360 TILES=webp bash scripts/stream-bench.sh "$WORK/demo/scene" "$WORK/stream" 100 120 \
+        > "$RES/stream.log" 2>&1 || echo "stream-bench failed (exit $?)" >> "$RES/stream.log"
+    tail -3 "$RES/stream.log"
+    cp -r "$WORK/stream/bench" "$RES/stream" 2>/dev/null || true
+    rm -rf "$WORK/stream/bench" "$WORK/stream/cache/web/tiles"
+    SV=$WORK/sv SIZE=$SIZE TILES=webp bash scripts/stream-bench.sh "$WORK/demo/scene" "$WORK/stream" 100 120 \
+        > "$RES/stream_big.log" 2>&1 || echo "stream-bench failed (exit $?)" >> "$RES/stream_big.log"
+    tail -3 "$RES/stream_big.log"
+    cp -r "$WORK/stream/bench" "$RES/stream_big" 2>/dev/null || true
 fi
 
 if [[ ${SKIP_CITY:-0} != 1 ]]; then
@@ -106,6 +146,10 @@ if [[ ${SKIP_CITY:-0} != 1 ]]; then
         --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
         --coverage-every 0 --terrain off --compare city=atlas,original,flat --out "$RES/city_alone" 2>&1 |
         tee "$RES/city_alone.log" | tail -5
+    log "the far field as BlockMaps against the atlas tree alone (city=atlas,blockmap; the maps built first)"
+    sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
+        --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
+        --coverage-every 0 --compare city=atlas,blockmap --out "$RES/blockmap" 2>&1 | tee "$RES/blockmap.log" | tail -4
     log "where the city's time goes (--stages), atlas/flat, 60 frames"
     sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
         --path data/paths/blockcity_pedestrian_overview.json --frames 60 --warmup 5 --size "$SIZE" \

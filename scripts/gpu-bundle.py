@@ -46,6 +46,14 @@ KEEP = [
     "libgomp.so",
     # GDAL opens every raster (core/geo/GdalSupport.cpp) and PROJ builds its CRSs from proj.db (SQLite)
     "libgdal.so", "libproj.so", "libsqlite3.so", "libjson-c.so",
+    # --stream and web sources: GDAL's /vsicurl/ (Debian's GDAL and PROJ link libcurl-gnutls) and what its
+    # initialisation and a plain HTTP transfer call: GnuTLS (set up when loaded) and its crypto, SSH, IDN, PSL,
+    # content decoders, and LDAP, Kerberos and RTMP (curl asks them for their versions): libcurl-gnutls's closure.
+    "libcurl-gnutls.so", "libgnutls.so", "libnettle.so", "libhogweed.so", "libgmp.so", "libp11-kit.so",
+    "libtasn1.so", "libffi.so", "libcrypto.so", "libnghttp2.so", "libssh2.so", "libidn2.so", "libunistring.so",
+    "libpsl.so", "libbrotlidec.so", "libbrotlicommon.so", "libldap-2.5.so", "liblber-2.5.so", "libsasl2.so",
+    "libgssapi_krb5.so", "libkrb5.so", "libk5crypto.so", "libcom_err.so", "libkrb5support.so", "libkeyutils.so",
+    "librtmp.so",
 ]
 
 # Stubbed functions that run anyway and may simply return (a pointer to an empty string, for the version
