@@ -76,7 +76,7 @@ struct Mode {
     bool cityOcclusion = true;
     bool cityFlush = true;        // city-flush=off,on: CitySettings::flushFirst
     bool drawTerrain = true;      // terrain=off: the city drawn alone (the imagery clipmap still streams for roofs)
-    TerrainShading terrainShading = TerrainShading::Deferred;
+    TerrainShading terrainShading = TerrainShading::Auto;
     std::optional<bool> streamed; // source=prepared|stream: the seasons' pyramids (unset: as the scene says, --stream)
     std::unique_ptr<city::CityRendererGL> city;
     std::unique_ptr<ClipmapGL> clipmap;
@@ -248,7 +248,7 @@ Status applyCompareValue(const BenchSettings& a, const std::string& key, const s
         m.streamed = v == "stream";
     } else if (key == "terrain-shading") {
         auto t = parseTerrainShading(v);
-        if (!t) return Error{"--compare: terrain-shading '" + v + "' (expected forward|deferred)"};
+        if (!t) return Error{"--compare: terrain-shading '" + v + "' (expected auto|forward|deferred)"};
         m.terrainShading = *t;
     } else if (key == "terrain") {
         // The city (--city, default atlas) over the terrain and alone.
@@ -299,7 +299,7 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
             return Error{"--terrain '" + a.imagery.terrain + "': expected on|off"};
         m.drawTerrain = a.imagery.terrain == "on";
         auto shading = parseTerrainShading(a.imagery.terrainShading);
-        if (!shading) return Error{"--terrain-shading '" + a.imagery.terrainShading + "': expected forward|deferred"};
+        if (!shading) return Error{"--terrain-shading '" + a.imagery.terrainShading + "': expected auto|forward|deferred"};
         m.terrainShading = *shading;
         return m;
     };
@@ -812,6 +812,11 @@ nlohmann::json summaryHead(const gl::ContextInfo& device, const Scene& scene, co
               {"city_upload", a.city.upload},
               {"city_occlusion", a.city.occlusion},
               {"terrain", a.imagery.terrain},
+              {"terrain_shading", a.imagery.terrainShading},
+              // what auto chose on this device (a compare's modes name their own)
+              {"terrain_shading_resolved", a.imagery.terrainShading != "auto" ? a.imagery.terrainShading
+                                           : gl::isSoftwareRenderer(device.renderer) ? "deferred"
+                                                                                     : "forward"},
               {"renderer", a.clipmap.renderer},
               {"centers", a.clipmap.centers},
               {"seed", a.seed},

@@ -202,9 +202,10 @@ void ImageryArgs::addTo(CLI::App& cmd) {
         ->check(CLI::Range(0.0f, 1.0f))
         ->capture_default_str();
     cmd.add_option("--terrain-shading", terrainShading,
-                   "How the terrain's fragments are shaded: deferred (a geometry pass, then each pixel once) or "
-                   "forward (as rasterised); the same pixels")
-        ->check(CLI::IsMember({"forward", "deferred"}))
+                   "How the terrain's fragments are shaded: deferred (a geometry pass, then each pixel once), "
+                   "forward (as rasterised), or auto: deferred on a software rasteriser (llvmpipe), forward on a GPU; "
+                   "the same pixels")
+        ->check(CLI::IsMember({"auto", "forward", "deferred"}))
         ->capture_default_str();
     cmd.add_option("--terrain", terrain,
                    "on: the terrain drawn; off: only the city (its facades and roofs; needs --city), as the "
@@ -226,7 +227,7 @@ Status ImageryArgs::apply(ImagerySettings& imagery) const {
     if (terrain != "on" && terrain != "off") return Error{"--terrain '" + terrain + "': expected on|off"};
     imagery.terrain = terrain == "on";
     const auto path = parseTerrainShading(terrainShading);
-    if (!path) return Error{"--terrain-shading '" + terrainShading + "': expected forward|deferred"};
+    if (!path) return Error{"--terrain-shading '" + terrainShading + "': expected auto|forward|deferred"};
     imagery.path = *path;
     return Ok{};
 }

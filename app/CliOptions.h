@@ -73,7 +73,7 @@ struct FrameArgs {
 struct ImageryArgs {
     std::string view = "leafon";
     float blend = 0.5f, swipe = 0.5f, aniso = 8.0f, shade = 0.0f;
-    std::string terrain = "on", terrainShading = "deferred";
+    std::string terrain = "on", terrainShading = "auto";
     void addTo(CLI::App& cmd);
     /// The view, blend, swipe, anisotropy, shading, terrain switch and shading path into `imagery`.
     Status apply(ImagerySettings& imagery) const;

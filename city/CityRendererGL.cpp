@@ -3,6 +3,7 @@
 #include "AtlasCodec.h"
 #include "GeoFrame.h"
 #include "TerrainMeshGL.h"
+#include "gl/GlContext.h"
 
 #include <epoxy/gl.h>
 #include <glm/common.hpp>
@@ -62,12 +63,6 @@ const char* atlasUploadName(AtlasUpload u) {
     case AtlasUpload::Decoded: return "decoded";
     }
     return "?";
-}
-
-bool isSoftwareRenderer(const std::string& glRenderer) {
-    for (const char* name : {"llvmpipe", "softpipe", "SwiftShader"})
-        if (glRenderer.find(name) != std::string::npos) return true;
-    return false;
 }
 
 namespace {
@@ -184,8 +179,7 @@ Status CityRendererGL::buildPrograms() {
     if (!box) return box.error();
     m_boxProgram = std::move(*box);
     const bool s3tc = epoxy_has_gl_extension("GL_EXT_texture_compression_s3tc");
-    const auto* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
-    const bool software = name && isSoftwareRenderer(name);
+    const bool software = gl::currentIsSoftwareRenderer();
     m_decodeBc = m_file.info.format == AtlasFormat::Bc &&
                  (!s3tc || m_settings.upload == AtlasUpload::Decoded ||
                   (m_settings.upload == AtlasUpload::Auto && software));

@@ -37,8 +37,6 @@ const char* cityModeName(CityMode m);
 enum class AtlasUpload { Auto, Compressed, Decoded };
 std::optional<AtlasUpload> parseAtlasUpload(const std::string& name); // "auto", "compressed", "decoded"
 const char* atlasUploadName(AtlasUpload u);
-/// Whether a GL_RENDERER string names a software rasteriser (llvmpipe, softpipe, SwiftShader).
-bool isSoftwareRenderer(const std::string& glRenderer);
 
 /// How the city follows the terrain's view. The roofs show the terrain's imagery (thesis §4.8.2: roofs are textured
 /// from it): one season, the two blended, or split at the swipe line. The levels view shows what drew each pixel.

@@ -1,6 +1,7 @@
 #include "ClipmapTerrainRendererGL.h"
 
 #include "ReferenceRendererGL.h" // kBackgroundColor
+#include "gl/GlContext.h"
 
 #include <algorithm>
 #include <cmath>
@@ -23,9 +24,22 @@ constexpr ImageryView kViews[] = {ImageryView::LeafOn, ImageryView::LeafOff, Ima
                                   ImageryView::Canopy};
 } // namespace
 
-const char* terrainShadingName(TerrainShading t) { return t == TerrainShading::Forward ? "forward" : "deferred"; }
+const char* terrainShadingName(TerrainShading t) {
+    switch (t) {
+    case TerrainShading::Auto: return "auto";
+    case TerrainShading::Forward: return "forward";
+    case TerrainShading::Deferred: return "deferred";
+    }
+    return "?";
+}
+
+TerrainShading resolveTerrainShading(TerrainShading t) {
+    if (t != TerrainShading::Auto) return t;
+    return gl::currentIsSoftwareRenderer() ? TerrainShading::Deferred : TerrainShading::Forward;
+}
 
 std::optional<TerrainShading> parseTerrainShading(const std::string& name) {
+    if (name == "auto") return TerrainShading::Auto;
     if (name == "forward") return TerrainShading::Forward;
     if (name == "deferred") return TerrainShading::Deferred;
     return std::nullopt;
@@ -273,8 +287,7 @@ GeometryFrameStats ClipmapTerrainRendererGL::render(const Camera& camera, const 
     const float shade = std::clamp(s.shading, 0.0f, 1.0f);
     const bool normals = shade > 0.0f || s.view == ImageryView::Relief;
     const float swipeX = std::clamp(s.swipe, 0.0f, 1.0f) * float(target.width());
-    if (s.path == TerrainShading::Deferred && s.view != ImageryView::Wireframe && s.view != ImageryView::Levels)
-        return renderDeferred(camera, s, target, normals, swipeX);
+    if (resolvesDeferred(s)) return renderDeferred(camera, s, target, normals, swipeX);
     if (s.view == ImageryView::Swipe) {
         // Two passes, each scissored to its side and culled against its part of the frustum: a program per side
         // samples one season (its fragments would otherwise run both seasons' sampling under a mask). The pixels

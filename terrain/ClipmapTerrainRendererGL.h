@@ -29,9 +29,15 @@ enum class ImageryView { LeafOn, LeafOff, Blend, Swipe, Lod, Wireframe, Levels, 
 std::optional<ImageryView> parseImageryView(const std::string& name);
 const char* imageryViewName(ImageryView v);
 
-enum class TerrainShading { Forward, Deferred };
-std::optional<TerrainShading> parseTerrainShading(const std::string& name);
+/// How the terrain's fragments are shaded (ImagerySettings::path). Auto: Deferred on a software rasteriser, where
+/// the geometry clipmap's small triangles have each pixel shaded several times (llvmpipe shades whole 4 × 4 blocks
+/// once per triangle touching them), Forward on a GPU, where the resolve's full-screen pass and G-buffer cost more
+/// than they save (docs/gpu.md: the leaf-on view 1.7× slower deferred at 1920 × 1080 on an NVIDIA H200).
+enum class TerrainShading { Auto, Forward, Deferred };
+std::optional<TerrainShading> parseTerrainShading(const std::string& name); // "auto", "forward", "deferred"
 const char* terrainShadingName(TerrainShading t);
+/// Forward or Deferred: Auto resolved for the current context's renderer (needs a current context).
+TerrainShading resolveTerrainShading(TerrainShading t);
 
 /// The canopy view's marched layers (foliage/CanopyRendererGL.h, CanopyDrawMode::March) for the deferred resolve to
 /// march (shaders/terrain_resolve.frag, variant CANOPY_MARCH; common_canopy_march.glsl): the top layer's record of
@@ -59,9 +65,9 @@ struct ImagerySettings {
     bool clear = true;
     // How the terrain's fragments are shaded: Deferred (a geometry pass records position, derivatives and normal,
     // a full-screen pass shades each pixel once) or Forward (shaded as rasterised, every 4x4 block a small triangle
-    // touches: several times per pixel where triangles are small). The same pixels either way; wireframe and levels
-    // are always forward.
-    TerrainShading path = TerrainShading::Deferred;
+    // touches: several times per pixel where triangles are small), or Auto (resolveTerrainShading: deferred on a
+    // software rasteriser, forward on a GPU). The same pixels either way; wireframe and levels are always forward.
+    TerrainShading path = TerrainShading::Auto;
     // false: the pass only clears (when `clear`) and draws nothing, so what follows (the city) is drawn alone, as
     // Buchholz & Döllner 2005 §6 timed the facades without terrain.
     bool terrain = true;
@@ -114,7 +120,7 @@ public:
     GeometryFrameStats render(const Camera& camera, const ImagerySettings& settings, const gl::RenderTarget& target) const;
     /// Whether render() shades `settings` deferred (a geometry pass, then a full-screen resolve).
     static bool resolvesDeferred(const ImagerySettings& settings) {
-        return settings.path == TerrainShading::Deferred && settings.view != ImageryView::Wireframe &&
+        return resolveTerrainShading(settings.path) == TerrainShading::Deferred && settings.view != ImageryView::Wireframe &&
                settings.view != ImageryView::Levels;
     }
 

@@ -182,6 +182,9 @@ TEST(BenchCli, CanopyCompareAddsLayersAndTrunks) {
         EXPECT_EQ(summary["settings"]["compare"], compare);
         EXPECT_EQ(summary["settings"]["centers"], "footprint");
         EXPECT_EQ(summary["settings"]["renderer"], "clipmap");
+        EXPECT_EQ(summary["settings"]["terrain_shading"], "auto");
+        const bool software = summary["device"]["renderer"].get<std::string>().find("llvmpipe") != std::string::npos;
+        EXPECT_EQ(summary["settings"]["terrain_shading_resolved"], software ? "deferred" : "forward");
         EXPECT_EQ(summary["settings"]["seed"], 1);
         for (const char* m : {without, with}) {
             // Counters add up: the per-frame uploads sum to what the clipmaps themselves counted over those frames.

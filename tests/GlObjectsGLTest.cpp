@@ -25,6 +25,20 @@ TEST(GlObjectsGLTest, HeadlessContextIsGl45Core) {
     EXPECT_EQ(gl::drainErrors(), "");
 }
 
+// Software rasterisers are told from GPUs by their GL_RENDERER: what the auto settings follow (the terrain's shading
+// path, the city's BC upload).
+TEST(GlObjectsGLTest, SoftwareRenderersAreTold) {
+    EXPECT_TRUE(gl::isSoftwareRenderer("llvmpipe (LLVM 15.0.6, 256 bits)"));
+    EXPECT_TRUE(gl::isSoftwareRenderer("softpipe"));
+    EXPECT_TRUE(gl::isSoftwareRenderer("ANGLE (Google, Vulkan 1.3.0 (SwiftShader Device (Subzero)), SwiftShader driver)"));
+    EXPECT_FALSE(gl::isSoftwareRenderer("NVIDIA H200/PCIe/SSE2"));
+    EXPECT_FALSE(gl::isSoftwareRenderer("AMD Radeon RX 7900 XTX (radeonsi, navi31, LLVM 15.0.6, DRM 3.54)"));
+    EXPECT_FALSE(gl::isSoftwareRenderer(""));
+    ASSERT_TRUE(context());
+    context()->makeCurrent();
+    EXPECT_EQ(gl::currentIsSoftwareRenderer(), gl::isSoftwareRenderer(context()->info().renderer));
+}
+
 TEST(GlObjectsGLTest, MoveOnlyRaiiDeletesExactlyOnce) {
     ASSERT_TRUE(context());
     context()->makeCurrent();

@@ -7,6 +7,7 @@
 #include "RenderJob.h"
 #include "SyntheticScene.h"
 #include "TestUtil.h"
+#include "gl/GlContext.h"
 #include "gl/GlDebug.h"
 
 #include <gtest/gtest.h>
@@ -297,6 +298,24 @@ TEST(TerrainClipmapGLTest, GoldenWireframeAndLevels) {
         compareWithGolden(name, rgbOf(target.readRgba()), w, h, 255, 2.0);
     }
     EXPECT_EQ(gl::drainErrors(), "");
+}
+
+// auto shades the terrain as its renderer is fastest: deferred on a software rasteriser, forward on a GPU (wireframe
+// and levels forward always); every name parses back.
+TEST(TerrainClipmapGLTest, AutoShadingFollowsTheRenderer) {
+    ASSERT_TRUE(headlessContext());
+    for (TerrainShading t : {TerrainShading::Auto, TerrainShading::Forward, TerrainShading::Deferred})
+        EXPECT_EQ(parseTerrainShading(terrainShadingName(t)), t);
+    EXPECT_FALSE(parseTerrainShading("gpu"));
+    const bool software = gl::isSoftwareRenderer(headlessContext()->info().renderer);
+    EXPECT_EQ(resolveTerrainShading(TerrainShading::Auto), software ? TerrainShading::Deferred : TerrainShading::Forward);
+    EXPECT_EQ(resolveTerrainShading(TerrainShading::Forward), TerrainShading::Forward);
+    EXPECT_EQ(resolveTerrainShading(TerrainShading::Deferred), TerrainShading::Deferred);
+    ImagerySettings s;
+    EXPECT_EQ(s.path, TerrainShading::Auto);
+    EXPECT_EQ(ClipmapTerrainRendererGL::resolvesDeferred(s), software);
+    s.view = ImageryView::Wireframe;
+    EXPECT_FALSE(ClipmapTerrainRendererGL::resolvesDeferred(s));
 }
 
 // Each view is its own program (VIEW and NORMALS are compile-time constants, shaders/common_view.glsl): every one

@@ -13,6 +13,17 @@
 
 namespace seasonview::gl {
 
+bool isSoftwareRenderer(const std::string& glRenderer) {
+    for (const char* name : {"llvmpipe", "softpipe", "SwiftShader"})
+        if (glRenderer.find(name) != std::string::npos) return true;
+    return false;
+}
+
+bool currentIsSoftwareRenderer() {
+    const auto* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+    return name && isSoftwareRenderer(name);
+}
+
 void GlContext::fillInfo(const char* platform) {
     auto str = [](GLenum e) {
         const GLubyte* s = glGetString(e);

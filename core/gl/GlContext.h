@@ -14,6 +14,11 @@ struct ContextInfo {
     int maxFramebufferSide = 0; // the largest render target side: min(GL_MAX_RENDERBUFFER_SIZE, GL_MAX_VIEWPORT_DIMS)
 };
 
+/// Whether a GL_RENDERER string names a software rasteriser (llvmpipe, softpipe, SwiftShader).
+bool isSoftwareRenderer(const std::string& glRenderer);
+/// Whether the current context's renderer is a software rasteriser (isSoftwareRenderer of its GL_RENDERER).
+bool currentIsSoftwareRenderer();
+
 /// Whether a width×height render target fits what this context allows (`what` names the option, e.g. "--size");
 /// the error names the limit and the renderer.
 Status checkFramebufferSize(const ContextInfo& info, int width, int height, const std::string& what);
