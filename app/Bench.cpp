@@ -754,14 +754,14 @@ Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>
            "elevation_texels_uploaded,elevation_resident_bytes,run_order,city_allocated_bytes,city_evicted_blocks,"
            "canopy_blocks_pending,canopy_blocks_unread,canopy_blocks_on_demand,city_update_ms,city_upload_ms,"
            "city_uploaded_bytes,city_wait_ms,stream_ms,city_blockmaps,city_blockmaps_not_resident,city_blockmap_pool_bytes,"
-           "city_blockmap_moved_bytes\n";
+           "city_blockmap_moved_bytes,city_requested_bytes,city_ideal_bytes\n";
     for (const Mode& m : modes)
         for (const FrameRow& r : m.rows) {
             char line[640];
             std::snprintf(line, sizeof line,
                           "%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%d,%lld,%lld,%lld,%d,%lld,%lld,%lld,%s,"
                           "%d,%d,%d,%lld,%zu,%llu,%zu,%d,%lld,%lld,%d,%d,%.4f,%d,%d,%d,%lld,%lld,%d,%llu,%zu,%d,%d,%d,%.4f,%.4f,"
-                          "%llu,%.4f,%.4f,%d,%d,%llu,%llu\n",
+                          "%llu,%.4f,%.4f,%d,%d,%llu,%llu,%llu,%llu\n",
                           m.label.c_str(), r.frame, r.camera.position.x, r.camera.position.y, r.camera.position.z,
                           r.camera.yawDeg, r.camera.pitchDeg, r.cpuMs, r.gpuMs, r.frameMs, r.drawCalls,
                           (long long)r.triangles, (long long)r.texelsUploaded, (long long)r.exposedTexels,
@@ -777,7 +777,8 @@ Status writeFramesCsv(const std::filesystem::path& file, const std::vector<Mode>
                           r.canopyBlocksUnread, r.canopyBlocksOnDemand, r.cityUpdateMs, r.city.uploadMs,
                           (unsigned long long)r.city.uploadedBytes, r.city.waitMs, r.streamMs, r.city.blockMaps,
                           r.city.blockMapsNotResident, (unsigned long long)r.city.blockMapPoolBytes,
-                          (unsigned long long)r.city.blockMapMovedBytes);
+                          (unsigned long long)r.city.blockMapMovedBytes, (unsigned long long)r.city.requestedBytes,
+                          (unsigned long long)r.city.idealBytes);
             csv << line;
         }
     std::string err;

@@ -263,7 +263,8 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
     // stays useful while the eye moves on, where a fine block near the eye may be behind it by the time it is in),
     // then the request's place in priority order (a split texture's parts share it).
     std::map<BlockKey, LoadOrder> ideal;
-    std::uint64_t idealBytes = 0;
+    std::uint64_t idealBytes = 0, requestedBytes = 0;
+    bool full = false;
     for (std::size_t rank = 0; rank < asked.size(); ++rank) {
         const BlockRequest& r = asked[rank];
         if (r.category == BlockCategory::Unused) break;
@@ -273,7 +274,11 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
         });
         if (failed) continue;
         const std::uint64_t b = parts > 1 ? textureBytes(r.key.index) : blockBytes(r.key);
-        if (idealBytes + b > m_settings.capacityBytes) break;
+        requestedBytes += b;
+        if (full || idealBytes + b > m_settings.capacityBytes) {
+            full = true; // the rest is counted in requestedBytes only
+            continue;
+        }
         idealBytes += b;
         const LoadOrder order{int(r.category), r.level, rank};
         if (parts == 1) ideal.emplace(r.key, order);
@@ -385,6 +390,7 @@ AtlasPager::Frame AtlasPager::update(const std::vector<BlockRequest>& asked) {
     m_stats.residentBlocks = m_resident.size();
     m_stats.queued = m_reserved.size();
     m_stats.idealBytes = idealBytes;
+    m_stats.requestedBytes = requestedBytes;
     m_stats.idealBlocks = ideal.size();
     m_stats.idealMissing = missing;
     return out;

@@ -73,6 +73,9 @@ std::pair<int, int> bandMipRows(int r0, int r1, int height, int level);
 
 struct PagerStats {
     std::uint64_t residentBytes = 0, reservedBytes = 0, idealBytes = 0;
+    // The last update's requests (Unused aside), what they would take whole: above the capacity, the ideal set
+    // stopped short of them (the view wants more than fits).
+    std::uint64_t requestedBytes = 0;
     std::size_t residentBlocks = 0, queued = 0, idealBlocks = 0, idealMissing = 0;
     std::uint64_t loaded = 0, evicted = 0, uploadedBytes = 0; // totals since creation
 };

@@ -671,6 +671,8 @@ CityFrameStats CityRendererGL::draw(const Camera& camera, const ClipmapTerrainRe
     if (m_originalPager) {
         st.blocksResident = m_originalPager->stats().residentBlocks;
         st.residentBytes = m_originalPager->stats().residentBytes;
+        st.requestedBytes = m_originalPager->stats().requestedBytes;
+        st.idealBytes = m_originalPager->stats().idealBytes;
         st.loaderQueue = m_originalPager->stats().queued;
     }
     drawPlain(ds, terrain, target.width(), blockMapsOn() ? &cut : nullptr);
@@ -859,6 +861,8 @@ void CityRendererGL::drawAtlas(std::size_t t, DrawState& ds, bool occlusion) {
     ds.st.atlasNodes += int(std::unique(pass.atlasesDrawn.begin(), pass.atlasesDrawn.end()) - pass.atlasesDrawn.begin());
     ds.st.blocksResident += pager.stats().residentBlocks;
     ds.st.residentBytes += pager.stats().residentBytes;
+    ds.st.requestedBytes += pager.stats().requestedBytes;
+    ds.st.idealBytes += pager.stats().idealBytes;
     ds.st.loaderQueue += pager.stats().queued;
 }
 

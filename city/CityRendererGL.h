@@ -97,6 +97,9 @@ struct CityFrameStats {
     int occlusionWaits = 0;        // rounds in which the frame waited for query answers
     std::size_t blocksResident = 0;
     std::uint64_t residentBytes = 0;
+    // What the pagers' requests would take whole, and what of it fits the capacity (PagerStats::requestedBytes,
+    // idealBytes): requested above ideal is a view that wants more than the capacity holds.
+    std::uint64_t requestedBytes = 0, idealBytes = 0;
     std::size_t loaderQueue = 0;
     std::uint64_t uploadedBytes = 0; // this frame
     double uploadMs = 0;             // this frame's update(): GL uploads of arriving blocks and deletes of evicted ones

@@ -924,12 +924,24 @@ TEST(AtlasPagingTest, SplitTexturesAreHeldWholeOrNotAtAll) {
     ASSERT_EQ(probe.textureParts(0), 3);
     const std::uint64_t root = probe.blockBytes({BlockKey::Kind::Atlas, 0}),
                         band = probe.blockBytes({BlockKey::Kind::Texture, 0, 1}), whole = probe.textureBytes(0);
+    // What the requests would take whole (each split texture once, whole), whatever the capacity.
+    std::uint64_t requested = 0;
+    for (const auto& r : req)
+        requested += r.key.kind == BlockKey::Kind::Texture && probe.textureParts(r.key.index) > 1 ? probe.textureBytes(r.key.index)
+                                                                                                  : probe.blockBytes(r.key);
     std::size_t wholeSeen = 0, capacities = 0;
     for (std::uint64_t capacity = root + band / 2; capacity < root + 12 * whole; capacity += band / 2, ++capacities) {
         ps.capacityBytes = capacity;
         AtlasPager pager(*f, 0, ps);
         pager.complete(req);
         EXPECT_EQ(pager.stats().idealMissing, 0u) << "capacity " << capacity << ": the ideal set is what fits";
+        EXPECT_EQ(pager.stats().requestedBytes, requested) << "capacity " << capacity;
+        EXPECT_LE(pager.stats().idealBytes, capacity);
+        if (capacity < requested) {
+            EXPECT_LT(pager.stats().idealBytes, requested) << "capacity " << capacity << ": the view wants more than fits";
+        } else {
+            EXPECT_EQ(pager.stats().idealBytes, requested) << "capacity " << capacity << ": everything fits";
+        }
         std::map<std::uint32_t, int> parts; // texture -> resident parts
         for (const auto& r : req)
             if (r.key.kind == BlockKey::Kind::Texture)
@@ -947,6 +959,11 @@ TEST(AtlasPagingTest, SplitTexturesAreHeldWholeOrNotAtAll) {
     }
     EXPECT_GT(capacities, 30u);
     EXPECT_GT(wholeSeen, 20u) << "textures were paged in under the larger capacities";
+    ps.capacityBytes = requested; // everything fits: the ideal set is every request
+    AtlasPager all(*f, 0, ps);
+    all.complete(req);
+    EXPECT_EQ(all.stats().requestedBytes, requested);
+    EXPECT_EQ(all.stats().idealBytes, requested);
 }
 
 // Original textures arrive with their box mips (the atlases' filter), made on the loader thread: a whole texture
