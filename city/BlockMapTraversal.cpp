@@ -139,9 +139,10 @@ std::vector<BlockRequest> BlockMapTraversal::requests(const AtlasView& view, dou
         switch (c.use[k]) {
         case BlockMapUse::BlockMap:
             add(k, BlockCategory::Needed);
-            // The next refinement (the eye coming nearer).
-            for (std::int32_t ch : n.children)
-                if (ch >= 0) add(std::uint32_t(ch), BlockCategory::ParentNeeded);
+            // The next refinement (the eye coming nearer), for a map within kPrefetchErrorRatio of refining.
+            if (errorPx(k, view) > kPrefetchErrorRatio * maxErrorPx)
+                for (std::int32_t ch : n.children)
+                    if (ch >= 0) add(std::uint32_t(ch), BlockCategory::ParentNeeded);
             break;
         case BlockMapUse::Outside:
             // A sibling of something used: the eye may turn to it.

@@ -12,8 +12,9 @@
 // eye coming nearer), as the atlas traversal draws a coarser atlas while finer ones load. The atlas tree then draws
 // only what no BlockMap covers (coverage()).
 //
-// Paging, with the atlas tree's categories (Buchholz's thesis §4.6): the cut's maps are Needed, their children (the
-// next refinement as the eye comes nearer) ParentNeeded, a refined node's children outside the frustum Culled.
+// Paging, with the atlas tree's categories (Buchholz's thesis §4.6): the cut's maps are Needed, the children of those
+// near refinement (the next refinement as the eye comes nearer, kPrefetchErrorRatio) ParentNeeded, a refined node's
+// children outside the frustum Culled.
 #include "AtlasTraversal.h"
 #include "BlockMap.h"
 
@@ -61,6 +62,12 @@ struct BlockMapTriangleOrder {
     /// contiguous ones merged.
     std::vector<std::pair<std::uint32_t, std::uint32_t>> ranges(const BlockMapCut& cut) const;
 };
+
+/// A drawn map's children are asked for ahead (ParentNeeded) only while its error is above this fraction of the
+/// bound: within a factor of 2 of the distance at which it is refined. Every drawn map's four children would be four
+/// times the cut's maps (each 0.25–0.5 MB on the GPU), filling the capacity with blocks evicted again as the view
+/// moves on before most are drawn; a refinement whose children are not in yet draws the map itself (cut()).
+constexpr double kPrefetchErrorRatio = 0.8;
 
 class BlockMapTraversal {
 public:

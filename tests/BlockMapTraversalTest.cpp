@@ -263,25 +263,37 @@ TEST(BlockMapTraversalTest, ResidentChildrenOrParentStandInForAMapLoading) {
 TEST(BlockMapTraversalTest, RequestsAreTheCutNeededAndItsNextRefinement) {
     const Loaded l = load();
     BlockMapTraversal t(l.tree, l.file.records());
-    const AtlasView v = viewOf(street());
-    const BlockMapCut c = t.cut(v, 1.0);
-    const auto req = t.requests(v, 1.0);
-    std::set<std::uint32_t> needed, parentNeeded;
-    for (std::size_t i = 0; i < req.size(); ++i) {
-        EXPECT_EQ(req[i].key.kind, BlockKey::Kind::BlockMap);
-        if (i > 0) {
-            EXPECT_FALSE(req[i] < req[i - 1]) << "priority order";
-        }
-        if (req[i].category == BlockCategory::Needed) needed.insert(req[i].key.index);
-        if (req[i].category == BlockCategory::ParentNeeded) parentNeeded.insert(req[i].key.index);
-    }
-    EXPECT_EQ(needed, std::set<std::uint32_t>(c.drawn.begin(), c.drawn.end()));
-    for (std::uint32_t k : c.drawn)
-        for (std::int32_t ch : l.tree.nodes[k].children) {
-            if (ch >= 0) {
-                EXPECT_TRUE(parentNeeded.count(std::uint32_t(ch))) << ch;
+    int prefetching = 0, notPrefetching = 0;
+    Camera higher = overview(); // the root's map alone, well under the bound
+    higher.position.z *= 3.0;
+    for (const Camera& cam : {street(), overview(), higher}) {
+        const AtlasView v = viewOf(cam);
+        const BlockMapCut c = t.cut(v, 1.0);
+        const auto req = t.requests(v, 1.0);
+        std::set<std::uint32_t> needed, parentNeeded;
+        for (std::size_t i = 0; i < req.size(); ++i) {
+            EXPECT_EQ(req[i].key.kind, BlockKey::Kind::BlockMap);
+            if (i > 0) {
+                EXPECT_FALSE(req[i] < req[i - 1]) << "priority order";
             }
+            if (req[i].category == BlockCategory::Needed) needed.insert(req[i].key.index);
+            if (req[i].category == BlockCategory::ParentNeeded) parentNeeded.insert(req[i].key.index);
         }
+        EXPECT_EQ(needed, std::set<std::uint32_t>(c.drawn.begin(), c.drawn.end()));
+        // The children of the maps near refinement come next; those of maps well under the bound are not asked for.
+        for (std::uint32_t k : c.drawn) {
+            const bool near = t.errorPx(k, v) > kPrefetchErrorRatio * 1.0;
+            bool anyChild = false;
+            for (std::int32_t ch : l.tree.nodes[k].children) {
+                if (ch < 0) continue;
+                anyChild = true;
+                EXPECT_EQ(parentNeeded.count(std::uint32_t(ch)), near ? 1u : 0u) << "map " << k << ", child " << ch;
+            }
+            if (anyChild) ++(near ? prefetching : notPrefetching);
+        }
+    }
+    EXPECT_GT(prefetching, 0);
+    EXPECT_GT(notPrefetching, 0);
 }
 
 // The atlas tree of the same city skips what the maps cover: at the overview it draws nothing, at street level only
