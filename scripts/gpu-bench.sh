@@ -15,7 +15,7 @@
 #      `--compare city-flush=off,on` and
 #      `--compare city-occlusion=off,on`, and the far field as BlockMaps against the atlas tree alone
 #      (`--compare city=atlas,blockmap`: frame time, triangles and draw calls per frame; the BlockMaps' build time
-#      in blockmap.log)
+#      in blockmap.log), and again with `--city-capacity 1024`
 #   4. streaming (scripts/stream-bench.sh, after step 2 as it needs the demo scene): the demo's leaf-on as zoom 12–19
 #      XYZ tiles served with 100 ms latency, `--compare source=prepared,stream` over `flyover` at 640×360 and $SIZE.
 #      The GPU machine has no gdal2tiles: WebP tiles made here travel as .stream-carry/xyz_webp.tar (after
@@ -150,6 +150,11 @@ if [[ ${SKIP_CITY:-0} != 1 ]]; then
     sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
         --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
         --coverage-every 0 --compare city=atlas,blockmap --out "$RES/blockmap" 2>&1 | tee "$RES/blockmap.log" | tail -4
+    log "the same with a 1 GiB capacity (the maps' paging against the capacity, apart from their ray casting)"
+    sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
+        --path data/paths/blockcity_pedestrian_overview.json --frames "$CITY_FRAMES" --warmup 5 --size "$SIZE" \
+        --coverage-every 0 --city-capacity 1024 --compare city=atlas,blockmap --out "$RES/blockmap_1g" 2>&1 |
+        tee "$RES/blockmap_1g.log" | tail -4
     log "where the city's time goes (--stages), atlas/flat, 60 frames"
     sv bench "$WORK/blockcity/scene.json" --city-tree "$WORK/blockcity.svat" \
         --path data/paths/blockcity_pedestrian_overview.json --frames 60 --warmup 5 --size "$SIZE" \
