@@ -815,9 +815,9 @@ nlohmann::json summaryHead(const gl::ContextInfo& device, const Scene& scene, co
               {"terrain", a.imagery.terrain},
               {"terrain_shading", a.imagery.terrainShading},
               // what auto chose on this device (a compare's modes name their own)
-              {"terrain_shading_resolved", a.imagery.terrainShading != "auto" ? a.imagery.terrainShading
-                                           : gl::isSoftwareRenderer(device.renderer) ? "deferred"
-                                                                                     : "forward"},
+              {"terrain_shading_resolved",
+               terrainShadingName(resolveTerrainShading(
+                   parseTerrainShading(a.imagery.terrainShading).value_or(TerrainShading::Auto), device.renderer))},
               {"renderer", a.clipmap.renderer},
               {"centers", a.clipmap.centers},
               {"seed", a.seed},

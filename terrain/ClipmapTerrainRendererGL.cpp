@@ -33,9 +33,17 @@ const char* terrainShadingName(TerrainShading t) {
     return "?";
 }
 
-TerrainShading resolveTerrainShading(TerrainShading t) {
+namespace {
+TerrainShading resolveFor(TerrainShading t, bool software) {
     if (t != TerrainShading::Auto) return t;
-    return gl::currentIsSoftwareRenderer() ? TerrainShading::Deferred : TerrainShading::Forward;
+    return software ? TerrainShading::Deferred : TerrainShading::Forward;
+}
+} // namespace
+
+TerrainShading resolveTerrainShading(TerrainShading t) { return resolveFor(t, gl::currentIsSoftwareRenderer()); }
+
+TerrainShading resolveTerrainShading(TerrainShading t, const std::string& glRenderer) {
+    return resolveFor(t, gl::isSoftwareRenderer(glRenderer));
 }
 
 std::optional<TerrainShading> parseTerrainShading(const std::string& name) {

@@ -38,6 +38,8 @@ std::optional<TerrainShading> parseTerrainShading(const std::string& name); // "
 const char* terrainShadingName(TerrainShading t);
 /// Forward or Deferred: Auto resolved for the current context's renderer (needs a current context).
 TerrainShading resolveTerrainShading(TerrainShading t);
+/// The same for a renderer named by its GL_RENDERER string (no context needed).
+TerrainShading resolveTerrainShading(TerrainShading t, const std::string& glRenderer);
 
 /// The canopy view's marched layers (foliage/CanopyRendererGL.h, CanopyDrawMode::March) for the deferred resolve to
 /// march (shaders/terrain_resolve.frag, variant CANOPY_MARCH; common_canopy_march.glsl): the top layer's record of

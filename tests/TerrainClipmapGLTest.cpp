@@ -311,6 +311,10 @@ TEST(TerrainClipmapGLTest, AutoShadingFollowsTheRenderer) {
     EXPECT_EQ(resolveTerrainShading(TerrainShading::Auto), software ? TerrainShading::Deferred : TerrainShading::Forward);
     EXPECT_EQ(resolveTerrainShading(TerrainShading::Forward), TerrainShading::Forward);
     EXPECT_EQ(resolveTerrainShading(TerrainShading::Deferred), TerrainShading::Deferred);
+    EXPECT_EQ(resolveTerrainShading(TerrainShading::Auto, headlessContext()->info().renderer),
+              resolveTerrainShading(TerrainShading::Auto));
+    EXPECT_EQ(resolveTerrainShading(TerrainShading::Auto, "NVIDIA H200/PCIe/SSE2"), TerrainShading::Forward);
+    EXPECT_EQ(resolveTerrainShading(TerrainShading::Auto, "llvmpipe (LLVM 15.0.6, 256 bits)"), TerrainShading::Deferred);
     ImagerySettings s;
     EXPECT_EQ(s.path, TerrainShading::Auto);
     EXPECT_EQ(ClipmapTerrainRendererGL::resolvesDeferred(s), software);
