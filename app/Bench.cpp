@@ -69,6 +69,7 @@ struct Mode {
     int canopyLayers = -1;        // -1: as --view says; 0: no canopy (leaf-on terrain); N: canopy view, N layers
     bool perFrameSegmentation = false; // the canopy layer re-derived every frame (the paper's per-frame evaluation)
     std::optional<bool> canopyLevelsRead; // compare canopy-levels: derive only the blocks read (unset: --canopy-levels)
+    std::optional<CanopyDerivation> canopyDerivation; // compare canopy-derive (unset: --canopy-derive)
     bool terrainOnly = false;     // scene=terrain: the relief alone (geometry, no imagery, no canopy)
     std::optional<CanopyDrawMode> canopyDraw; // canopy-draw=...: this mode's way of drawing the layers
     std::optional<city::CityMode> cityMode; // the city model drawn after the terrain (nullopt: none)
@@ -262,6 +263,10 @@ Status applyCompareValue(const BenchSettings& a, const std::string& key, const s
     } else if (key == "canopy-levels") {
         if (v != "read" && v != "all") return Error{"--compare: canopy-levels '" + v + "' (expected all|read)"};
         m.canopyLevelsRead = v == "read";
+    } else if (key == "canopy-derive") {
+        CanopyRenderSettings c;
+        if (!parseCanopyDeriveArg(v, c)) return Error{"--compare: canopy-derive '" + v + "' (expected auto|cpu|gpu)"};
+        m.canopyDerivation = c.derivation;
     } else if (v == "reference") {
         m.renderer = RendererKind::Reference;
     } else if (v != "clipmap") {
@@ -330,13 +335,15 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     const size_t eq = a.compare.find('=');
     const std::string key = a.compare.substr(0, eq);
     if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso" && key != "canopy" &&
-                                    key != "canopy-draw" && key != "segmentation" && key != "canopy-levels" && key != "scene" &&
+                                    key != "canopy-draw" && key != "segmentation" && key != "canopy-levels" && key != "canopy-derive" &&
+                                    key != "scene" &&
                                     key != "city" &&
                                     key != "city-upload" && key != "city-occlusion" && key != "city-flush" && key != "terrain" &&
                                     key != "terrain-shading" && key != "source"))
         return Error{"--compare '" + a.compare +
                      "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
-                     "canopy-draw=layers,march, segmentation=upload,perframe, canopy-levels=all,read, scene=terrain,full or "
+                     "canopy-draw=layers,march, segmentation=upload,perframe, canopy-levels=all,read, canopy-derive=gpu,cpu, "
+                     "scene=terrain,full or "
                      "city=atlas,original,flat,off, city-upload=compressed,decoded,auto, city-occlusion=off,on, "
                      "city-flush=off,on, terrain=on,off, terrain-shading=forward,deferred or source=prepared,stream"};
     std::stringstream list(a.compare.substr(eq + 1));
@@ -484,7 +491,8 @@ Status BenchRun::createCanopy(Mode& m, const std::vector<ImagePyramid>& pyramids
     CanopyOptions opt;
     opt.params = m_canopy.params;
     opt.layers = std::max(1, layers);
-    opt.onDemand = m.canopyLevelsRead.value_or(m_canopy.levelsRead);
+    opt.onDemand = m.canopyLevelsRead ? m.canopyLevelsRead : m_canopy.levelsRead;
+    opt.derivation = m.canopyDerivation.value_or(m_canopy.derivation);
     auto cc = CanopyClipmapGL::create(*m.clipmap, statsFromHistograms(*hist, opt.params.method), opt);
     if (!cc) return cc.error();
     m.canopy = std::move(*cc);
@@ -534,6 +542,7 @@ void BenchRun::checkDamage(Mode& m) {
     if (!m_damaged.empty() || !m.clipmap) return;
     if (const auto& e = m.clipmap->readError()) m_damaged = e->message;
     else if (const auto g = m.clipRenderer->geometry().elevationReadError()) m_damaged = g->message;
+    else if (m.canopy && !m.canopy->readError().empty()) m_damaged = m.canopy->readError();
     else if (m.city) m_damaged = m.city->readError();
 }
 

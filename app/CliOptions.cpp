@@ -298,8 +298,17 @@ Status parseTrunksArg(const std::string& value, CanopyRenderSettings& settings) 
 }
 
 Status parseCanopyLevelsArg(const std::string& value, CanopyRenderSettings& settings) {
-    if (value != "read" && value != "all") return Error{"--canopy-levels '" + value + "': expected read|all"};
-    settings.levelsRead = value == "read";
+    if (value != "read" && value != "all" && value != "auto")
+        return Error{"--canopy-levels '" + value + "': expected auto|read|all"};
+    settings.levelsRead = value == "auto" ? std::nullopt : std::optional<bool>(value == "read");
+    return Ok{};
+}
+
+Status parseCanopyDeriveArg(const std::string& value, CanopyRenderSettings& settings) {
+    if (value == "auto") settings.derivation = CanopyDerivation::Auto;
+    else if (value == "cpu") settings.derivation = CanopyDerivation::Cpu;
+    else if (value == "gpu") settings.derivation = CanopyDerivation::Gpu;
+    else return Error{"--canopy-derive '" + value + "': expected auto|cpu|gpu"};
     return Ok{};
 }
 
@@ -344,8 +353,14 @@ void CanopyArgs::addTo(CLI::App& cmd) {
     cmd.add_option("--canopy-levels", levels,
                    "canopy view (view, bench): which blocks of the canopy layer are derived as they arrive: read (on "
                    "levels finer than the trunks' search level, only those the view's canopy lookups have read; a "
-                   "lookup falls back to the next coarser level until its block is derived) or all; stills derive "
-                   "everything; read|all")
+                   "lookup falls back to the next coarser level until its block is derived), all, or auto (read where "
+                   "the blocks are derived on the GPU, all on the CPU); stills derive everything; auto|read|all")
+        ->capture_default_str();
+    cmd.add_option("--canopy-derive", derive,
+                   "canopy view: where the canopy layer's blocks are derived: cpu (the block loader's workers, as "
+                   "blocks are read; the render thread uploads a byte per texel), gpu (a compute shader, once a block "
+                   "and its neighbours are uploaded; the same values) or auto (cpu, gpu when the imagery streams from "
+                   "a service); auto|cpu|gpu")
         ->capture_default_str();
     cmd.add_option("--ground-under-canopy", groundUnder,
                    "canopy view: season of the ground under the crowns (seen where layers are off), leafon|leafoff")
@@ -362,6 +377,7 @@ Result<CanopyRenderSettings> CanopyArgs::settings() const {
     if (auto st = parseTrunksArg(trunks, *c); !st) return st.error();
     if (auto st = parseCanopyDrawArg(draw, *c); !st) return st.error();
     if (auto st = parseCanopyLevelsArg(levels, *c); !st) return st.error();
+    if (auto st = parseCanopyDeriveArg(derive, *c); !st) return st.error();
     return c;
 }
 

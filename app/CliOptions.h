@@ -4,6 +4,7 @@
 // turns their values into settings; an error is one line that names the option. Defaults may differ per command
 // (a command sets the field before calling addTo: the viewer's clipmap is smaller than a still's).
 #include "Camera.h"
+#include "CanopyDerive.h"
 #include "CanopyRendererGL.h"
 #include "CityRendererGL.h"
 #include "ClipmapCenters.h"
@@ -99,7 +100,9 @@ struct CanopyRenderSettings {
     bool trunks = true;         // trunks under the crowns (foliage/TrunksGL.h), the layers lifted to the crowns' base
     double crownBaseFraction = 0.35; // with trunks: the crowns' base, fraction of the tree height
     CanopyDrawMode draw = CanopyDrawMode::March; // how the layers are drawn (CanopyRendererGL.h)
-    bool levelsRead = true;     // derive only the canopy blocks the view's lookups read (CanopyOptions::onDemand)
+    // Derive only the canopy blocks the view's lookups read (CanopyOptions::onDemand); unset: auto.
+    std::optional<bool> levelsRead;
+    CanopyDerivation derivation = CanopyDerivation::Auto; // where the canopy blocks are derived (--canopy-derive)
 };
 
 /// --canopy-layers N|off, --method M, --k K -> canopy settings; errors name the flag.
@@ -108,14 +111,16 @@ Result<CanopyRenderSettings> parseCanopyArgs(const std::string& layers, const st
 Status parseTrunksArg(const std::string& value, CanopyRenderSettings& settings);
 /// --canopy-draw layers|march -> settings.draw; errors name the flag.
 Status parseCanopyDrawArg(const std::string& value, CanopyRenderSettings& settings);
-/// --canopy-levels read|all -> settings.levelsRead; errors name the flag.
+/// --canopy-derive auto|cpu|gpu -> settings.derivation; errors name the flag.
+Status parseCanopyDeriveArg(const std::string& value, CanopyRenderSettings& settings);
+/// --canopy-levels auto|read|all -> settings.levelsRead (auto: unset); errors name the flag.
 Status parseCanopyLevelsArg(const std::string& value, CanopyRenderSettings& settings);
 /// --ground-under-canopy / --ground-elsewhere S (leafon|leafoff) -> the canopy view's ground seasons in `imagery`.
 Status parseCanopyGround(const std::string& under, const std::string& elsewhere, ImagerySettings& imagery);
 
 /// Canopy view: the segmentation rule of the derived layer, the stacked layers, trunks, the ground's seasons.
 struct CanopyArgs {
-    std::string layers = "16", method = "default", trunks = "on", draw = "march", levels = "read";
+    std::string layers = "16", method = "default", trunks = "on", draw = "march", levels = "auto", derive = "auto";
     std::string groundUnder = "leafoff", groundElsewhere = "leafon";
     int k = kSegDefaultK;
     void addTo(CLI::App& cmd);

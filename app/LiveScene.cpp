@@ -25,6 +25,7 @@ Status LiveScene::ensureCanopy(const ViewerSettings& s) {
     co.params = s.params;
     co.layers = layers;
     co.onDemand = s.canopyLevelsRead;
+    co.derivation = s.canopyDerivation;
     auto c = CanopyClipmapGL::create(*clip, statsFromHistograms(*histograms, co.params.method), co);
     if (!c) return c.error();
     canopy = std::move(*c);
@@ -51,6 +52,7 @@ void LiveScene::reportDamage() {
         // Never drawn (coarser levels stand in, of the imagery or the elevation); rebuilt on the next start.
         std::optional<ClipmapGL::ReadError> e = clip->readError();
         if (!e) e = terrain->geometry().elevationReadError();
+        if (!e && canopy && !canopy->readError().empty()) e = ClipmapGL::ReadError{canopy->readError(), -1};
         if (e) {
             invalidateDamagedPyramid(e->message, cache);
             damagedReported = true;

@@ -33,7 +33,8 @@ struct ViewerSettings {
     int layers = 16; // 0: off
     bool trunks = true;
     bool marchLayers = true; // CanopyDrawMode::March (false: every layer rasterised)
-    bool canopyLevelsRead = true; // derive only the canopy blocks read (CanopyOptions::onDemand; --canopy-levels)
+    std::optional<bool> canopyLevelsRead; // derive only the canopy blocks read (CanopyOptions::onDemand; --canopy-levels)
+    CanopyDerivation canopyDerivation = CanopyDerivation::Auto; // --canopy-derive
     CenterPlacement centers = CenterPlacement::Footprint;
     SegmentationParams params{SegmentationMethod::Default, kSegDefaultK};
     bool panel = true;

@@ -143,6 +143,7 @@ Status ClipmapStills::createCanopy() {
     CanopyOptions co;
     co.params = m_settings.canopy.params;
     co.layers = std::max(1, m_settings.canopy.layers);
+    co.derivation = m_settings.canopy.derivation;
     auto c = CanopyClipmapGL::create(*m_clipmap, statsFromHistograms(*hist, co.params.method), co);
     if (!c) return c.error();
     m_canopy = std::move(*c);
@@ -165,7 +166,10 @@ Status ClipmapStills::render(const StillRequest& s) {
     // pyramid is rebuilt.
     if (const auto& e = m_clipmap->readError()) return Error{e->message};
     if (m_clipmap->streamErrors() > 0) return Error{m_clipmap->lastStreamError()}; // a streamed tile failed
-    if (m_canopy) m_canopy->completeSynchronously();
+    if (m_canopy) {
+        m_canopy->completeSynchronously();
+        if (!m_canopy->readError().empty()) return Error{m_canopy->readError()}; // a block would be drawn coarser
+    }
     if (m_trunks && s.imagery.view == ImageryView::Canopy) m_trunks->find();
     m_renderer->updateGeometry(s.camera, m_c.height);
     m_renderer->completeGeometry();

@@ -66,6 +66,7 @@ Result<ViewerSettings> viewerSettings(const ViewArgs& a) {
     s.trunks = canopy->trunks;
     s.marchLayers = canopy->draw == CanopyDrawMode::March;
     s.canopyLevelsRead = canopy->levelsRead;
+    s.canopyDerivation = canopy->derivation;
     auto centers = a.clipmap.placement();
     if (!centers) return centers.error();
     s.centers = *centers;

@@ -185,7 +185,7 @@ void BlockLoader::run() {
         block.layers.resize(size_t(m_source.layers()));
         for (int layer = 0; layer < m_source.layers() && block.error.empty(); ++layer) {
             auto& px = block.layers[size_t(layer)];
-            px.resize(size_t(job.texels.area()) * 4);
+            px.resize(size_t(job.texels.area()) * size_t(m_source.bytesPerTexel()));
             if (Status st = m_source.read(layer, job.key.level, job.texels, px.data()); !st) {
                 block.error = st.message();
                 block.errorLayer = layer;

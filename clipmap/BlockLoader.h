@@ -26,8 +26,11 @@ public:
     virtual ~BlockSource() = default;
     virtual int layers() const = 0;
     /// Reads `texels` (level texel coordinates, inside the level's image) of `layer` at `level` as rows of
-    /// `texels.width()` 4-byte texels (RGBA8, or one float for elevation) into `rgba`. Errors name the file.
+    /// `texels.width()` texels of bytesPerTexel() bytes (RGBA8, or one float for elevation) into `rgba`. Errors name
+    /// the file.
     virtual Status read(int layer, int level, const TexelRect& texels, std::uint8_t* rgba) = 0;
+    /// Bytes per texel of what read() writes (4: RGBA8 or a float; a derived layer may write fewer).
+    virtual int bytesPerTexel() const { return 4; }
     /// Bytes the source holds in its own cache (0 when it has none).
     virtual std::int64_t cacheBytes() const { return 0; }
     /// Whether `level` of `layer` is streamed from the network: its read errors are a service's faults (counted and
@@ -75,7 +78,7 @@ private:
     std::vector<std::vector<LevelTexelReader>> m_readers; // [layer][level], empty until first read (m_openMutex)
 };
 
-/// A loaded block: 4-byte texels of every layer, rows of `texels.width()`.
+/// A loaded block: texels of every layer (BlockSource::bytesPerTexel() each), rows of `texels.width()`.
 struct LoadedBlock {
     BlockKey key;
     TexelRect texels;

@@ -95,6 +95,9 @@ public:
     /// GPU bytes of all clipmap textures (toroidal levels, coarse pyramids with mips, tags).
     std::int64_t residentBytes() const;
     std::int64_t loaderCacheBytes() const { return m_source->cacheBytes(); }
+    /// Where the loader reads blocks (thread-safe): layers derived from the imagery read it too, through the same
+    /// tile cache (foliage/CanopyClipmapGL.h).
+    BlockSource& blockSource() const { return *m_source; }
     /// Texels handed to glTextureSubImage3D for the toroidal levels since creation, counted at each call (apart from
     /// the per-frame ClipmapFrameStats, so the bench can check the two agree).
     std::int64_t totalTexelsUploaded() const { return m_totalUploaded; }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <utility>
 
@@ -24,6 +25,40 @@ std::pair<glm::ivec2, glm::ivec2> texelsOver(const ClipmapLayout& L, int level, 
     return {glm::clamp(glm::ivec2(glm::floor(lo / texel)), glm::ivec2(0), size - 1),
             glm::clamp(glm::ivec2(glm::floor(hi / texel)), glm::ivec2(0), size - 1)};
 }
+
+// The canopy values of clip-level blocks, derived on the loader's workers (CanopyDerive.h): both seasons' texels of
+// the block and its halo read through the imagery clipmap's own source (its tile cache), a byte per texel out.
+class CanopyBlockSource final : public BlockSource {
+public:
+    CanopyBlockSource(BlockSource& imagery, ClipmapLayout layout, SegmentationMethod method, SegmentationStats stats,
+                      std::vector<std::vector<CanopyGroup>> groups)
+        : m_imagery(imagery), m_layout(std::move(layout)), m_method(method), m_stats(stats),
+          m_groups(std::move(groups)) {}
+    int layers() const override { return 1; }
+    int bytesPerTexel() const override { return 1; }
+    bool streamed(int, int level) const override { return m_imagery.streamed(0, level) || m_imagery.streamed(1, level); }
+    Status read(int, int level, const TexelRect& t, std::uint8_t* values) override {
+        const std::vector<CanopyGroup>& groups = m_groups[size_t(level)];
+        const int halo = canopyDeriveHalo(m_method, groups);
+        const glm::ivec2 size = m_layout.levelSizes[size_t(level)];
+        const TexelRect r{std::max(0, t.x0 - halo), std::max(0, t.y0 - halo), std::min(size.x, t.x1 + halo),
+                          std::min(size.y, t.y1 + halo)};
+        thread_local std::vector<std::uint8_t> on, off;
+        on.resize(size_t(r.area()) * 4);
+        off.resize(on.size());
+        if (Status st = m_imagery.read(0, level, r, on.data()); !st) return st;
+        if (Status st = m_imagery.read(1, level, r, off.data()); !st) return st;
+        deriveCanopyTexels(on.data(), off.data(), r, size, t, m_method, m_stats, groups, values);
+        return Ok{};
+    }
+
+private:
+    BlockSource& m_imagery;
+    ClipmapLayout m_layout;
+    SegmentationMethod m_method;
+    SegmentationStats m_stats;
+    std::vector<std::vector<CanopyGroup>> m_groups; // per clip level
+};
 } // namespace
 
 Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL& source, const SegmentationStats& stats,
@@ -124,15 +159,24 @@ Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL
         for (int bx = 0; bx * L.block < coarse.x; ++bx) blocks.push_back({bx, by});
     c->derive(clipLevels, true, blocks);
     c->collectMaxima(true);
+
+    const bool cpu = options.derivation == CanopyDerivation::Cpu ||
+                     (options.derivation == CanopyDerivation::Auto && !source.streaming());
+    if (cpu && clipLevels > 0) {
+        std::vector<std::vector<CanopyGroup>> groups;
+        for (int level = 0; level < clipLevels; ++level)
+            groups.push_back(canopyGroups(options.params, options.layers, top, level));
+        c->m_cpuSource = std::make_unique<CanopyBlockSource>(source.blockSource(), L, options.params.method, stats,
+                                                             std::move(groups));
+        c->m_cpu = std::make_unique<BlockLoader>(*c->m_cpuSource, source.schedule(), 16 << 20,
+                                                 std::max(1, options.cpuWorkers));
+    }
+    c->m_onDemand = options.onDemand.value_or(!c->m_cpu);
     return c;
 }
 
 int CanopyClipmapGL::layerK(int layer, int level) const {
-    const int k = effectiveK(m_options.params), n = m_options.layers;
-    // Ground layer k, top layer m_topK, odd in between (Ropinski et al. 2007 §4.2: k grows with height).
-    const int ki = n > 1 ? k + 2 * int(std::lround(double(m_topK - k) / 2.0 * double(layer) / double(n - 1))) : k;
-    // About the same metres on coarser levels: k / 2^level, rounded down to odd.
-    return 2 * int(std::floor(double(ki) / std::exp2(double(level + 1)))) + 1;
+    return canopyLayerK(m_options.params, m_options.layers, m_topK, layer, level);
 }
 
 bool CanopyClipmapGL::derivable(int level, int bx, int by) const {
@@ -160,7 +204,7 @@ CanopyClipmapGL::~CanopyClipmapGL() {
 
 void CanopyClipmapGL::collectReads() {
     ++m_frame;
-    if (!m_options.onDemand) return; // every block is derived: nothing to read back
+    if (!m_onDemand) return; // every block is derived: nothing to read back
     const size_t levels = m_readTag.size(), slots = size_t(m_slotCount);
     if (m_readsFence) {
         const GLenum r = glClientWaitSync(m_readsFence, 0, 0);
@@ -290,22 +334,19 @@ void CanopyClipmapGL::derive(int level, bool coarse, const std::vector<glm::ivec
     const ClipmapLayout& L = m_source.schedule().layout();
     const int slots = m_source.schedule().slotsPerSide();
     ++m_generation;
+    if (!coarse && level == m_copyLevel) m_copyStale = true; // read back when next asked for
     const gl::ShaderProgram& program = m_programs[coarse ? 1 : 0];
     m_source.bind(program, 0);
     program.set("uLevel", level);
     program.set("uBlockSize", L.block);
     program.set("uDropThreshold", m_stats.dropThreshold);
     // The layers grouped by k (canopy_derive.comp's uGroupK): per group its k and its last layer + 1.
-    const auto kOf = [&](int layer) {
-        return m_options.params.method == SegmentationMethod::Pixel ? 1 : layerK(layer, level);
-    };
-    int groups = 0;
-    for (int i = 0; i < m_options.layers; ++i) {
-        if (i + 1 < m_options.layers && kOf(i + 1) == kOf(i)) continue;
-        const std::string name = "uGroupK[" + std::to_string(groups++) + "]";
-        glProgramUniform2i(program.id(), program.location(name.c_str()), kOf(i), i + 1);
+    const std::vector<CanopyGroup> groups = canopyGroups(m_options.params, m_options.layers, m_topK, level);
+    for (size_t g = 0; g < groups.size(); ++g) {
+        const std::string name = "uGroupK[" + std::to_string(g) + "]";
+        glProgramUniform2i(program.id(), program.location(name.c_str()), groups[g].k, groups[g].top);
     }
-    program.set("uGroups", groups);
+    program.set("uGroups", int(groups.size()));
     glBindImageTexture(0, m_clip.id(), 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_R8UI);
     glBindImageTexture(1, m_coarse.id(), 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R8UI);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_blocks.id());
@@ -382,14 +423,132 @@ CanopyFrameStats CanopyClipmapGL::run(int budget, bool everything, bool onDemand
 
 CanopyFrameStats CanopyClipmapGL::update() {
     collectReads();
-    const CanopyFrameStats st = run(m_options.blocksPerFrame, false, m_options.onDemand && m_readsBack);
+    const bool onDemand = m_onDemand && m_readsBack;
+    const CanopyFrameStats st =
+        m_cpu ? runCpu(m_options.blocksPerFrame, onDemand, false) : run(m_options.blocksPerFrame, false, onDemand);
     collectMaxima(false);
     return st;
 }
 
 CanopyFrameStats CanopyClipmapGL::completeSynchronously() {
-    const CanopyFrameStats st = run(1 << 30, false);
+    const CanopyFrameStats st = m_cpu ? runCpu(1 << 30, false, true) : run(1 << 30, false);
     collectMaxima(true);
+    return st;
+}
+
+std::vector<BlockKey> CanopyClipmapGL::wantedBlocks(bool onDemand, int& unread) const {
+    const ClipmapSchedule& s = m_source.schedule();
+    const ClipmapLayout& L = s.layout();
+    const int slots = s.slotsPerSide();
+    std::vector<BlockKey> out;
+    unread = 0;
+    for (int level = 0; level < L.clipLevels(); ++level) {
+        const TexelRect& w = s.window(level);
+        const glm::ivec2 size = L.levelSizes[size_t(level)];
+        const int bx0 = std::max(0, w.x0 / L.block), by0 = std::max(0, w.y0 / L.block);
+        const int bx1 = std::min((size.x + L.block - 1) / L.block, (w.x1 + L.block - 1) / L.block);
+        const int by1 = std::min((size.y + L.block - 1) / L.block, (w.y1 + L.block - 1) / L.block);
+        const size_t first = out.size();
+        for (int by = by0; by < by1; ++by)
+            for (int bx = bx0; bx < bx1; ++bx) {
+                const size_t slot = size_t(wrapTexel(by, slots)) * size_t(slots) + size_t(wrapTexel(bx, slots));
+                if (m_tags[size_t(level)][slot] == blockTag(bx, by)) continue; // derived
+                if (onDemand && !wanted(level, slot, blockTag(bx, by))) { // no lookup reads it: wait until one does
+                    ++unread;
+                    continue;
+                }
+                out.push_back({level, bx, by});
+            }
+        // Nearest the window's centre first, as the imagery's schedule asks for its blocks.
+        const glm::dvec2 centre(0.5 * (w.x0 + w.x1) / L.block - 0.5, 0.5 * (w.y0 + w.y1) / L.block - 0.5);
+        std::stable_sort(out.begin() + std::ptrdiff_t(first), out.end(), [&](const BlockKey& a, const BlockKey& b) {
+            const glm::dvec2 da = glm::dvec2(a.bx, a.by) - centre, db = glm::dvec2(b.bx, b.by) - centre;
+            return da.x * da.x + da.y * da.y < db.x * db.x + db.y * db.y;
+        });
+    }
+    return out;
+}
+
+void CanopyClipmapGL::store(const LoadedBlock& b) {
+    const ClipmapLayout& L = m_source.schedule().layout();
+    const int slots = m_source.schedule().slotsPerSide();
+    const int level = b.key.level;
+    const TexelRect& t = b.texels;
+    const std::vector<std::uint8_t>& v = b.layers[0];
+    glTextureSubImage3D(m_clip.id(), 0, wrapTexel(t.x0, L.size), wrapTexel(t.y0, L.size), level, t.width(), t.height(),
+                        1, GL_RED_INTEGER, GL_UNSIGNED_BYTE, v.data());
+    if (level == m_copyLevel && !m_copyStale)
+        for (int y = 0; y < t.height(); ++y)
+            std::copy_n(v.begin() + std::ptrdiff_t(size_t(y) * size_t(t.width())), t.width(),
+                        m_copy.begin() + std::ptrdiff_t(size_t(wrapTexel(t.y0 + y, L.size)) * size_t(L.size) +
+                                                        size_t(wrapTexel(t.x0, L.size))));
+    const size_t slot = size_t(wrapTexel(b.key.by, slots)) * size_t(slots) + size_t(wrapTexel(b.key.bx, slots));
+    m_tags[size_t(level)][slot] = blockTag(b.key.bx, b.key.by);
+    // The cell maxima (canopy_derive.comp step 5), here at once: maxValueOver sees them this frame.
+    const int index = maxIndex(level, int(slot));
+    const size_t cells = size_t(m_cellsPerSide) * size_t(m_cellsPerSide);
+    std::uint8_t* cell = m_cellMax.data() + size_t(index) * cells;
+    std::fill(cell, cell + cells, std::uint8_t(0));
+    const glm::ivec2 origin = glm::ivec2(b.key.bx, b.key.by) * L.block;
+    int top = 0;
+    for (int y = 0; y < t.height(); ++y)
+        for (int x = 0; x < t.width(); ++x) {
+            const std::uint8_t value = v[size_t(y) * size_t(t.width()) + size_t(x)];
+            std::uint8_t& c = cell[size_t((t.y0 + y - origin.y) / kCell) * size_t(m_cellsPerSide) +
+                                   size_t((t.x0 + x - origin.x) / kCell)];
+            c = std::max(c, value);
+            top = std::max(top, int(value));
+        }
+    m_maxKnown[size_t(index)] = top;
+    m_maxGeneration[size_t(index)] = 0; // no GPU copy in flight overwrites it
+}
+
+CanopyFrameStats CanopyClipmapGL::runCpu(int budget, bool onDemand, bool wait) {
+    CanopyFrameStats st;
+    const ClipmapSchedule& s = m_source.schedule();
+    const ClipmapLayout& L = s.layout();
+    const int slots = s.slotsPerSide();
+    std::vector<char> touched(size_t(L.clipLevels()), 0);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1); // rows of a byte per texel
+    const auto upload = [&](std::vector<LoadedBlock> blocks) {
+        int stored = 0;
+        for (const LoadedBlock& b : blocks) {
+            if (!b.error.empty()) {
+                // A service's fault is asked again later; a damaged file is reported (the block is never derived).
+                if (!b.streamed && m_readError.empty()) m_readError = b.error;
+                continue;
+            }
+            if (intersect(s.window(b.key.level), b.texels) != b.texels) continue; // the window has moved on
+            store(b);
+            touched[size_t(b.key.level)] = 1;
+            ++stored;
+            if (onDemand && b.key.level < m_keepFrom) ++st.blocksOnDemand;
+        }
+        st.blocksDerived += stored;
+        return stored;
+    };
+    const std::int64_t blockTexels = std::int64_t(L.block) * L.block;
+    while (true) {
+        std::vector<BlockKey> want = wantedBlocks(onDemand, st.blocksUnread);
+        const bool none = want.empty();
+        // The loader's queue is replaced every frame: a bounded list, the most urgent first.
+        if (want.size() > 1024) want.resize(1024);
+        m_cpu->want(want);
+        if (!wait) {
+            upload(m_cpu->take(std::int64_t(budget) * blockTexels));
+            break;
+        }
+        if (none) break;
+        m_cpu->waitIdle();
+        if (upload(m_cpu->take(std::numeric_limits<std::int64_t>::max())) == 0) break; // read errors only
+    }
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    for (int level = 0; level < L.clipLevels(); ++level)
+        if (touched[size_t(level)])
+            glTextureSubImage3D(m_tagTexture.id(), 0, 0, 0, level, slots, slots, 1, GL_RED_INTEGER, GL_INT,
+                                m_tags[size_t(level)].data());
+    st.blocksPending = int(m_cpu->pending());
+    m_totalDerived += st.blocksDerived;
     return st;
 }
 
@@ -408,6 +567,20 @@ void CanopyClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit) cons
     program.set("uCanopyTags", firstUnit + 2);
     program.set("uCanopyLayers", m_options.layers);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kCanopyReadsBinding, m_reads.id());
+}
+
+void CanopyClipmapGL::keepCopyOf(int level) const {
+    if (level == m_copyLevel) return;
+    m_copyLevel = level;
+    m_copyStale = true; // what is derived already: read back at the first levelCopy()
+}
+
+const std::vector<std::uint8_t>& CanopyClipmapGL::levelCopy() const {
+    if (m_copyStale) {
+        m_copy = readClipLevel(m_copyLevel);
+        m_copyStale = false;
+    }
+    return m_copy;
 }
 
 std::vector<std::uint8_t> CanopyClipmapGL::readClipLevel(int level) const {

@@ -1,12 +1,16 @@
 #pragma once
 // The derived canopy layer of the imagery clipmaps (Ropinski et al. 2007 §4.1-4.2): for every texel of every clip
 // level (and of the resident coarse pyramid's base), how many of the N stacked canopy layers it belongs to. The
-// seasonal rule (SegmentationRule.h, on the GPU shaders/canopy_derive.comp) runs when a block of both seasons has
-// been uploaded together with its eight neighbours (the vote and the texture test reach into them), only for the
-// blocks newly exposed, so each canopy fragment costs one fetch. Layer i votes over k_i × k_i texels, k growing
+// seasonal rule (SegmentationRule.h) runs once per block, only for the blocks newly exposed, so each canopy fragment
+// costs one fetch: by default on the CPU (CanopyDerive.h), on a block loader's workers that read both seasons' texels
+// around the block through the imagery clipmap's source, the render thread only uploading a byte per texel; or on the
+// GPU (shaders/canopy_derive.comp, the same bytes) once a block of both seasons has been uploaded together with its
+// eight neighbours (the vote and the texture test reach into them). Layer i votes over k_i × k_i texels, k growing
 // from the method's k at the ground layer to `topK` at the top (§4.2), so crowns narrow towards their tops; on
 // coarser levels k shrinks with the texel size (about the same metres). Validity per block through its own tag
 // texture, like the imagery: a block not derived yet falls back to the next coarser level.
+#include "BlockLoader.h"
+#include "CanopyDerive.h"
 #include "ClipmapGL.h"
 #include "ClipmapTerrainRendererGL.h" // CanopySource
 #include "Segmentation.h"
@@ -15,6 +19,8 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
+#include <string>
 #include <vector>
 
 namespace seasonview {
@@ -30,9 +36,13 @@ struct CanopyOptions {
     // without waiting), the rasterised layers through noteRead(); a block none
     // read in the last readWindow frames waits
     // (a lookup falls back to the next coarser level meanwhile, as for any block not derived yet). Until the first
-    // record is back every block is derived. false: every block.
-    bool onDemand = true;
+    // record is back every block is derived. false: every block. Unset: on demand only where the blocks are derived
+    // on the GPU, whose derivation the frame pays for; derived on the CPU every block costs the frame less than the
+    // lookups' records and fallbacks (docs/performance.md).
+    std::optional<bool> onDemand;
     int readWindow = 30;
+    CanopyDerivation derivation = CanopyDerivation::Auto;
+    int cpuWorkers = 2;          // Cpu: the loader's threads deriving blocks
 };
 
 struct CanopyFrameStats {
@@ -40,6 +50,7 @@ struct CanopyFrameStats {
     int blocksPending = 0;       // resident in both seasons but waiting for a neighbour or the budget
     int blocksUnread = 0;        // onDemand: resident, but no lookup read them lately: not derived
     int blocksOnDemand = 0;      // onDemand: of blocksDerived, those on levels finer than keepLevelsFrom() (read)
+    // Cpu: blocksDerived are the blocks uploaded this frame; blocksPending those asked of the loader and not back.
 };
 
 class CanopyClipmapGL : public CanopySource {
@@ -73,6 +84,20 @@ public:
     void bind(const gl::ShaderProgram& program, int firstUnit) const override;
 
     const CanopyOptions& options() const { return m_options; }
+    /// Whether the clip levels' blocks are derived on the CPU (options().derivation resolved).
+    bool derivesOnCpu() const { return m_cpu != nullptr; }
+    /// Keeps a copy of clip level `level` on the CPU from now on (the trunks' crown search on the CPU, TrunksGL):
+    /// blocks derived on the CPU are copied as they are uploaded; after a derivation on the GPU the copy is read back
+    /// when next asked for. Const: the trunks hold the layer by const reference.
+    void keepCopyOf(int level) const;
+    /// The copy of the level keepCopyOf() named: N × N values stored as the texture stores them (texel q at q mod N);
+    /// slotTags(level) says which blocks are derived.
+    const std::vector<std::uint8_t>& levelCopy() const;
+    /// Whether blocks finer than keepLevelsFrom() wait until a lookup reads them (options().onDemand resolved).
+    bool onDemand() const { return m_onDemand; }
+    /// Cpu: the first block whose imagery could not be read (one line naming the file; "" when none). Such a block
+    /// is never derived (lookups fall back to coarser levels); a still must not be written with it missing.
+    const std::string& readError() const { return m_readError; }
     /// Toroidal clip levels; level clipLevels() is the coarse base.
     int clipLevels() const { return m_source.schedule().layout().clipLevels(); }
     /// k of layer `layer` on clip level `level` (odd, >= 1; `pixel`: 1).
@@ -106,6 +131,21 @@ private:
     // Runs the compute shader over `blocks` of `level` (coarse: the coarse base).
     void derive(int level, bool coarse, const std::vector<glm::ivec2>& blocks);
     CanopyFrameStats run(int budget, bool everything, bool onDemand = false);
+    // Cpu: asks the loader for the window's blocks not derived yet (finest level first, nearest the centre first;
+    // onDemand: only those read lately) and uploads those it has finished, at most `budget`; `wait`: until every
+    // block is in (stills).
+    CanopyFrameStats runCpu(int budget, bool onDemand, bool wait);
+    // Cpu: the blocks of the windows not derived yet that the loader should read.
+    std::vector<BlockKey> wantedBlocks(bool onDemand, int& unread) const;
+    // Cpu: uploads a derived block into its slot, its cell maxima straight into the CPU's view of them.
+    void store(const LoadedBlock& block);
+    std::unique_ptr<BlockSource> m_cpuSource;
+    std::unique_ptr<BlockLoader> m_cpu;
+    std::string m_readError;
+    bool m_onDemand = false;
+    mutable int m_copyLevel = -1;
+    mutable bool m_copyStale = false;
+    mutable std::vector<std::uint8_t> m_copy;
     // The blocks read (onDemand): takes the record copied after an earlier frame when its fence has signalled, then
     // copies the last frame's and clears it for the next.
     void collectReads();

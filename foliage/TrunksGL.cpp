@@ -3,6 +3,7 @@
 #include "TerrainMeshGL.h" // kNearPlane
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 
@@ -57,12 +58,54 @@ Result<std::unique_ptr<TrunksGL>> TrunksGL::create(const Scene& scene, const Cli
     glTextureStorage2D(t->m_distance.id(), 1, GL_R32F, size, size);
     t->m_column = gl::Texture::create(GL_TEXTURE_2D);
     glTextureStorage2D(t->m_column.id(), 1, GL_RG32F, size, size);
+    t->m_cpu = options.cpuSearch.value_or(canopy.derivesOnCpu()) && clipLevels > 0;
+    if (t->m_cpu) canopy.keepCopyOf(level);
     return t;
+}
+
+TrunksGL::~TrunksGL() {
+    if (m_job.valid()) m_job.wait();
+}
+
+CrownSearchLevel TrunksGL::snapshot() const {
+    const ClipmapLayout& L = m_imagery.schedule().layout();
+    CrownSearchLevel s;
+    s.size = L.size;
+    s.block = L.block;
+    s.level = m_level;
+    s.window = m_imagery.schedule().window(m_level);
+    s.values = m_canopy.levelCopy();
+    s.tags = m_canopy.slotTags(m_level);
+    return s;
+}
+
+void TrunksGL::store(const std::vector<glm::vec4>& trunks) {
+    const size_t n = std::min(trunks.size(), size_t(m_options.capacity));
+    const std::uint32_t count = std::uint32_t(n);
+    glNamedBufferSubData(m_buffer.id(), 4, 4, &count);
+    if (n > 0) glNamedBufferSubData(m_buffer.id(), kHeader, GLsizeiptr(n * 16), trunks.data());
+    m_count = int(n);
 }
 
 bool TrunksGL::update() {
     ++m_framesSinceSearch;
     if (m_imagery.schedule().layout().clipLevels() == 0) return false;
+    if (m_cpu) {
+        // The search in flight, when done, gives the trunks; the next starts once the level has changed and enough
+        // frames have passed, as on the GPU.
+        if (m_job.valid()) {
+            if (m_job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return false;
+            store(m_job.get());
+        }
+        if (m_count > 0 && m_framesSinceSearch < m_options.framesBetweenSearches) return false;
+        if (m_canopy.slotTags(m_level) == m_searchedTags) return false;
+        m_searchedTags = m_canopy.slotTags(m_level);
+        m_framesSinceSearch = 0;
+        m_job = std::async(std::launch::async, [s = snapshot(), min = m_minRadius, max = m_maxRadius] {
+            return findCrownCentres(s, min, max);
+        });
+        return true;
+    }
     if (m_count > 0 && m_framesSinceSearch < m_options.framesBetweenSearches) return false;
     if (m_canopy.slotTags(m_level) == m_searchedTags) return false;
     find();
@@ -77,6 +120,11 @@ int TrunksGL::find() {
     }
     m_searchedTags = m_canopy.slotTags(m_level);
     m_framesSinceSearch = 0;
+    if (m_cpu) {
+        if (m_job.valid()) m_job.get(); // older than this search
+        store(findCrownCentres(snapshot(), m_minRadius, m_maxRadius));
+        return m_count;
+    }
     const std::uint32_t zero = 0;
     glNamedBufferSubData(m_buffer.id(), 4, 4, &zero);
     const TexelRect& w = m_imagery.schedule().window(m_level);

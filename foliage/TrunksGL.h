@@ -1,8 +1,10 @@
 #pragma once
 // Trunks at runtime (Ropinski et al. 2007 §4.2, Fig. 6c "additionally integrated trunks"): crown centres and radii
-// found on the GPU in the derived canopy layer of one clip level (shaders/trunk_find.comp: maxima of the distance
-// to the nearest texel outside the canopy, as CrownCentres.h does offline), so they follow the clipmap's region
-// around the viewer; drawn as instanced cylinders
+// found in the derived canopy layer of one clip level (maxima of the distance to the nearest texel outside the canopy,
+// as CrownCentres.h does offline), so they follow the clipmap's region around the viewer: on a worker thread over a
+// copy of the level when the canopy layer is derived on the CPU (CrownSearch.h; update() starts a search and takes
+// its trunks when it is done, no frame waits), else on the GPU (shaders/trunk_find.comp, the same centres, its count
+// read back); drawn as instanced cylinders
 // (shaders/trunk.vert) from the terrain to the crowns' base with one instanced draw of the count the search read back.
 // The offline counterpart is `segment --trees` (CrownCentres.h: distance-transform maxima of the CPU mask).
 #include "CanopyClipmapGL.h"
@@ -11,11 +13,14 @@
 #include "gl/GlObjects.h"
 #include "gl/RenderTarget.h"
 #include "gl/ShaderProgram.h"
+#include "CrownSearch.h"
 
 #include <glm/mat3x3.hpp>
 #include <glm/vec4.hpp>
 
+#include <future>
 #include <memory>
+#include <optional>
 #include <vector>
 
 namespace seasonview {
@@ -30,6 +35,7 @@ struct TrunkOptions {
     // in seasonview_canopy_bench, about 75 ms for the demo's 1024² level while flying); the trunks near the viewer
     // move with the level's window anyway.
     int framesBetweenSearches = 8;
+    std::optional<bool> cpuSearch; // search on the CPU (true) or the GPU; unset: where the canopy layer is derived
 };
 
 struct Trunk {
@@ -58,8 +64,19 @@ public:
     std::vector<Trunk> readTrunks() const;
     int level() const { return m_level; }
     int count() const { return m_count; }
+    /// Whether the search runs on the CPU (options().cpuSearch resolved).
+    bool searchesOnCpu() const { return m_cpu; }
+    ~TrunksGL(); // waits for a search in flight
+    TrunksGL(const TrunksGL&) = delete;
+    TrunksGL& operator=(const TrunksGL&) = delete;
 
 private:
+    // CPU search: the level as it stands now (a copy the worker owns).
+    CrownSearchLevel snapshot() const;
+    // Stores found centres (at most the capacity) where the draw reads them.
+    void store(const std::vector<glm::vec4>& trunks);
+    bool m_cpu = false;
+    std::future<std::vector<glm::vec4>> m_job;
     TrunksGL(const ClipmapGL& imagery, const CanopyClipmapGL& canopy) : m_imagery(imagery), m_canopy(canopy) {}
     const ClipmapGL& m_imagery;
     const CanopyClipmapGL& m_canopy;

@@ -8,7 +8,8 @@
 #      $SIZE and 1280×720
 #      and the same with --stages finish and --stages issue (where each stage's time goes: stages.csv, summary.json
 #      "stages"; the city's too in step 3); the terrain shaded forward against deferred in the canopy and leaf-on
-#      views, the canopy ratio with forward shading, and the canopy's layers rasterised against marched
+#      views, the canopy ratio with forward shading, the canopy's layers rasterised against marched, and the canopy
+#      layer derived by the compute shader against the CPU's loader workers
 #   3. the 10,000-building block city: its atlas tree, then `bench --compare city=atlas,original,flat` along the
 #      pedestrian-to-overview path at 1920×1080 (goals: atlas ÷ flat ≤ 1.1, original ÷ atlas ≥ 3 at the
 #      overview, nodes per frame), the same with `--terrain off` (the city alone, as the paper timed it),
@@ -111,6 +112,10 @@ sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmu
 sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmup 20 --size "$SIZE" \
     --view canopy --compare canopy-draw=layers,march --coverage-every 0 --out "$RES/canopy_draw" 2>&1 |
     tee "$RES/canopy_draw.log" | tail -3
+log "the canopy layer derived by the compute shader or on the CPU's loader workers (canopy-derive=gpu,cpu), $SIZE"
+sv bench "$WORK/demo/scene/scene.json" --path flyover --frames "$FRAMES" --warmup 20 --size "$SIZE" \
+    --view canopy --compare canopy-derive=gpu,cpu --coverage-every 0 --out "$RES/canopy_derive" 2>&1 |
+    tee "$RES/canopy_derive.log" | tail -3
 fi
 
 if [[ ${SKIP_STREAM:-0} != 1 && ${SKIP_DEMO:-0} != 1 && -f $ROOT/.stream-carry/xyz_webp.tar ]]; then

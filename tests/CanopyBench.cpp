@@ -1,11 +1,16 @@
 // The canopy view's compute passes alone, on a 1024² synthetic pair in a 512² clipmap, glFinish after each iteration:
 //  - derive/METHOD: the GPU segmentation (shaders/canopy_derive.comp through CanopyClipmapGL::rederiveAll()) of every
 //    resident block; `ms_per_block` is what the canopy view pays for each block that arrives while flying;
-//  - trunk_search: one crown-centre search of the trunks' level (shaders/trunk_find.comp through TrunksGL::find()).
+//  - derive_cpu/METHOD: the same rule on the CPU (CanopyDerive.h, what `--canopy-derive cpu`'s loader workers run), one
+//    thread, every 64² block of level 0 with its halo, both seasons read through a PyramidBlockSource (warm cache);
+//  - trunk_search/cpu, trunk_search/gpu: one crown-centre search of the trunks' level through TrunksGL::find(), on the
+//    CPU (CrownSearch.h, what a worker runs while the frames go on) or the GPU (shaders/trunk_find.comp).
 // Not a test: run by hand,
 //   build/tests/seasonview_canopy_bench [--benchmark_repetitions=3]
 // docs/performance.md quotes it. Needs a GL 4.5 context (headless EGL: llvmpipe without a GPU).
+#include "BlockLoader.h"
 #include "CanopyClipmapGL.h"
+#include "CanopyDerive.h"
 #include "ClipmapGL.h"
 #include "RenderJob.h"
 #include "Segmentation.h"
@@ -98,13 +103,48 @@ void derive(benchmark::State& state, SegmentationMethod method) {
     state.counters["ms_per_block"] = benchmark::Counter(double(blocks) * 1e-3, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 
-void trunkSearch(benchmark::State& state) {
+void deriveCpu(benchmark::State& state, SegmentationMethod method) {
+    Fixture& f = fixture();
+    if (!f.ok) return state.SkipWithError("no GL context or no synthetic scene");
+    auto on = readImageU8(f.pyramids[0].levels[0].file, 3), off = readImageU8(f.pyramids[1].levels[0].file, 3);
+    if (!on || !off) return state.SkipWithError("cannot read the pair");
+    const SegmentationStats stats = statsFromHistograms(pairHistograms(*on, *off, true, true), method);
+    PyramidBlockSource source({{f.pyramids[0].levels[0].file}, {f.pyramids[1].levels[0].file}});
+    SegmentationParams params;
+    params.method = method;
+    const std::vector<CanopyGroup> groups = canopyGroups(params, 16, std::min(kSegMaxK, 3 * effectiveK(params)), 0);
+    const int halo = canopyDeriveHalo(method, groups), block = 64;
+    const glm::ivec2 size(f.pyramids[0].width(), f.pyramids[0].height());
+    std::vector<std::uint8_t> a, b, values(size_t(block) * block);
+    std::int64_t blocks = 0;
+    for (auto _ : state) {
+        for (int by = 0; by * block < size.y; ++by)
+            for (int bx = 0; bx * block < size.x; ++bx) {
+                const TexelRect t{bx * block, by * block, std::min(size.x, (bx + 1) * block),
+                                  std::min(size.y, (by + 1) * block)};
+                const TexelRect r{std::max(0, t.x0 - halo), std::max(0, t.y0 - halo), std::min(size.x, t.x1 + halo),
+                                  std::min(size.y, t.y1 + halo)};
+                a.resize(size_t(r.area()) * 4);
+                b.resize(a.size());
+                if (!source.read(0, 0, r, a.data()) || !source.read(1, 0, r, b.data()))
+                    return state.SkipWithError("cannot read a block");
+                deriveCanopyTexels(a.data(), b.data(), r, size, t, method, stats, groups, values.data());
+                benchmark::DoNotOptimize(values.data());
+                ++blocks;
+            }
+    }
+    state.counters["ms_per_block"] = benchmark::Counter(double(blocks) * 1e-3, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+
+void trunkSearch(benchmark::State& state, bool cpu) {
     Fixture& f = fixture();
     if (!f.ok) return state.SkipWithError("no GL context or no synthetic scene");
     auto canopy = canopyLayer(f, SegmentationMethod::Default);
     if (!canopy) return state.SkipWithError(canopy.message().c_str());
     (*canopy)->completeSynchronously();
-    auto trunks = TrunksGL::create(*f.scene, *f.clip, **canopy);
+    TrunkOptions to;
+    to.cpuSearch = cpu;
+    auto trunks = TrunksGL::create(*f.scene, *f.clip, **canopy, to);
     if (!trunks) return state.SkipWithError(trunks.message().c_str());
     int found = 0;
     for (auto _ : state) {
@@ -116,10 +156,15 @@ void trunkSearch(benchmark::State& state) {
 
 } // namespace
 
-BENCHMARK(trunkSearch)->Name("trunk_search")->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(trunkSearch, cpu, true)->Name("trunk_search/cpu")->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(trunkSearch, gpu, false)->Name("trunk_search/gpu")->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(derive, default_method, SegmentationMethod::Default)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(derive, pixel, SegmentationMethod::Pixel)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(derive, neighborhood, SegmentationMethod::Neighborhood)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(derive, equalized, SegmentationMethod::Equalized)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+BENCHMARK_CAPTURE(deriveCpu, default_method, SegmentationMethod::Default)->Name("derive_cpu/default_method")->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(deriveCpu, pixel, SegmentationMethod::Pixel)->Name("derive_cpu/pixel")->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(deriveCpu, equalized, SegmentationMethod::Equalized)->Name("derive_cpu/equalized")->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_MAIN();

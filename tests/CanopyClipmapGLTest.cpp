@@ -1,6 +1,7 @@
 // The derived canopy layer (foliage/CanopyClipmapGL.h) against the CPU rule (foliage/Segmentation.h): every texel of
 // every derived block, on every layer (each layer's k), must agree (the issue asks >= 99.9 %; the shared integer
 // rule makes it exact), on a synthetic pair and on the real Sentinel-2 pair.
+#include "BlockLoader.h"
 #include "CanopyClipmapGL.h"
 #include "ClipmapGL.h"
 #include "RenderJob.h"
@@ -13,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <random>
 
 using namespace seasonview;
@@ -152,8 +154,8 @@ void expectAgreement(const std::vector<ImagePyramid>& pyr, SegmentationMethod me
         EXPECT_GT(a.canopy, 0); // the scene has treetops at this level
         EXPECT_EQ(a.differing, 0) << a.differing << " of " << a.compared << " texels differ";
     }
-    // Blocks on the window's outer ring wait for neighbours that will never be resident; every interior one is
-    // derived.
+    // Every block of the window is derived (on the GPU the outer ring's wait for neighbours that will never be
+    // resident; every interior one is derived either way).
     int derived = 0;
     for (std::int32_t t : canopy->slotTags(0)) derived += t != ClipmapSchedule::kEmptyTag ? 1 : 0;
     EXPECT_GE(derived, ((clipSize / L.block) - 2) * ((clipSize / L.block) - 2) / 2);
@@ -190,7 +192,8 @@ struct SynthCanopy {
     std::unique_ptr<CanopyClipmapGL> canopy;
 };
 
-SynthCanopy synthCanopy(bool derived) {
+SynthCanopy synthCanopy(bool derived, CanopyDerivation derivation = CanopyDerivation::Auto,
+                        SegmentationMethod method = SegmentationMethod::Default) {
     SynthCanopy c;
     ClipmapOptions co;
     co.size = 256;
@@ -204,6 +207,8 @@ SynthCanopy synthCanopy(bool derived) {
         c.clip->completeSynchronously();
     }
     CanopyOptions o;
+    o.derivation = derivation;
+    o.params.method = method;
     auto canopy = CanopyClipmapGL::create(*c.clip, pairStats(synth().pyramids, o.params.method), o);
     EXPECT_TRUE(canopy.ok()) << canopy.message();
     if (!canopy) return c;
@@ -250,6 +255,124 @@ TEST(CanopyClipmapGLTest, PaperMethodsAgreeWithTheCpu) {
     ASSERT_TRUE(headlessContext());
     for (SegmentationMethod m : {SegmentationMethod::Pixel, SegmentationMethod::Neighborhood, SegmentationMethod::Equalized})
         expectAgreement(synth().pyramids, m, 256, 4);
+}
+
+// The two places the rule runs (--canopy-derive): blocks derived on the CPU by the loader's workers (CanopyDerive.h)
+// hold the same bytes as those the compute shader derives from the uploaded blocks, for every method, on every clip
+// level, blocks on the image's edge and its partly covered texels included; and their cell maxima agree.
+TEST(CanopyClipmapGLTest, CpuAndGpuDeriveTheSameBytes) {
+    ASSERT_TRUE(headlessContext());
+    for (SegmentationMethod m : {SegmentationMethod::Default, SegmentationMethod::Pixel,
+                                 SegmentationMethod::Neighborhood, SegmentationMethod::Equalized}) {
+        SCOPED_TRACE(std::string(segmentationMethodName(m)));
+        const SynthCanopy cpu = synthCanopy(true, CanopyDerivation::Cpu, m);
+        const SynthCanopy gpu = synthCanopy(true, CanopyDerivation::Gpu, m);
+        ASSERT_TRUE(cpu.canopy && gpu.canopy);
+        EXPECT_TRUE(cpu.canopy->derivesOnCpu());
+        EXPECT_FALSE(gpu.canopy->derivesOnCpu());
+        EXPECT_EQ(cpu.canopy->readError(), "");
+        const CanopyReadBack a(cpu), b(gpu);
+        const ClipmapLayout& L = a.L;
+        ASSERT_GE(L.clipLevels(), 2);
+        for (int l = 0; l < L.clipLevels(); ++l) {
+            const glm::ivec2 size = L.levelSizes[size_t(l)];
+            long long both = 0, canopy = 0, differing = 0, cpuOnly = 0;
+            for (int y = 0; y < size.y; ++y)
+                for (int x = 0; x < size.x; ++x) {
+                    const int u = a.texel(l, x, y), v = b.texel(l, x, y);
+                    if (u < 0 || v < 0) {
+                        // The GPU waits for a block's neighbours: the window's outer ring is the CPU's alone.
+                        EXPECT_FALSE(u < 0 && v >= 0) << "level " << l << " texel " << x << "," << y;
+                        cpuOnly += u >= 0 ? 1 : 0;
+                        continue;
+                    }
+                    ++both;
+                    canopy += u > 0 ? 1 : 0;
+                    differing += u != v ? 1 : 0;
+                }
+            SCOPED_TRACE("level " + std::to_string(l));
+            EXPECT_GT(both, 10000);
+            EXPECT_GT(canopy, 100);
+            EXPECT_GT(cpuOnly, 0);
+            EXPECT_EQ(differing, 0) << differing << " of " << both << " texels differ";
+        }
+        // Cell maxima over boxes inside the blocks both derived (level 0's interior: pixels 448..575).
+        std::mt19937 rng(3);
+        std::uniform_int_distribution<int> pos(448, 551), size(1, 24), lev(0, L.clipLevels());
+        for (int trial = 0; trial < 200; ++trial) {
+            const int x0 = pos(rng), y0 = pos(rng), level = lev(rng);
+            const glm::dvec2 lo(x0, y0), hi(x0 + size(rng) - 1e-3, y0 + size(rng) - 1e-3);
+            EXPECT_EQ(cpu.canopy->maxValueOver(lo, hi, level, level), gpu.canopy->maxValueOver(lo, hi, level, level))
+                << x0 << "," << y0 << " level " << level;
+        }
+    }
+    EXPECT_EQ(gl::drainErrors(), "");
+}
+
+namespace {
+// The synthetic pair's level files, failing (once armed) every read that touches level-0 texel (480, 480): a tile
+// that no longer decodes.
+class DamagedSource final : public BlockSource {
+public:
+    explicit DamagedSource(const std::vector<ImagePyramid>& p) {
+        std::vector<std::vector<std::filesystem::path>> files;
+        for (const auto& pyr : p) {
+            files.emplace_back();
+            for (const auto& l : pyr.levels) files.back().push_back(l.file);
+        }
+        m_inner = std::make_unique<PyramidBlockSource>(files, 64);
+    }
+    int layers() const override { return m_inner->layers(); }
+    Status read(int layer, int level, const TexelRect& t, std::uint8_t* rgba) override {
+        if (armed && level == 0 && t.contains(480, 480)) return fileError("level_00.tif", "cannot read texels (damaged)");
+        return m_inner->read(layer, level, t, rgba);
+    }
+    std::atomic<bool> armed{false};
+
+private:
+    std::unique_ptr<PyramidBlockSource> m_inner;
+};
+} // namespace
+
+// Imagery the CPU derivation cannot read is bad input: the blocks whose reads fail are never derived (lookups fall back
+// to the coarser level), every other block is, and the first failure is reported as one line naming the file, which
+// keeps stills from being written and stops the bench (RenderStills, Bench).
+TEST(CanopyClipmapGLTest, UnreadableImageryIsReportedAndNeverDerived) {
+    ASSERT_TRUE(headlessContext());
+    auto source = std::make_unique<DamagedSource>(synth().pyramids);
+    DamagedSource* damaged = source.get();
+    ClipmapOptions co;
+    co.size = 256;
+    auto clip = ClipmapGL::create(synth().pyramids, co, std::move(source));
+    ASSERT_TRUE(clip.ok()) << clip.message();
+    const ClipmapLayout& L = (*clip)->schedule().layout();
+    (*clip)->update(std::vector<glm::dvec2>(size_t(L.clipLevels()), glm::dvec2(500.0, 520.0)));
+    (*clip)->completeSynchronously();
+    ASSERT_FALSE((*clip)->readError());
+    damaged->armed = true; // the canopy's own reads fail from now on
+    CanopyOptions o;
+    o.derivation = CanopyDerivation::Cpu;
+    auto canopy = CanopyClipmapGL::create(**clip, pairStats(synth().pyramids, o.params.method), o);
+    ASSERT_TRUE(canopy.ok()) << canopy.message();
+    const CanopyFrameStats st = (*canopy)->completeSynchronously();
+    EXPECT_EQ((*canopy)->readError(), "level_00.tif: cannot read texels (damaged)");
+    // Every block of level 0 whose read (the block and its halo) takes in texel (480, 480) stays underived.
+    const int slots = (*clip)->schedule().slotsPerSide();
+    const TexelRect& w = (*clip)->schedule().window(0);
+    int missing = 0, derived = 0;
+    for (int by = w.y0 / L.block; by < w.y1 / L.block; ++by)
+        for (int bx = w.x0 / L.block; bx < w.x1 / L.block; ++bx) {
+            const bool tagged = (*canopy)->slotTags(0)[size_t(wrapTexel(by, slots) * slots + wrapTexel(bx, slots))] ==
+                                (bx | (by << 16));
+            const bool failed = bx == 480 / L.block && by == 480 / L.block;
+            EXPECT_EQ(tagged, !failed) << bx << "," << by;
+            missing += tagged ? 0 : 1;
+            derived += tagged ? 1 : 0;
+        }
+    EXPECT_EQ(missing, 1);
+    EXPECT_GT(derived, 8);
+    EXPECT_GT(st.blocksDerived, derived);
+    EXPECT_EQ(gl::drainErrors(), "");
 }
 
 // k grows with the layer (and shrinks with the level), and crowns thin out towards the top: fewer texels reach the

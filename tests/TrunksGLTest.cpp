@@ -17,8 +17,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <thread>
 #include <tuple>
 
 using namespace seasonview;
@@ -145,6 +147,13 @@ TEST(TrunksGLTest, CrownCentresFoundOnTheGpuMatchTheTrueTrees) {
     auto trunks = TrunksGL::create(*scene, **clip, **canopy);
     ASSERT_TRUE(trunks.ok()) << trunks.message();
     EXPECT_EQ((*trunks)->level(), 1); // 0.5 m texels
+    EXPECT_TRUE((*trunks)->searchesOnCpu()); // the canopy layer is derived on the CPU: so is the search
+    // The same search on the GPU (shaders/trunk_find.comp) must find the same centres.
+    TrunkOptions onGpu;
+    onGpu.cpuSearch = false;
+    auto gpuTrunks = TrunksGL::create(*scene, **clip, **canopy, onGpu);
+    ASSERT_TRUE(gpuTrunks.ok()) << gpuTrunks.message();
+    EXPECT_FALSE((*gpuTrunks)->searchesOnCpu());
     auto truth = readTrueTrees(dir / "trees.csv");
     ASSERT_TRUE(truth.ok()) << truth.message();
     // The offline centres: the CPU rule on level 0, distance-transform maxima.
@@ -198,6 +207,8 @@ TEST(TrunksGLTest, CrownCentresFoundOnTheGpuMatchTheTrueTrees) {
         const std::vector<Trunk> t = (*trunks)->readTrunks();
         ASSERT_EQ(int(t.size()), found);
         expectTheDefinition(t);
+        EXPECT_EQ((*gpuTrunks)->find(), found);
+        expectTheDefinition((*gpuTrunks)->readTrunks());
         // The region searched: level 1's window less the search radius and a margin of blocks not derived (their
         // neighbours are not resident) — true trees well inside it.
         const TexelRect& w = (*clip)->schedule().window((*trunks)->level());
@@ -235,9 +246,24 @@ TEST(TrunksGLTest, CrownCentresFoundOnTheGpuMatchTheTrueTrees) {
         (*canopy)->update();
         const int moved = (*trunks)->find();
         expectTheDefinition((*trunks)->readTrunks());
+        EXPECT_EQ((*gpuTrunks)->find(), moved);
+        expectTheDefinition((*gpuTrunks)->readTrunks());
         std::printf("moved with blocks missing: %d trunks found\n", moved);
         ++regions;
     }
     EXPECT_EQ(regions, 2);
+    // Frames: update() starts the CPU search on a worker and returns at once; a later frame takes its trunks, the
+    // same as a search that waits.
+    auto async = TrunksGL::create(*scene, **clip, **canopy);
+    ASSERT_TRUE(async.ok()) << async.message();
+    EXPECT_TRUE((*async)->update()); // started
+    EXPECT_EQ((*async)->count(), 0);
+    for (int frame = 0; frame < 2000 && (*async)->count() == 0; ++frame) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        EXPECT_FALSE((*async)->update()); // nothing changed since: no new search
+    }
+    const int waited = (*trunks)->find();
+    EXPECT_GT(waited, 0);
+    EXPECT_EQ((*async)->count(), waited);
     EXPECT_EQ(gl::drainErrors(), "");
 }
