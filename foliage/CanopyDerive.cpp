@@ -147,6 +147,9 @@ void deriveCanopyTexels(const std::uint8_t* on, const std::uint8_t* off, const T
             sat[size_t(y) * size_t(satW) + size_t(x)] = sat[size_t(y - 1) * size_t(satW) + size_t(x)] + run;
         }
     }
+    // The windows are nested (all centred on the texel): no smaller window counts more than the largest, so where the
+    // largest's count is no majority of the smallest window, no group can have one (open ground: one lookup).
+    const int kMin = groups.front().k;
     for (int y = 0; y < outH; ++y)
         for (int x = 0; x < outW; ++x) {
             const int cx = x + vh, cy = y + vh;
@@ -163,6 +166,7 @@ void deriveCanopyTexels(const std::uint8_t* on, const std::uint8_t* off, const T
                     top = g->top;
                     break;
                 }
+                if (!isMajority(a, kMin) || (!texture && !isMajority(b, kMin))) break; // nor any smaller window
             }
             if (top > 0) {
                 // Both seasons must cover more than half of the texel itself.
