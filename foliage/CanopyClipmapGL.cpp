@@ -475,11 +475,22 @@ void CanopyClipmapGL::store(const LoadedBlock& b) {
     const int level = b.key.level;
     const TexelRect& t = b.texels;
     const std::vector<std::uint8_t>& v = b.layers[0];
-    glTextureSubImage3D(m_clip.id(), 0, wrapTexel(t.x0, L.size), wrapTexel(t.y0, L.size), level, t.width(), t.height(),
-                        1, GL_RED_INTEGER, GL_UNSIGNED_BYTE, v.data());
-    if (level == m_copyLevel && !m_copyStale)
+    // The whole block: in the last block of a row or column 0 past the image (no canopy; the trunks' search reads
+    // whole blocks), as canopy_derive.comp writes it.
+    const bool partial = t.width() != L.block || t.height() != L.block;
+    std::vector<std::uint8_t> whole;
+    if (partial) {
+        whole.assign(size_t(L.block) * size_t(L.block), 0);
         for (int y = 0; y < t.height(); ++y)
             std::copy_n(v.begin() + std::ptrdiff_t(size_t(y) * size_t(t.width())), t.width(),
+                        whole.begin() + std::ptrdiff_t(size_t(y) * size_t(L.block)));
+    }
+    const std::uint8_t* block = partial ? whole.data() : v.data();
+    glTextureSubImage3D(m_clip.id(), 0, wrapTexel(t.x0, L.size), wrapTexel(t.y0, L.size), level, L.block, L.block, 1,
+                        GL_RED_INTEGER, GL_UNSIGNED_BYTE, block);
+    if (level == m_copyLevel && !m_copyStale)
+        for (int y = 0; y < L.block; ++y)
+            std::copy_n(block + size_t(y) * size_t(L.block), L.block,
                         m_copy.begin() + std::ptrdiff_t(size_t(wrapTexel(t.y0 + y, L.size)) * size_t(L.size) +
                                                         size_t(wrapTexel(t.x0, L.size))));
     const size_t slot = size_t(wrapTexel(b.key.by, slots)) * size_t(slots) + size_t(wrapTexel(b.key.bx, slots));
@@ -570,6 +581,7 @@ void CanopyClipmapGL::bind(const gl::ShaderProgram& program, int firstUnit) cons
 }
 
 void CanopyClipmapGL::keepCopyOf(int level) const {
+    assert((m_copyLevel < 0 || m_copyLevel == level) && "CanopyClipmapGL: a copy of one level only");
     if (level == m_copyLevel) return;
     m_copyLevel = level;
     m_copyStale = true; // what is derived already: read back at the first levelCopy()

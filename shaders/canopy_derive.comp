@@ -204,7 +204,11 @@ void main() {
     for (int o = 0; o < 4; ++o) {
         ivec2 out2 = ivec2(gl_LocalInvocationID.xy) * 2 + ivec2(o & 1, o >> 1);
         ivec2 g = tileOrigin + out2;
-        if (any(greaterThanEqual(g, size))) continue;
+        if (any(greaterThanEqual(g, size))) {
+            // Past the image, in the last block of a row or column: no canopy (the trunks' search reads whole blocks).
+            if (uCoarsePass == 0) imageStore(uCanopyClipOut, ivec3(clipTexelOf(g), uLevel), uvec4(0u));
+            continue;
+        }
         int top = 0; // default: votes; others: leaf-on green (a), leaf-off not green (b)
         ivec2 c = out2 + VOTE_HALO;
         for (int g = uGroups - 1; g >= 0; --g) {

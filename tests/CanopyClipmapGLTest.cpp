@@ -375,6 +375,94 @@ TEST(CanopyClipmapGLTest, UnreadableImageryIsReportedAndNeverDerived) {
     EXPECT_EQ(gl::drainErrors(), "");
 }
 
+// A pair whose levels are not whole numbers of blocks (1000²: level 0 ends 40 texels into its last block): the last
+// block of a row or column holds no canopy past the image, whichever way it is derived, though its slot held an
+// interior block's canopy before (the trunks' crown search reads whole blocks); inside the image both agree.
+TEST(CanopyClipmapGLTest, TexelsPastTheImageHoldNoCanopy) {
+    ASSERT_TRUE(headlessContext());
+    TempDir dir("canopy-gl-edge");
+    SynthOptions so;
+    so.sizeM = 250;
+    so.gsd = 0.25; // 1000² per season
+    so.seed = 7;
+    ASSERT_TRUE(generateSyntheticScene(so, dir.path()).ok());
+    auto src = parseManifest(dir / "scene.json");
+    ASSERT_TRUE(src.ok()) << src.message();
+    auto scene = loadScene(*src, dir / "cache");
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    auto pyr = app::preparePyramids(*scene, dir / "cache");
+    ASSERT_TRUE(pyr.ok()) << pyr.message();
+    std::vector<std::vector<std::vector<std::uint8_t>>> derived; // per derivation, per clip level
+    std::vector<std::vector<std::vector<std::int32_t>>> tags;
+    for (CanopyDerivation how : {CanopyDerivation::Cpu, CanopyDerivation::Gpu}) {
+        ClipmapOptions co;
+        co.size = 256;
+        auto clip = ClipmapGL::create(*pyr, co);
+        ASSERT_TRUE(clip.ok()) << clip.message();
+        const ClipmapLayout& L = (*clip)->schedule().layout();
+        ASSERT_EQ(L.levelSizes[0].x % L.block, 1000 % 64);
+        CanopyOptions o;
+        o.derivation = how;
+        auto canopy = CanopyClipmapGL::create(**clip, pairStats(*pyr, o.params.method), o);
+        ASSERT_TRUE(canopy.ok()) << canopy.message();
+        // Interior blocks first, then the corner: the edge blocks take slots that held interior ones.
+        std::vector<std::vector<std::uint8_t>> before;
+        for (const glm::dvec2 centre : {glm::dvec2(480.0, 480.0), glm::dvec2(990.0, 990.0)}) {
+            (*clip)->update(std::vector<glm::dvec2>(size_t(L.clipLevels()), centre));
+            (*clip)->completeSynchronously();
+            (*canopy)->completeSynchronously();
+            if (before.empty())
+                for (int l = 0; l < L.clipLevels(); ++l) before.push_back((*canopy)->readClipLevel(l));
+        }
+        const int slots = (*clip)->schedule().slotsPerSide();
+        long long past = 0, staleBefore = 0;
+        derived.emplace_back();
+        tags.emplace_back();
+        for (int l = 0; l < L.clipLevels(); ++l) {
+            tags.back().push_back((*canopy)->slotTags(l));
+            const std::vector<std::uint8_t> now = (*canopy)->readClipLevel(l);
+            derived.back().push_back(now);
+            const glm::ivec2 size = L.levelSizes[size_t(l)];
+            const glm::ivec2 last = (size - 1) / L.block;
+            for (int by = 0; by <= last.y; ++by)
+                for (int bx = 0; bx <= last.x; ++bx) {
+                    if (bx != last.x && by != last.y) continue;
+                    if ((*canopy)->slotTags(l)[size_t(wrapTexel(by, slots) * slots + wrapTexel(bx, slots))] !=
+                        (bx | (by << 16)))
+                        continue;
+                    for (int y = by * L.block; y < (by + 1) * L.block; ++y)
+                        for (int x = bx * L.block; x < (bx + 1) * L.block; ++x) {
+                            if (x < size.x && y < size.y) continue;
+                            const size_t at = size_t(wrapTexel(y, L.size)) * size_t(L.size) + size_t(wrapTexel(x, L.size));
+                            ++past;
+                            staleBefore += before[size_t(l)][at] != 0 ? 1 : 0;
+                            ASSERT_EQ(now[at], 0) << "level " << l << " texel " << x << "," << y;
+                        }
+                }
+        }
+        EXPECT_GT(past, 1000);
+        EXPECT_GT(staleBefore, 0); // those places held canopy before the corner's blocks came
+        EXPECT_EQ(gl::drainErrors(), "");
+    }
+    ASSERT_EQ(derived.size(), 2u);
+    // Inside the image, where both derived a block, the same bytes (the edge blocks' partial rows included).
+    const ClipmapLayout L = makeClipmapLayout(1000, 1000, 256, 64);
+    long long compared = 0;
+    for (int l = 0; l < L.clipLevels(); ++l) {
+        const glm::ivec2 size = L.levelSizes[size_t(l)];
+        for (int y = 0; y < size.y; ++y)
+            for (int x = 0; x < size.x; ++x) {
+                const size_t slot = size_t(wrapTexel(y / 64, 4) * 4 + wrapTexel(x / 64, 4));
+                const std::int32_t tag = (x / 64) | ((y / 64) << 16);
+                if (tags[0][size_t(l)][slot] != tag || tags[1][size_t(l)][slot] != tag) continue;
+                const size_t at = size_t(wrapTexel(y, 256)) * 256 + size_t(wrapTexel(x, 256));
+                ++compared;
+                ASSERT_EQ(derived[0][size_t(l)][at], derived[1][size_t(l)][at]) << "level " << l << " " << x << "," << y;
+            }
+    }
+    EXPECT_GT(compared, 10000);
+}
+
 // k grows with the layer (and shrinks with the level), and crowns thin out towards the top: fewer texels reach the
 // top layer than the ground one. (A layer's texels need not be a subset of the one below: a majority at a larger k
 // need not hold at a smaller one.)
