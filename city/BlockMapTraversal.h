@@ -64,7 +64,7 @@ struct BlockMapTriangleOrder {
 };
 
 /// A drawn map's children are asked for ahead (ParentNeeded) only while its error is above this fraction of the
-/// bound: within a factor of 2 of the distance at which it is refined. Every drawn map's four children would be four
+/// bound: within a factor 1.25 of the distance at which it is refined. Every drawn map's four children would be four
 /// times the cut's maps (each 0.25–0.5 MB on the GPU), filling the capacity with blocks evicted again as the view
 /// moves on before most are drawn; a refinement whose children are not in yet draws the map itself (cut()).
 constexpr double kPrefetchErrorRatio = 0.8;

@@ -52,8 +52,7 @@ std::int64_t PyramidBlockSource::cacheBytes() const {
     return bytes;
 }
 
-namespace {
-std::vector<std::vector<std::filesystem::path>> levelFiles(const std::vector<ImagePyramid>& layers) {
+std::vector<std::vector<std::filesystem::path>> pyramidLevelFiles(const std::vector<ImagePyramid>& layers) {
     std::vector<std::vector<std::filesystem::path>> files;
     for (const ImagePyramid& p : layers) {
         std::vector<std::filesystem::path> f;
@@ -62,10 +61,9 @@ std::vector<std::vector<std::filesystem::path>> levelFiles(const std::vector<Ima
     }
     return files;
 }
-} // namespace
 
 MixedBlockSource::MixedBlockSource(const std::vector<ImagePyramid>& layers, int cacheMegabytes, TexelFormat format)
-    : m_files(levelFiles(layers), cacheMegabytes, format) {
+    : m_files(pyramidLevelFiles(layers), cacheMegabytes, format) {
     for (const ImagePyramid& p : layers) {
         assert((p.streamedLevels == 0 || p.openStreamedLevel) && "MixedBlockSource: streamed levels need a reader");
         m_streamed.push_back(p.streamedLevels);

@@ -41,6 +41,9 @@ public:
     }
 };
 
+/// Each layer's level files, level by level (a streamed level's path is empty): PyramidBlockSource's levelFiles.
+std::vector<std::vector<std::filesystem::path>> pyramidLevelFiles(const std::vector<ImagePyramid>& layers);
+
 /// Pyramid level files (one per level, per layer) read through one OpenImageIO ImageCache of bounded size.
 class PyramidBlockSource final : public BlockSource {
 public:

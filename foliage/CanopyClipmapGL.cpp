@@ -17,6 +17,15 @@ constexpr int kCell = 8;             // texels per side of a cell with its own m
 constexpr int kMaxDispatchBlocks = 4096;
 constexpr int kMaxLayers = 32;       // uLayerK[32]
 std::int32_t blockTag(int bx, int by) { return bx | (by << 16); }
+// The blocks of clip level `level`'s window inside its image: [x0, x1) × [y0, y1) in block coordinates.
+TexelRect windowBlocks(const ClipmapSchedule& s, int level) {
+    const ClipmapLayout& L = s.layout();
+    const TexelRect& w = s.window(level);
+    const glm::ivec2 size = L.levelSizes[size_t(level)];
+    return {std::max(0, w.x0 / L.block), std::max(0, w.y0 / L.block),
+            std::min((size.x + L.block - 1) / L.block, (w.x1 + L.block - 1) / L.block),
+            std::min((size.y + L.block - 1) / L.block, (w.y1 + L.block - 1) / L.block)};
+}
 // The texels of clip level `level` that nearest-texel fetches at level-0 pixel positions in [lo, hi] read (floor),
 // clamped to the level like the shaders' fetches: first and last.
 std::pair<glm::ivec2, glm::ivec2> texelsOver(const ClipmapLayout& L, int level, glm::dvec2 lo, glm::dvec2 hi) {
@@ -379,11 +388,8 @@ CanopyFrameStats CanopyClipmapGL::run(int budget, bool everything, bool onDemand
     const ClipmapLayout& L = s.layout();
     const int slots = s.slotsPerSide();
     for (int level = 0; level < L.clipLevels(); ++level) {
-        const TexelRect& w = s.window(level);
-        const glm::ivec2 size = L.levelSizes[size_t(level)];
-        const int bx0 = std::max(0, w.x0 / L.block), by0 = std::max(0, w.y0 / L.block);
-        const int bx1 = std::min((size.x + L.block - 1) / L.block, (w.x1 + L.block - 1) / L.block);
-        const int by1 = std::min((size.y + L.block - 1) / L.block, (w.y1 + L.block - 1) / L.block);
+        const TexelRect blocks = windowBlocks(s, level);
+        const int bx0 = blocks.x0, by0 = blocks.y0, bx1 = blocks.x1, by1 = blocks.y1;
         std::vector<glm::ivec2> todo;
         for (int by = by0; by < by1; ++by)
             for (int bx = bx0; bx < bx1; ++bx) {
@@ -443,11 +449,8 @@ std::vector<BlockKey> CanopyClipmapGL::wantedBlocks(bool onDemand, int& unread) 
     std::vector<BlockKey> out;
     unread = 0;
     for (int level = 0; level < L.clipLevels(); ++level) {
-        const TexelRect& w = s.window(level);
-        const glm::ivec2 size = L.levelSizes[size_t(level)];
-        const int bx0 = std::max(0, w.x0 / L.block), by0 = std::max(0, w.y0 / L.block);
-        const int bx1 = std::min((size.x + L.block - 1) / L.block, (w.x1 + L.block - 1) / L.block);
-        const int by1 = std::min((size.y + L.block - 1) / L.block, (w.y1 + L.block - 1) / L.block);
+        const TexelRect blocks = windowBlocks(s, level);
+        const int bx0 = blocks.x0, by0 = blocks.y0, bx1 = blocks.x1, by1 = blocks.y1;
         const size_t first = out.size();
         for (int by = by0; by < by1; ++by)
             for (int bx = bx0; bx < bx1; ++bx) {
@@ -460,6 +463,7 @@ std::vector<BlockKey> CanopyClipmapGL::wantedBlocks(bool onDemand, int& unread) 
                 out.push_back({level, bx, by});
             }
         // Nearest the window's centre first, as the imagery's schedule asks for its blocks.
+        const TexelRect& w = s.window(level);
         const glm::dvec2 centre(0.5 * (w.x0 + w.x1) / L.block - 0.5, 0.5 * (w.y0 + w.y1) / L.block - 0.5);
         std::stable_sort(out.begin() + std::ptrdiff_t(first), out.end(), [&](const BlockKey& a, const BlockKey& b) {
             const glm::dvec2 da = glm::dvec2(a.bx, a.by) - centre, db = glm::dvec2(b.bx, b.by) - centre;

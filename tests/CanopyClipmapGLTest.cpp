@@ -161,13 +161,14 @@ void expectAgreement(const std::vector<ImagePyramid>& pyr, SegmentationMethod me
     EXPECT_GE(derived, ((clipSize / L.block) - 2) * ((clipSize / L.block) - 2) / 2);
 }
 
+// A synthetic pair prepared in its own folder: `sizeM` metres at 0.25 m (1024² for 256 m).
 struct SynthFixture {
-    TempDir dir{"canopy-gl"};
+    TempDir dir;
     std::vector<ImagePyramid> pyramids;
-    SynthFixture() {
+    explicit SynthFixture(const char* name = "canopy-gl", double sizeM = 256.0) : dir(name) {
         SynthOptions o;
-        o.sizeM = 256;
-        o.gsd = 0.25; // 1024² per season
+        o.sizeM = sizeM;
+        o.gsd = 0.25;
         o.seed = 7;
         auto rep = generateSyntheticScene(o, dir.path());
         EXPECT_TRUE(rep.ok()) << rep.message();
@@ -314,14 +315,8 @@ namespace {
 // that no longer decodes.
 class DamagedSource final : public BlockSource {
 public:
-    explicit DamagedSource(const std::vector<ImagePyramid>& p) {
-        std::vector<std::vector<std::filesystem::path>> files;
-        for (const auto& pyr : p) {
-            files.emplace_back();
-            for (const auto& l : pyr.levels) files.back().push_back(l.file);
-        }
-        m_inner = std::make_unique<PyramidBlockSource>(files, 64);
-    }
+    explicit DamagedSource(const std::vector<ImagePyramid>& p)
+        : m_inner(std::make_unique<PyramidBlockSource>(pyramidLevelFiles(p), 64)) {}
     int layers() const override { return m_inner->layers(); }
     Status read(int layer, int level, const TexelRect& t, std::uint8_t* rgba) override {
         if (armed && level == 0 && t.contains(480, 480)) return fileError("level_00.tif", "cannot read texels (damaged)");
@@ -380,18 +375,9 @@ TEST(CanopyClipmapGLTest, UnreadableImageryIsReportedAndNeverDerived) {
 // interior block's canopy before (the trunks' crown search reads whole blocks); inside the image both agree.
 TEST(CanopyClipmapGLTest, TexelsPastTheImageHoldNoCanopy) {
     ASSERT_TRUE(headlessContext());
-    TempDir dir("canopy-gl-edge");
-    SynthOptions so;
-    so.sizeM = 250;
-    so.gsd = 0.25; // 1000² per season
-    so.seed = 7;
-    ASSERT_TRUE(generateSyntheticScene(so, dir.path()).ok());
-    auto src = parseManifest(dir / "scene.json");
-    ASSERT_TRUE(src.ok()) << src.message();
-    auto scene = loadScene(*src, dir / "cache");
-    ASSERT_TRUE(scene.ok()) << scene.message();
-    auto pyr = app::preparePyramids(*scene, dir / "cache");
-    ASSERT_TRUE(pyr.ok()) << pyr.message();
+    const SynthFixture edge("canopy-gl-edge", 250.0); // 1000² per season
+    ASSERT_EQ(edge.pyramids.size(), 2u);
+    const std::vector<ImagePyramid>* pyr = &edge.pyramids;
     std::vector<std::vector<std::vector<std::uint8_t>>> derived; // per derivation, per clip level
     std::vector<std::vector<std::vector<std::int32_t>>> tags;
     for (CanopyDerivation how : {CanopyDerivation::Cpu, CanopyDerivation::Gpu}) {

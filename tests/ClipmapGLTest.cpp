@@ -65,14 +65,8 @@ class SlowPyramidSource final : public BlockSource {
 public:
     // Reads wait while the gate is closed, then take `delayMs` each.
     SlowPyramidSource(const std::vector<ImagePyramid>& p, int delayMs, std::shared_ptr<std::atomic<bool>> gate)
-        : m_delay(delayMs), m_gate(std::move(gate)) {
-        std::vector<std::vector<std::filesystem::path>> files;
-        for (const auto& pyr : p) {
-            files.emplace_back();
-            for (const auto& l : pyr.levels) files.back().push_back(l.file);
-        }
-        m_inner = std::make_unique<PyramidBlockSource>(files, 64);
-    }
+        : m_inner(std::make_unique<PyramidBlockSource>(pyramidLevelFiles(p), 64)), m_delay(delayMs),
+          m_gate(std::move(gate)) {}
     int layers() const override { return m_inner->layers(); }
     Status read(int layer, int level, const TexelRect& t, std::uint8_t* rgba) override {
         while (!m_gate->load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
