@@ -50,6 +50,29 @@ bool rayTriangle(const glm::dvec3& o, const glm::dvec3& d, const std::array<glm:
     return true;
 }
 
+// The part of a triangle over the square [lo, hi] (x and y; z interpolated, exact for its plane): Sutherland–Hodgman
+// against the square's four sides. Returns the polygon's vertex count (0: none over it).
+int clipToSquare(const std::array<glm::dvec3, 3>& tri, glm::dvec2 lo, glm::dvec2 hi, std::array<glm::dvec3, 8>& out) {
+    std::array<glm::dvec3, 8> a{}, b{};
+    int n = 3;
+    for (int i = 0; i < 3; ++i) a[std::size_t(i)] = tri[std::size_t(i)];
+    for (int side = 0; side < 4 && n > 0; ++side) {
+        const int axis = side / 2;
+        const double bound = side % 2 == 0 ? lo[axis] : hi[axis], sign = side % 2 == 0 ? 1.0 : -1.0;
+        int m = 0;
+        for (int i = 0; i < n; ++i) {
+            const glm::dvec3 &p = a[std::size_t(i)], &q = a[std::size_t((i + 1) % n)];
+            const double dp = sign * (p[axis] - bound), dq = sign * (q[axis] - bound);
+            if (dp >= 0.0) b[std::size_t(m++)] = p;
+            if ((dp >= 0.0) != (dq >= 0.0) && m < 8) b[std::size_t(m++)] = p + (q - p) * (dp / (dp - dq));
+        }
+        n = m;
+        a = b;
+    }
+    out = a;
+    return n >= 3 ? n : 0;
+}
+
 // The height map's Chebyshev distance field (two raster passes over the 8-neighbourhood), capped at 255.
 void distanceField(BlockMap& m) {
     const int n = m.size;
@@ -178,9 +201,13 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
     m.zTop = zHi > zLo ? zHi : zLo + 1.0;
     const double step = (m.zTop - m.zBase) / 255.0;
 
-    // Heights: the highest non-vertical triangle over each texel's centre.
-    std::vector<double> top(cellsCount, -kInf);
-    std::vector<glm::dvec3> topNormal(cellsCount, glm::dvec3(0.0, 0.0, 1.0));
+    // Heights: the highest non-vertical triangle over each texel's centre. Parts: the box of what the non-vertical
+    // triangles cover of each texel (partLo, partHi), the highest point of it and its triangle's normal (a texel whose
+    // centre no roof covers takes that height).
+    std::vector<double> top(cellsCount, -kInf), partTop(cellsCount, -kInf);
+    std::vector<glm::dvec3> topNormal(cellsCount, glm::dvec3(0.0, 0.0, 1.0)), partNormal(cellsCount, glm::dvec3(0.0, 0.0, 1.0));
+    std::vector<glm::dvec2> partLo(cellsCount, glm::dvec2(kInf)), partHi(cellsCount, glm::dvec2(-kInf));
+    std::array<glm::dvec3, 8> clipped;
     for (std::size_t k = 0; k < tris.size(); ++k) {
         const auto& v = model.triangles[tris[k]].v;
         const glm::dvec3 nrm = glm::cross(v[1] - v[0], v[2] - v[0]);
@@ -192,20 +219,60 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
         const double det = (v[1].x - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (v[1].y - v[0].y);
         for (int y = ry.x; y <= ry.y; ++y)
             for (int x = rx.x; x <= rx.y; ++x) {
+                const std::size_t i = std::size_t(y) * std::size_t(n) + std::size_t(x);
+                const glm::dvec2 cellLo = origin + glm::dvec2(x, y) * m.texel;
+                if (const int corners = clipToSquare(v, cellLo, cellLo + m.texel, clipped); corners > 0) {
+                    double area = 0.0;
+                    for (int c = 0; c < corners; ++c) {
+                        const glm::dvec3 &p = clipped[std::size_t(c)], &q = clipped[std::size_t((c + 1) % corners)];
+                        area += p.x * q.y - q.x * p.y;
+                    }
+                    if (std::abs(area) > 1e-9 * m.texel * m.texel)
+                        for (int c = 0; c < corners; ++c) {
+                            const glm::dvec3& p = clipped[std::size_t(c)];
+                            partLo[i] = glm::min(partLo[i], glm::dvec2(p));
+                            partHi[i] = glm::max(partHi[i], glm::dvec2(p));
+                            if (p.z > partTop[i]) {
+                                partTop[i] = p.z;
+                                partNormal[i] = up;
+                            }
+                        }
+                }
                 const double cx = origin.x + (double(x) + 0.5) * m.texel, cy = origin.y + (double(y) + 0.5) * m.texel;
                 const double b1 = ((cx - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (cy - v[0].y)) / det;
                 const double b2 = ((v[1].x - v[0].x) * (cy - v[0].y) - (cx - v[0].x) * (v[1].y - v[0].y)) / det;
                 const double b0 = 1.0 - b1 - b2;
                 const double eps = -1e-12;
                 if (b0 < eps || b1 < eps || b2 < eps) continue;
-                double& t = top[std::size_t(y) * std::size_t(n) + std::size_t(x)];
                 const double z = b0 * v[0].z + b1 * v[1].z + b2 * v[2].z;
-                if (z > t) {
-                    t = z;
-                    topNormal[std::size_t(y) * std::size_t(n) + std::size_t(x)] = up;
+                if (z > top[i]) {
+                    top[i] = z;
+                    topNormal[i] = up;
                 }
             }
     }
+    // The parts in sixteenths of a texel, to the nearest; a texel whose centre no roof covers is a building's where
+    // its part is at least a sixteenth wide both ways (half of one rounds up), at the part's highest point.
+    m.rect.assign(cellsCount, BlockMap::kWholeTexel);
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+            const std::size_t i = std::size_t(y) * std::size_t(n) + std::size_t(x);
+            if (!(partHi[i].x >= partLo[i].x)) continue; // no roof over the texel
+            const glm::dvec2 cellLo = origin + glm::dvec2(x, y) * m.texel;
+            glm::ivec2 lo, hi;
+            for (int a = 0; a < 2; ++a) {
+                lo[a] = int(std::clamp(std::lround((partLo[i][a] - cellLo[a]) / m.texel * 16.0), 0L, 16L));
+                hi[a] = int(std::clamp(std::lround((partHi[i][a] - cellLo[a]) / m.texel * 16.0), 0L, 16L));
+            }
+            if (top[i] == -kInf) {
+                if (hi.x <= lo.x || hi.y <= lo.y) continue; // a sliver: under half a sixteenth
+                top[i] = partTop[i];
+                topNormal[i] = partNormal[i];
+            }
+            for (int a = 0; a < 2; ++a) // the centre is covered: at least the sixteenth around it
+                if (hi[a] <= lo[a]) hi[a] = (lo[a] = std::min(lo[a], 15)) + 1;
+            m.rect[i] = std::uint16_t(lo.x | (hi.x - 1) << 4 | lo.y << 8 | (hi.y - 1) << 12);
+        }
     m.roofNormal.assign(cellsCount * 2, 128);
     for (std::size_t i = 0; i < cellsCount; ++i)
         for (int c = 0; c < 2; ++c)
@@ -216,9 +283,21 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
     distanceField(m);
     feet(m, model, tris, cells, step);
 
-    // Wall columns of the boundary texels (§3.3, Fig. 4): per exposed side, horizontal rays into the texel.
-    auto neighbourTop = [&](int x, int y) {
-        return x < 0 || y < 0 || x >= n || y >= n ? m.zBase : m.topAt(x, y);
+    // Wall columns of the boundary texels (§3.3, Fig. 4): per exposed side, horizontal rays into the texel. A side is
+    // hidden up to the neighbour's top where the neighbour's part covers all of the texel's part along it, else not at
+    // all (the walls of a part that ends inside its texel show, and so do those beside a neighbour's part that ends
+    // short of the side or covers only some of it).
+    auto reaches = [&](int x, int y, int s) {
+        const TexelPart part = texelPart(m.rectAt(x, y));
+        return s == 0 ? part.lo.x == 0.0 : s == 1 ? part.hi.x == 1.0 : s == 2 ? part.lo.y == 0.0 : part.hi.y == 1.0;
+    };
+    auto neighbourTop = [&](int x, int y, int s) {
+        const int nx = x + kSides[std::size_t(s)].x, ny = y + kSides[std::size_t(s)].y;
+        if (nx < 0 || ny < 0 || nx >= n || ny >= n || !reaches(x, y, s) || !reaches(nx, ny, s ^ 1)) return m.zBase;
+        const int acrossAxis = s < 2 ? 1 : 0;
+        const TexelPart own = texelPart(m.rectAt(x, y)), other = texelPart(m.rectAt(nx, ny));
+        if (other.lo[acrossAxis] > own.lo[acrossAxis] || other.hi[acrossAxis] < own.hi[acrossAxis]) return m.zBase;
+        return m.topAt(nx, ny);
     };
     std::vector<glm::dvec3> sums;    // per column texel: colour sum of the rays that met walls
     std::vector<int> counts;         // per column texel: rays that met a triangle
@@ -236,10 +315,10 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
             const double ownTop = m.topAt(x, y);
             glm::dvec3 normal(0.0);
             bool exposed = false;
-            for (const glm::ivec2 s : kSides)
-                if (neighbourTop(x + s.x, y + s.y) < ownTop) {
+            for (int k = 0; k < 4; ++k)
+                if (neighbourTop(x, y, k) < ownTop) {
                     exposed = true;
-                    normal += glm::dvec3(s.x, s.y, 0.0);
+                    normal += glm::dvec3(kSides[std::size_t(k)], 0.0);
                 }
             if (!exposed) continue;
             const int col = m.columns();
@@ -249,14 +328,24 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
             sums.resize(sums.size() + std::size_t(W), glm::dvec3(0.0));
             counts.resize(counts.size() + std::size_t(W), 0);
             wallCounts.resize(wallCounts.size() + std::size_t(W), 0);
-            for (const glm::ivec2 s : kSides) {
-                const double nTop = neighbourTop(x + s.x, y + s.y);
+            const TexelPart part = texelPart(m.rectAt(x, y));
+            for (int sideIndex = 0; sideIndex < 4; ++sideIndex) {
+                const glm::ivec2 s = kSides[std::size_t(sideIndex)];
+                const double nTop = neighbourTop(x, y, sideIndex);
                 if (nTop >= ownTop) continue;
-                // The side's midline, half a texel outside it, looking in; candidates from both texels' lists.
+                // Looking in across the part's width there, from the neighbour's centre line where the part reaches
+                // the side (the steps of a sloped roof lie between the two texels' centres), else from a twentieth
+                // of a texel outside it (the walls of a part that ends inside the texel lie in it: the part is where
+                // its roofs are, and what is beyond the side may be another building); candidates from both texels'
+                // lists.
                 const glm::dvec3 dir(-s.x, -s.y, 0.0);
-                const glm::dvec2 centre = origin + (glm::dvec2(x, y) + 0.5) * m.texel;
-                const glm::dvec2 outside = centre + glm::dvec2(s) * m.texel; // the neighbour's centre line
-                const glm::dvec2 across(std::abs(s.y), std::abs(s.x));
+                const int alongAxis = s.x != 0 ? 0 : 1, acrossAxis = 1 - alongAxis;
+                const double outside = reaches(x, y, sideIndex) ? 0.5 : 0.05;
+                glm::dvec2 start = origin + glm::dvec2(x, y) * m.texel;
+                start[alongAxis] += (s[alongAxis] > 0 ? 1.0 + outside : -outside) * m.texel;
+                start[acrossAxis] += 0.5 * (part.lo[acrossAxis] + part.hi[acrossAxis]) * m.texel;
+                glm::dvec2 across(0.0);
+                across[acrossAxis] = part.hi[acrossAxis] - part.lo[acrossAxis];
                 std::vector<std::uint32_t> near = cells[std::size_t(y) * std::size_t(n) + std::size_t(x)];
                 if (x + s.x >= 0 && y + s.y >= 0 && x + s.x < n && y + s.y < n) {
                     const auto& other = cells[std::size_t(y + s.y) * std::size_t(n) + std::size_t(x + s.x)];
@@ -267,7 +356,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                     if (z < nTop) continue; // the neighbour's prism covers this side here
                     for (int r = 0; r < kRaysPerSide; ++r) {
                         const double a = ((double(r) + 0.5) / kRaysPerSide - 0.5) * m.texel;
-                        const glm::dvec3 o(outside + across * a, z);
+                        const glm::dvec3 o(start + across * a, z);
                         double best = 1.5 * m.texel;
                         std::size_t bestTri = 0;
                         glm::dvec3 bestBary(0.0);
@@ -379,26 +468,49 @@ BlockMapHit traceBlockMap(const BlockMap& m, const glm::dvec3& o, const glm::dve
         ++hit.texelsVisited;
         const double tOut = std::min({nextX, nextY, t1});
         if (m.heightAt(cx, cy) > 0) {
-            const double top = m.topAt(cx, cy);
-            const double zIn = o.z + tCell * d.z, zOut = o.z + tOut * d.z;
-            double t = -1.0;
+            const double top = m.topAt(cx, cy), foot = m.footAt(cx, cy);
+            // The ray against the prism's box within the texel: [tEnter, tExit], and the axis of the face it enters
+            // by (-1: the face it entered the texel by). The part's sides bound it where they lie inside the texel
+            // (a whole texel is bounded by the texel's, where the ray is already).
+            double tEnter = tCell, tExit = tOut;
+            int axis = -1;
+            bool miss = false;
+            const TexelPart part = texelPart(m.rectAt(cx, cy));
+            const int cell[2] = {cx, cy};
+            auto slab = [&](int a, bool hasLo, double lo, bool hasHi, double hi) {
+                if (d[a] == 0.0) {
+                    miss = miss || (hasLo && o[a] < lo) || (hasHi && o[a] > hi);
+                    return;
+                }
+                const bool inc = d[a] > 0.0;
+                if (inc ? hasLo : hasHi) {
+                    const double t = ((inc ? lo : hi) - o[a]) / d[a];
+                    if (t > tEnter) {
+                        tEnter = t;
+                        axis = a;
+                    }
+                }
+                if (inc ? hasHi : hasLo) tExit = std::min(tExit, ((inc ? hi : lo) - o[a]) / d[a]);
+            };
+            for (int a = 0; a < 2; ++a)
+                slab(a, part.lo[a] > 0.0, m.origin[a] + (double(cell[a]) + part.lo[a]) * m.texel, part.hi[a] < 1.0,
+                     m.origin[a] + (double(cell[a]) + part.hi[a]) * m.texel);
+            slab(2, true, foot, true, top);
             BlockMapHit::Kind kind = BlockMapHit::Kind::None;
-            if (zIn <= top) {
-                // Below the prism's foot the ray passes under it (in the ground there); rising into it from below
-                // (from under the ground), it meets nothing, as a ray that reaches the block's floor.
-                const double foot = m.footAt(cx, cy);
-                if (zIn >= foot) {
-                    t = tCell;
-                    kind = face == 4 ? BlockMapHit::Kind::Roof : BlockMapHit::Kind::Wall;
-                } else if (zOut >= foot) {
+            if (!miss && tEnter <= tExit) {
+                // Rising into the prism from below its foot (from under the ground) the ray meets nothing, as one
+                // that reaches the block's floor; below its foot it passes under the prism (in the ground there).
+                if (axis == 2 && d.z > 0.0) {
                     BlockMapHit none;
                     none.texelsVisited = hit.texelsVisited;
                     return none;
                 }
-            } else if (zOut <= top) {
-                t = (top - o.z) / d.z; // d.z < 0 here: the ray comes down through the roof's plane in the texel
-                kind = BlockMapHit::Kind::Roof;
+                if (axis == 0) face = d.x > 0.0 ? 0 : 1;
+                else if (axis == 1) face = d.y > 0.0 ? 2 : 3;
+                else if (axis == 2) face = 4; // down through the roof's plane
+                kind = face == 4 ? BlockMapHit::Kind::Roof : BlockMapHit::Kind::Wall;
             }
+            const double t = tEnter;
             if (kind != BlockMapHit::Kind::None) {
                 hit.kind = kind;
                 hit.t = t;
@@ -574,7 +686,8 @@ Result<CityBlockMapReport> buildCityBlockMaps(const CityModel& model, const City
 namespace {
 
 constexpr char kMagic[8] = {'S', 'V', 'B', 'L', 'O', 'C', 'K', 'M'};
-constexpr std::uint32_t kVersion = 3; // 2: wall texels RGBA (A: walls' share), per-texel roof normals; 3: prisms' feet, walls on the grid
+// 2: wall texels RGBA (A: walls' share), per-texel roof normals; 3: prisms' feet, walls on the grid; 4: texels' parts
+constexpr std::uint32_t kVersion = 4;
 constexpr std::size_t kMapHeaderBytes = 5 * 8 + 3 * 4;
 
 template <typename T> void put(std::vector<std::uint8_t>& out, const T& v) {
@@ -588,7 +701,7 @@ template <typename T> T get(const std::uint8_t* p) {
 }
 
 std::size_t dataBytes(std::size_t n, std::size_t W, std::size_t columns) {
-    return n * n * (1 + 1 + 4 + 2 + 1) + columns * W * 4 + columns * (3 * 4 + 1);
+    return n * n * (1 + 1 + 4 + 2 + 1 + 2) + columns * W * 4 + columns * (3 * 4 + 1);
 }
 
 std::vector<std::uint8_t> serializeMap(const BlockMap& m) {
@@ -607,6 +720,7 @@ std::vector<std::uint8_t> serializeMap(const BlockMap& m) {
     if (m.foot.empty()) out.resize(out.size() + m.height.size(), 0);
     else out.insert(out.end(), m.foot.begin(), m.foot.end());
     for (int c = 0; c < m.columns(); ++c) put(out, std::uint8_t(m.wallOnGrid.empty() ? 0 : m.wallOnGrid[std::size_t(c)]));
+    for (std::size_t i = 0; i < m.height.size(); ++i) put(out, m.rect.empty() ? BlockMap::kWholeTexel : m.rect[i]);
     put(out, std::uint32_t(libdeflate_crc32(0, out.data(), out.size())));
     return out;
 }
@@ -690,11 +804,12 @@ int wallSpan(int wallTexels) {
 BlockMapPacked packBlockMap(const BlockMap& map) {
     BlockMapPacked p;
     const std::size_t n2 = std::size_t(map.size) * std::size_t(map.size);
-    p.tile.resize(n2 * 2);
+    p.tile.resize(n2 * 3);
     for (std::size_t i = 0; i < n2; ++i) {
-        p.tile[i * 2] = std::uint32_t(map.height[i]) | std::uint32_t(map.distance[i]) << 8 |
+        p.tile[i * 3] = std::uint32_t(map.height[i]) | std::uint32_t(map.distance[i]) << 8 |
                         std::uint32_t(map.roofNormal[i * 2]) << 16 | std::uint32_t(map.roofNormal[i * 2 + 1]) << 24;
-        p.tile[i * 2 + 1] = map.column[i] | (map.foot.empty() ? 0u : std::uint32_t(map.foot[i]) << 24);
+        p.tile[i * 3 + 1] = map.column[i] | (map.foot.empty() ? 0u : std::uint32_t(map.foot[i]) << 24);
+        p.tile[i * 3 + 2] = map.rect.empty() ? BlockMap::kWholeTexel : map.rect[i];
     }
     const int columns = map.columns(), W = map.wallTexels;
     p.span = wallSpan(W);
@@ -734,7 +849,7 @@ BlockMapPacked packBlockMap(const BlockMap& map) {
 std::uint64_t BlockMapRecord::gpuBytes() const {
     const auto n = std::uint64_t(size), c = std::uint64_t(columns);
     const std::size_t words = std::size_t(c) * std::size_t(1 + wallSpan(wallTexels));
-    return n * n * (4 + 4) + std::uint64_t(blockMapPages(words)) * kBlockMapPageWords * 4;
+    return n * n * (4 + 4 + 4) + std::uint64_t(blockMapPages(words)) * kBlockMapPageWords * 4;
 }
 
 namespace {
@@ -848,6 +963,13 @@ Result<BlockMap> BlockMapFile::read(std::size_t k) const {
     p += r.columns;
     for (const std::uint8_t g : m.wallOnGrid)
         if (g > 1) return fileError(name, "damaged (" + which + ": a wall column neither on the grid nor off it)");
+    m.rect.resize(cells);
+    for (std::size_t i = 0; i < cells; ++i, p += 2) {
+        m.rect[i] = get<std::uint16_t>(p);
+        const TexelPart part = texelPart(m.rect[i]);
+        if (part.lo.x >= part.hi.x || part.lo.y >= part.hi.y)
+            return fileError(name, "damaged (" + which + ": a texel's part turned inside out)");
+    }
     return m;
 }
 

@@ -10,7 +10,9 @@
 // Each wall column holds `wallTexels` colours from the block's floor to the prism's top, the mean of what its exposed
 // sides show (and how much of it is wall rather than the steps of a sloped roof), the mean outward normal of those
 // sides; each texel its roof's normal and its prism's foot (the paper's blocks stand on flat ground; here a building
-// may stand higher than the block's floor, and its prisms end where it meets the ground). Roofs store no colour:
+// may stand higher than the block's floor, and its prisms end where it meets the ground), and the part of the texel
+// its prism stands on, to a sixteenth of a texel (the paper's prisms fill their texels; here they end where the
+// buildings' outlines are, so an overview whose texels are pixels shows the polygons' outlines, not the grid's). Roofs store no colour:
 // seasonview textures them from the terrain imagery, as it draws the polygon roofs. The ground is not part of a BlockMap: a ray that meets no prism goes on to
 // the terrain drawn under it.
 #include "CityModel.h"
@@ -60,6 +62,13 @@ struct BlockMap {
     // do not hang below a building that stands higher than the block's lowest. A boundary texel's foot is at or below the lowest triangle over it; an inner
     // texel's the lowest of its neighbours'. Empty: every foot at zBase.
     std::vector<std::uint8_t> foot;
+    // Per texel the part of it its prism stands on, so the prisms end at the buildings' outlines, not at the texels'
+    // edges (at an overview a texel is a pixel: whole texels move every outline by up to one): x0 | x1 << 4 | y0 << 8 |
+    // y1 << 12, the prism over [x0, x1 + 1] / 16 × [y0, y1 + 1] / 16 of the texel (x, y from its lowest corner).
+    // A texel is a building's where any of its roofs lies over it, and its part is the box of what they cover there
+    // (two buildings in one texel: the box of both). kWholeTexel on empty texels and where a roof covers it all;
+    // empty vector: every texel whole.
+    std::vector<std::uint16_t> rect;
 
     int columns() const { return int(wallNormal.size()); }
     std::uint8_t heightAt(int x, int y) const { return height[std::size_t(y) * std::size_t(size) + std::size_t(x)]; }
@@ -70,7 +79,20 @@ struct BlockMap {
         return foot.empty() ? zBase
                             : zBase + double(foot[std::size_t(y) * std::size_t(size) + std::size_t(x)]) * (zTop - zBase) / 255.0;
     }
+    static constexpr std::uint16_t kWholeTexel = 0xF0F0; // x0 = y0 = 0, x1 = y1 = 15
+    std::uint16_t rectAt(int x, int y) const {
+        return rect.empty() ? kWholeTexel : rect[std::size_t(y) * std::size_t(size) + std::size_t(x)];
+    }
 };
+
+/// A texel's part (BlockMap::rect) as fractions of the texel: lo = (x0, y0) / 16, hi = (x1 + 1, y1 + 1) / 16.
+struct TexelPart {
+    glm::dvec2 lo{0.0}, hi{1.0};
+};
+inline TexelPart texelPart(std::uint16_t r) {
+    return {{double(r & 15u) / 16.0, double((r >> 8) & 15u) / 16.0},
+            {double(((r >> 4) & 15u) + 1u) / 16.0, double(((r >> 12) & 15u) + 1u) / 16.0}};
+}
 
 /// What a triangle shows at a point (its barycentric coordinates): e.g. its texture there.
 using TriangleColour = std::function<glm::dvec3(std::size_t triangle, const glm::dvec3& barycentric)>;
@@ -127,9 +149,10 @@ struct BlockMapHit {
 
 /// Casts a ray (origin and direction in local metres, direction not zero) against the BlockMap's prisms (§3.2): the
 /// nearest roof or wall it meets at t > 0 inside the block's box [origin, origin + n · texel]² × [zBase, zTop],
-/// found by stepping texel by texel along the ray's path over the height map (Amanatides & Woo 1987), a texel hit
-/// where the ray is at or below its top there and not below its foot (below it, the ray passes under the prism; rising
-/// into it from below, it meets nothing). `leap`: over empty texels the distance map moves the ray to the edge
+/// found by stepping texel by texel along the ray's path over the height map (Amanatides & Woo 1987), a texel's prism
+/// (its part of the texel, BlockMap::rect, from its foot to its top) hit where the ray enters it: through its top a
+/// roof, through a side a wall (below its foot the ray passes under the prism; rising into it from below, it meets
+/// nothing). `leap`: over empty texels the distance map moves the ray to the edge
 /// of the empty square around it in one step (§3.2's space leaping); false steps every texel (the reference). A ray
 /// that leaves the box, or reaches its floor, meets nothing (the terrain is drawn under the block); a ray that starts
 /// inside a prism hits it at once.
@@ -170,9 +193,9 @@ int wallSpan(int wallTexels);
 /// A map as BlockMapPoolGL stores it. Plain C++, so the pager's loader thread packs it and the GL thread only uploads.
 struct BlockMapPacked {
     int span = 1; // wallSpan(wallTexels)
-    /// n² × 2 words, row-major (BlockMapPoolGL's tiles): the texel's height, distance, and roof normal's x and y (as
+    /// n² × 3 words, row-major (BlockMapPoolGL's tiles): the texel's height, distance, and roof normal's x and y (as
     /// BlockMap stores them, a byte each, lowest first), then its wall column (BlockMap::column, 24 bits) and foot
-    /// (BlockMap::foot, the top byte).
+    /// (BlockMap::foot, the top byte), then its part (BlockMap::rect, the low 16 bits).
     std::vector<std::uint32_t> tile;
     /// 32-bit words: each column's outward normal ((n + 1) / 2 as RGB8 in bytes 0..2) and on-the-grid flag (byte 3,
     /// BlockMap::wallOnGrid), then each column's `span`
@@ -200,7 +223,7 @@ struct BlockMapRecord {
     int size = 0, wallTexels = 0, columns = 0;
     std::uint64_t offset = 0, bytes = 0; // the record (header, data, CRC) in the file
     double side() const { return double(size) * texel; }
-    /// Bytes of the map once uploaded (BlockMapPoolGL: height, distance, roof normal and column per texel, each
+    /// Bytes of the map once uploaded (BlockMapPoolGL: height, distance, roof normal, column, foot and part per texel, each
     /// wall column's normal and colours with their halved levels, in whole pages with their page table).
     std::uint64_t gpuBytes() const;
 };

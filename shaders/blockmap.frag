@@ -1,7 +1,8 @@
 // A BlockMap ray-cast per pixel (city/BlockMapGL.h; Cignoni et al. 2007 §3.2), the GPU copy of city/BlockMap.cpp's
 // traceBlockMap: from where the pixel's ray enters the block's box, texel by texel over the height map (a DDA), a
-// texel hit where the ray is at or below its top (a wall if it entered through a side, a roof where it comes down
-// through the top), leaping over empty texels with the distance map to the edge of the empty square it guarantees.
+// texel's prism (its part of the texel, from its foot to its top) hit where the ray enters it (a wall through a side,
+// a roof through its top), leaping over empty texels with the distance map to the edge of the empty square it
+// guarantees.
 // Writes the hit's colour and depth (reversed Z, as the terrain's), so it composes with everything else drawn; a ray
 // that meets no prism is discarded (the terrain under the block shows). Positions relative to the block's origin.
 // Variant ROOF_IMAGERY: roofs show the terrain's imagery clipmap at the hit's position, as the polygon roofs do
@@ -27,7 +28,8 @@ uniform mat2 uLookupSlope;
 // Per texel of a map's tile (n² texels from its first, row by row): x: a byte each, lowest first, its height (0 no
 // building, else zBase + value · (zTop − zBase) / 255), Chebyshev distance in texels to the nearest building texel,
 // the roof's normal's x and y ((v + 1) / 2 · 255; z implied); y: 1 + a boundary texel's wall column (24 bits) and
-// the prism's foot (the top byte, as heights: a ray below it passes under the prism).
+// the prism's foot (the top byte, as heights: a ray below it passes under the prism); z: the part of the texel the
+// prism stands on (city/BlockMap.h's BlockMap::rect: x0 | x1 << 4 | y0 << 8 | y1 << 12, sixteenths).
 uniform usamplerBuffer uBmTexels;
 // A map's words from its first: its columns' outward normals ((n + 1) / 2, RGB8; A: 1 for walls along the grid),
 // then each column's colours (RGBA8, span words): its wallTexels colours (the lowest first), then the same halved
@@ -67,10 +69,10 @@ uvec4 bmTexelAt(ivec2 c) {
     uint w = texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).x;
     return uvec4(w & 255u, (w >> 8) & 255u, (w >> 16) & 255u, w >> 24);
 }
-// The foot of the prism at texel `c` (as heights), and its height, distance: one fetch for the traversal.
-uvec3 bmStepAt(ivec2 c) {
-    uvec2 w = texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).xy;
-    return uvec3(w.x & 255u, (w.x >> 8) & 255u, w.y >> 24);
+// The height, distance, foot (as heights) and part of the prism at texel `c`: one fetch for the traversal.
+uvec4 bmStepAt(ivec2 c) {
+    uvec3 w = texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).xyz;
+    return uvec4(w.x & 255u, (w.x >> 8) & 255u, w.y >> 24, w.z);
 }
 
 const int kNone = 0, kRoof = 1, kWall = 2;
@@ -160,25 +162,45 @@ void main() {
     float top = 0.0;
     for (int it = 0; it < 4 * uBmSize + 8 && kind == kNone; ++it) {
         float tOut = min(min(nextT.x, nextT.y), t1);
-        uvec3 texel = bmStepAt(c);
+        uvec4 texel = bmStepAt(c);
         uint value = texel.r;
         if (value > 0u) {
             top = bmTop(value);
-            float zIn = o.z + tCell * d.z;
-            if (zIn <= top) {
-                // Below the prism's foot the ray passes under it (in the ground there); rising into it from below
-                // (from under the ground), it meets nothing.
-                float foot = bmTop(texel.b);
-                if (zIn >= foot) {
-                    kind = face == 4 ? kRoof : kWall;
-                    tHit = tCell;
-                    break;
+            float foot = bmTop(texel.b);
+            // The ray against the prism's box in the texel: the part's sides bound it where they lie inside the
+            // texel (a whole texel: the texel's, where the ray is already), then its foot and top. axis: that of the
+            // face it enters by, -1 the one it entered the texel by.
+            vec2 lo = vec2(texel.a & 15u, (texel.a >> 8) & 15u) / 16.0;
+            vec2 hi = vec2(((texel.a >> 4) & 15u) + 1u, ((texel.a >> 12) & 15u) + 1u) / 16.0;
+            float tEnter = tCell, tExit = tOut;
+            int axis = -1;
+            for (int a = 0; a < 2; ++a) {
+                bool inc = d[a] > 0.0;
+                float enterBound = inc ? lo[a] : hi[a], exitBound = inc ? hi[a] : lo[a];
+                if (enterBound > 0.0 && enterBound < 1.0) {
+                    float t = ((float(c[a]) + enterBound) * bmMetres - o[a]) / d[a];
+                    if (t > tEnter) {
+                        tEnter = t;
+                        axis = a;
+                    }
                 }
-                if (o.z + tOut * d.z >= foot) break;
-            } else if (o.z + tOut * d.z <= top) {
-                kind = kRoof;
-                tHit = (top - o.z) / d.z;
-                face = 4;
+                if (exitBound > 0.0 && exitBound < 1.0) tExit = min(tExit, ((float(c[a]) + exitBound) * bmMetres - o[a]) / d[a]);
+            }
+            float tz = ((d.z > 0.0 ? foot : top) - o.z) / d.z;
+            if (tz > tEnter) {
+                tEnter = tz;
+                axis = 2;
+            }
+            tExit = min(tExit, ((d.z > 0.0 ? top : foot) - o.z) / d.z);
+            if (tEnter <= tExit) {
+                // Rising into the prism from below its foot (from under the ground) the ray meets nothing; below
+                // it, it passes under the prism (in the ground there).
+                if (axis == 2 && d.z > 0.0) break;
+                if (axis == 0) face = stp.x > 0 ? 0 : 1;
+                else if (axis == 1) face = stp.y > 0 ? 2 : 3;
+                else if (axis == 2) face = 4;
+                kind = face == 4 ? kRoof : kWall;
+                tHit = tEnter;
                 break;
             }
         } else {

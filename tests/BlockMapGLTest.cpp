@@ -29,11 +29,17 @@ using test::Prism;
 const std::vector<Prism> kPrisms = {{2, 2, 14, 14, 25.5}, {14, 2, 26, 14, 12.3}, {2, 16, 9, 30, 7.0},
                                     {17, 17, 30, 20, 18.8}, {17, 27, 30, 30, 18.8}, {17, 20, 20, 27, 18.8},
                                     {27, 20, 30, 27, 18.8}, {11, 22, 15, 29, 14.2, 6.0}};
+// The same with their outlines between the texels' edges, on sixteenths of a texel (the touching buildings still
+// meet on an edge): the prisms stand on parts of their outer texels (BlockMap::rect).
+const std::vector<Prism> kOffGrid = {{2.25, 2.5, 14, 13.75, 25.5}, {14, 2.5, 25.75, 13.75, 12.3},
+                                     {2.375, 16.25, 9.5, 29.625, 7.0}, {17.5, 17.25, 29.75, 20, 18.8},
+                                     {17.5, 27, 29.75, 29.5, 18.8}, {17.5, 20, 20.25, 27, 18.8},
+                                     {27.25, 20, 29.75, 27, 18.8}, {11.25, 22.5, 15.0, 28.75, 14.2, 6.0}};
 
 CityModel modelOf(const std::vector<Prism>& prisms) { return test::prismModel(prisms); }
 
-BlockMap blockMap(glm::dvec2 origin) {
-    std::vector<Prism> moved = kPrisms;
+BlockMap blockMap(glm::dvec2 origin, const std::vector<Prism>& prisms) {
+    std::vector<Prism> moved = prisms;
     for (Prism& p : moved) {
         p.x0 += origin.x;
         p.x1 += origin.x;
@@ -71,8 +77,10 @@ glm::dmat4 viewProjOf(const Camera& c) { return c.projectionMatrix(double(kW) / 
 
 TEST(BlockMapGLTest, GpuRayCastingMatchesTheCpuTraversal) {
     ASSERT_TRUE(headlessContext());
+    for (const auto* prisms : {&kPrisms, &kOffGrid}) {
+    SCOPED_TRACE(prisms == &kPrisms ? "on the grid" : "off the grid");
     const glm::dvec2 origin(1000.0, -500.0); // away from the frame's origin, as blocks of a city are
-    const BlockMap map = blockMap(origin);
+    const BlockMap map = blockMap(origin, *prisms);
     auto gpu = BlockMapGL::create(map);
     ASSERT_TRUE(gpu) << gpu.message();
     gl::RenderTarget target(kW, kH);
@@ -111,12 +119,15 @@ TEST(BlockMapGLTest, GpuRayCastingMatchesTheCpuTraversal) {
     EXPECT_LT(mismatched, compared / 200) << mismatched << " of " << compared;
     EXPECT_GT(roofs, 1500);
     EXPECT_GT(walls, 1500);
+    }
 }
 
 TEST(BlockMapGLTest, DepthIsThePolygonsDepth) {
     ASSERT_TRUE(headlessContext());
+    for (const auto* prisms : {&kPrisms, &kOffGrid}) {
+    SCOPED_TRACE(prisms == &kPrisms ? "on the grid" : "off the grid");
     const glm::dvec2 origin(-300.0, 200.0);
-    const BlockMap map = blockMap(origin);
+    const BlockMap map = blockMap(origin, *prisms);
     auto gpu = BlockMapGL::create(map);
     ASSERT_TRUE(gpu) << gpu.message();
     auto boxes = gl::ShaderProgram::build("city_box.vert", "city_box.frag");
@@ -142,7 +153,7 @@ TEST(BlockMapGLTest, DepthIsThePolygonsDepth) {
         boxes->set("uViewProj", glm::mat4(viewProjOf(cam)));
         boxes->use();
         glBindVertexArray(vao.id());
-        for (const Prism& p : kPrisms) {
+        for (const Prism& p : *prisms) {
             boxes->set("uBoxMin", glm::vec3(glm::dvec3(origin.x + p.x0, origin.y + p.y0, p.base)));
             boxes->set("uBoxMax", glm::vec3(glm::dvec3(origin.x + p.x1, origin.y + p.y1, p.top)));
             glDrawArrays(GL_TRIANGLES, 0, 36);
@@ -169,6 +180,7 @@ TEST(BlockMapGLTest, DepthIsThePolygonsDepth) {
     // Where both drew, the same depth (a few pixels on an edge show the roof in one and the wall under it in the
     // other).
     EXPECT_LT(farApart, both / 500) << farApart << " of " << both;
+    }
 }
 
 // Wall colours reach the screen from the right column, also with 1,024 colours per column (a column's span past
@@ -240,7 +252,7 @@ TEST(BlockMapGLTest, WallPixelsShowTheirSidesColours) {
 TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
     ASSERT_TRUE(headlessContext());
     // Two different blocks, copies of them on a grid of 40 m.
-    const BlockMap a = blockMap({0.0, 0.0});
+    const BlockMap a = blockMap({0.0, 0.0}, kOffGrid);
     BlockMap b = a;
     std::reverse(b.height.begin(), b.height.end()); // another block: the same prisms turned half a turn
     std::reverse(b.distance.begin(), b.distance.end());
@@ -275,7 +287,7 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
     const std::size_t wordsA = packBlockMap(a).words.size(), wordsB = packBlockMap(b).words.size();
     ASSERT_GT(wordsA, kBlockMapPageWords) << "the test needs maps of several pages";
     auto counted = [&](int i) {
-        return std::uint64_t(a.size) * std::uint64_t(a.size) * 8 +
+        return std::uint64_t(a.size) * std::uint64_t(a.size) * 12 +
                std::uint64_t(blockMapPages(i % 3 == 0 ? wordsB : wordsA)) * kBlockMapPageWords * 4;
     };
     std::uint64_t sum = 0;
@@ -389,8 +401,8 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
 
 TEST(BlockMapGLTest, PoolGrowsWithinItsByteLimit) {
     ASSERT_TRUE(headlessContext());
-    const BlockMap a = blockMap({0.0, 0.0});
-    const std::uint64_t tile = std::uint64_t(a.size) * std::uint64_t(a.size) * 8,
+    const BlockMap a = blockMap({0.0, 0.0}, kOffGrid);
+    const std::uint64_t tile = std::uint64_t(a.size) * std::uint64_t(a.size) * 12,
                         pages = std::uint64_t(blockMapPages(packBlockMap(a).words.size())) * kBlockMapPageWords * 4,
                         one = tile + pages;
     // What the maps need: their tiles and pages. A map's pages lie in one segment, so past the limit each segment may

@@ -144,6 +144,50 @@ TEST(BlockMapTest, BuildingsOfDifferentHeightsMatchTheExactIntersection) {
     expectExact({{2, 2, 14, 14, 25.5}, {14, 2, 26, 14, 12.3}, {2, 16, 9, 30, 7.0}, {20, 20, 30, 30, 18.8}}, "heights");
 }
 
+// Outlines between the texels' edges (on sixteenths of the 1 m texels): the texels' parts (BlockMap::rect) end the
+// prisms where the buildings end, so every ray still meets what the polygons meet. Buildings that touch meet on a
+// texel's edge (two buildings in one texel make one part, the box of both).
+TEST(BlockMapTest, OutlinesOffTheGridMatchTheExactIntersection) {
+    expectExact({{8.25, 10.5, 20.75, 18.125, 25.5}}, "box off the grid");
+    expectExact({{4.375, 4.0625, 24.5, 12.0, 25.5}, {4.375, 12.0, 12.25, 28.6875, 25.5}}, "L off the grid");
+    expectExact({{2.5, 2.25, 13.75, 13.5, 25.5}, {15.25, 2.5, 25.5, 13.75, 12.3}, {2.125, 16.5, 9.875, 29.5, 7.0},
+                 {20.5, 20.25, 29.75, 30.5, 18.8, 2.5}},
+                "heights off the grid");
+}
+
+TEST(BlockMapTest, TexelsPartsFollowTheOutlines) {
+    const BlockMap m = build({{8.5, 10.25, 20.0, 18.0, 25.5}, {23.98, 4.0, 28.0, 8.0, 12.3}});
+    ASSERT_EQ(m.rect.size(), std::size_t(32 * 32));
+    // From x = 8.5 the building stands on the right half of texel column 8, from y = 10.25 on three quarters of row 10.
+    ASSERT_GT(m.heightAt(8, 12), 0);
+    TexelPart p = texelPart(m.rectAt(8, 12));
+    EXPECT_EQ(p.lo, glm::dvec2(0.5, 0.0));
+    EXPECT_EQ(p.hi, glm::dvec2(1.0, 1.0));
+    p = texelPart(m.rectAt(8, 10));
+    EXPECT_EQ(p.lo, glm::dvec2(0.5, 0.25));
+    EXPECT_EQ(p.hi, glm::dvec2(1.0, 1.0));
+    EXPECT_EQ(m.rectAt(12, 12), BlockMap::kWholeTexel);
+    EXPECT_EQ(m.rectAt(19, 17), BlockMap::kWholeTexel) << "an outline on the texels' edge";
+    EXPECT_EQ(m.heightAt(7, 12), 0);
+    // Walls stand where the outline is: the part's texels carry the columns, the whole ones inside them none.
+    EXPECT_GT(m.column[std::size_t(12) * 32 + 8], 0u);
+    EXPECT_EQ(m.column[std::size_t(12) * 32 + 9], 0u);
+    EXPECT_EQ(m.distance[std::size_t(12) * 32 + 8], 0);
+    EXPECT_EQ(m.distance[std::size_t(12) * 32 + 7], 1);
+    // Under half a sixteenth of a texel (0.02 m of texel 23) is no building; texel 24, from 0.02 m, is whole.
+    EXPECT_EQ(m.heightAt(23, 6), 0);
+    EXPECT_EQ(m.rectAt(24, 6), BlockMap::kWholeTexel);
+    // A level ray along row 12 meets the wall at x = 8.5, not at the texel's edge.
+    const BlockMapHit h = traceBlockMap(m, {-5.0, 12.5, 10.0}, {1.0, 0.0, 0.0});
+    ASSERT_EQ(int(h.kind), int(BlockMapHit::Kind::Wall));
+    EXPECT_NEAR(h.point.x, 8.5, 1e-9);
+    EXPECT_EQ(h.normal, glm::dvec3(-1.0, 0.0, 0.0));
+    EXPECT_EQ(h.texel, glm::ivec2(8, 12));
+    // A ray down past the wall's foot of the part, beside it: the ground, not the texel's empty half.
+    const BlockMapHit g = traceBlockMap(m, {8.25, 12.5, 30.0}, {0.0, 0.0, -1.0});
+    EXPECT_EQ(int(g.kind), int(BlockMapHit::Kind::None));
+}
+
 TEST(BlockMapTest, RaisedBuildingsEndAtTheirFeet) {
     // Buildings standing higher than the block's floor (on a slope): their walls end at their feet, and a ray below
     // a foot passes under the building (in the ground there) to what is behind, as under the polygons. Two texels
@@ -333,7 +377,8 @@ TEST(BlockMapTest, BadOptionsAreRefused) {
 
 TEST(BlockMapTest, FilesRoundTripAndDamagedOnesAreRefusedWithOneLine) {
     test::TempDir dir("blockmap-file");
-    const std::vector<BlockMap> maps = {build({{8, 10, 20, 18, 25.5}}), build({{2, 2, 14, 14, 25.5}, {14, 2, 26, 14, 12.3}})};
+    const std::vector<BlockMap> maps = {build({{8, 10, 20, 18, 25.5}}),
+                                        build({{2.25, 2, 14, 14.5, 25.5}, {14, 2, 26.125, 14, 12.3, 1.5}})};
     const auto path = dir / "city.svbm";
     ASSERT_TRUE(writeBlockMaps(path, maps));
     auto back = readBlockMaps(path);
@@ -350,7 +395,11 @@ TEST(BlockMapTest, FilesRoundTripAndDamagedOnesAreRefusedWithOneLine) {
         EXPECT_EQ(a.wallRgba, b.wallRgba);
         EXPECT_EQ(a.roofNormal, b.roofNormal);
         EXPECT_EQ(a.wallNormal, b.wallNormal);
+        EXPECT_EQ(a.foot, b.foot);
+        EXPECT_EQ(a.wallOnGrid, b.wallOnGrid);
+        EXPECT_EQ(a.rect, b.rect);
     }
+    EXPECT_NE(maps[1].rect[std::size_t(5) * 32 + 2], BlockMap::kWholeTexel) << "the file holds parts";
     std::ifstream in(path, std::ios::binary);
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     auto refused = [&](const std::string& content, const char* problem) {
