@@ -133,7 +133,9 @@ void feet(BlockMap& m, const CityModel& model, const std::vector<std::size_t>& t
                     }
             // (A millionth of a step up: a foot on the grid stays on it.)
             m.foot[at(x, y)] =
-                std::uint8_t(std::clamp(std::floor((lowest - m.zBase) / step + 1e-6), 0.0, double(m.heightAt(x, y))));
+                std::uint8_t(std::clamp(std::floor((lowest - m.zBase) / step + 1e-6), 0.0,
+                                        double(m.height2At(x, y) > 0 ? std::min(m.heightAt(x, y), m.height2At(x, y))
+                                                                     : m.heightAt(x, y))));
             if (!boundary(x, y)) inner.push_back(int(at(x, y)));
         }
     for (int pass = 0; pass < 2; ++pass)
@@ -201,12 +203,16 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
     m.zTop = zHi > zLo ? zHi : zLo + 1.0;
     const double step = (m.zTop - m.zBase) / 255.0;
 
-    // Heights: the highest non-vertical triangle over each texel's centre. Parts: the box of what the non-vertical
-    // triangles cover of each texel (partLo, partHi), the highest point of it and its triangle's normal (a texel whose
-    // centre no roof covers takes that height).
-    std::vector<double> top(cellsCount, -kInf), partTop(cellsCount, -kInf);
-    std::vector<glm::dvec3> topNormal(cellsCount, glm::dvec3(0.0, 0.0, 1.0)), partNormal(cellsCount, glm::dvec3(0.0, 0.0, 1.0));
-    std::vector<glm::dvec2> partLo(cellsCount, glm::dvec2(kInf)), partHi(cellsCount, glm::dvec2(-kInf));
+    // Heights: the highest non-vertical triangle over each texel's centre. Pieces: per texel the box of what each
+    // non-vertical triangle covers of it, its highest point and the triangle's normal (the texel's parts, below).
+    std::vector<double> top(cellsCount, -kInf);
+    std::vector<glm::dvec3> topNormal(cellsCount, glm::dvec3(0.0, 0.0, 1.0));
+    struct Piece {
+        glm::dvec2 lo, hi; // fractions of the texel
+        double top;
+        glm::dvec3 normal;
+    };
+    std::vector<std::vector<Piece>> pieces(cellsCount);
     std::array<glm::dvec3, 8> clipped;
     for (std::size_t k = 0; k < tris.size(); ++k) {
         const auto& v = model.triangles[tris[k]].v;
@@ -227,16 +233,17 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                         const glm::dvec3 &p = clipped[std::size_t(c)], &q = clipped[std::size_t((c + 1) % corners)];
                         area += p.x * q.y - q.x * p.y;
                     }
-                    if (std::abs(area) > 1e-9 * m.texel * m.texel)
+                    if (std::abs(area) > 1e-9 * m.texel * m.texel) {
+                        Piece piece{glm::dvec2(kInf), glm::dvec2(-kInf), -kInf, up};
                         for (int c = 0; c < corners; ++c) {
                             const glm::dvec3& p = clipped[std::size_t(c)];
-                            partLo[i] = glm::min(partLo[i], glm::dvec2(p));
-                            partHi[i] = glm::max(partHi[i], glm::dvec2(p));
-                            if (p.z > partTop[i]) {
-                                partTop[i] = p.z;
-                                partNormal[i] = up;
-                            }
+                            const glm::dvec2 f = (glm::dvec2(p) - cellLo) / m.texel;
+                            piece.lo = glm::min(piece.lo, f);
+                            piece.hi = glm::max(piece.hi, f);
+                            piece.top = std::max(piece.top, p.z);
                         }
+                        pieces[i].push_back(piece);
+                    }
                 }
                 const double cx = origin.x + (double(x) + 0.5) * m.texel, cy = origin.y + (double(y) + 0.5) * m.texel;
                 const double b1 = ((cx - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (cy - v[0].y)) / det;
@@ -251,53 +258,128 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                 }
             }
     }
-    // The parts in sixteenths of a texel, to the nearest; a texel whose centre no roof covers is a building's where
-    // its part is at least a sixteenth wide both ways (half of one rounds up), at the part's highest point.
+    // The parts, in sixteenths of a texel to the nearest: the box of the texel's pieces, or, where they leave an empty
+    // strip across it at least a sixteenth wide (the widest, of either axis), two prisms, the boxes of the pieces on
+    // either side of it, each at its highest point (the taller first). A texel whose centre no roof covers is a
+    // building's where a part is at least a sixteenth wide both ways (half of one rounds up), at its highest point.
     m.rect.assign(cellsCount, BlockMap::kWholeTexel);
-    for (int y = 0; y < n; ++y)
-        for (int x = 0; x < n; ++x) {
-            const std::size_t i = std::size_t(y) * std::size_t(n) + std::size_t(x);
-            if (!(partHi[i].x >= partLo[i].x)) continue; // no roof over the texel
-            const glm::dvec2 cellLo = origin + glm::dvec2(x, y) * m.texel;
-            glm::ivec2 lo, hi;
+    m.rect2.assign(cellsCount, BlockMap::kWholeTexel);
+    m.height2.assign(cellsCount, 0);
+    std::vector<double> top2(cellsCount, -kInf);
+    struct Part {
+        glm::ivec2 lo{16}, hi{0};
+        double top = -kInf;
+        glm::dvec3 normal{0.0, 0.0, 1.0};
+        void add(const Piece& p) {
             for (int a = 0; a < 2; ++a) {
-                lo[a] = int(std::clamp(std::lround((partLo[i][a] - cellLo[a]) / m.texel * 16.0), 0L, 16L));
-                hi[a] = int(std::clamp(std::lround((partHi[i][a] - cellLo[a]) / m.texel * 16.0), 0L, 16L));
+                lo[a] = std::min(lo[a], int(std::clamp(std::lround(p.lo[a] * 16.0), 0L, 16L)));
+                hi[a] = std::max(hi[a], int(std::clamp(std::lround(p.hi[a] * 16.0), 0L, 16L)));
             }
-            if (top[i] == -kInf) {
-                if (hi.x <= lo.x || hi.y <= lo.y) continue; // a sliver: under half a sixteenth
-                top[i] = partTop[i];
-                topNormal[i] = partNormal[i];
+            if (p.top > top) {
+                top = p.top;
+                normal = p.normal;
             }
-            for (int a = 0; a < 2; ++a) // the centre is covered: at least the sixteenth around it
-                if (hi[a] <= lo[a]) hi[a] = (lo[a] = std::min(lo[a], 15)) + 1;
-            m.rect[i] = std::uint16_t(lo.x | (hi.x - 1) << 4 | lo.y << 8 | (hi.y - 1) << 12);
         }
+        bool empty() const { return hi.x <= lo.x || hi.y <= lo.y; }
+        std::uint16_t packed() const { return std::uint16_t(lo.x | (hi.x - 1) << 4 | lo.y << 8 | (hi.y - 1) << 12); }
+    };
+    std::vector<std::pair<double, double>> spans;
+    for (std::size_t i = 0; i < cellsCount; ++i) {
+        if (pieces[i].empty()) continue; // no roof over the texel
+        // The widest empty strip across the texel between pieces, of either axis.
+        int gapAxis = -1;
+        double gapLo = 0.0, gapHi = 0.0;
+        for (int a = 0; a < 2; ++a) {
+            spans.clear();
+            for (const Piece& p : pieces[i]) spans.emplace_back(p.lo[a], p.hi[a]);
+            std::sort(spans.begin(), spans.end());
+            double reach = spans[0].second;
+            for (const auto& [lo, hi] : spans) {
+                if (lo - reach > std::max(gapHi - gapLo, 1.0 / 16.0)) {
+                    gapAxis = a;
+                    gapLo = reach;
+                    gapHi = lo;
+                }
+                reach = std::max(reach, hi);
+            }
+        }
+        Part first, second;
+        for (const Piece& p : pieces[i]) (gapAxis >= 0 && p.lo[gapAxis] >= gapHi ? second : first).add(p);
+        if (first.empty()) std::swap(first, second);
+        if (first.empty()) continue; // slivers: under half a sixteenth
+        if (!second.empty() && second.top > first.top) std::swap(first, second);
+        if (second.empty() && top[i] > -kInf) {
+            // One prism over the centre: at the centre's height, at least the sixteenth around it.
+            for (int a = 0; a < 2; ++a)
+                if (first.hi[a] <= first.lo[a]) first.hi[a] = (first.lo[a] = std::min(first.lo[a], 15)) + 1;
+        } else {
+            top[i] = first.top;
+            topNormal[i] = first.normal;
+        }
+        m.rect[i] = first.packed();
+        if (!second.empty()) {
+            m.rect2[i] = second.packed();
+            top2[i] = second.top;
+        }
+    }
     m.roofNormal.assign(cellsCount * 2, 128);
     for (std::size_t i = 0; i < cellsCount; ++i)
         for (int c = 0; c < 2; ++c)
             m.roofNormal[i * 2 + std::size_t(c)] =
                 std::uint8_t(std::clamp(std::lround((topNormal[i][c] * 0.5 + 0.5) * 255.0), 0L, 255L));
-    for (std::size_t i = 0; i < cellsCount; ++i)
+    for (std::size_t i = 0; i < cellsCount; ++i) {
         if (top[i] > -kInf) m.height[i] = std::uint8_t(std::clamp(std::lround((top[i] - m.zBase) / step), 1L, 255L));
+        if (top2[i] > -kInf) m.height2[i] = std::uint8_t(std::clamp(std::lround((top2[i] - m.zBase) / step), 1L, 255L));
+    }
     distanceField(m);
     feet(m, model, tris, cells, step);
 
     // Wall columns of the boundary texels (§3.3, Fig. 4): per exposed side, horizontal rays into the texel. A side is
-    // hidden up to the neighbour's top where the neighbour's part covers all of the texel's part along it, else not at
-    // all (the walls of a part that ends inside its texel show, and so do those beside a neighbour's part that ends
-    // short of the side or covers only some of it).
-    auto reaches = [&](int x, int y, int s) {
-        const TexelPart part = texelPart(m.rectAt(x, y));
+    // hidden up to the neighbour's top where a prism of the neighbour covers all of the texel's prisms along it, else
+    // not at all (the walls of a part that ends inside its texel show, and so do those beside a neighbour's part that
+    // ends short of the side or covers only some of it). A texel with two prisms has a column too, for the walls on
+    // either side of the strip between them.
+    struct TexelPrism {
+        TexelPart part;
+        double top;
+    };
+    auto prismsAt = [&](int x, int y, std::array<TexelPrism, 2>& out) {
+        if (m.heightAt(x, y) == 0) return 0;
+        out[0] = {texelPart(m.rectAt(x, y)), m.topAt(x, y)};
+        if (m.height2At(x, y) == 0) return 1;
+        out[1] = {texelPart(m.rect2At(x, y)), m.zBase + double(m.height2At(x, y)) * step};
+        return 2;
+    };
+    auto reachesSide = [](const TexelPart& part, int s) {
         return s == 0 ? part.lo.x == 0.0 : s == 1 ? part.hi.x == 1.0 : s == 2 ? part.lo.y == 0.0 : part.hi.y == 1.0;
+    };
+    // Along side s of texel (x, y): the across-range of its prisms that reach the side (empty: none does).
+    auto sideRange = [&](int x, int y, int s) {
+        std::array<TexelPrism, 2> own;
+        const int count = prismsAt(x, y, own);
+        const int acrossAxis = s < 2 ? 1 : 0;
+        glm::dvec2 range(1.0, 0.0);
+        for (int k = 0; k < count; ++k)
+            if (reachesSide(own[std::size_t(k)].part, s)) {
+                range.x = std::min(range.x, own[std::size_t(k)].part.lo[acrossAxis]);
+                range.y = std::max(range.y, own[std::size_t(k)].part.hi[acrossAxis]);
+            }
+        return range;
     };
     auto neighbourTop = [&](int x, int y, int s) {
         const int nx = x + kSides[std::size_t(s)].x, ny = y + kSides[std::size_t(s)].y;
-        if (nx < 0 || ny < 0 || nx >= n || ny >= n || !reaches(x, y, s) || !reaches(nx, ny, s ^ 1)) return m.zBase;
+        const glm::dvec2 range = sideRange(x, y, s);
+        if (nx < 0 || ny < 0 || nx >= n || ny >= n || range.x >= range.y) return m.zBase;
+        std::array<TexelPrism, 2> other;
+        const int count = prismsAt(nx, ny, other);
         const int acrossAxis = s < 2 ? 1 : 0;
-        const TexelPart own = texelPart(m.rectAt(x, y)), other = texelPart(m.rectAt(nx, ny));
-        if (other.lo[acrossAxis] > own.lo[acrossAxis] || other.hi[acrossAxis] < own.hi[acrossAxis]) return m.zBase;
-        return m.topAt(nx, ny);
+        double hidden = m.zBase;
+        for (int k = 0; k < count; ++k) {
+            const TexelPrism& p = other[std::size_t(k)];
+            if (reachesSide(p.part, s ^ 1) && p.part.lo[acrossAxis] <= range.x && p.part.hi[acrossAxis] >= range.y)
+                hidden = std::max(hidden, p.top);
+        }
+        return hidden;
     };
     std::vector<glm::dvec3> sums;    // per column texel: colour sum of the rays that met walls
     std::vector<int> counts;         // per column texel: rays that met a triangle
@@ -309,12 +391,54 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
         return std::abs(nrm.z) > 0.2 * glm::length(nrm);
     };
     constexpr int kRaysPerSide = 4;
+    // Rays from `start` in direction `s` reversed (into the texel), spread over `across` (metres, centred on start),
+    // at each column texel's height of the texel's top `ownTop` from `hiddenTo` up, into column `col`.
+    auto castRays = [&](int col, glm::dvec2 start, glm::ivec2 s, glm::dvec2 across, double ownTop, double hiddenTo,
+                        const std::vector<std::uint32_t>& near) {
+        const glm::dvec3 dir(-s.x, -s.y, 0.0);
+        for (int j = 0; j < W; ++j) {
+            const double z = m.zBase + (double(j) + 0.5) / double(W) * (ownTop - m.zBase);
+            if (z < hiddenTo) continue; // the neighbour's prism covers this side here
+            for (int r = 0; r < kRaysPerSide; ++r) {
+                const double a = (double(r) + 0.5) / kRaysPerSide - 0.5;
+                const glm::dvec3 o(start + across * a, z);
+                double best = 1.5 * m.texel;
+                std::size_t bestTri = 0;
+                glm::dvec3 bestBary(0.0);
+                bool found = false;
+                for (const std::uint32_t k : near) {
+                    double t;
+                    glm::dvec3 b;
+                    if (rayTriangle(o, dir, model.triangles[tris[k]].v, t, b) && t >= 0.0 && t < best) {
+                        best = t;
+                        bestTri = tris[k];
+                        bestBary = b;
+                        found = true;
+                    }
+                }
+                if (!found) continue;
+                const std::size_t at = std::size_t(col) * std::size_t(W) + std::size_t(j);
+                ++counts[at];
+                if (roofLike(bestTri)) continue;
+                sums[at] += colour(bestTri, bestBary);
+                ++wallCounts[at];
+                // A wall more than 10° off the side takes the column off the grid; else the first puts it on.
+                const auto& tv = model.triangles[bestTri].v;
+                const glm::dvec3 tn = glm::cross(tv[1] - tv[0], tv[2] - tv[0]);
+                const double facing = std::abs(tn.x * double(s.x) + tn.y * double(s.y));
+                std::uint8_t& g = m.wallOnGrid[std::size_t(col)];
+                g = facing < 0.985 * std::hypot(tn.x, tn.y) ? 0 : g == 2 ? 1 : g;
+            }
+        }
+    };
     for (int y = 0; y < n; ++y)
         for (int x = 0; x < n; ++x) {
-            if (m.heightAt(x, y) == 0) continue;
+            std::array<TexelPrism, 2> own;
+            const int prisms = prismsAt(x, y, own);
+            if (prisms == 0) continue;
             const double ownTop = m.topAt(x, y);
             glm::dvec3 normal(0.0);
-            bool exposed = false;
+            bool exposed = prisms == 2;
             for (int k = 0; k < 4; ++k)
                 if (neighbourTop(x, y, k) < ownTop) {
                     exposed = true;
@@ -328,62 +452,56 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
             sums.resize(sums.size() + std::size_t(W), glm::dvec3(0.0));
             counts.resize(counts.size() + std::size_t(W), 0);
             wallCounts.resize(wallCounts.size() + std::size_t(W), 0);
-            const TexelPart part = texelPart(m.rectAt(x, y));
+            const glm::dvec2 texelLo = origin + glm::dvec2(x, y) * m.texel;
+            const std::vector<std::uint32_t>& here = cells[std::size_t(y) * std::size_t(n) + std::size_t(x)];
             for (int sideIndex = 0; sideIndex < 4; ++sideIndex) {
                 const glm::ivec2 s = kSides[std::size_t(sideIndex)];
                 const double nTop = neighbourTop(x, y, sideIndex);
                 if (nTop >= ownTop) continue;
-                // Looking in across the part's width there, from the neighbour's centre line where the part reaches
+                // Looking in across the prisms' width there, from the neighbour's centre line where a prism reaches
                 // the side (the steps of a sloped roof lie between the two texels' centres), else from a twentieth
                 // of a texel outside it (the walls of a part that ends inside the texel lie in it: the part is where
                 // its roofs are, and what is beyond the side may be another building); candidates from both texels'
                 // lists.
-                const glm::dvec3 dir(-s.x, -s.y, 0.0);
                 const int alongAxis = s.x != 0 ? 0 : 1, acrossAxis = 1 - alongAxis;
-                const double outside = reaches(x, y, sideIndex) ? 0.5 : 0.05;
-                glm::dvec2 start = origin + glm::dvec2(x, y) * m.texel;
+                glm::dvec2 range = sideRange(x, y, sideIndex);
+                const double outside = range.x < range.y ? 0.5 : 0.05;
+                if (range.x >= range.y) { // no prism reaches the side: all of them
+                    range = {1.0, 0.0};
+                    for (int k = 0; k < prisms; ++k) {
+                        range.x = std::min(range.x, own[std::size_t(k)].part.lo[acrossAxis]);
+                        range.y = std::max(range.y, own[std::size_t(k)].part.hi[acrossAxis]);
+                    }
+                }
+                glm::dvec2 start = texelLo;
                 start[alongAxis] += (s[alongAxis] > 0 ? 1.0 + outside : -outside) * m.texel;
-                start[acrossAxis] += 0.5 * (part.lo[acrossAxis] + part.hi[acrossAxis]) * m.texel;
+                start[acrossAxis] += 0.5 * (range.x + range.y) * m.texel;
                 glm::dvec2 across(0.0);
-                across[acrossAxis] = part.hi[acrossAxis] - part.lo[acrossAxis];
-                std::vector<std::uint32_t> near = cells[std::size_t(y) * std::size_t(n) + std::size_t(x)];
+                across[acrossAxis] = (range.y - range.x) * m.texel;
+                std::vector<std::uint32_t> near = here;
                 if (x + s.x >= 0 && y + s.y >= 0 && x + s.x < n && y + s.y < n) {
                     const auto& other = cells[std::size_t(y + s.y) * std::size_t(n) + std::size_t(x + s.x)];
                     near.insert(near.end(), other.begin(), other.end());
                 }
-                for (int j = 0; j < W; ++j) {
-                    const double z = m.zBase + (double(j) + 0.5) / double(W) * (ownTop - m.zBase);
-                    if (z < nTop) continue; // the neighbour's prism covers this side here
-                    for (int r = 0; r < kRaysPerSide; ++r) {
-                        const double a = ((double(r) + 0.5) / kRaysPerSide - 0.5) * m.texel;
-                        const glm::dvec3 o(start + across * a, z);
-                        double best = 1.5 * m.texel;
-                        std::size_t bestTri = 0;
-                        glm::dvec3 bestBary(0.0);
-                        bool found = false;
-                        for (const std::uint32_t k : near) {
-                            double t;
-                            glm::dvec3 b;
-                            if (rayTriangle(o, dir, model.triangles[tris[k]].v, t, b) && t >= 0.0 && t < best) {
-                                best = t;
-                                bestTri = tris[k];
-                                bestBary = b;
-                                found = true;
-                            }
-                        }
-                        if (!found) continue;
-                        const std::size_t at = std::size_t(col) * std::size_t(W) + std::size_t(j);
-                        ++counts[at];
-                        if (roofLike(bestTri)) continue;
-                        sums[at] += colour(bestTri, bestBary);
-                        ++wallCounts[at];
-                        // A wall more than 10° off the side takes the column off the grid; else the first puts it on.
-                        const auto& tv = model.triangles[bestTri].v;
-                        const glm::dvec3 tn = glm::cross(tv[1] - tv[0], tv[2] - tv[0]);
-                        const double facing = std::abs(tn.x * double(s.x) + tn.y * double(s.y));
-                        std::uint8_t& g = m.wallOnGrid[std::size_t(col)];
-                        g = facing < 0.985 * std::hypot(tn.x, tn.y) ? 0 : g == 2 ? 1 : g;
-                    }
+                castRays(col, start, s, across, ownTop, nTop, near);
+            }
+            if (prisms == 2) {
+                // The walls on either side of the strip between the two prisms, from its middle.
+                const TexelPart &a = own[0].part, &b = own[1].part;
+                const int axis = a.hi.x <= b.lo.x || b.hi.x <= a.lo.x ? 0 : 1, acrossAxis = 1 - axis;
+                const bool aBelow = a.hi[axis] <= b.lo[axis];
+                const double middle = aBelow ? 0.5 * (a.hi[axis] + b.lo[axis]) : 0.5 * (b.hi[axis] + a.lo[axis]);
+                for (int k = 0; k < 2; ++k) {
+                    const TexelPart& p = own[std::size_t(k)].part;
+                    const bool below = (k == 0) == aBelow; // the prism lies below the strip along the axis
+                    glm::ivec2 s(0);
+                    s[axis] = below ? 1 : -1; // its wall faces across the strip
+                    glm::dvec2 start = texelLo;
+                    start[axis] += middle * m.texel;
+                    start[acrossAxis] += 0.5 * (p.lo[acrossAxis] + p.hi[acrossAxis]) * m.texel;
+                    glm::dvec2 across(0.0);
+                    across[acrossAxis] = (p.hi[acrossAxis] - p.lo[acrossAxis]) * m.texel;
+                    castRays(col, start, s, across, ownTop, m.zBase, here);
                 }
             }
         }
@@ -468,36 +586,47 @@ BlockMapHit traceBlockMap(const BlockMap& m, const glm::dvec3& o, const glm::dve
         ++hit.texelsVisited;
         const double tOut = std::min({nextX, nextY, t1});
         if (m.heightAt(cx, cy) > 0) {
-            const double top = m.topAt(cx, cy), foot = m.footAt(cx, cy);
-            // The ray against the prism's box within the texel: [tEnter, tExit], and the axis of the face it enters
-            // by (-1: the face it entered the texel by). The part's sides bound it where they lie inside the texel
-            // (a whole texel is bounded by the texel's, where the ray is already).
-            double tEnter = tCell, tExit = tOut;
-            int axis = -1;
-            bool miss = false;
-            const TexelPart part = texelPart(m.rectAt(cx, cy));
+            const double foot = m.footAt(cx, cy);
+            // The ray against each prism's box within the texel: [tEnter, tExit], and the axis of the face it enters
+            // by (-1: the face it entered the texel by). A part's sides bound it where they lie inside the texel (a
+            // whole texel is bounded by the texel's, where the ray is already). The nearest prism entered counts.
             const int cell[2] = {cx, cy};
-            auto slab = [&](int a, bool hasLo, double lo, bool hasHi, double hi) {
-                if (d[a] == 0.0) {
-                    miss = miss || (hasLo && o[a] < lo) || (hasHi && o[a] > hi);
-                    return;
-                }
-                const bool inc = d[a] > 0.0;
-                if (inc ? hasLo : hasHi) {
-                    const double t = ((inc ? lo : hi) - o[a]) / d[a];
-                    if (t > tEnter) {
-                        tEnter = t;
-                        axis = a;
+            double tEnter = kInf, top = 0.0;
+            int axis = -1;
+            const int prisms = m.height2At(cx, cy) > 0 ? 2 : 1;
+            for (int k = 0; k < prisms; ++k) {
+                const double prismTop = k == 0 ? m.topAt(cx, cy) : m.zBase + double(m.height2At(cx, cy)) * (m.zTop - m.zBase) / 255.0;
+                const TexelPart part = texelPart(k == 0 ? m.rectAt(cx, cy) : m.rect2At(cx, cy));
+                double enter = tCell, exit = tOut;
+                int entryAxis = -1;
+                bool miss = false;
+                auto slab = [&](int a, bool hasLo, double lo, bool hasHi, double hi) {
+                    if (d[a] == 0.0) {
+                        miss = miss || (hasLo && o[a] < lo) || (hasHi && o[a] > hi);
+                        return;
                     }
+                    const bool inc = d[a] > 0.0;
+                    if (inc ? hasLo : hasHi) {
+                        const double t = ((inc ? lo : hi) - o[a]) / d[a];
+                        if (t > enter) {
+                            enter = t;
+                            entryAxis = a;
+                        }
+                    }
+                    if (inc ? hasHi : hasLo) exit = std::min(exit, ((inc ? hi : lo) - o[a]) / d[a]);
+                };
+                for (int a = 0; a < 2; ++a)
+                    slab(a, part.lo[a] > 0.0, m.origin[a] + (double(cell[a]) + part.lo[a]) * m.texel, part.hi[a] < 1.0,
+                         m.origin[a] + (double(cell[a]) + part.hi[a]) * m.texel);
+                slab(2, true, foot, true, prismTop);
+                if (!miss && enter <= exit && enter < tEnter) {
+                    tEnter = enter;
+                    axis = entryAxis;
+                    top = prismTop;
                 }
-                if (inc ? hasHi : hasLo) tExit = std::min(tExit, ((inc ? hi : lo) - o[a]) / d[a]);
-            };
-            for (int a = 0; a < 2; ++a)
-                slab(a, part.lo[a] > 0.0, m.origin[a] + (double(cell[a]) + part.lo[a]) * m.texel, part.hi[a] < 1.0,
-                     m.origin[a] + (double(cell[a]) + part.hi[a]) * m.texel);
-            slab(2, true, foot, true, top);
+            }
             BlockMapHit::Kind kind = BlockMapHit::Kind::None;
-            if (!miss && tEnter <= tExit) {
+            if (tEnter < kInf) {
                 // Rising into the prism from below its foot (from under the ground) the ray meets nothing, as one
                 // that reaches the block's floor; below its foot it passes under the prism (in the ground there).
                 if (axis == 2 && d.z > 0.0) {
@@ -687,6 +816,7 @@ namespace {
 
 constexpr char kMagic[8] = {'S', 'V', 'B', 'L', 'O', 'C', 'K', 'M'};
 // 2: wall texels RGBA (A: walls' share), per-texel roof normals; 3: prisms' feet, walls on the grid; 4: texels' parts
+// and second prisms
 constexpr std::uint32_t kVersion = 4;
 constexpr std::size_t kMapHeaderBytes = 5 * 8 + 3 * 4;
 
@@ -701,7 +831,7 @@ template <typename T> T get(const std::uint8_t* p) {
 }
 
 std::size_t dataBytes(std::size_t n, std::size_t W, std::size_t columns) {
-    return n * n * (1 + 1 + 4 + 2 + 1 + 2) + columns * W * 4 + columns * (3 * 4 + 1);
+    return n * n * (1 + 1 + 4 + 2 + 1 + 2 + 2 + 1) + columns * W * 4 + columns * (3 * 4 + 1);
 }
 
 std::vector<std::uint8_t> serializeMap(const BlockMap& m) {
@@ -721,6 +851,8 @@ std::vector<std::uint8_t> serializeMap(const BlockMap& m) {
     else out.insert(out.end(), m.foot.begin(), m.foot.end());
     for (int c = 0; c < m.columns(); ++c) put(out, std::uint8_t(m.wallOnGrid.empty() ? 0 : m.wallOnGrid[std::size_t(c)]));
     for (std::size_t i = 0; i < m.height.size(); ++i) put(out, m.rect.empty() ? BlockMap::kWholeTexel : m.rect[i]);
+    for (std::size_t i = 0; i < m.height.size(); ++i) put(out, m.rect2.empty() ? BlockMap::kWholeTexel : m.rect2[i]);
+    for (std::size_t i = 0; i < m.height.size(); ++i) put(out, m.height2.empty() ? std::uint8_t(0) : m.height2[i]);
     put(out, std::uint32_t(libdeflate_crc32(0, out.data(), out.size())));
     return out;
 }
@@ -806,10 +938,13 @@ BlockMapPacked packBlockMap(const BlockMap& map) {
     const std::size_t n2 = std::size_t(map.size) * std::size_t(map.size);
     p.tile.resize(n2 * 3);
     for (std::size_t i = 0; i < n2; ++i) {
-        p.tile[i * 3] = std::uint32_t(map.height[i]) | std::uint32_t(map.distance[i]) << 8 |
+        // A building's texel has distance 0: its byte holds the second prism's top.
+        const std::uint32_t second = map.height2.empty() ? 0u : map.height2[i];
+        p.tile[i * 3] = std::uint32_t(map.height[i]) | std::uint32_t(map.height[i] > 0 ? second : map.distance[i]) << 8 |
                         std::uint32_t(map.roofNormal[i * 2]) << 16 | std::uint32_t(map.roofNormal[i * 2 + 1]) << 24;
         p.tile[i * 3 + 1] = map.column[i] | (map.foot.empty() ? 0u : std::uint32_t(map.foot[i]) << 24);
-        p.tile[i * 3 + 2] = map.rect.empty() ? BlockMap::kWholeTexel : map.rect[i];
+        p.tile[i * 3 + 2] = std::uint32_t(map.rect.empty() ? BlockMap::kWholeTexel : map.rect[i]) |
+                            std::uint32_t(map.rect2.empty() ? BlockMap::kWholeTexel : map.rect2[i]) << 16;
     }
     const int columns = map.columns(), W = map.wallTexels;
     p.span = wallSpan(W);
@@ -963,13 +1098,20 @@ Result<BlockMap> BlockMapFile::read(std::size_t k) const {
     p += r.columns;
     for (const std::uint8_t g : m.wallOnGrid)
         if (g > 1) return fileError(name, "damaged (" + which + ": a wall column neither on the grid nor off it)");
-    m.rect.resize(cells);
-    for (std::size_t i = 0; i < cells; ++i, p += 2) {
-        m.rect[i] = get<std::uint16_t>(p);
-        const TexelPart part = texelPart(m.rect[i]);
-        if (part.lo.x >= part.hi.x || part.lo.y >= part.hi.y)
-            return fileError(name, "damaged (" + which + ": a texel's part turned inside out)");
+    for (auto* parts : {&m.rect, &m.rect2}) {
+        parts->resize(cells);
+        for (std::size_t i = 0; i < cells; ++i, p += 2) {
+            (*parts)[i] = get<std::uint16_t>(p);
+            const TexelPart part = texelPart((*parts)[i]);
+            if (part.lo.x >= part.hi.x || part.lo.y >= part.hi.y)
+                return fileError(name, "damaged (" + which + ": a texel's part turned inside out)");
+        }
     }
+    m.height2.assign(p, p + cells);
+    p += cells;
+    for (std::size_t i = 0; i < cells; ++i)
+        if (m.height2[i] > 0 && (m.height[i] == 0 || m.foot[i] > m.height2[i]))
+            return fileError(name, "damaged (" + which + ": a second prism on an empty texel or below its foot)");
     return m;
 }
 

@@ -65,10 +65,14 @@ struct BlockMap {
     // Per texel the part of it its prism stands on, so the prisms end at the buildings' outlines, not at the texels'
     // edges (at an overview a texel is a pixel: whole texels move every outline by up to one): x0 | x1 << 4 | y0 << 8 |
     // y1 << 12, the prism over [x0, x1 + 1] / 16 × [y0, y1 + 1] / 16 of the texel (x, y from its lowest corner).
-    // A texel is a building's where any of its roofs lies over it, and its part is the box of what they cover there
-    // (two buildings in one texel: the box of both). kWholeTexel on empty texels and where a roof covers it all;
-    // empty vector: every texel whole.
+    // A texel is a building's where any of its roofs lies over it, and its part is the box of what they cover there.
+    // kWholeTexel on empty texels and where a roof covers it all; empty vector: every texel whole.
     std::vector<std::uint16_t> rect;
+    // A texel whose roofs leave an empty strip across it (two buildings and the gap between them) holds a second
+    // prism beyond the strip: its part (as rect) and top (as heights, 0: none; the first prism is the taller, its top
+    // the texel's height). Both stand on the texel's foot. Empty vectors: no second prisms.
+    std::vector<std::uint16_t> rect2;
+    std::vector<std::uint8_t> height2;
 
     int columns() const { return int(wallNormal.size()); }
     std::uint8_t heightAt(int x, int y) const { return height[std::size_t(y) * std::size_t(size) + std::size_t(x)]; }
@@ -82,6 +86,12 @@ struct BlockMap {
     static constexpr std::uint16_t kWholeTexel = 0xF0F0; // x0 = y0 = 0, x1 = y1 = 15
     std::uint16_t rectAt(int x, int y) const {
         return rect.empty() ? kWholeTexel : rect[std::size_t(y) * std::size_t(size) + std::size_t(x)];
+    }
+    std::uint8_t height2At(int x, int y) const {
+        return height2.empty() ? 0 : height2[std::size_t(y) * std::size_t(size) + std::size_t(x)];
+    }
+    std::uint16_t rect2At(int x, int y) const {
+        return rect2.empty() ? kWholeTexel : rect2[std::size_t(y) * std::size_t(size) + std::size_t(x)];
     }
 };
 
@@ -193,9 +203,10 @@ int wallSpan(int wallTexels);
 /// A map as BlockMapPoolGL stores it. Plain C++, so the pager's loader thread packs it and the GL thread only uploads.
 struct BlockMapPacked {
     int span = 1; // wallSpan(wallTexels)
-    /// n² × 3 words, row-major (BlockMapPoolGL's tiles): the texel's height, distance, and roof normal's x and y (as
-    /// BlockMap stores them, a byte each, lowest first), then its wall column (BlockMap::column, 24 bits) and foot
-    /// (BlockMap::foot, the top byte), then its part (BlockMap::rect, the low 16 bits).
+    /// n² × 3 words, row-major (BlockMapPoolGL's tiles): the texel's height, distance (on a building's texel, where
+    /// the distance is 0, its second prism's top: BlockMap::height2), and roof normal's x and y (as BlockMap stores
+    /// them, a byte each, lowest first), then its wall column (BlockMap::column, 24 bits) and foot (BlockMap::foot,
+    /// the top byte), then its part and its second prism's (BlockMap::rect, rect2: the low and high 16 bits).
     std::vector<std::uint32_t> tile;
     /// 32-bit words: each column's outward normal ((n + 1) / 2 as RGB8 in bytes 0..2) and on-the-grid flag (byte 3,
     /// BlockMap::wallOnGrid), then each column's `span`

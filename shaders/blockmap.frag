@@ -29,7 +29,9 @@ uniform mat2 uLookupSlope;
 // building, else zBase + value · (zTop − zBase) / 255), Chebyshev distance in texels to the nearest building texel,
 // the roof's normal's x and y ((v + 1) / 2 · 255; z implied); y: 1 + a boundary texel's wall column (24 bits) and
 // the prism's foot (the top byte, as heights: a ray below it passes under the prism); z: the part of the texel the
-// prism stands on (city/BlockMap.h's BlockMap::rect: x0 | x1 << 4 | y0 << 8 | y1 << 12, sixteenths).
+// prism stands on (city/BlockMap.h's BlockMap::rect: x0 | x1 << 4 | y0 << 8 | y1 << 12, sixteenths), and in the high
+// 16 bits a second prism's (BlockMap::rect2) where the texel has one: then x's distance byte, 0 on a building's
+// texel, holds its top (BlockMap::height2).
 uniform usamplerBuffer uBmTexels;
 // A map's words from its first: its columns' outward normals ((n + 1) / 2, RGB8; A: 1 for walls along the grid),
 // then each column's colours (RGBA8, span words): its wallTexels colours (the lowest first), then the same halved
@@ -165,42 +167,54 @@ void main() {
         uvec4 texel = bmStepAt(c);
         uint value = texel.r;
         if (value > 0u) {
-            top = bmTop(value);
             float foot = bmTop(texel.b);
-            // The ray against the prism's box in the texel: the part's sides bound it where they lie inside the
-            // texel (a whole texel: the texel's, where the ray is already), then its foot and top. axis: that of the
-            // face it enters by, -1 the one it entered the texel by.
-            vec2 lo = vec2(texel.a & 15u, (texel.a >> 8) & 15u) / 16.0;
-            vec2 hi = vec2(((texel.a >> 4) & 15u) + 1u, ((texel.a >> 12) & 15u) + 1u) / 16.0;
-            float tEnter = tCell, tExit = tOut;
-            int axis = -1;
-            for (int a = 0; a < 2; ++a) {
-                bool inc = d[a] > 0.0;
-                float enterBound = inc ? lo[a] : hi[a], exitBound = inc ? hi[a] : lo[a];
-                if (enterBound > 0.0 && enterBound < 1.0) {
-                    float t = ((float(c[a]) + enterBound) * bmMetres - o[a]) / d[a];
-                    if (t > tEnter) {
-                        tEnter = t;
-                        axis = a;
+            // The ray against each prism's box in the texel (the second's where the texel's g byte, its distance
+            // elsewhere, holds its top): a part's sides bound it where they lie inside the texel (a whole texel: the
+            // texel's, where the ray is already), then its foot and top. axis: that of the face it enters by, -1 the
+            // one it entered the texel by. The nearest prism entered counts.
+            float tBest = 1e30;
+            int axisBest = -1;
+            for (int k = 0; k < (texel.g > 0u ? 2 : 1); ++k) {
+                uint part = k == 0 ? texel.a & 0xFFFFu : texel.a >> 16;
+                float prismTop = bmTop(k == 0 ? value : texel.g);
+                vec2 lo = vec2(part & 15u, (part >> 8) & 15u) / 16.0;
+                vec2 hi = vec2(((part >> 4) & 15u) + 1u, ((part >> 12) & 15u) + 1u) / 16.0;
+                float tEnter = tCell, tExit = tOut;
+                int axis = -1;
+                for (int a = 0; a < 2; ++a) {
+                    bool inc = d[a] > 0.0;
+                    float enterBound = inc ? lo[a] : hi[a], exitBound = inc ? hi[a] : lo[a];
+                    if (enterBound > 0.0 && enterBound < 1.0) {
+                        float t = ((float(c[a]) + enterBound) * bmMetres - o[a]) / d[a];
+                        if (t > tEnter) {
+                            tEnter = t;
+                            axis = a;
+                        }
                     }
+                    if (exitBound > 0.0 && exitBound < 1.0)
+                        tExit = min(tExit, ((float(c[a]) + exitBound) * bmMetres - o[a]) / d[a]);
                 }
-                if (exitBound > 0.0 && exitBound < 1.0) tExit = min(tExit, ((float(c[a]) + exitBound) * bmMetres - o[a]) / d[a]);
+                float tz = ((d.z > 0.0 ? foot : prismTop) - o.z) / d.z;
+                if (tz > tEnter) {
+                    tEnter = tz;
+                    axis = 2;
+                }
+                tExit = min(tExit, ((d.z > 0.0 ? prismTop : foot) - o.z) / d.z);
+                if (tEnter <= tExit && tEnter < tBest) {
+                    tBest = tEnter;
+                    axisBest = axis;
+                    top = prismTop;
+                }
             }
-            float tz = ((d.z > 0.0 ? foot : top) - o.z) / d.z;
-            if (tz > tEnter) {
-                tEnter = tz;
-                axis = 2;
-            }
-            tExit = min(tExit, ((d.z > 0.0 ? top : foot) - o.z) / d.z);
-            if (tEnter <= tExit) {
-                // Rising into the prism from below its foot (from under the ground) the ray meets nothing; below
-                // it, it passes under the prism (in the ground there).
-                if (axis == 2 && d.z > 0.0) break;
-                if (axis == 0) face = stp.x > 0 ? 0 : 1;
-                else if (axis == 1) face = stp.y > 0 ? 2 : 3;
-                else if (axis == 2) face = 4;
+            if (tBest < 1e30) {
+                // Rising into a prism from below its foot (from under the ground) the ray meets nothing; below it,
+                // it passes under the prism (in the ground there).
+                if (axisBest == 2 && d.z > 0.0) break;
+                if (axisBest == 0) face = stp.x > 0 ? 0 : 1;
+                else if (axisBest == 1) face = stp.y > 0 ? 2 : 3;
+                else if (axisBest == 2) face = 4;
                 kind = face == 4 ? kRoof : kWall;
-                tHit = tEnter;
+                tHit = tBest;
                 break;
             }
         } else {

@@ -29,9 +29,10 @@ using test::Prism;
 const std::vector<Prism> kPrisms = {{2, 2, 14, 14, 25.5}, {14, 2, 26, 14, 12.3}, {2, 16, 9, 30, 7.0},
                                     {17, 17, 30, 20, 18.8}, {17, 27, 30, 30, 18.8}, {17, 20, 20, 27, 18.8},
                                     {27, 20, 30, 27, 18.8}, {11, 22, 15, 29, 14.2, 6.0}};
-// The same with their outlines between the texels' edges, on sixteenths of a texel (the touching buildings still
-// meet on an edge): the prisms stand on parts of their outer texels (BlockMap::rect).
-const std::vector<Prism> kOffGrid = {{2.25, 2.5, 14, 13.75, 25.5}, {14, 2.5, 25.75, 13.75, 12.3},
+// The same with their outlines between the texels' edges, on sixteenths of a texel, and the two buildings that touch
+// apart by a street of 3/8 of a texel inside texel column 14: the prisms stand on parts of their outer texels
+// (BlockMap::rect), and texel column 14 holds two (BlockMap::rect2, height2).
+const std::vector<Prism> kOffGrid = {{2.25, 2.5, 14.125, 13.75, 25.5}, {14.5, 2.5, 25.75, 13.75, 12.3},
                                      {2.375, 16.25, 9.5, 29.625, 7.0}, {17.5, 17.25, 29.75, 20, 18.8},
                                      {17.5, 27, 29.75, 29.5, 18.8}, {17.5, 20, 20.25, 27, 18.8},
                                      {27.25, 20, 29.75, 27, 18.8}, {11.25, 22.5, 15.0, 28.75, 14.2, 6.0}};

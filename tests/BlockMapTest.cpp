@@ -146,13 +146,18 @@ TEST(BlockMapTest, BuildingsOfDifferentHeightsMatchTheExactIntersection) {
 
 // Outlines between the texels' edges (on sixteenths of the 1 m texels): the texels' parts (BlockMap::rect) end the
 // prisms where the buildings end, so every ray still meets what the polygons meet. Buildings that touch meet on a
-// texel's edge (two buildings in one texel make one part, the box of both).
+// texel's edge; two buildings in one texel with a street between them are its two prisms (BlockMap::rect2, height2).
 TEST(BlockMapTest, OutlinesOffTheGridMatchTheExactIntersection) {
     expectExact({{8.25, 10.5, 20.75, 18.125, 25.5}}, "box off the grid");
     expectExact({{4.375, 4.0625, 24.5, 12.0, 25.5}, {4.375, 12.0, 12.25, 28.6875, 25.5}}, "L off the grid");
     expectExact({{2.5, 2.25, 13.75, 13.5, 25.5}, {15.25, 2.5, 25.5, 13.75, 12.3}, {2.125, 16.5, 9.875, 29.5, 7.0},
                  {20.5, 20.25, 29.75, 30.5, 18.8, 2.5}},
                 "heights off the grid");
+    // Gaps of half a texel inside texels 12 (across x) and 20 (across y), the buildings either side of different
+    // heights, and a lower one taller than its neighbour across the gap.
+    expectExact({{4.25, 4, 12.25, 12, 25.5}, {12.75, 4, 20, 12, 12.3}, {4, 14.125, 12, 20.5, 7.0},
+                 {4, 20.875, 12, 28, 18.8}, {20.5, 20.3125, 28, 28, 9.1}},
+                "two buildings in a texel");
 }
 
 TEST(BlockMapTest, TexelsPartsFollowTheOutlines) {
@@ -186,6 +191,42 @@ TEST(BlockMapTest, TexelsPartsFollowTheOutlines) {
     // A ray down past the wall's foot of the part, beside it: the ground, not the texel's empty half.
     const BlockMapHit g = traceBlockMap(m, {8.25, 12.5, 30.0}, {0.0, 0.0, -1.0});
     EXPECT_EQ(int(g.kind), int(BlockMapHit::Kind::None));
+    EXPECT_EQ(m.height2At(8, 12), 0) << "one prism";
+}
+
+TEST(BlockMapTest, TwoBuildingsInATexelAreTwoPrisms) {
+    // Texel column 12 holds the taller building's last quarter and the lower one's first, a half-metre street between.
+    const BlockMap m = build({{4.25, 4, 12.25, 12, 25.5}, {12.75, 4, 20, 12, 12.3}});
+    EXPECT_NEAR(m.topAt(12, 8), 25.5, 1e-9) << "the taller is the first";
+    TexelPart p = texelPart(m.rectAt(12, 8));
+    EXPECT_EQ(p.lo, glm::dvec2(0.0, 0.0));
+    EXPECT_EQ(p.hi, glm::dvec2(0.25, 1.0));
+    ASSERT_EQ(m.height2At(12, 8), 123);
+    p = texelPart(m.rect2At(12, 8));
+    EXPECT_EQ(p.lo, glm::dvec2(0.75, 0.0));
+    EXPECT_EQ(p.hi, glm::dvec2(1.0, 1.0));
+    EXPECT_GT(m.column[std::size_t(8) * 32 + 12], 0u) << "the street's walls have a column";
+    // Down into the street: the ground; onto either roof: that roof, at its height.
+    EXPECT_EQ(int(traceBlockMap(m, {12.5, 8.5, 30.0}, {0.0, 0.0, -1.0}).kind), int(BlockMapHit::Kind::None));
+    const BlockMapHit low = traceBlockMap(m, {12.875, 8.5, 30.0}, {0.0, 0.0, -1.0});
+    ASSERT_EQ(int(low.kind), int(BlockMapHit::Kind::Roof));
+    EXPECT_NEAR(low.point.z, 12.3, 1e-9);
+    // Level from +x at 10 m: the lower building's wall at x = 20; at 20 m, over it, the taller one's across the
+    // street at x = 12.25, in the texel's column at its height.
+    const BlockMapHit low10 = traceBlockMap(m, {30.0, 8.5, 10.0}, {-1.0, 0.0, 0.0});
+    ASSERT_EQ(int(low10.kind), int(BlockMapHit::Kind::Wall));
+    EXPECT_NEAR(low10.point.x, 20.0, 1e-9);
+    const BlockMapHit above = traceBlockMap(m, {30.0, 8.5, 20.0}, {-1.0, 0.0, 0.0});
+    ASSERT_EQ(int(above.kind), int(BlockMapHit::Kind::Wall));
+    EXPECT_NEAR(above.point.x, 12.25, 1e-9);
+    EXPECT_EQ(above.texel, glm::ivec2(12, 8));
+    EXPECT_NEAR(above.v, 20.0 / 25.5, 1e-9);
+    EXPECT_EQ(above.normal, glm::dvec3(1.0, 0.0, 0.0));
+    // Level from the street's middle towards +x at 5 m: the lower building's wall across the street.
+    const BlockMapHit inStreet = traceBlockMap(m, {12.5, 8.5, 5.0}, {1.0, 0.0, 0.0});
+    ASSERT_EQ(int(inStreet.kind), int(BlockMapHit::Kind::Wall));
+    EXPECT_NEAR(inStreet.point.x, 12.75, 1e-9);
+    EXPECT_NEAR(inStreet.v, 5.0 / 12.3, 1e-6) << "the lower prism's height in the column";
 }
 
 TEST(BlockMapTest, RaisedBuildingsEndAtTheirFeet) {
