@@ -150,6 +150,16 @@ void feet(BlockMap& m, const CityModel& model, const std::vector<std::size_t>& t
 
 } // namespace
 
+glm::dvec3 BlockMap::roofNormalAt(int x, int y) const {
+    if (roofNormal.empty()) return {0.0, 0.0, 1.0};
+    const std::size_t i = (std::size_t(y) * std::size_t(size) + std::size_t(x)) * 2;
+    glm::dvec2 n(roofNormal[i], roofNormal[i + 1]);
+    n = n / 255.0 * 2.0 - 1.0;
+    for (int c = 0; c < 2; ++c)
+        if (std::abs(n[c]) < 0.005) n[c] = 0.0; // 0 is not a byte's: 127.5
+    return {n, std::sqrt(std::max(1.0 - glm::dot(n, n), 1e-6))};
+}
+
 Result<BlockMap> buildBlockMap(const CityModel& model, glm::dvec2 origin, double side, const BlockMapOptions& options,
                                const TriangleColour& colour) {
     std::vector<std::uint32_t> all(model.triangles.size());
@@ -269,7 +279,8 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
     struct Part {
         glm::ivec2 lo{16}, hi{0};
         double top = -kInf;
-        glm::dvec3 normal{0.0, 0.0, 1.0};
+        glm::dvec3 normal{0.0, 0.0, 1.0}; // the roof's there: top is the height of its plane at `at`
+        glm::dvec2 at{0.0};
         void add(const Piece& p) {
             for (int a = 0; a < 2; ++a) {
                 lo[a] = std::min(lo[a], int(std::clamp(std::lround(p.lo[a] * 16.0), 0L, 16L)));
@@ -307,13 +318,45 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
         for (const Piece& p : pieces[i]) (gapAxis >= 0 && p.lo[gapAxis] >= gapHi ? second : first).add(p);
         if (first.empty()) std::swap(first, second);
         if (first.empty()) continue; // slivers: under half a sixteenth
+        // A part that is not over the centre alone: at the height of the highest roof over its own centre (a sloped
+        // roof's part at the eaves is not as high as its highest point), else at its highest point.
+        const glm::dvec2 cellLo = origin + glm::dvec2(int(i % std::size_t(n)), int(i / std::size_t(n))) * m.texel;
+        for (Part* part : {&first, &second})
+            if (!part->empty() && !(part == &first && second.empty() && top[i] > -kInf)) {
+                const glm::dvec2 c = cellLo + glm::dvec2(part->lo + part->hi) / 32.0 * m.texel;
+                double best = -kInf;
+                glm::dvec3 bestNormal(0.0, 0.0, 1.0);
+                for (const std::uint32_t k : cells[i]) {
+                    const auto& v = model.triangles[tris[k]].v;
+                    const double det = (v[1].x - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (v[1].y - v[0].y);
+                    const glm::dvec3 nrm = glm::cross(v[1] - v[0], v[2] - v[0]);
+                    if (std::abs(det) < 1e-12 || std::abs(nrm.z) < 1e-6 * glm::length(nrm)) continue; // vertical
+                    const double b1 = ((c.x - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (c.y - v[0].y)) / det;
+                    const double b2 = ((v[1].x - v[0].x) * (c.y - v[0].y) - (c.x - v[0].x) * (v[1].y - v[0].y)) / det;
+                    if (b1 < -1e-12 || b2 < -1e-12 || 1.0 - b1 - b2 < -1e-12) continue;
+                    const double z = (1.0 - b1 - b2) * v[0].z + b1 * v[1].z + b2 * v[2].z;
+                    if (z > best) {
+                        best = z;
+                        bestNormal = (nrm.z < 0.0 ? -nrm : nrm) / glm::length(nrm);
+                    }
+                }
+                if (best > -kInf) {
+                    part->top = best;
+                    part->normal = bestNormal;
+                    part->at = c;
+                } else {
+                    part->normal = glm::dvec3(0.0, 0.0, 1.0); // flat at its highest point
+                }
+            }
         if (!second.empty() && second.top > first.top) std::swap(first, second);
         if (second.empty() && top[i] > -kInf) {
             // One prism over the centre: at the centre's height, at least the sixteenth around it.
             for (int a = 0; a < 2; ++a)
                 if (first.hi[a] <= first.lo[a]) first.hi[a] = (first.lo[a] = std::min(first.lo[a], 15)) + 1;
         } else {
-            top[i] = first.top;
+            // The first prism's roof is its plane (BlockMap::roofNormal), its height given at the texel's centre.
+            const glm::dvec2 slope = -glm::dvec2(first.normal) / first.normal.z;
+            top[i] = first.top + glm::dot(slope, cellLo + 0.5 * m.texel - first.at);
             topNormal[i] = first.normal;
         }
         m.rect[i] = first.packed();
@@ -618,7 +661,24 @@ BlockMapHit traceBlockMap(const BlockMap& m, const glm::dvec3& o, const glm::dve
                 for (int a = 0; a < 2; ++a)
                     slab(a, part.lo[a] > 0.0, m.origin[a] + (double(cell[a]) + part.lo[a]) * m.texel, part.hi[a] < 1.0,
                          m.origin[a] + (double(cell[a]) + part.hi[a]) * m.texel);
-                slab(2, true, foot, true, prismTop);
+                slab(2, true, foot, false, 0.0);
+                if (entryAxis == 2) entryAxis = 3; // up through the foot
+                // The top: the roof's plane through prismTop at the texel's centre (the second prism's is level),
+                // z <= prismTop + slope · (p - centre); entered through it, a roof (axis 2).
+                const glm::dvec2 slope = k == 0 ? m.roofSlopeAt(cx, cy) : glm::dvec2(0.0);
+                const glm::dvec2 centre = m.origin + (glm::dvec2(cx, cy) + 0.5) * m.texel;
+                const double num = prismTop + glm::dot(slope, glm::dvec2(o) - centre) - o.z;
+                const double den = d.z - glm::dot(slope, glm::dvec2(d));
+                if (den < 0.0) {
+                    if (num / den > enter) {
+                        enter = num / den;
+                        entryAxis = 2;
+                    }
+                } else if (den > 0.0) {
+                    exit = std::min(exit, num / den);
+                } else if (num < 0.0) {
+                    miss = true;
+                }
                 if (!miss && enter <= exit && enter < tEnter) {
                     tEnter = enter;
                     axis = entryAxis;
@@ -629,7 +689,7 @@ BlockMapHit traceBlockMap(const BlockMap& m, const glm::dvec3& o, const glm::dve
             if (tEnter < kInf) {
                 // Rising into the prism from below its foot (from under the ground) the ray meets nothing, as one
                 // that reaches the block's floor; below its foot it passes under the prism (in the ground there).
-                if (axis == 2 && d.z > 0.0) {
+                if (axis == 3) {
                     BlockMapHit none;
                     none.texelsVisited = hit.texelsVisited;
                     return none;

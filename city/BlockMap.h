@@ -53,8 +53,10 @@ struct BlockMap {
     // corner's two walls each by its own normal; 0 (or empty): by the column's normal (a wall at an angle to the grid,
     // whose steps would otherwise be shaded in stripes).
     std::vector<std::uint8_t> wallOnGrid;
-    // Per texel the roof's normal (the highest triangle's, facing up) as x and y in 0..255 for -1..1 (z is implied):
-    // the roofs are shaded as the polygons' are (the paper's per-texel normals, §3.1).
+    // Per texel the roof's normal (the highest triangle's, facing up) as x and y in 0..255 for -1..1 (z is implied;
+    // within 0.005 of 0 is 0): the roofs are shaded as the polygons' are (the paper's per-texel normals, §3.1), and
+    // the texel's (first) prism's top is the plane of that normal through its height at the texel's centre, so a
+    // sloped roof is a slope, not steps.
     std::vector<std::uint8_t> roofNormal; // n² × 2
     // Per texel the prism's foot, as heights are stored (0 on an empty texel): a ray below it at the texel passes
     // under the prism (it is in the ground there: the terrain drawn under the block hides it; with no terrain, it
@@ -82,6 +84,13 @@ struct BlockMap {
     double footAt(int x, int y) const {
         return foot.empty() ? zBase
                             : zBase + double(foot[std::size_t(y) * std::size_t(size) + std::size_t(x)]) * (zTop - zBase) / 255.0;
+    }
+    /// The roof's normal at texel (x, y), as stored (roofNormal).
+    glm::dvec3 roofNormalAt(int x, int y) const;
+    /// The slope of the texel's roof plane: dz/dx, dz/dy.
+    glm::dvec2 roofSlopeAt(int x, int y) const {
+        const glm::dvec3 r = roofNormalAt(x, y);
+        return -glm::dvec2(r.x, r.y) / r.z;
     }
     static constexpr std::uint16_t kWholeTexel = 0xF0F0; // x0 = y0 = 0, x1 = y1 = 15
     std::uint16_t rectAt(int x, int y) const {

@@ -71,10 +71,20 @@ uvec4 bmTexelAt(ivec2 c) {
     uint w = texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).x;
     return uvec4(w & 255u, (w >> 8) & 255u, (w >> 16) & 255u, w >> 24);
 }
-// The height, distance, foot (as heights) and part of the prism at texel `c`: one fetch for the traversal.
-uvec4 bmStepAt(ivec2 c) {
-    uvec3 w = texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).xyz;
-    return uvec4(w.x & 255u, (w.x >> 8) & 255u, w.y >> 24, w.z);
+// Texel `c`'s words for the traversal (one fetch): its height, distance, roof normal (x: bmTexelAt's bytes), its
+// column and foot (y), its prisms' parts (z).
+uvec3 bmStepAt(ivec2 c) { return texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).xyz; }
+
+// The roof's normal from its stored x and y (city/BlockMap.h, BlockMap::roofNormalAt: within 0.005 of 0 is 0).
+vec3 bmNormalOf(uvec2 xy) {
+    vec2 rn = vec2(xy) / 255.0 * 2.0 - 1.0;
+    rn = mix(rn, vec2(0.0), lessThan(abs(rn), vec2(0.005)));
+    return vec3(rn, sqrt(max(1.0 - dot(rn, rn), 1e-6)));
+}
+// The slope of the roof plane of the texel whose first word is `w` (dz/dx, dz/dy).
+vec2 bmRoofSlope(uint w) {
+    vec3 n = bmNormalOf(uvec2((w >> 16) & 255u, w >> 24));
+    return -n.xy / n.z;
 }
 
 const int kNone = 0, kRoof = 1, kWall = 2;
@@ -93,10 +103,7 @@ vec4 bmWallAt(int column, float v, int level) {
 }
 
 // The roof's normal over texel `c`.
-vec3 bmRoofNormal(ivec2 c) {
-    vec2 rn = vec2(bmTexelAt(c).ba) / 255.0 * 2.0 - 1.0;
-    return vec3(rn, sqrt(max(1.0 - dot(rn, rn), 0.0)));
-}
+vec3 bmRoofNormal(ivec2 c) { return bmNormalOf(bmTexelAt(c).ba); }
 
 // The roof at `world` (local metres) over texel `c`: the terrain's imagery there (ROOF_IMAGERY, as the polygon roofs
 // show it, unlit), else one colour lit by the texel's roof normal.
@@ -164,19 +171,19 @@ void main() {
     float top = 0.0;
     for (int it = 0; it < 4 * uBmSize + 8 && kind == kNone; ++it) {
         float tOut = min(min(nextT.x, nextT.y), t1);
-        uvec4 texel = bmStepAt(c);
-        uint value = texel.r;
+        uvec3 texel = bmStepAt(c);
+        uint value = texel.x & 255u, second = (texel.x >> 8) & 255u; // second: the distance on an empty texel
         if (value > 0u) {
-            float foot = bmTop(texel.b);
-            // The ray against each prism's box in the texel (the second's where the texel's g byte, its distance
+            float foot = bmTop(texel.y >> 24);
+            // The ray against each prism's box in the texel (the second's where the texel's second byte, its distance
             // elsewhere, holds its top): a part's sides bound it where they lie inside the texel (a whole texel: the
             // texel's, where the ray is already), then its foot and top. axis: that of the face it enters by, -1 the
             // one it entered the texel by. The nearest prism entered counts.
             float tBest = 1e30;
             int axisBest = -1;
-            for (int k = 0; k < (texel.g > 0u ? 2 : 1); ++k) {
-                uint part = k == 0 ? texel.a & 0xFFFFu : texel.a >> 16;
-                float prismTop = bmTop(k == 0 ? value : texel.g);
+            for (int k = 0; k < (second > 0u ? 2 : 1); ++k) {
+                uint part = k == 0 ? texel.z & 0xFFFFu : texel.z >> 16;
+                float prismTop = bmTop(k == 0 ? value : second);
                 vec2 lo = vec2(part & 15u, (part >> 8) & 15u) / 16.0;
                 vec2 hi = vec2(((part >> 4) & 15u) + 1u, ((part >> 12) & 15u) + 1u) / 16.0;
                 float tEnter = tCell, tExit = tOut;
@@ -194,12 +201,23 @@ void main() {
                     if (exitBound > 0.0 && exitBound < 1.0)
                         tExit = min(tExit, ((float(c[a]) + exitBound) * bmMetres - o[a]) / d[a]);
                 }
-                float tz = ((d.z > 0.0 ? foot : prismTop) - o.z) / d.z;
-                if (tz > tEnter) {
-                    tEnter = tz;
+                // The foot (up through it: axis 3), then the top: the roof's plane through prismTop at the texel's
+                // centre (the second prism's level), z <= prismTop + slope · (p - centre), entered through it a roof.
+                float tFoot = (foot - o.z) / d.z;
+                if (d.z > 0.0 && tFoot > tEnter) {
+                    tEnter = tFoot;
+                    axis = 3;
+                }
+                if (d.z < 0.0) tExit = min(tExit, tFoot);
+                vec2 slope = k == 0 ? bmRoofSlope(texel.x) : vec2(0.0);
+                float num = prismTop + dot(slope, o.xy - (vec2(c) + 0.5) * bmMetres) - o.z;
+                float den = d.z - dot(slope, d.xy);
+                if (den < 0.0 && num / den > tEnter) {
+                    tEnter = num / den;
                     axis = 2;
                 }
-                tExit = min(tExit, ((d.z > 0.0 ? prismTop : foot) - o.z) / d.z);
+                if (den > 0.0) tExit = min(tExit, num / den);
+                if (den == 0.0 && num < 0.0) tExit = -1e30;
                 if (tEnter <= tExit && tEnter < tBest) {
                     tBest = tEnter;
                     axisBest = axis;
@@ -209,7 +227,7 @@ void main() {
             if (tBest < 1e30) {
                 // Rising into a prism from below its foot (from under the ground) the ray meets nothing; below it,
                 // it passes under the prism (in the ground there).
-                if (axisBest == 2 && d.z > 0.0) break;
+                if (axisBest == 3) break;
                 if (axisBest == 0) face = stp.x > 0 ? 0 : 1;
                 else if (axisBest == 1) face = stp.y > 0 ? 2 : 3;
                 else if (axisBest == 2) face = 4;
@@ -218,7 +236,7 @@ void main() {
                 break;
             }
         } else {
-            int r = int(texel.g) - 1;
+            int r = int(second) - 1;
             if (r >= 1) {
                 // Every texel within r of this one is empty: on to where the ray leaves that square.
                 vec2 ex = (vec2(c + stp * r + up) * bmMetres - o.xy) / d.xy;

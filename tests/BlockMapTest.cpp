@@ -229,6 +229,84 @@ TEST(BlockMapTest, TwoBuildingsInATexelAreTwoPrisms) {
     EXPECT_NEAR(inStreet.v, 5.0 / 12.3, 1e-6) << "the lower prism's height in the column";
 }
 
+// A shed roof (one plane, rising 4 m over 8 m) on a building off the grid: each texel's top is the roof's plane
+// (BlockMap::roofNormal through its height at the texel's centre), so rays meet the roof where the polygons are, to
+// the normal's 8 bits (steps of texels would be up to 0.25 m off), and the walls up to the slope.
+TEST(BlockMapTest, SlopedRoofsAreTheirPlanes) {
+    const double x0 = 8.25, x1 = 20.5, y0 = 10.5, y1 = 18.5, low = 10.0, high = 14.0;
+    CityModel model;
+    model.buildingIds = {"b"};
+    auto quad = [&](glm::dvec3 a, glm::dvec3 b, glm::dvec3 c, glm::dvec3 d, Surface surface) {
+        addTriangle(model, a, b, c, surface);
+        addTriangle(model, a, c, d, surface);
+    };
+    quad({x0, y0, 0}, {x1, y0, 0}, {x1, y0, low}, {x0, y0, low}, Surface::Wall);
+    quad({x0, y1, 0}, {x1, y1, 0}, {x1, y1, high}, {x0, y1, high}, Surface::Wall);
+    quad({x0, y0, 0}, {x0, y1, 0}, {x0, y1, high}, {x0, y0, low}, Surface::Wall);
+    quad({x1, y0, 0}, {x1, y1, 0}, {x1, y1, high}, {x1, y0, low}, Surface::Wall);
+    quad({x0, y0, low}, {x1, y0, low}, {x1, y1, high}, {x0, y1, high}, Surface::Roof);
+    BlockMapOptions o;
+    o.size = 32;
+    o.wallTexels = 8;
+    auto built = buildBlockMap(model, {0.0, 0.0}, 32.0, o, [](std::size_t, const glm::dvec3&) { return glm::dvec3(0.5); });
+    ASSERT_TRUE(built) << built.message();
+    const BlockMap& m = *built;
+    const double slope = (high - low) / (y1 - y0);
+    EXPECT_NEAR(m.roofSlopeAt(14, 14).y, slope, 0.01);
+    EXPECT_NEAR(m.roofSlopeAt(14, 14).x, 0.0, 1e-12);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    int roofs = 0, walls = 0, mismatched = 0;
+    double worstRoof = 0.0, worstWall = 0.0;
+    for (int i = 0; i < 4000; ++i) {
+        const double azimuth = 6.283185307179586 * u(rng), elevation = 0.2 + 1.3 * u(rng), dist = 40.0 + 60.0 * u(rng);
+        const glm::dvec3 target(x0 - 1.0 + (x1 - x0 + 2.0) * u(rng), y0 - 1.0 + (y1 - y0 + 2.0) * u(rng), 16.0 * u(rng));
+        const glm::dvec3 orig = target + dist * glm::dvec3(std::cos(elevation) * std::cos(azimuth),
+                                                           std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+        const glm::dvec3 d = glm::normalize(target - orig);
+        // The exact entry into the building: its box from the ground up, under the roof's plane.
+        double t0 = 0.0, t1 = 1e300;
+        int axis = -1;
+        const double lo[3] = {x0, y0, 0.0}, hi[3] = {x1, y1, 1e9};
+        for (int a = 0; a < 3; ++a) {
+            double ta = (lo[a] - orig[a]) / d[a], tb = (hi[a] - orig[a]) / d[a];
+            if (ta > tb) std::swap(ta, tb);
+            if (ta > t0) {
+                t0 = ta;
+                axis = a;
+            }
+            t1 = std::min(t1, tb);
+        }
+        const double num = low + slope * (orig.y - y0) - orig.z, den = d.z - slope * d.y; // z <= low + slope (y - y0)
+        if (den < 0.0 && num / den > t0) {
+            t0 = num / den;
+            axis = 3;
+        } else if (den > 0.0) {
+            t1 = std::min(t1, num / den);
+        }
+        const BlockMapHit::Kind kind = t0 <= t1 && axis >= 0 ? (axis == 3 ? BlockMapHit::Kind::Roof : BlockMapHit::Kind::Wall)
+                                                             : BlockMapHit::Kind::None;
+        const BlockMapHit h = traceBlockMap(m, orig, d);
+        if (h.kind != kind) {
+            ++mismatched;
+            continue;
+        }
+        if (kind == BlockMapHit::Kind::None) continue;
+        roofs += kind == BlockMapHit::Kind::Roof;
+        walls += kind == BlockMapHit::Kind::Wall;
+        // A roof hit's height against the roof's there (heights are 8-bit steps of 14 m / 255, the normal's 8 bits
+        // tilt the plane a little); a wall's place along the ray.
+        if (kind == BlockMapHit::Kind::Roof) worstRoof = std::max(worstRoof, std::abs(h.point.z - (low + slope * (h.point.y - y0))));
+        else worstWall = std::max(worstWall, std::abs(h.t - t0));
+    }
+    // A ray grazing an edge may meet the roof or the wall it tops.
+    EXPECT_LT(mismatched, 40) << mismatched << " of 4000";
+    EXPECT_LT(worstRoof, 0.04) << "metres";
+    EXPECT_LT(worstWall, 0.05) << "metres along the ray";
+    EXPECT_GT(roofs, 500);
+    EXPECT_GT(walls, 500);
+}
+
 TEST(BlockMapTest, RaisedBuildingsEndAtTheirFeet) {
     // Buildings standing higher than the block's floor (on a slope): their walls end at their feet, and a ray below
     // a foot passes under the building (in the ground there) to what is behind, as under the polygons. Two texels
