@@ -236,8 +236,13 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
         for (int y = ry.x; y <= ry.y; ++y)
             for (int x = rx.x; x <= rx.y; ++x) {
                 const std::size_t i = std::size_t(y) * std::size_t(n) + std::size_t(x);
-                const glm::dvec2 cellLo = origin + glm::dvec2(x, y) * m.texel;
-                if (const int corners = clipToSquare(v, cellLo, cellLo + m.texel, clipped); corners > 0) {
+                const glm::dvec2 cellLo = origin + glm::dvec2(x, y) * m.texel, cellHi = cellLo + m.texel;
+                if (lo.x >= cellLo.x && lo.y >= cellLo.y && hi.x <= cellHi.x && hi.y <= cellHi.y) {
+                    // The whole triangle in the texel (most, in the coarse maps): no clipping.
+                    if (std::abs(det) > 2e-9 * m.texel * m.texel)
+                        pieces[i].push_back(Piece{(glm::dvec2(lo) - cellLo) / m.texel, (glm::dvec2(hi) - cellLo) / m.texel,
+                                                  hi.z, up});
+                } else if (const int corners = clipToSquare(v, cellLo, cellHi, clipped); corners > 0) {
                     double area = 0.0;
                     for (int c = 0; c < corners; ++c) {
                         const glm::dvec3 &p = clipped[std::size_t(c)], &q = clipped[std::size_t((c + 1) % corners)];
@@ -270,8 +275,9 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
     }
     // The parts, in sixteenths of a texel to the nearest: the box of the texel's pieces, or, where they leave an empty
     // strip across it at least a sixteenth wide (the widest, of either axis), two prisms, the boxes of the pieces on
-    // either side of it, each at its highest point (the taller first). A texel whose centre no roof covers is a
-    // building's where a part is at least a sixteenth wide both ways (half of one rounds up), at its highest point.
+    // either side of it (the taller first). A texel whose centre no roof covers is a building's where a part is at
+    // least a sixteenth wide both ways (half of one rounds up). Heights: a single prism over the centre, the
+    // centre's; any other part, the highest roof over the part's own centre (else its pieces' highest point, level).
     m.rect.assign(cellsCount, BlockMap::kWholeTexel);
     m.rect2.assign(cellsCount, BlockMap::kWholeTexel);
     m.height2.assign(cellsCount, 0);

@@ -175,65 +175,72 @@ void main() {
         uint value = texel.x & 255u, second = (texel.x >> 8) & 255u; // second: the distance on an empty texel
         if (value > 0u) {
             float foot = bmTop(texel.y >> 24);
-            // The ray against each prism's box in the texel (the second's where the texel's second byte, its distance
-            // elsewhere, holds its top): a part's sides bound it where they lie inside the texel (a whole texel: the
-            // texel's, where the ray is already), then its foot and top. axis: that of the face it enters by, -1 the
-            // one it entered the texel by. The nearest prism entered counts.
-            float tBest = 1e30;
-            int axisBest = -1;
-            for (int k = 0; k < (second > 0u ? 2 : 1); ++k) {
-                uint part = k == 0 ? texel.z & 0xFFFFu : texel.z >> 16;
-                float prismTop = bmTop(k == 0 ? value : second);
-                vec2 lo = vec2(part & 15u, (part >> 8) & 15u) / 16.0;
-                vec2 hi = vec2(((part >> 4) & 15u) + 1u, ((part >> 12) & 15u) + 1u) / 16.0;
-                float tEnter = tCell, tExit = tOut;
-                int axis = -1;
-                for (int a = 0; a < 2; ++a) {
-                    bool inc = d[a] > 0.0;
-                    float enterBound = inc ? lo[a] : hi[a], exitBound = inc ? hi[a] : lo[a];
-                    if (enterBound > 0.0 && enterBound < 1.0) {
-                        float t = ((float(c[a]) + enterBound) * bmMetres - o[a]) / d[a];
-                        if (t > tEnter) {
-                            tEnter = t;
-                            axis = a;
+            // A ray above the texel's highest roof point all through it (over the roofs, the rooftop band's grazing
+            // rays) meets nothing there: on to the next texel without the prisms' tests.
+            vec2 slope = bmRoofSlope(texel.x);
+            float highest = bmTop(value) + 0.5 * bmMetres * (abs(slope.x) + abs(slope.y));
+            if (min(o.z + tCell * d.z, o.z + tOut * d.z) <= highest) {
+                // The ray against each prism's box in the texel (the second's where the texel's second byte, its
+                // distance elsewhere, holds its top): a part's sides bound it where they lie inside the texel (a
+                // whole texel: the texel's, where the ray is already), then its foot and top. axis: that of the face
+                // it enters by, -1 the one it entered the texel by. The nearest prism entered counts.
+                float tBest = 1e30;
+                int axisBest = -1;
+                for (int k = 0; k < (second > 0u ? 2 : 1); ++k) {
+                    uint part = k == 0 ? texel.z & 0xFFFFu : texel.z >> 16;
+                    float prismTop = bmTop(k == 0 ? value : second);
+                    vec2 lo = vec2(part & 15u, (part >> 8) & 15u) / 16.0;
+                    vec2 hi = vec2(((part >> 4) & 15u) + 1u, ((part >> 12) & 15u) + 1u) / 16.0;
+                    float tEnter = tCell, tExit = tOut;
+                    int axis = -1;
+                    for (int a = 0; a < 2; ++a) {
+                        bool inc = d[a] > 0.0;
+                        float enterBound = inc ? lo[a] : hi[a], exitBound = inc ? hi[a] : lo[a];
+                        if (enterBound > 0.0 && enterBound < 1.0) {
+                            float t = ((float(c[a]) + enterBound) * bmMetres - o[a]) / d[a];
+                            if (t > tEnter) {
+                                tEnter = t;
+                                axis = a;
+                            }
                         }
+                        if (exitBound > 0.0 && exitBound < 1.0)
+                            tExit = min(tExit, ((float(c[a]) + exitBound) * bmMetres - o[a]) / d[a]);
                     }
-                    if (exitBound > 0.0 && exitBound < 1.0)
-                        tExit = min(tExit, ((float(c[a]) + exitBound) * bmMetres - o[a]) / d[a]);
+                    // The foot (up through it: axis 3), then the top: the roof's plane through prismTop at the
+                    // texel's centre (the second prism's level), z <= prismTop + slope · (p - centre), entered through
+                    // it a roof.
+                    float tFoot = (foot - o.z) / d.z;
+                    if (d.z > 0.0 && tFoot > tEnter) {
+                        tEnter = tFoot;
+                        axis = 3;
+                    }
+                    if (d.z < 0.0) tExit = min(tExit, tFoot);
+                    vec2 planeSlope = k == 0 ? slope : vec2(0.0);
+                    float num = prismTop + dot(planeSlope, o.xy - (vec2(c) + 0.5) * bmMetres) - o.z;
+                    float den = d.z - dot(planeSlope, d.xy);
+                    if (den < 0.0 && num / den > tEnter) {
+                        tEnter = num / den;
+                        axis = 2;
+                    }
+                    if (den > 0.0) tExit = min(tExit, num / den);
+                    if (den == 0.0 && num < 0.0) tExit = -1e30;
+                    if (tEnter <= tExit && tEnter < tBest) {
+                        tBest = tEnter;
+                        axisBest = axis;
+                        top = prismTop;
+                    }
                 }
-                // The foot (up through it: axis 3), then the top: the roof's plane through prismTop at the texel's
-                // centre (the second prism's level), z <= prismTop + slope · (p - centre), entered through it a roof.
-                float tFoot = (foot - o.z) / d.z;
-                if (d.z > 0.0 && tFoot > tEnter) {
-                    tEnter = tFoot;
-                    axis = 3;
+                if (tBest < 1e30) {
+                    // Rising into a prism from below its foot (from under the ground) the ray meets nothing; below it,
+                    // it passes under the prism (in the ground there).
+                    if (axisBest == 3) break;
+                    if (axisBest == 0) face = stp.x > 0 ? 0 : 1;
+                    else if (axisBest == 1) face = stp.y > 0 ? 2 : 3;
+                    else if (axisBest == 2) face = 4;
+                    kind = face == 4 ? kRoof : kWall;
+                    tHit = tBest;
+                    break;
                 }
-                if (d.z < 0.0) tExit = min(tExit, tFoot);
-                vec2 slope = k == 0 ? bmRoofSlope(texel.x) : vec2(0.0);
-                float num = prismTop + dot(slope, o.xy - (vec2(c) + 0.5) * bmMetres) - o.z;
-                float den = d.z - dot(slope, d.xy);
-                if (den < 0.0 && num / den > tEnter) {
-                    tEnter = num / den;
-                    axis = 2;
-                }
-                if (den > 0.0) tExit = min(tExit, num / den);
-                if (den == 0.0 && num < 0.0) tExit = -1e30;
-                if (tEnter <= tExit && tEnter < tBest) {
-                    tBest = tEnter;
-                    axisBest = axis;
-                    top = prismTop;
-                }
-            }
-            if (tBest < 1e30) {
-                // Rising into a prism from below its foot (from under the ground) the ray meets nothing; below it,
-                // it passes under the prism (in the ground there).
-                if (axisBest == 3) break;
-                if (axisBest == 0) face = stp.x > 0 ? 0 : 1;
-                else if (axisBest == 1) face = stp.y > 0 ? 2 : 3;
-                else if (axisBest == 2) face = 4;
-                kind = face == 4 ? kRoof : kWall;
-                tHit = tBest;
-                break;
             }
         } else {
             int r = int(second) - 1;

@@ -108,7 +108,7 @@ TEST(CityBlockMapGLTest, FarBlocksAreMapsAndThePictureIsTheAtlasModes) {
     ASSERT_TRUE(atlas && blockmap);
     gl::RenderTarget target(kW, kH);
     // The overview: buildings 4-6 px wide, maps of 2-4 m texels (at most 1 px), the outlines and the 1 m streets
-    // between buildings where they are, to a sixteenth of a texel (the texels' parts and second prisms). Above the
+    // between buildings and the sloped roofs where they are (the texels' parts, second prisms and roof planes). Above the
     // street: the near blocks polygons, the far ones maps of 1 m texels, at the switch distance.
     struct View {
         const char* name;
@@ -116,8 +116,8 @@ TEST(CityBlockMapGLTest, FarBlocksAreMapsAndThePictureIsTheAtlasModes) {
         double minPsnr;
     };
     const View views[] = {
-        {"overview", bc.camera(0.0, -350.0, 450.0, 0.0, -50.0), 26.5},
-        {"street", bc.camera(0.0, -230.0, 40.0, 0.0, -12.0), 38.0},
+        {"overview", bc.camera(0.0, -350.0, 450.0, 0.0, -50.0), 27.5},
+        {"street", bc.camera(0.0, -230.0, 40.0, 0.0, -12.0), 40.0},
     };
     for (const View& v : views) {
         SCOPED_TRACE(v.name);
@@ -198,7 +198,7 @@ TEST(CityBlockMapGLTest, PolygonsStandingInForLoadingMapsGetTheirAtlases) {
 // Pops: along a descent from the overview to above the street, each frame drawn with the last frame's switches
 // (polygons to maps, map to finer maps; CitySettings::holdSwitches) and with its own: what changes between the two is
 // what the viewer sees pop at that frame. At the default error bound of 1 px the worst is a map level switch at the
-// overview (30.8 dB over the city's pixels, 0.9 % of the picture changed by more than 16 levels).
+// overview (31.3 dB over the city's pixels, 0.8 % of the picture changed by more than 16 levels).
 TEST(CityBlockMapGLTest, SwitchesAtTheDefaultErrorDoNotPop) {
     ASSERT_TRUE(headlessContext());
     BlockCity& bc = blockCity();
@@ -239,7 +239,7 @@ TEST(CityBlockMapGLTest, SwitchesAtTheDefaultErrorDoNotPop) {
     std::printf("%zu of %d frames switched; worst pop: PSNR %.1f dB over the city, %zu px changed by more than 16 levels "
                 "per channel (of %d)\n", switched, kFrames + 1, worst, worstPixels, kW * kH);
     EXPECT_GT(switched, 5u) << "the descent switches polygons and maps";
-    EXPECT_GE(worst, 29.0);
+    EXPECT_GE(worst, 30.0);
     EXPECT_LT(worstPixels, std::size_t(kW * kH * 3 / 100)) << "under 3 % of the picture changes visibly at a switch";
 }
 
