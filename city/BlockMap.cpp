@@ -322,7 +322,10 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
         }
         Part first, second;
         for (const Piece& p : pieces[i]) (gapAxis >= 0 && p.lo[gapAxis] >= gapHi ? second : first).add(p);
-        if (first.empty()) std::swap(first, second);
+        if (first.empty() && !second.empty()) std::swap(first, second);
+        if (second.empty() && top[i] > -kInf) // one prism over the centre: at least the sixteenth around it
+            for (int a = 0; a < 2; ++a)
+                if (first.hi[a] <= first.lo[a]) first.hi[a] = (first.lo[a] = std::min(first.lo[a], 15)) + 1;
         if (first.empty()) continue; // slivers: under half a sixteenth
         // A part that is not over the centre alone: at the height of the highest roof over its own centre (a sloped
         // roof's part at the eaves is not as high as its highest point), else at its highest point.
@@ -355,11 +358,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                 }
             }
         if (!second.empty() && second.top > first.top) std::swap(first, second);
-        if (second.empty() && top[i] > -kInf) {
-            // One prism over the centre: at the centre's height, at least the sixteenth around it.
-            for (int a = 0; a < 2; ++a)
-                if (first.hi[a] <= first.lo[a]) first.hi[a] = (first.lo[a] = std::min(first.lo[a], 15)) + 1;
-        } else {
+        if (!(second.empty() && top[i] > -kInf)) { // (one prism over the centre: at the centre's height)
             // The first prism's roof is its plane (BlockMap::roofNormal), its height given at the texel's centre.
             const glm::dvec2 slope = -glm::dvec2(first.normal) / first.normal.z;
             top[i] = first.top + glm::dot(slope, cellLo + 0.5 * m.texel - first.at);

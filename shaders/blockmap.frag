@@ -178,7 +178,7 @@ void main() {
             // A ray above the texel's highest roof point all through it (over the roofs, the rooftop band's grazing
             // rays) meets nothing there: on to the next texel without the prisms' tests.
             vec2 slope = bmRoofSlope(texel.x);
-            float highest = bmTop(value) + 0.5 * bmMetres * (abs(slope.x) + abs(slope.y));
+            float highest = max(bmTop(value) + 0.5 * bmMetres * (abs(slope.x) + abs(slope.y)), bmTop(second));
             if (min(o.z + tCell * d.z, o.z + tOut * d.z) <= highest) {
                 // The ray against each prism's box in the texel (the second's where the texel's second byte, its
                 // distance elsewhere, holds its top): a part's sides bound it where they lie inside the texel (a
