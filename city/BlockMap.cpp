@@ -240,8 +240,8 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                 if (lo.x >= cellLo.x && lo.y >= cellLo.y && hi.x <= cellHi.x && hi.y <= cellHi.y) {
                     // The whole triangle in the texel (most, in the coarse maps): no clipping.
                     if (std::abs(det) > 2e-9 * m.texel * m.texel)
-                        pieces[i].push_back(Piece{(glm::dvec2(lo) - cellLo) / m.texel, (glm::dvec2(hi) - cellLo) / m.texel,
-                                                  hi.z, up});
+                        pieces[i].push_back(
+                            Piece{(glm::dvec2(lo) - cellLo) / m.texel, (glm::dvec2(hi) - cellLo) / m.texel, hi.z, up});
                 } else if (const int corners = clipToSquare(v, cellLo, cellHi, clipped); corners > 0) {
                     double area = 0.0;
                     for (int c = 0; c < corners; ++c) {
@@ -643,7 +643,8 @@ BlockMapHit traceBlockMap(const BlockMap& m, const glm::dvec3& o, const glm::dve
             int axis = -1;
             const int prisms = m.height2At(cx, cy) > 0 ? 2 : 1;
             for (int k = 0; k < prisms; ++k) {
-                const double prismTop = k == 0 ? m.topAt(cx, cy) : m.zBase + double(m.height2At(cx, cy)) * (m.zTop - m.zBase) / 255.0;
+                const double prismTop =
+                    k == 0 ? m.topAt(cx, cy) : m.zBase + double(m.height2At(cx, cy)) * (m.zTop - m.zBase) / 255.0;
                 const TexelPart part = texelPart(k == 0 ? m.rectAt(cx, cy) : m.rect2At(cx, cy));
                 double enter = tCell, exit = tOut;
                 int entryAxis = -1;
@@ -1005,7 +1006,8 @@ BlockMapPacked packBlockMap(const BlockMap& map) {
     for (std::size_t i = 0; i < n2; ++i) {
         // A building's texel has distance 0: its byte holds the second prism's top.
         const std::uint32_t second = map.height2.empty() ? 0u : map.height2[i];
-        p.tile[i * 3] = std::uint32_t(map.height[i]) | std::uint32_t(map.height[i] > 0 ? second : map.distance[i]) << 8 |
+        p.tile[i * 3] = std::uint32_t(map.height[i]) |
+                        std::uint32_t(map.height[i] > 0 ? second : map.distance[i]) << 8 |
                         std::uint32_t(map.roofNormal[i * 2]) << 16 | std::uint32_t(map.roofNormal[i * 2 + 1]) << 24;
         p.tile[i * 3 + 1] = map.column[i] | (map.foot.empty() ? 0u : std::uint32_t(map.foot[i]) << 24);
         p.tile[i * 3 + 2] = std::uint32_t(map.rect.empty() ? BlockMap::kWholeTexel : map.rect[i]) |

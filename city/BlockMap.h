@@ -12,7 +12,8 @@
 // sides; each texel its roof's normal and its prism's foot (the paper's blocks stand on flat ground; here a building
 // may stand higher than the block's floor, and its prisms end where it meets the ground), and the part of the texel
 // its prism stands on, to a sixteenth of a texel (the paper's prisms fill their texels; here they end where the
-// buildings' outlines are, so an overview whose texels are pixels shows the polygons' outlines, not the grid's). Roofs store no colour:
+// buildings' outlines are, so an overview whose texels are pixels shows the polygons' outlines, not the grid's), with
+// a second prism where a street crosses the texel, and a roof plane, not a level top. Roofs store no colour:
 // seasonview textures them from the terrain imagery, as it draws the polygon roofs. The ground is not part of a BlockMap: a ray that meets no prism goes on to
 // the terrain drawn under it.
 #include "CityModel.h"
@@ -71,8 +72,8 @@ struct BlockMap {
     // kWholeTexel on empty texels and where a roof covers it all; empty vector: every texel whole.
     std::vector<std::uint16_t> rect;
     // A texel whose roofs leave an empty strip across it (two buildings and the gap between them) holds a second
-    // prism beyond the strip: its part (as rect) and top (as heights, 0: none; the first prism is the taller, its top
-    // the texel's height). Both stand on the texel's foot. Empty vectors: no second prisms.
+    // prism beyond the strip: its part (as rect) and level top (as heights, 0: none; the first prism is the taller
+    // over the parts' centres). Both stand on the texel's foot. Empty vectors: no second prisms.
     std::vector<std::uint16_t> rect2;
     std::vector<std::uint8_t> height2;
 
@@ -168,12 +169,12 @@ struct BlockMapHit {
 
 /// Casts a ray (origin and direction in local metres, direction not zero) against the BlockMap's prisms (§3.2): the
 /// nearest roof or wall it meets at t > 0 inside the block's box [origin, origin + n · texel]² × [zBase, zTop],
-/// found by stepping texel by texel along the ray's path over the height map (Amanatides & Woo 1987), a texel's prism
-/// (its part of the texel, BlockMap::rect, from its foot to its top) hit where the ray enters it: through its top a
-/// roof, through a side a wall (below its foot the ray passes under the prism; rising into it from below, it meets
-/// nothing). `leap`: over empty texels the distance map moves the ray to the edge
-/// of the empty square around it in one step (§3.2's space leaping); false steps every texel (the reference). A ray
-/// that leaves the box, or reaches its floor, meets nothing (the terrain is drawn under the block); a ray that starts
+/// found by stepping texel by texel along the ray's path over the height map (Amanatides & Woo 1987), a texel's prisms
+/// (each its part of the texel, BlockMap::rect and rect2, from its foot to its roof plane or level top) hit where the
+/// ray enters the nearest: through its top a roof, through a side a wall (below its foot the ray passes under the
+/// prism; rising into it from below, it meets nothing). `leap`: over empty texels the distance map moves the ray to the
+/// edge of the empty square around it in one step (§3.2's space leaping); false steps every texel (the reference). A
+/// ray that leaves the box, or reaches its floor, meets nothing (the terrain is drawn under the block); a ray that starts
 /// inside a prism hits it at once.
 BlockMapHit traceBlockMap(const BlockMap& map, const glm::dvec3& origin, const glm::dvec3& direction, bool leap = true);
 
@@ -243,8 +244,8 @@ struct BlockMapRecord {
     int size = 0, wallTexels = 0, columns = 0;
     std::uint64_t offset = 0, bytes = 0; // the record (header, data, CRC) in the file
     double side() const { return double(size) * texel; }
-    /// Bytes of the map once uploaded (BlockMapPoolGL: height, distance, roof normal, column, foot and part per texel, each
-    /// wall column's normal and colours with their halved levels, in whole pages with their page table).
+    /// Bytes of the map once uploaded (BlockMapPoolGL: height, distance, roof normal, column, foot and parts per
+    /// texel, each wall column's normal and colours with their halved levels, in whole pages with their page table).
     std::uint64_t gpuBytes() const;
 };
 

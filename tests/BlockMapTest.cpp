@@ -248,7 +248,8 @@ TEST(BlockMapTest, SlopedRoofsAreTheirPlanes) {
     BlockMapOptions o;
     o.size = 32;
     o.wallTexels = 8;
-    auto built = buildBlockMap(model, {0.0, 0.0}, 32.0, o, [](std::size_t, const glm::dvec3&) { return glm::dvec3(0.5); });
+    auto built =
+        buildBlockMap(model, {0.0, 0.0}, 32.0, o, [](std::size_t, const glm::dvec3&) { return glm::dvec3(0.5); });
     ASSERT_TRUE(built) << built.message();
     const BlockMap& m = *built;
     const double slope = (high - low) / (y1 - y0);
@@ -260,9 +261,11 @@ TEST(BlockMapTest, SlopedRoofsAreTheirPlanes) {
     double worstRoof = 0.0, worstWall = 0.0;
     for (int i = 0; i < 4000; ++i) {
         const double azimuth = 6.283185307179586 * u(rng), elevation = 0.2 + 1.3 * u(rng), dist = 40.0 + 60.0 * u(rng);
-        const glm::dvec3 target(x0 - 1.0 + (x1 - x0 + 2.0) * u(rng), y0 - 1.0 + (y1 - y0 + 2.0) * u(rng), 16.0 * u(rng));
-        const glm::dvec3 orig = target + dist * glm::dvec3(std::cos(elevation) * std::cos(azimuth),
-                                                           std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+        const glm::dvec3 target(x0 - 1.0 + (x1 - x0 + 2.0) * u(rng), y0 - 1.0 + (y1 - y0 + 2.0) * u(rng),
+                                16.0 * u(rng));
+        const glm::dvec3 orig =
+            target + dist * glm::dvec3(std::cos(elevation) * std::cos(azimuth), std::cos(elevation) * std::sin(azimuth),
+                                       std::sin(elevation));
         const glm::dvec3 d = glm::normalize(target - orig);
         // The exact entry into the building: its box from the ground up, under the roof's plane.
         double t0 = 0.0, t1 = 1e300;
@@ -284,8 +287,9 @@ TEST(BlockMapTest, SlopedRoofsAreTheirPlanes) {
         } else if (den > 0.0) {
             t1 = std::min(t1, num / den);
         }
-        const BlockMapHit::Kind kind = t0 <= t1 && axis >= 0 ? (axis == 3 ? BlockMapHit::Kind::Roof : BlockMapHit::Kind::Wall)
-                                                             : BlockMapHit::Kind::None;
+        const BlockMapHit::Kind kind = !(t0 <= t1 && axis >= 0) ? BlockMapHit::Kind::None
+                                       : axis == 3                 ? BlockMapHit::Kind::Roof
+                                                                   : BlockMapHit::Kind::Wall;
         const BlockMapHit h = traceBlockMap(m, orig, d);
         if (h.kind != kind) {
             ++mismatched;
@@ -296,7 +300,8 @@ TEST(BlockMapTest, SlopedRoofsAreTheirPlanes) {
         walls += kind == BlockMapHit::Kind::Wall;
         // A roof hit's height against the roof's there (heights are 8-bit steps of 14 m / 255, the normal's 8 bits
         // tilt the plane a little); a wall's place along the ray.
-        if (kind == BlockMapHit::Kind::Roof) worstRoof = std::max(worstRoof, std::abs(h.point.z - (low + slope * (h.point.y - y0))));
+        if (kind == BlockMapHit::Kind::Roof)
+            worstRoof = std::max(worstRoof, std::abs(h.point.z - (low + slope * (h.point.y - y0))));
         else worstWall = std::max(worstWall, std::abs(h.t - t0));
     }
     // A ray grazing an edge may meet the roof or the wall it tops.

@@ -108,8 +108,8 @@ TEST(CityBlockMapGLTest, FarBlocksAreMapsAndThePictureIsTheAtlasModes) {
     ASSERT_TRUE(atlas && blockmap);
     gl::RenderTarget target(kW, kH);
     // The overview: buildings 4-6 px wide, maps of 2-4 m texels (at most 1 px), the outlines and the 1 m streets
-    // between buildings and the sloped roofs where they are (the texels' parts, second prisms and roof planes). Above the
-    // street: the near blocks polygons, the far ones maps of 1 m texels, at the switch distance.
+    // between buildings and the sloped roofs where they are (the texels' parts, second prisms and roof planes).
+    // Above the street: the near blocks polygons, the far ones maps of 1 m texels, at the switch distance.
     struct View {
         const char* name;
         Camera cam;
