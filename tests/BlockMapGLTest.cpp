@@ -40,48 +40,12 @@ const std::vector<Prism> kOffGrid = {{2.25, 2.5, 14.125, 13.75, 25.5}, {14.5, 2.
 
 CityModel modelOf(const std::vector<Prism>& prisms) { return test::prismModel(prisms); }
 
-// Sloped roofs (each texel's top the plane of its roof normal): a gabled building along x and a shed roof rising
-// along y, off the grid, untextured.
+// Sloped roofs (each texel's top the plane of its roof normal): a gabled building along x (eaves 10 m, ridge 15 m)
+// and a shed roof rising along y (6 to 12 m), off the grid, untextured.
 CityModel slopedModel() {
     CityModel m;
-    m.buildingIds = {"b"};
-    auto quad = [&](glm::dvec3 a, glm::dvec3 b, glm::dvec3 c, glm::dvec3 d, Surface surface) {
-        for (const auto& tri : {std::array<glm::dvec3, 3>{a, b, c}, std::array<glm::dvec3, 3>{a, c, d}}) {
-            TexturedTriangle t;
-            t.v = tri;
-            t.texture = -1;
-            m.triangles.push_back(t);
-            m.building.push_back(0);
-            m.surface.push_back(surface);
-        }
-    };
-    auto tri = [&](glm::dvec3 a, glm::dvec3 b, glm::dvec3 c) {
-        TexturedTriangle t;
-        t.v = {a, b, c};
-        t.texture = -1;
-        m.triangles.push_back(t);
-        m.building.push_back(0);
-        m.surface.push_back(Surface::Wall);
-    };
-    { // gabled: eaves 10 m, the ridge 15 m along y = 10.25
-        const double x0 = 3.25, x1 = 27.5, y0 = 4.5, y1 = 16.0, ym = 10.25, e = 10.0, r = 15.0;
-        quad({x0, y0, 0}, {x1, y0, 0}, {x1, y0, e}, {x0, y0, e}, Surface::Wall);
-        quad({x0, y1, 0}, {x1, y1, 0}, {x1, y1, e}, {x0, y1, e}, Surface::Wall);
-        quad({x0, y0, 0}, {x0, y1, 0}, {x0, y1, e}, {x0, y0, e}, Surface::Wall);
-        quad({x1, y0, 0}, {x1, y1, 0}, {x1, y1, e}, {x1, y0, e}, Surface::Wall);
-        tri({x0, y0, e}, {x0, y1, e}, {x0, ym, r});
-        tri({x1, y0, e}, {x1, y1, e}, {x1, ym, r});
-        quad({x0, y0, e}, {x1, y0, e}, {x1, ym, r}, {x0, ym, r}, Surface::Roof);
-        quad({x0, ym, r}, {x1, ym, r}, {x1, y1, e}, {x0, y1, e}, Surface::Roof);
-    }
-    { // shed: from 6 m at y = 19.5 to 12 m at y = 29.75
-        const double x0 = 6.5, x1 = 24.25, y0 = 19.5, y1 = 29.75, lo = 6.0, hi = 12.0;
-        quad({x0, y0, 0}, {x1, y0, 0}, {x1, y0, lo}, {x0, y0, lo}, Surface::Wall);
-        quad({x0, y1, 0}, {x1, y1, 0}, {x1, y1, hi}, {x0, y1, hi}, Surface::Wall);
-        quad({x0, y0, 0}, {x0, y1, 0}, {x0, y1, hi}, {x0, y0, lo}, Surface::Wall);
-        quad({x1, y0, 0}, {x1, y1, 0}, {x1, y1, hi}, {x1, y0, lo}, Surface::Wall);
-        quad({x0, y0, lo}, {x1, y0, lo}, {x1, y1, hi}, {x0, y1, hi}, Surface::Roof);
-    }
+    test::addSlopedBuilding(m, 3.25, 4.5, 27.5, 16.0, 10.0, 15.0, true);
+    test::addSlopedBuilding(m, 6.5, 19.5, 24.25, 29.75, 6.0, 12.0, false);
     return m;
 }
 

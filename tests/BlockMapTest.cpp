@@ -235,16 +235,7 @@ TEST(BlockMapTest, TwoBuildingsInATexelAreTwoPrisms) {
 TEST(BlockMapTest, SlopedRoofsAreTheirPlanes) {
     const double x0 = 8.25, x1 = 20.5, y0 = 10.5, y1 = 18.5, low = 10.0, high = 14.0;
     CityModel model;
-    model.buildingIds = {"b"};
-    auto quad = [&](glm::dvec3 a, glm::dvec3 b, glm::dvec3 c, glm::dvec3 d, Surface surface) {
-        addTriangle(model, a, b, c, surface);
-        addTriangle(model, a, c, d, surface);
-    };
-    quad({x0, y0, 0}, {x1, y0, 0}, {x1, y0, low}, {x0, y0, low}, Surface::Wall);
-    quad({x0, y1, 0}, {x1, y1, 0}, {x1, y1, high}, {x0, y1, high}, Surface::Wall);
-    quad({x0, y0, 0}, {x0, y1, 0}, {x0, y1, high}, {x0, y0, low}, Surface::Wall);
-    quad({x1, y0, 0}, {x1, y1, 0}, {x1, y1, high}, {x1, y0, low}, Surface::Wall);
-    quad({x0, y0, low}, {x1, y0, low}, {x1, y1, high}, {x0, y1, high}, Surface::Roof);
+    test::addSlopedBuilding(model, x0, y0, x1, y1, low, high, false);
     BlockMapOptions o;
     o.size = 32;
     o.wallTexels = 8;
