@@ -32,7 +32,8 @@ Runner addBenchCommand(CLI::App& app) {
         ->capture_default_str()
         ->check(CLI::Range(2, 10000000))
         ->group(benchGroup);
-    cmd->add_option("--warmup", a->b.warmup, "Frames run at the path's start before measuring")
+    cmd->add_option("--warmup", a->b.warmup, "Frames run at the path's start before measuring (with a city, one more once the view is loaded, "
+                    "so the first measured frame compiles no program)")
         ->capture_default_str()
         ->group(benchGroup);
     cmd->add_option("--compare", a->b.compare,
