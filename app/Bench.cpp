@@ -76,6 +76,7 @@ struct Mode {
     city::AtlasUpload cityUpload = city::AtlasUpload::Auto;
     bool cityOcclusion = true;
     bool cityFlush = true;        // city-flush=off,on: CitySettings::flushFirst
+    city::MapOcclusion cityMapOcclusion = city::MapOcclusion::Auto; // city-map-occlusion=...: CitySettings::mapOcclusion
     bool drawTerrain = true;      // terrain=off: the city drawn alone (the imagery clipmap still streams for roofs)
     TerrainShading terrainShading = TerrainShading::Auto;
     std::optional<bool> streamed; // source=prepared|stream: the seasons' pyramids (unset: as the scene says, --stream)
@@ -154,6 +155,8 @@ nlohmann::json cityFigures(const Mode& m) {
             {"occlusion", m.city->settings().occlusion &&
                               (*m.cityMode == city::CityMode::Atlas || *m.cityMode == city::CityMode::BlockMap)},
             {"flush_first", m.city->settings().flushFirst},
+            {"map_occlusion", city::mapOcclusionName(m.city->settings().mapOcclusion)},
+            {"map_occlusion_resolved", city::mapOcclusionName(m.city->mapOcclusionUsed())},
             {"atlas_nodes", figure(nodes)},
             {"occluded_nodes", figure(occluded)},
             {"occlusion_queries", figure(queries)},
@@ -243,6 +246,12 @@ Status applyCompareValue(const BenchSettings& a, const std::string& key, const s
         if (v != "on" && v != "off") return Error{"--compare: city-flush '" + v + "' (expected on|off)"};
         if (!m.cityMode) m.cityMode = city::CityMode::Atlas;
         m.cityFlush = v == "on";
+    } else if (key == "city-map-occlusion") {
+        // Blockmap mode: the maps tested for occlusion drawn under conditional rendering or after reading the answers.
+        auto o = city::parseMapOcclusion(v);
+        if (!o) return Error{"--compare: city-map-occlusion '" + v + "' (expected auto|conditional|readback)"};
+        if (!m.cityMode) m.cityMode = city::CityMode::BlockMap;
+        m.cityMapOcclusion = *o;
     } else if (key == "source") {
         // Seasons from tile services prepared whole vs streamed level by level (--stream), over the same path.
         if (v != "prepared" && v != "stream") return Error{"--compare: source '" + v + "' (expected prepared|stream)"};
@@ -300,6 +309,10 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
         if (a.city.occlusion != "on" && a.city.occlusion != "off")
             return Error{"--city-occlusion '" + a.city.occlusion + "': expected on|off"};
         m.cityOcclusion = a.city.occlusion == "on";
+        auto mapOcclusion = city::parseMapOcclusion(a.city.mapOcclusion);
+        if (!mapOcclusion)
+            return Error{"--city-map-occlusion '" + a.city.mapOcclusion + "': expected auto|conditional|readback"};
+        m.cityMapOcclusion = *mapOcclusion;
         if (a.imagery.terrain != "on" && a.imagery.terrain != "off")
             return Error{"--terrain '" + a.imagery.terrain + "': expected on|off"};
         m.drawTerrain = a.imagery.terrain == "on";
@@ -338,14 +351,16 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
                                     key != "canopy-draw" && key != "segmentation" && key != "canopy-levels" && key != "canopy-derive" &&
                                     key != "scene" &&
                                     key != "city" &&
-                                    key != "city-upload" && key != "city-occlusion" && key != "city-flush" && key != "terrain" &&
+                                    key != "city-upload" && key != "city-occlusion" && key != "city-flush" &&
+                                    key != "city-map-occlusion" && key != "terrain" &&
                                     key != "terrain-shading" && key != "source"))
         return Error{"--compare '" + a.compare +
                      "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
                      "canopy-draw=layers,march, segmentation=upload,perframe, canopy-levels=all,read, canopy-derive=gpu,cpu, "
                      "scene=terrain,full or "
                      "city=atlas,original,flat,off, city-upload=compressed,decoded,auto, city-occlusion=off,on, "
-                     "city-flush=off,on, terrain=on,off, terrain-shading=forward,deferred or source=prepared,stream"};
+                     "city-flush=off,on, city-map-occlusion=conditional,readback, terrain=on,off, "
+                     "terrain-shading=forward,deferred or source=prepared,stream"};
     std::stringstream list(a.compare.substr(eq + 1));
     std::string v;
     while (std::getline(list, v, ',')) {
@@ -527,6 +542,7 @@ Status BenchRun::createCities() {
         cs.upload = m.cityUpload;
         cs.occlusion = m.cityOcclusion;
         cs.flushFirst = m.cityFlush;
+        cs.mapOcclusion = m.cityMapOcclusion;
         cs.blockMaps = m_a.city.blockMaps;
         cs.blockMapErrorPx = m_a.city.blockMapErrorPx;
         if (auto st = prepareCityBlockMaps(m_scene, cityTree, m_cache, cs); !st) return st.error();
@@ -829,6 +845,7 @@ nlohmann::json summaryHead(const gl::ContextInfo& device, const Scene& scene, co
               {"ground_elsewhere", a.canopy.groundElsewhere},
               {"city_upload", a.city.upload},
               {"city_occlusion", a.city.occlusion},
+              {"city_map_occlusion", a.city.mapOcclusion},
               {"terrain", a.imagery.terrain},
               {"terrain_shading", a.imagery.terrainShading},
               // what auto chose on this device (a compare's modes name their own)

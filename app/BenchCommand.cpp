@@ -47,7 +47,9 @@ Runner addBenchCommand(CLI::App& app) {
                         "\"scene=terrain,full\" (the "
                         "relief alone vs both seasons, canopy layers and trunks), \"city=atlas,original,flat,off\", "
                         "\"city-upload=compressed,decoded\", \"city-occlusion=off,on\", \"city-flush=off,on\" "
-                        "(the city's paging with the terrain handed to the GPU first or not), \"terrain=on,off\" "
+                        "(the city's paging with the terrain handed to the GPU first or not), "
+                        "\"city-map-occlusion=conditional,readback\" (blockmap mode: the maps tested for occlusion "
+                        "drawn under conditional rendering vs after reading the answers), \"terrain=on,off\" "
                         "(with a city: the city over the terrain vs alone), \"terrain-shading=forward,deferred\" "
                         "(the terrain's fragments shaded as rasterised vs once per pixel from a G-buffer) or "
                         "\"source=prepared,stream\" (seasons from tile services prepared whole vs streamed, --stream)")

@@ -403,6 +403,11 @@ void CityArgs::addTo(CLI::App& cmd) {
                    "City, atlas mode: skip nodes hidden behind what is drawn (occlusion queries on node boxes)")
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
+    cmd.add_option("--city-map-occlusion", mapOcclusion,
+                   "City, blockmap mode: the maps tested for occlusion drawn under conditional rendering, after "
+                   "reading the answers in one instanced draw, or auto (readback on software rasterisers)")
+        ->check(CLI::IsMember({"auto", "conditional", "readback"}))
+        ->capture_default_str();
     cmd.add_option("--city-blockmaps", blockMaps,
                    "City, blockmap mode: BlockMap file to draw (default: built from the atlas tree into the cache)");
     cmd.add_option("--city-blockmap-error", blockMapErrorPx,
@@ -421,6 +426,7 @@ Result<std::optional<city::CitySettings>> CityArgs::settings() const {
     s.tpp = tpp;
     s.upload = city::parseAtlasUpload(upload).value_or(city::AtlasUpload::Auto);
     s.occlusion = occlusion != "off";
+    s.mapOcclusion = city::parseMapOcclusion(mapOcclusion).value_or(city::MapOcclusion::Auto);
     if (!(blockMapErrorPx > 0.0) || !std::isfinite(blockMapErrorPx)) return Error{"--city-blockmap-error must be positive"};
     s.blockMaps = blockMaps;
     s.blockMapErrorPx = blockMapErrorPx;

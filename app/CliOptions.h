@@ -138,6 +138,7 @@ struct CityArgs {
     double tpp = 1.0;
     std::string upload = "auto"; // BC atlases: auto | compressed | decoded
     std::string occlusion = "on"; // atlas mode: occlusion culling on | off
+    std::string mapOcclusion = "auto"; // blockmap mode: the tested maps' draws, auto | conditional | readback
     std::string blockMaps;        // blockmap mode: a BlockMap file; empty: built from the tree into the cache
     double blockMapErrorPx = 1.0; // blockmap mode: pixels a map texel may cover where maps replace polygons
     void addTo(CLI::App& cmd);

@@ -35,6 +35,22 @@ const char* cityModeName(CityMode m) {
     return "?";
 }
 
+std::optional<MapOcclusion> parseMapOcclusion(const std::string& name) {
+    if (name == "auto") return MapOcclusion::Auto;
+    if (name == "conditional") return MapOcclusion::Conditional;
+    if (name == "readback") return MapOcclusion::Readback;
+    return std::nullopt;
+}
+
+const char* mapOcclusionName(MapOcclusion m) {
+    switch (m) {
+    case MapOcclusion::Auto: return "auto";
+    case MapOcclusion::Conditional: return "conditional";
+    case MapOcclusion::Readback: return "readback";
+    }
+    return "?";
+}
+
 CityView cityViewFor(const ImagerySettings& s) {
     CityView r;
     switch (s.view) {
@@ -183,6 +199,7 @@ Status CityRendererGL::buildPrograms() {
     m_decodeBc = m_file.info.format == AtlasFormat::Bc &&
                  (!s3tc || m_settings.upload == AtlasUpload::Decoded ||
                   (m_settings.upload == AtlasUpload::Auto && software));
+    m_software = software;
     return Ok{};
 }
 
@@ -1010,13 +1027,10 @@ void CityRendererGL::drawBlockMaps(const BlockMapCut& cut, DrawState& ds, const 
         const bool grazing = ds.v.eye.z - hi.z < kOcclusionSlope * distance;
         (m_settings.occlusion && grazing ? tested : front).push_back(in);
     }
-    std::vector<BlockMapPoolGL::Instance> all = front;
-    all.insert(all.end(), tested.begin(), tested.end());
-    all.insert(all.end(), back.begin(), back.end());
-    m_bmPool->setInstances(all);
     // Occlusion: each tested box against the depth drawn so far (the terrain, the near field's polygons) with a
-    // query, writing nothing; its map is cast only where some of it shows (conditional rendering): far maps behind
-    // the near buildings cost a box each, not a ray per pixel.
+    // query, writing nothing; its map is cast only where some of it shows (MapOcclusion: under conditional rendering,
+    // or drawn with the front faces' maps once the answers are read): far maps behind the near buildings cost a box
+    // each, not a ray per pixel.
     if (!tested.empty()) {
         GLboolean colourMask[4] = {GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE};
         glGetBooleanv(GL_COLOR_WRITEMASK, colourMask);
@@ -1040,7 +1054,26 @@ void CityRendererGL::drawBlockMaps(const BlockMapCut& cut, DrawState& ds, const 
         glDepthFunc(GL_GREATER);
         ds.st.occlusionQueries += int(tested.size());
     }
-    const int nFront = int(front.size()), nTested = int(tested.size()), nBack = int(back.size());
+    // The instances: the front group (with readback, the tested maps found visible after it), the conditionally
+    // drawn ones, the back group.
+    std::vector<BlockMapPoolGL::Instance> all = front;
+    int nTested = 0;
+    if (mapOcclusionUsed() == MapOcclusion::Readback) {
+        const auto w0 = std::chrono::steady_clock::now();
+        for (std::size_t q = 0; q < tested.size(); ++q) {
+            GLuint any = 0;
+            glGetQueryObjectuiv(m_bmQueries[q].id(), GL_QUERY_RESULT, &any);
+            if (any) all.push_back(tested[q]);
+        }
+        ds.st.waitMs += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0).count();
+        if (!tested.empty()) ++ds.st.occlusionWaits;
+    } else {
+        all.insert(all.end(), tested.begin(), tested.end());
+        nTested = int(tested.size());
+    }
+    const int nFront = int(all.size()) - nTested, nBack = int(back.size());
+    all.insert(all.end(), back.begin(), back.end());
+    m_bmPool->setInstances(all);
     if (nFront + nTested > 0) {
         setRoofImagery(m_bmFrontProgram, ds, terrain, targetWidth);
         m_bmPool->begin(m_bmFrontProgram, ds.v.viewProj, ds.v.eye, pixelAngle, s, true);
@@ -1056,8 +1089,9 @@ void CityRendererGL::drawBlockMaps(const BlockMapCut& cut, DrawState& ds, const 
         m_bmPool->begin(m_bmProgram, ds.v.viewProj, ds.v.eye, pixelAngle, s, false);
         ds.st.drawCalls += m_bmPool->draw(m_bmProgram, nFront + nTested, nBack);
     }
-    ds.st.blockMaps += int(all.size());
-    ds.st.triangles += 12 * std::int64_t(all.size());
+    const std::size_t maps = front.size() + tested.size() + back.size();
+    ds.st.blockMaps += int(maps);
+    ds.st.triangles += 12 * std::int64_t(maps);
     BlockMapPoolGL::end();
     glDisable(GL_CULL_FACE);
     ds.bound = 0;

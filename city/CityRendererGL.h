@@ -38,6 +38,16 @@ enum class AtlasUpload { Auto, Compressed, Decoded };
 std::optional<AtlasUpload> parseAtlasUpload(const std::string& name); // "auto", "compressed", "decoded"
 const char* atlasUploadName(AtlasUpload u);
 
+/// Blockmap mode: how the maps seen at a grazing angle (those the near field may hide, each tested with an occlusion
+/// query on its box first) are drawn. Conditional: each on its own under conditional rendering, so the GPU skips a
+/// hidden one without the CPU waiting (a draw call each). Readback: the answers read on the CPU (one wait for the GPU)
+/// and the visible ones drawn with the others in one instanced draw; on a software rasteriser the conditional draws
+/// wait for the answers too, and each of them costs a draw call's setup on the issuing thread. Auto: readback on a
+/// software rasteriser, else conditional. The same maps are drawn either way.
+enum class MapOcclusion { Auto, Conditional, Readback };
+std::optional<MapOcclusion> parseMapOcclusion(const std::string& name); // "auto", "conditional", "readback"
+const char* mapOcclusionName(MapOcclusion m);
+
 /// How the city follows the terrain's view. The roofs show the terrain's imagery (thesis §4.8.2: roofs are textured
 /// from it): one season, the two blended, or split at the swipe line. The levels view shows what drew each pixel.
 struct CityView {
@@ -74,6 +84,7 @@ struct CitySettings {
     AtlasUpload upload = AtlasUpload::Auto;        // BC atlases: compressed or decoded on upload
     bool occlusion = true;                         // atlas, blockmap: occlusion queries on node and map boxes (draw())
     bool flushFirst = true;                        // update() first hands the GPU what is queued (glFlush)
+    MapOcclusion mapOcclusion = MapOcclusion::Auto; // blockmap mode: the tested maps' draws (MapOcclusion)
     // Blockmap mode: the city's BlockMaps (a file of buildCityBlockMaps over the tree's triangles as placed in the
     // scene: prepareCityBlockMaps) and the pixels a map's texel may cover where it is drawn instead of polygons.
     std::string blockMaps;
@@ -155,6 +166,11 @@ public:
     CityFrameStats draw(const Camera& camera, const ClipmapTerrainRendererGL* terrain, const gl::RenderTarget& target);
 
     CitySettings& settings() { return m_settings; }
+    /// settings().mapOcclusion resolved against this GL (Auto: readback on a software rasteriser).
+    MapOcclusion mapOcclusionUsed() const {
+        if (m_settings.mapOcclusion != MapOcclusion::Auto) return m_settings.mapOcclusion;
+        return m_software ? MapOcclusion::Readback : MapOcclusion::Conditional;
+    }
     /// Whether BlockMaps were opened (created in blockmap mode): the mode may then switch between blockmap and atlas.
     bool hasBlockMaps() const { return m_bmTraversal != nullptr; }
     /// Whether BC atlases are uploaded decoded (settings().upload resolved against this GL).
@@ -216,6 +232,7 @@ private:
 
     AtlasTreeFile m_file;
     CitySettings m_settings;
+    bool m_software = false; // a software rasteriser (gl::currentIsSoftwareRenderer at creation)
     // Blockmap mode (declared before the pagers, which read the file on their thread).
     std::unique_ptr<BlockMapFile> m_bmFile;
     std::unique_ptr<BlockMapQuadtree> m_bmTree;

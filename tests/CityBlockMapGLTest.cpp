@@ -154,6 +154,46 @@ TEST(CityBlockMapGLTest, FarBlocksAreMapsAndThePictureIsTheAtlasModes) {
     }
 }
 
+// The maps seen at a grazing angle are tested for occlusion first (city/CityRendererGL.h, MapOcclusion): drawn each
+// under conditional rendering, or after the answers are read in one instanced draw with the others. The same maps,
+// in the same order, so the same pixels, frame after frame along a walk above the street (the first frame with
+// nothing known, then the temporal answers); readback in fewer draw calls.
+TEST(CityBlockMapGLTest, TestedMapsDrawTheSameReadBackOrConditional) {
+    ASSERT_TRUE(headlessContext());
+    BlockCity& bc = blockCity();
+    ASSERT_TRUE(bc.scene);
+    city::CitySettings cs = bc.settings(city::CityMode::BlockMap);
+    cs.occlusion = true;
+    cs.mapOcclusion = city::MapOcclusion::Conditional;
+    auto conditional = bc.renderer(cs);
+    cs.mapOcclusion = city::MapOcclusion::Readback;
+    auto readback = bc.renderer(cs);
+    ASSERT_TRUE(conditional && readback);
+    EXPECT_EQ(readback->mapOcclusionUsed(), city::MapOcclusion::Readback);
+    gl::RenderTarget target(kW, kH);
+    int fewerCalls = 0;
+    for (int f = 0; f < 4; ++f) {
+        SCOPED_TRACE(f);
+        const Camera cam = bc.camera(-20.0 + 12.0 * f, -240.0 + 8.0 * f, 30.0, 5.0 * f, -8.0);
+        city::CityFrameStats sc, sr;
+        conditional->complete(cam, kW, kH);
+        readback->complete(cam, kW, kH);
+        conditional->update(cam, kW, kH);
+        readback->update(cam, kW, kH);
+        const auto a = drawCity(*conditional, cam, target, sc);
+        const auto b = drawCity(*readback, cam, target, sr);
+        EXPECT_GT(sc.blockMaps, 0);
+        EXPECT_EQ(sc.blockMaps, sr.blockMaps);
+        EXPECT_EQ(sc.occlusionQueries, sr.occlusionQueries);
+        std::printf("frame %d: %d maps, %d queries; draw calls %d conditional, %d readback\n", f, sc.blockMaps,
+                    sc.occlusionQueries, sc.drawCalls, sr.drawCalls);
+        EXPECT_TRUE(a == b) << "the tested maps drew differently";
+        EXPECT_LE(sr.drawCalls, sc.drawCalls);
+        fewerCalls += sr.drawCalls < sc.drawCalls;
+    }
+    EXPECT_GT(fewerCalls, 0) << "maps were tested (drawn one by one under conditional rendering)";
+}
+
 // Maps loading: their buildings are drawn with polygons meanwhile, and with the atlases the atlas mode would draw
 // them with as those arrive (the pager asks for the atlases of what the drawn maps do not cover, not of what the
 // maps the view wants will cover), not with the root's alone. Once every map is in, the picture is the still's.
