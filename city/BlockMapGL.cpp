@@ -24,8 +24,8 @@ static_assert(sizeof(Record) == 80);
 
 } // namespace
 
-Result<gl::ShaderProgram> BlockMapPoolGL::buildProgram(bool roofImagery, bool frontFaces) {
-    std::vector<std::string> defines;
+Result<gl::ShaderProgram> BlockMapPoolGL::buildProgram(bool roofImagery, bool frontFaces,
+                                                      std::vector<std::string> defines) {
     if (roofImagery) defines.push_back("ROOF_IMAGERY");
     if (frontFaces) defines.push_back("FRONT_FACES");
     static_assert((kBlockMapPageWords & (kBlockMapPageWords - 1)) == 0, "pages of a power of two words");

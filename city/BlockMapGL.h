@@ -29,6 +29,7 @@
 #include "gl/ShaderProgram.h"
 
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace seasonview::city {
@@ -42,7 +43,9 @@ public:
     /// The program that draws maps (shaders/blockmap.*): with `roofImagery` its ROOF_IMAGERY variant (bind the
     /// terrain's clipmaps to it: ClipmapTerrainRendererGL::bindTerrain), with `frontFaces` its FRONT_FACES variant
     /// (for boxes the eye is well outside of). A shader that does not build is a bug.
-    static Result<gl::ShaderProgram> buildProgram(bool roofImagery, bool frontFaces = false);
+    /// `defines`: more of the shader's variants (common_roof.glsl's, with `roofImagery`).
+    static Result<gl::ShaderProgram> buildProgram(bool roofImagery, bool frontFaces = false,
+                                                  std::vector<std::string> defines = {});
 
     /// A pool for maps of `mapSize`² texels.
     explicit BlockMapPoolGL(int mapSize);

@@ -173,6 +173,7 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
     std::unique_ptr<CityRendererGL> r(new CityRendererGL());
     r->m_file = std::move(*file);
     r->m_settings = settings;
+    r->m_seasonsComplete = scene.leafon.direct && scene.leafoff.direct; // as the terrain's programs take it
     placeInSceneFrame(scene, r->m_file, settings.placeOnTerrain);
     if (auto st = r->buildPrograms(); !st) return st.error();
     if (settings.mode == CityMode::BlockMap)
@@ -183,13 +184,33 @@ Result<std::unique_ptr<CityRendererGL>> CityRendererGL::create(const Scene& scen
     return r;
 }
 
+std::vector<std::string> CityRendererGL::roofDefines(int variant) const {
+    std::vector<std::string> d;
+    if (variant == 1) d.push_back("ROOF_BLEND");
+    if (m_seasonsComplete) d.push_back("SEASONS_COMPLETE");
+    return d;
+}
+
+int CityRendererGL::roofVariant() const {
+    return m_settings.view.swipe < 0.0f && m_settings.view.blend >= 0.0f ? 1 : 0; // setRoofImagery's uBlend, uSwipeX
+}
+
 Status CityRendererGL::buildPrograms() {
-    auto build = [](const char* variant) { return gl::ShaderProgram::build("city_building.vert", "city_building.frag", {variant}); };
+    auto build = [](std::vector<std::string> defines) {
+        return gl::ShaderProgram::build("city_building.vert", "city_building.frag", defines);
+    };
     for (auto [prog, variant] : {std::pair{&m_atlasProgram, "ATLAS"}, {&m_originalProgram, "ORIGINAL"},
-                                 {&m_flatProgram, "FLAT"}, {&m_roofProgram, "ROOF"}, {&m_plainProgram, "PLAIN"}}) {
-        auto p = build(variant);
+                                 {&m_flatProgram, "FLAT"}, {&m_plainProgram, "PLAIN"}}) {
+        auto p = build({variant});
         if (!p) return p.error();
         *prog = std::move(*p);
+    }
+    for (int v = 0; v < 2; ++v) {
+        std::vector<std::string> d = roofDefines(v);
+        d.push_back("ROOF");
+        auto p = build(d);
+        if (!p) return p.error();
+        m_roofPrograms[v] = std::move(*p);
     }
     auto box = gl::ShaderProgram::build("city_box.vert", "city_box.frag");
     if (!box) return box.error();
@@ -917,12 +938,13 @@ void CityRendererGL::drawPlain(DrawState& ds, const ClipmapTerrainRendererGL* te
         }
     };
     if (m_plainRoofs > 0) {
-        m_roofProgram.set("uSunDir", ds.sun);
-        m_roofProgram.set("uPlainColour", kRoofColour);
-        m_roofProgram.set("uAlphaCut", -1.0f);
-        m_roofProgram.set("uSourceColour", sourceColour(2));
-        setRoofImagery(m_roofProgram, ds, terrain, targetWidth);
-        m_roofProgram.use();
+        const gl::ShaderProgram& roof = m_roofPrograms[roofVariant()];
+        roof.set("uSunDir", ds.sun);
+        roof.set("uPlainColour", kRoofColour);
+        roof.set("uAlphaCut", -1.0f);
+        roof.set("uSourceColour", sourceColour(2));
+        setRoofImagery(roof, ds, terrain, targetWidth);
+        roof.use();
         drawRanges(0, m_plainRoofs, m_bmRoofOrder);
         ds.bound = 0;
     }
@@ -955,12 +977,14 @@ Status CityRendererGL::openBlockMaps() {
             return Error{m_bmFile->path().string() + ": BlockMaps of " + std::to_string(records.front().size) + "² and " +
                          std::to_string(r.size) + "² texels in one file (seasonview builds one size per city)"};
     m_bmPool = std::make_unique<BlockMapPoolGL>(records.empty() ? 64 : records.front().size);
-    auto p = BlockMapPoolGL::buildProgram(true);
-    if (!p) return p.error();
-    m_bmProgram = std::move(*p);
-    auto front = BlockMapPoolGL::buildProgram(true, true);
-    if (!front) return front.error();
-    m_bmFrontProgram = std::move(*front);
+    for (int v = 0; v < 2; ++v) {
+        auto p = BlockMapPoolGL::buildProgram(true, false, roofDefines(v));
+        if (!p) return p.error();
+        m_bmPrograms[v] = std::move(*p);
+        auto front = BlockMapPoolGL::buildProgram(true, true, roofDefines(v));
+        if (!front) return front.error();
+        m_bmFrontPrograms[v] = std::move(*front);
+    }
     return Ok{};
 }
 
@@ -1074,20 +1098,21 @@ void CityRendererGL::drawBlockMaps(const BlockMapCut& cut, DrawState& ds, const 
     const int nFront = int(all.size()) - nTested, nBack = int(back.size());
     all.insert(all.end(), back.begin(), back.end());
     m_bmPool->setInstances(all);
+    const gl::ShaderProgram &frontProgram = m_bmFrontPrograms[roofVariant()], &backProgram = m_bmPrograms[roofVariant()];
     if (nFront + nTested > 0) {
-        setRoofImagery(m_bmFrontProgram, ds, terrain, targetWidth);
-        m_bmPool->begin(m_bmFrontProgram, ds.v.viewProj, ds.v.eye, pixelAngle, s, true);
-        if (nFront > 0) ds.st.drawCalls += m_bmPool->draw(m_bmFrontProgram, 0, nFront);
+        setRoofImagery(frontProgram, ds, terrain, targetWidth);
+        m_bmPool->begin(frontProgram, ds.v.viewProj, ds.v.eye, pixelAngle, s, true);
+        if (nFront > 0) ds.st.drawCalls += m_bmPool->draw(frontProgram, 0, nFront);
         for (int q = 0; q < nTested; ++q) {
             glBeginConditionalRender(m_bmQueries[std::size_t(q)].id(), GL_QUERY_WAIT);
-            ds.st.drawCalls += m_bmPool->draw(m_bmFrontProgram, nFront + q, 1);
+            ds.st.drawCalls += m_bmPool->draw(frontProgram, nFront + q, 1);
             glEndConditionalRender();
         }
     }
     if (nBack > 0) {
-        setRoofImagery(m_bmProgram, ds, terrain, targetWidth);
-        m_bmPool->begin(m_bmProgram, ds.v.viewProj, ds.v.eye, pixelAngle, s, false);
-        ds.st.drawCalls += m_bmPool->draw(m_bmProgram, nFront + nTested, nBack);
+        setRoofImagery(backProgram, ds, terrain, targetWidth);
+        m_bmPool->begin(backProgram, ds.v.viewProj, ds.v.eye, pixelAngle, s, false);
+        ds.st.drawCalls += m_bmPool->draw(backProgram, nFront + nTested, nBack);
     }
     const std::size_t maps = front.size() + tested.size() + back.size();
     ds.st.blockMaps += int(maps);

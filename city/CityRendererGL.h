@@ -242,7 +242,8 @@ private:
     std::map<std::uint32_t, int> m_blockMaps;   // resident maps: node -> its handle in m_bmPool
     std::uint64_t m_bmMovedReported = 0;        // m_bmPool->movedBytes() at the last frame's stats
     BlockMapCut m_lastCut; // the last draw()'s (not kept while holdSwitches)
-    gl::ShaderProgram m_bmProgram, m_bmFrontProgram; // over the boxes' back faces, over their front faces
+    // Over the boxes' back faces, over their front faces; [1] the blend view's (roofVariant()).
+    gl::ShaderProgram m_bmPrograms[2], m_bmFrontPrograms[2];
     std::vector<gl::Query> m_bmQueries;              // the maps' box queries, reused every frame
     std::vector<std::unique_ptr<AtlasTraversal>> m_traversals;
     std::vector<std::unique_ptr<AtlasPager>> m_pagers;
@@ -263,7 +264,13 @@ private:
     std::map<std::uint32_t, PartialTexture> m_partialTextures;
     gl::Texture m_dummy;
     gl::Sampler m_atlasSampler, m_repeatSampler, m_clampSampler;
-    gl::ShaderProgram m_atlasProgram, m_originalProgram, m_flatProgram, m_roofProgram, m_plainProgram;
+    gl::ShaderProgram m_atlasProgram, m_originalProgram, m_flatProgram, m_plainProgram;
+    gl::ShaderProgram m_roofPrograms[2]; // [1] the blend view's (roofVariant())
+    // The roofs' imagery programs (shaders/common_roof.glsl) are built per view kind: 1 the blend view (both seasons
+    // sampled), 0 the others (the season shown, the other only where the scene's seasons may lack data).
+    bool m_seasonsComplete = false; // both seasons read as they are, no nodata (SEASONS_COMPLETE)
+    std::vector<std::string> roofDefines(int variant) const;
+    int roofVariant() const;
     bool m_decodeBc = false; // BC atlases decoded to RGB(A)8 on upload
     std::uint64_t m_frame = 0, m_frameUploaded = 0, m_frameEvicted = 0;
     double m_frameUploadMs = 0;

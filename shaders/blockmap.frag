@@ -15,9 +15,7 @@ layout(depth_less) out float gl_FragDepth;
 #endif
 #ifdef ROOF_IMAGERY
 #include "common_clipmap.glsl"
-uniform int uSeason;    // 0 leaf-on, 1 leaf-off
-uniform float uBlend;   // >= 0: leaf-on mixed with leaf-off by this much
-uniform float uSwipeX;  // >= 0, pixels: leaf-on left of it, leaf-off right, a 2-pixel white divider
+#include "common_roof.glsl" // its variants ROOF_BLEND, SEASONS_COMPLETE
 uniform int uHasImagery;
 uniform sampler2D uLocalToImage; // RG32F: local -> leaf-on image coordinates in [0,1]
 uniform vec2 uLookupMin, uLookupSize;
@@ -117,16 +115,7 @@ vec3 bmRoof(vec2 world, ivec2 c) {
                        uLookupSlope * (t - tc);
         if (all(greaterThanEqual(imageUv, vec2(0.0))) && all(lessThanEqual(imageUv, vec2(1.0)))) {
             vec2 p = imageUv * uLevel0Size;
-            ClipFootprint f = clipmapFootprint(p);
-            int used, used1;
-            vec4 on = sampleClipmap(0, p, f, used);
-            vec4 off = sampleClipmap(1, p, f, used1);
-            vec3 onFilled = on.rgb + (1.0 - on.a) * (off.rgb + (1.0 - off.a) * uRoofColour);
-            vec3 offFilled = off.rgb + (1.0 - off.a) * (on.rgb + (1.0 - on.a) * uRoofColour);
-            if (uSwipeX >= 0.0 && abs(gl_FragCoord.x - uSwipeX) < 1.0) return vec3(1.0);
-            if (uSwipeX < 0.0 && uBlend >= 0.0) return mix(onFilled, offFilled, uBlend);
-            if (uSwipeX >= 0.0 ? gl_FragCoord.x < uSwipeX : uSeason == 0) return onFilled;
-            return offFilled;
+            return roofImagery(p, clipmapFootprint(p), uRoofColour);
         }
     }
 #endif

@@ -5,9 +5,7 @@
 // position), PLAIN (untextured: one colour). Walls are shaded from their face normal.
 #ifdef ROOF
 #include "common_clipmap.glsl"
-uniform int uSeason;    // 0 leaf-on, 1 leaf-off
-uniform float uBlend;   // >= 0: leaf-on mixed with leaf-off by this much (the terrain's blend view)
-uniform float uSwipeX;  // >= 0, pixels: leaf-on left of it, leaf-off right, a 2-pixel white divider (swipe view)
+#include "common_roof.glsl" // its variants ROOF_BLEND, SEASONS_COMPLETE
 uniform int uHasImagery;
 in vec2 vImageUv;
 #else
@@ -49,21 +47,7 @@ void main() {
     light = 1.0; // the orthophoto carries its own light
     if (uHasImagery != 0 && all(greaterThanEqual(vImageUv, vec2(0.0))) && all(lessThanEqual(vImageUv, vec2(1.0)))) {
         vec2 p = vImageUv * uLevel0Size;
-        ClipFootprint f = clipmapFootprint(p);
-        int used, used1;
-        // Premultiplied imagery: where the season shown has no data, the other one, then the roof's plain colour.
-        vec4 on = sampleClipmap(0, p, f, used);
-        vec4 off = sampleClipmap(1, p, f, used1);
-        vec3 onFilled = on.rgb + (1.0 - on.a) * (off.rgb + (1.0 - off.a) * uPlainColour);
-        vec3 offFilled = off.rgb + (1.0 - off.a) * (on.rgb + (1.0 - on.a) * uPlainColour);
-        if (uSwipeX >= 0.0 && abs(gl_FragCoord.x - uSwipeX) < 1.0)
-            c = vec4(1.0);
-        else if (uSwipeX < 0.0 && uBlend >= 0.0)
-            c = vec4(mix(onFilled, offFilled, uBlend), 1.0);
-        else if (uSwipeX >= 0.0 ? gl_FragCoord.x < uSwipeX : uSeason == 0)
-            c = vec4(onFilled, 1.0);
-        else
-            c = vec4(offFilled, 1.0);
+        c = vec4(roofImagery(p, clipmapFootprint(p), uPlainColour), 1.0);
     } else {
         c = vec4(uPlainColour, 1.0);
         light = 0.62 + 0.38 * abs(dot(n, uSunDir));
