@@ -591,7 +591,7 @@ Status BenchRun::run(const CameraPath& path, const std::filesystem::path& out) {
     if (!m_damaged.empty()) return Error{m_damaged};
     // A city's modes then draw one frame at the path's start unmeasured: the warm-up drew what was resident then (in
     // blockmap mode no map yet), and the first draw with a program in a new GL state compiles it (llvmpipe: LLVM,
-    // 100-300 ms for the BlockMaps' ray cast; Mesa keeps it on disk for later runs). Measured, that compile was the
+    // 200-300 ms for the BlockMaps' ray cast; Mesa keeps it on disk for later runs). Measured, that compile was the
     // first frame of every run after a shader change. Its occlusion answers are those of the completed view.
     if (m_a.warmup > 0)
         for (Mode& m : m_modes)
