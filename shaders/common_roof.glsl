@@ -3,8 +3,8 @@
 // with the roof's plain colour. For city_building.frag's ROOF and blockmap.frag's ROOF_IMAGERY; include after
 // common_clipmap.glsl. Variants: ROOF_BLEND (the blend view: both seasons; otherwise uBlend is not read),
 // SEASONS_COMPLETE (both seasons read as they are with no nodata, as the terrain's: no other season to fall back on).
-// Compile-time, not branches on uniforms: llvmpipe runs both sides of an `if` under a mask, so every pixel sampled
-// both seasons.
+// Chosen at compile time: sampling both seasons and choosing after cost every roof pixel both samplings, and on
+// llvmpipe a branch on the pixel's own data around the second sampling did not save it (docs/performance.md, 22).
 uniform int uSeason;    // 0 leaf-on, 1 leaf-off
 uniform float uBlend;   // ROOF_BLEND: leaf-on mixed with leaf-off by this much
 uniform float uSwipeX;  // >= 0, pixels: leaf-on left of it, leaf-off right, a 2-pixel white divider (swipe view)
