@@ -294,6 +294,33 @@ void main() {
         if ((normalWord >> 24) != 0u && face >= 0 && face < 4)
             n = face == 0 ? vec3(-1.0, 0.0, 0.0) : face == 1 ? vec3(1.0, 0.0, 0.0) : face == 2 ? vec3(0.0, -1.0, 0.0)
                                                                                            : vec3(0.0, 1.0, 0.0);
+        // Along a wall on the grid, linear between this column and the next one along the wall the hit is nearer
+        // to, where that texel's same side is a wall at this height: the paper lays a building's columns side by
+        // side along its outline, so its texture lookup interpolates between neighbouring columns (Cignoni et al.
+        // 2007 §3.3); here each column is a texel's, so its neighbour is found in the height map. Walls at an angle
+        // to the grid keep their own column's colour.
+        if ((normalWord >> 24) != 0u && face >= 0 && face < 4) {
+            int along = face < 2 ? 1 : 0;
+            float f = hit[along] / bmMetres - float(c[along]) - 0.5;
+            ivec2 next = c;
+            next[along] += f < 0.0 ? -1 : 1;
+            ivec2 outward = ivec2(n.xy);
+            if (!bmOutside(next)) {
+                uvec3 tn = bmStepAt(next);
+                int nextColumn = int(tn.y & 0xFFFFFFu) - 1;
+                float nextTop = bmTop(tn.x & 255u);
+                bool exposed = true; // the next texel's side: nothing in front of it as high as the hit
+                ivec2 front = next + outward;
+                if (!bmOutside(front)) {
+                    uint h = bmStepAt(front).x & 255u;
+                    exposed = h == 0u || bmTop(h) < hit.z;
+                }
+                if (nextColumn >= 0 && (tn.x & 255u) > 0u && nextTop >= hit.z && exposed) {
+                    float nv = clamp((hit.z - bmZBase) / max(nextTop - bmZBase, 1e-6), 0.0, 1.0);
+                    w = mix(w, mix(bmWallAt(nextColumn, nv, l0), bmWallAt(nextColumn, nv, l0 + 1), fract(lod)), abs(f));
+                }
+            }
+        }
         wallShare = w.a;
         wall = w.rgb * (0.62 + 0.38 * abs(dot(n, uSunDir))); // as city_building.frag lights faces
         if (wallShare >= 0.5) faceNormal = n;

@@ -198,8 +198,9 @@ TEST(BlockMapGLTest, DepthIsThePolygonsDepth) {
 
 // Wall colours reach the screen from the right column, also with 1,024 colours per column (a column's span past
 // 2,000 words of the pool's buffer): each side of a box in its own colour, every wall pixel the CPU traversal says
-// shows a side is that side's colour (shaded, so by its dominant channels); a corner's, its column's colour shaded by
-// the side the ray came in by.
+// shows a side is that side's colour shaded by the side, mixed towards the next column along the wall as
+// blockmap.frag interpolates (next to a corner, the corner's column: the mean of its two sides); a corner's, its
+// column's colour so mixed, shaded by the side the ray came in by.
 TEST(BlockMapGLTest, WallPixelsShowTheirSidesColours) {
     ASSERT_TRUE(headlessContext());
     const std::vector<Prism> box = {{6, 8, 26, 20, 25.5}};
@@ -233,22 +234,43 @@ TEST(BlockMapGLTest, WallPixelsShowTheirSidesColours) {
                 const glm::vec3 n = map->wallNormal[c - 1];
                 const std::uint8_t* p = &rgba[(std::size_t(y) * kW + std::size_t(x)) * 4];
                 const glm::ivec3 got(p[0], p[1], p[2]);
+                // The colour along the wall: linear between the texel's column and the next texel's along the side
+                // the ray came in by, the one the hit is nearer to, where that texel's same side is a wall at this
+                // height (blockmap.frag). Each side is one colour, so any texel of a column is its colour.
+                const auto columnColour = [&](std::uint32_t column) {
+                    const std::uint8_t* q = &map->wallRgba[std::size_t(column - 1) * std::size_t(o.wallTexels) * 4];
+                    return glm::dvec3(q[0], q[1], q[2]);
+                };
+                glm::dvec3 colour = columnColour(c);
+                const int along = std::abs(h.normal.x) > 0.5 ? 1 : 0;
+                const double f = h.point[along] / map->texel - double(h.texel[along]) - 0.5;
+                glm::ivec2 next = h.texel;
+                next[along] += f < 0.0 ? -1 : 1;
+                const auto at = [&](glm::ivec2 t) { return std::size_t(t.y) * 32 + std::size_t(t.x); };
+                const auto inside = [](glm::ivec2 t) { return t.x >= 0 && t.y >= 0 && t.x < 32 && t.y < 32; };
+                const auto topOf = [&](std::uint8_t v) { return map->zBase + double(v) * (map->zTop - map->zBase) / 255.0; };
+                if (inside(next) && map->column[at(next)] != 0 && topOf(map->height[at(next)]) >= h.point.z) {
+                    const glm::ivec2 front = next + glm::ivec2(glm::round(glm::dvec2(h.normal)));
+                    if (!inside(front) || map->height[at(front)] == 0 || topOf(map->height[at(front)]) < h.point.z)
+                        colour = glm::mix(colour, columnColour(map->column[at(next)]), std::abs(f));
+                }
                 if (std::abs(n.x) > 0.01f && std::abs(n.y) > 0.01f) {
                     // A corner texel's column averages its two sides' colours; its walls are on the grid, so the
                     // pixel is shaded by the side its ray came in by (the polygons' face), not by the mean normal.
                     EXPECT_EQ(map->wallOnGrid[c - 1], 1);
-                    const std::uint8_t* col = &map->wallRgba[std::size_t(c - 1) * std::size_t(o.wallTexels) * 4];
                     const double shade = 0.62 + 0.38 * std::abs(glm::dot(h.normal, sun));
                     bool ok = true;
-                    for (int i = 0; i < 3; ++i) ok = ok && std::abs(got[i] - col[i] * shade) < 6.0;
+                    for (int i = 0; i < 3; ++i) ok = ok && std::abs(got[i] - colour[i] * shade) < 6.0;
                     ++corners;
                     wrongCorners += !ok;
                     continue;
                 }
+                // A side's own colour (next to a corner, mixed with the corner's column), shaded by the side.
                 const int side = n.x < -0.5f ? 0 : n.x > 0.5f ? 1 : n.y < -0.5f ? 2 : 3;
-                const glm::ivec3 want = glm::ivec3(colours[side] * 255.0);
+                EXPECT_EQ(columnColour(c), glm::round(colours[side] * 255.0));
+                const double shade = 0.62 + 0.38 * std::abs(glm::dot(h.normal, sun));
                 bool ok = true;
-                for (int i = 0; i < 3; ++i) ok = ok && ((want[i] > 0) == (got[i] > 40));
+                for (int i = 0; i < 3; ++i) ok = ok && std::abs(got[i] - colour[i] * shade) < 6.0;
                 ++checked;
                 wrong += !ok;
             }

@@ -238,7 +238,7 @@ TEST(CityBlockMapGLTest, PolygonsStandingInForLoadingMapsGetTheirAtlases) {
 // Pops: along a descent from the overview to above the street, each frame drawn with the last frame's switches
 // (polygons to maps, map to finer maps; CitySettings::holdSwitches) and with its own: what changes between the two is
 // what the viewer sees pop at that frame. At the default error bound of 1 px the worst is a map level switch at the
-// overview (31.3 dB over the city's pixels, 0.8 % of the picture changed by more than 16 levels).
+// overview (31.9 dB over the city's pixels, 0.7 % of the picture changed by more than 16 levels).
 TEST(CityBlockMapGLTest, SwitchesAtTheDefaultErrorDoNotPop) {
     ASSERT_TRUE(headlessContext());
     BlockCity& bc = blockCity();
