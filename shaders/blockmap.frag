@@ -291,7 +291,8 @@ void main() {
         uint normalWord = bmWord(bmFirstWord + column);
         vec3 n = unpackUnorm4x8(normalWord).xyz * 2.0 - 1.0;
         // Walls along the grid: shaded by the side the ray came in by (a corner's two walls each by its own).
-        if ((normalWord >> 24) != 0u && face >= 0 && face < 4)
+        bool onGrid = (normalWord >> 24) != 0u && face >= 0 && face < 4;
+        if (onGrid)
             n = face == 0 ? vec3(-1.0, 0.0, 0.0) : face == 1 ? vec3(1.0, 0.0, 0.0) : face == 2 ? vec3(0.0, -1.0, 0.0)
                                                                                            : vec3(0.0, 1.0, 0.0);
         // Along a wall on the grid, linear between this column and the next one along the wall the hit is nearer
@@ -299,7 +300,7 @@ void main() {
         // side along its outline, so its texture lookup interpolates between neighbouring columns (Cignoni et al.
         // 2007 §3.3); here each column is a texel's, so its neighbour is found in the height map. Walls at an angle
         // to the grid keep their own column's colour.
-        if ((normalWord >> 24) != 0u && face >= 0 && face < 4) {
+        if (onGrid) {
             int along = face < 2 ? 1 : 0;
             float f = hit[along] / bmMetres - float(c[along]) - 0.5;
             ivec2 next = c;
