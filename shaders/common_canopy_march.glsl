@@ -60,25 +60,40 @@ CanopyHit canopyMarchAt(ivec2 pixel) {
         vec2 q1 = p + uLocalToPixel * ((d1 > 0.0 ? d1 / descent : 0.0) * dir.xy) + uLayerShift * float(last);
         const float slack = 0.01; // level-0 texels: the loop's own rounding of the points between
         bool direct = canopyBoxDerived(min(q0, q1) - slack, max(q0, q1) + slack, canopyLevel);
-        // Layer by layer down from firstTested, for the pixels where `cond` holds, reading the canopy with `lookup`:
-        // where the ray meets layer i (t along dir; none below once it does not come down to a layer), and whether
-        // the canopy there reaches it.
-#define SV_MARCH(cond, lookup)                                                                                     \
-    for (int i = firstTested; (cond) && i >= uFirstLayer; --i) {                                                   \
-        float drop = float(uCanopyLayers - 1 - i) * step; /* below the top layer */                                \
-        if (drop > 0.0 && descent <= 0.0) break;                                                                   \
-        float t = drop > 0.0 ? drop / descent : 0.0;                                                               \
-        vec2 q = p + uLocalToPixel * (t * dir.xy) + uLayerShift * float(i);                                        \
-        if (lookup(q, canopyLevel) > i) {                                                                          \
-            h.layer = i;                                                                                           \
-            h.at = entry + t * dir;                                                                                \
-            h.p = q;                                                                                               \
-            break;                                                                                                 \
-        }                                                                                                          \
-    }
-        SV_MARCH(direct, canopyAtDerived)
-        SV_MARCH(!direct, canopyAtNoting)
-#undef SV_MARCH
+        // Where it is derived, the points are linear in the layer: one texel of the level per layer, stepped in its
+        // own texels (no division, matrix or level arithmetic per layer).
+        float toLevel = exp2(-float(canopyLevel));
+        ivec2 lastTexel = ivec2(ceil(uLevel0Size * toLevel)) - 1;
+        int lowest = descent > 0.0 ? uFirstLayer : uCanopyLayers - 1; // a level ray meets the top layer alone
+        vec2 a = q0 * toLevel;                                          // layer firstTested
+        vec2 da = descent > 0.0 ? (uLocalToPixel * ((step / descent) * dir.xy) - uLayerShift) * toLevel : vec2(0.0);
+        for (int i = firstTested; direct && i >= lowest; --i) {
+            ivec2 t = clamp(ivec2(floor(a + float(firstTested - i) * da)), ivec2(0), lastTexel);
+            if (int(texelFetch(uCanopyClip, ivec3(clipTexelOf(t), canopyLevel), 0).r) > i) {
+                h.layer = i;
+                break;
+            }
+        }
+        // Elsewhere layer by layer down from firstTested, reading each layer's canopy where it is derived (and
+        // recording the blocks it falls back past): where the ray meets layer i (t along dir; none below once it
+        // does not come down to a layer), and whether the canopy there reaches it.
+        for (int i = firstTested; !direct && i >= uFirstLayer; --i) {
+            float drop = float(uCanopyLayers - 1 - i) * step; // below the top layer
+            if (drop > 0.0 && descent <= 0.0) break;
+            float t = drop > 0.0 ? drop / descent : 0.0;
+            vec2 q = p + uLocalToPixel * (t * dir.xy) + uLayerShift * float(i);
+            if (canopyAtNoting(q, canopyLevel) > i) {
+                h.layer = i;
+                break;
+            }
+        }
+        // The point met, once (a branch's body runs for the whole block: not in the loops).
+        float drop = float(uCanopyLayers - 1 - max(h.layer, 0)) * step;
+        float t = drop > 0.0 ? drop / descent : 0.0;
+        if (h.layer >= 0) {
+            h.at = entry + t * dir;
+            h.p = p + uLocalToPixel * (t * dir.xy) + uLayerShift * float(h.layer);
+        }
     }
     return h;
 }
