@@ -13,8 +13,8 @@
 namespace seasonview {
 
 namespace {
-constexpr int kVerticesPerTrunk = 2 * (8 + 1); // trunk.vert: a strip round 8 sides, two triangles each
-constexpr int kTrianglesPerTrunk = 2 * 8;
+constexpr int kVerticesPerTrunk = 4; // trunk.vert: a strip, the quad facing the eye
+constexpr int kTrianglesPerTrunk = 2;
 constexpr GLintptr kHeader = 16;         // DrawArraysIndirectCommand before the trunks
 } // namespace
 
@@ -176,6 +176,7 @@ GeometryFrameStats TrunksGL::draw(const Camera& camera, const ClipmapTerrainRend
     program.set("uMaxRadius", 0.5f);
     program.set("uCapacity", m_options.capacity);
     program.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
+    program.set("uEye", glm::vec3(camera.position));
     program.use();
     glBindVertexArray(m_vao.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_buffer.id());

@@ -4,7 +4,7 @@
 // as CrownCentres.h does offline), so they follow the clipmap's region around the viewer: on a worker thread over a
 // copy of the level when the canopy layer is derived on the CPU (CrownSearch.h; update() starts a search and takes
 // its trunks when it is done, no frame waits), else on the GPU (shaders/trunk_find.comp, the same centres, its count
-// read back); drawn as instanced cylinders
+// read back); drawn as instanced cylinders (quads facing the eye, shaded as cylinders per fragment)
 // (shaders/trunk.vert) from the terrain to the crowns' base with one instanced draw of the count the search read back.
 // The offline counterpart is `segment --trees` (CrownCentres.h: distance-transform maxima of the CPU mask).
 #include "CanopyClipmapGL.h"

@@ -1,5 +1,5 @@
-// Instanced trunks (foliage/TrunksGL.h): one 8-sided cylinder per crown centre found by trunk_find.comp, from the
-// terrain (common_elevation.glsl) up to the crowns' base, its radius a fraction of the crown's.
+// Instanced trunks (foliage/TrunksGL.h): one cylinder per crown centre found by trunk_find.comp, from the terrain
+// (common_elevation.glsl) up to the crowns' base, its radius a fraction of the crown's, drawn as a quad facing the eye.
 #include "common_elevation.glsl"
 
 layout(std430, binding = 0) readonly buffer Trunks {
@@ -20,14 +20,17 @@ uniform float uRadiusFraction;
 uniform float uMinRadius, uMaxRadius; // metres
 uniform int uCapacity;
 
-out vec3 vNormal;
+uniform vec3 uEye;             // local metres
 
-const int SIDES = 8;
+out float vU;          // across the quad, -1 (left) .. 1 (right), in radii from the axis
+flat out vec3 vAcross; // the horizontal unit vector across the quad, from u = 0 towards u = 1
+flat out vec3 vToward; // the horizontal unit vector from the axis to the eye
 
 void main() {
     if (gl_InstanceID >= uCapacity) {
         gl_Position = vec4(0.0, 0.0, 0.0, 0.0); // past the buffer: no triangle
-        vNormal = vec3(0.0, 0.0, 1.0);
+        vU = 0.0;
+        vAcross = vToward = vec3(1.0, 0.0, 0.0);
         return;
     }
     vec4 t = trunks[gl_InstanceID];
@@ -35,15 +38,19 @@ void main() {
     vec2 s = vec2(local.x - uGridOrigin.x, uGridOrigin.y - local.y) / uGridSpacing;
     float ground = elevationAt(0, s);
     float radius = clamp(t.z * uMetresPerPixel * uRadiusFraction, uMinRadius, uMaxRadius);
-    // A triangle strip round the sides: a0, b0, a1, b1, ..., a8 = a0, b8 = b0 (a = bottom, b = top), two triangles
-    // per side, (a_k, b_k, a_k+1) and (a_k+1, b_k, b_k+1): each corner shaded once for its two sides, 18 vertices a
-    // trunk instead of 48 as separate triangles.
-    int k = gl_VertexID / 2;
+    // The cylinder as the quad through its axis facing the eye (a cylindrical billboard), its normal rebuilt per
+    // fragment from the position across it: the cylinder's outline (to r² / d of its width at distance d) and
+    // shading with 4 vertices a trunk, where an 8-sided prism took 18 (llvmpipe shades vertices on the render
+    // thread). Strip: u = -1 bottom, top, then u = 1 bottom, top.
+    vec2 toward = uEye.xy - local;
+    toward = dot(toward, toward) > 1e-6 ? normalize(toward) : vec2(0.0, -1.0);
+    vec2 across = vec2(toward.y, -toward.x);
+    float u = (gl_VertexID & 2) != 0 ? 1.0 : -1.0;
     bool top = (gl_VertexID & 1) == 1;
-    float a = 6.2831853 * float(k) / float(SIDES);
-    vec2 dir = vec2(cos(a), sin(a));
     // Sunk 1 m into the ground so slopes show no gap under it.
-    vec3 p = vec3(local + radius * dir, top ? ground + uTrunkHeight : ground - 1.0);
-    vNormal = vec3(dir, 0.0);
+    vec3 p = vec3(local + radius * u * across, top ? ground + uTrunkHeight : ground - 1.0);
+    vU = u;
+    vAcross = vec3(across, 0.0);
+    vToward = vec3(toward, 0.0);
     gl_Position = uViewProj * vec4(p, 1.0);
 }
