@@ -35,8 +35,8 @@ CanopyHit canopyMarchAt(ivec2 pixel) {
     h.at = vec3(0.0);
     h.n = vec3(0.0, 0.0, 1.0);
     h.f = clipmapFootprintOf(vec2(1.0, 0.0), vec2(0.0, 1.0));
-    // llvmpipe runs the body of an `if` under a mask whether or not any pixel takes it, but leaves a loop once no
-    // pixel of the block is in it: the march is a loop run once, which a block with no entry skips.
+    // A loop run once for the pixels with an entry. llvmpipe passes a loop's body once for every block whether or
+    // not a pixel enters it, as it does an `if`'s (docs/performance.md, step 23): this saves nothing there.
     for (int once = 0; h.entered && once < 1; ++once) {
         vec4 e1 = texelFetch(uEntryFootprint, pixel, 0), e2 = texelFetch(uEntryRay, pixel, 0);
         vec2 p = e0.xy;
@@ -52,8 +52,8 @@ CanopyHit canopyMarchAt(ivec2 pixel) {
         float step = (uCanopyHeight - uCrownBase) / float(max(uCanopyLayers - 1, 1));
         // The points the loop may visit lie on a segment, from layer firstTested to uFirstLayer (or at firstTested
         // alone when the ray does not come down); where the canopy's level is derived over all of it, the loop reads
-        // that level directly (and records nothing: its blocks are derived). Each of the two loops below runs for its
-        // own pixels only.
+        // that level directly (and records nothing: its blocks are derived). Each of the two loops below iterates for
+        // its own pixels only.
         int last = descent > 0.0 ? uFirstLayer : firstTested;
         float d0 = float(uCanopyLayers - 1 - firstTested) * step, d1 = float(uCanopyLayers - 1 - last) * step;
         vec2 q0 = p + uLocalToPixel * ((d0 > 0.0 ? d0 / descent : 0.0) * dir.xy) + uLayerShift * float(firstTested);
