@@ -28,7 +28,8 @@ int canopyAt(vec2 p, int level) {
 
 // Whether every block of clip level `level` under the level-0 box [lo, hi] is derived, for a box that spans at most
 // 2 × 2 blocks there (false for a wider one, or a level past the clip levels): canopyAt(p, level) for p in the box is
-// then canopyAtDerived(p, level), one fetch instead of a tag check and a fetch per level tried.
+// then the level's texel at p, one fetch instead of a tag check and a fetch per level tried (the march's stepped loop,
+// common_canopy_march.glsl).
 bool canopyBoxDerived(vec2 lo, vec2 hi, int level) {
     if (level < 0 || level >= uClipLevels) return false;
     float s = exp2(float(level));
@@ -37,11 +38,4 @@ bool canopyBoxDerived(vec2 lo, vec2 hi, int level) {
     if (any(greaterThan(clipBlockOf(t1) - clipBlockOf(t0), ivec2(1)))) return false;
     return canopyBlockValid(level, t0) && canopyBlockValid(level, ivec2(t1.x, t0.y)) &&
            canopyBlockValid(level, ivec2(t0.x, t1.y)) && canopyBlockValid(level, t1);
-}
-
-// canopyAt(p, level) where that level is derived at p (canopyBoxDerived).
-int canopyAtDerived(vec2 p, int level) {
-    float s = exp2(float(level));
-    ivec2 q = clamp(ivec2(floor(p / s)), ivec2(0), ivec2(ceil(uLevel0Size / s)) - 1);
-    return int(texelFetch(uCanopyClip, ivec3(clipTexelOf(q), level), 0).r);
 }

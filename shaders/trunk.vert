@@ -22,7 +22,7 @@ uniform int uCapacity;
 
 uniform vec3 uEye;             // local metres
 
-out float vU;          // across the quad, -1 (left) .. 1 (right), in radii from the axis
+out float vU;          // across the quad, -1 .. 1 along vAcross, in radii from the axis
 flat out vec3 vAcross; // the horizontal unit vector across the quad, from u = 0 towards u = 1
 flat out vec3 vToward; // the horizontal unit vector from the axis to the eye
 
