@@ -312,6 +312,9 @@ CityModel modelOfTree(const AtlasTreeFile& f) {
         m.building.push_back(0);
         m.surface.push_back(f.plain.surface[i]);
     }
+    // The file keeps no buildings: its triangles joined by shared corners are one (BlockMaps take a texel's walls
+    // and feet from the buildings over it).
+    labelConnectedBuildings(m);
     return m;
 }
 

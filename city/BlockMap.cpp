@@ -106,10 +106,13 @@ void distanceField(BlockMap& m) {
 
 // The prisms' feet (BlockMap::foot): a boundary texel's, the lowest of the triangles over it and its 8 neighbours
 // (`cells` lists per texel indices into `tris`; the wall a prism's side stands for may lie in the next texel, whose
-// centre is outside the building), rounded down to a height step; an inner texel's, the lowest of its building
-// neighbours' (two sweeps).
+// centre is outside the building) of the buildings whose roofs lie over it (`owners`; all where it names none: a
+// neighbour across a street may stand lower down a slope), to the nearest height step (rounded down, the walls would
+// stand up to a step below their polygons' where no terrain hides their feet); an inner texel's, the lowest of its
+// building neighbours' whose buildings are all its own (two sweeps).
 void feet(BlockMap& m, const CityModel& model, const std::vector<std::size_t>& tris,
-          const std::vector<std::vector<std::uint32_t>>& cells, double step) {
+          const std::vector<std::vector<std::uint32_t>>& cells, const std::vector<std::vector<std::uint32_t>>& owners,
+          double step) {
     const int n = m.size;
     m.foot.assign(std::size_t(n) * std::size_t(n), 0);
     auto at = [n](int x, int y) { return std::size_t(y) * std::size_t(n) + std::size_t(x); };
@@ -120,6 +123,15 @@ void feet(BlockMap& m, const CityModel& model, const std::vector<std::size_t>& t
         }
         return false;
     };
+    // Texel j's buildings all texel i's (either naming none: any two): a texel where another building meets this
+    // one does not pass that building's foot on to this one's inner texels.
+    auto sameOwners = [&](std::size_t i, std::size_t j) {
+        const auto &a = owners[i], &b = owners[j];
+        if (a.empty() || b.empty()) return true;
+        for (const std::uint32_t o : b)
+            if (std::find(a.begin(), a.end(), o) == a.end()) return false;
+        return true;
+    };
     std::vector<int> inner;
     for (int y = 0; y < n; ++y)
         for (int x = 0; x < n; ++x) {
@@ -128,12 +140,14 @@ void feet(BlockMap& m, const CityModel& model, const std::vector<std::size_t>& t
             for (int ny = std::max(y - 1, 0); ny <= std::min(y + 1, n - 1); ++ny)
                 for (int nx = std::max(x - 1, 0); nx <= std::min(x + 1, n - 1); ++nx)
                     for (const std::uint32_t k : cells[at(nx, ny)]) {
+                        const auto& own = owners[at(x, y)];
+                        if (!own.empty() && std::find(own.begin(), own.end(), model.building[tris[k]]) == own.end())
+                            continue; // another building's (across a street, standing lower down a slope)
                         const auto& v = model.triangles[tris[k]].v;
                         lowest = std::min({lowest, v[0].z, v[1].z, v[2].z});
                     }
-            // (A millionth of a step up: a foot on the grid stays on it.)
             m.foot[at(x, y)] =
-                std::uint8_t(std::clamp(std::floor((lowest - m.zBase) / step + 1e-6), 0.0,
+                std::uint8_t(std::clamp(std::round((lowest - m.zBase) / step), 0.0,
                                         double(m.height2At(x, y) > 0 ? std::min(m.heightAt(x, y), m.height2At(x, y))
                                                                      : m.heightAt(x, y))));
             if (!boundary(x, y)) inner.push_back(int(at(x, y)));
@@ -143,7 +157,8 @@ void feet(BlockMap& m, const CityModel& model, const std::vector<std::size_t>& t
             const int i = inner[pass == 0 ? j : inner.size() - 1 - j], x = i % n, y = i / n;
             for (const glm::ivec2 s : kSides) {
                 const int nx = x + s.x, ny = y + s.y; // within the map: an inner texel is not on its edge
-                if (m.heightAt(nx, ny) > 0) m.foot[std::size_t(i)] = std::min(m.foot[std::size_t(i)], m.foot[at(nx, ny)]);
+                if (m.heightAt(nx, ny) > 0 && sameOwners(std::size_t(i), at(nx, ny)))
+                    m.foot[std::size_t(i)] = std::min(m.foot[std::size_t(i)], m.foot[at(nx, ny)]);
             }
         }
 }
@@ -223,6 +238,9 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
         glm::dvec3 normal;
     };
     std::vector<std::vector<Piece>> pieces(cellsCount);
+    // Per texel the buildings whose roofs lie over it (model.building; none where the model has no buildings).
+    std::vector<std::vector<std::uint32_t>> owners(cellsCount);
+    const bool haveOwners = model.building.size() == model.triangles.size();
     std::array<glm::dvec3, 8> clipped;
     for (std::size_t k = 0; k < tris.size(); ++k) {
         const auto& v = model.triangles[tris[k]].v;
@@ -237,6 +255,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
             for (int x = rx.x; x <= rx.y; ++x) {
                 const std::size_t i = std::size_t(y) * std::size_t(n) + std::size_t(x);
                 const glm::dvec2 cellLo = origin + glm::dvec2(x, y) * m.texel, cellHi = cellLo + m.texel;
+                const std::size_t piecesBefore = pieces[i].size();
                 if (lo.x >= cellLo.x && lo.y >= cellLo.y && hi.x <= cellHi.x && hi.y <= cellHi.y) {
                     // The whole triangle in the texel (most, in the coarse maps): no clipping.
                     if (std::abs(det) > 2e-9 * m.texel * m.texel)
@@ -259,6 +278,10 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                         }
                         pieces[i].push_back(piece);
                     }
+                }
+                if (haveOwners && pieces[i].size() > piecesBefore) {
+                    const std::uint32_t b = model.building[tris[k]];
+                    if (std::find(owners[i].begin(), owners[i].end(), b) == owners[i].end()) owners[i].push_back(b);
                 }
                 const double cx = origin.x + (double(x) + 0.5) * m.texel, cy = origin.y + (double(y) + 0.5) * m.texel;
                 const double b1 = ((cx - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (cy - v[0].y)) / det;
@@ -380,7 +403,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
         if (top2[i] > -kInf) m.height2[i] = std::uint8_t(std::clamp(std::lround((top2[i] - m.zBase) / step), 1L, 255L));
     }
     distanceField(m);
-    feet(m, model, tris, cells, step);
+    feet(m, model, tris, cells, owners, step);
 
     // Wall columns of the boundary texels (§3.3, Fig. 4): per exposed side, horizontal rays into the texel. A side is
     // hidden up to the neighbour's top where a prism of the neighbour covers all of the texel's prisms along it, else
@@ -442,7 +465,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
     // Rays from `start` in direction `s` reversed (into the texel), spread over `across` (metres, centred on start),
     // at each column texel's height of the texel's top `ownTop` from `hiddenTo` up, into column `col`.
     auto castRays = [&](int col, glm::dvec2 start, glm::ivec2 s, glm::dvec2 across, double ownTop, double hiddenTo,
-                        const std::vector<std::uint32_t>& near) {
+                        const std::vector<std::uint32_t>& near, const std::vector<std::uint32_t>& own) {
         const glm::dvec3 dir(-s.x, -s.y, 0.0);
         for (int j = 0; j < W; ++j) {
             const double z = m.zBase + (double(j) + 0.5) / double(W) * (ownTop - m.zBase);
@@ -455,6 +478,8 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                 glm::dvec3 bestBary(0.0);
                 bool found = false;
                 for (const std::uint32_t k : near) {
+                    if (!own.empty() && std::find(own.begin(), own.end(), model.building[tris[k]]) == own.end())
+                        continue; // another building's (across a street narrower than the ray's start outside)
                     double t;
                     glm::dvec3 b;
                     if (rayTriangle(o, dir, model.triangles[tris[k]].v, t, b) && t >= 0.0 && t < best) {
@@ -502,6 +527,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
             wallCounts.resize(wallCounts.size() + std::size_t(W), 0);
             const glm::dvec2 texelLo = origin + glm::dvec2(x, y) * m.texel;
             const std::vector<std::uint32_t>& here = cells[std::size_t(y) * std::size_t(n) + std::size_t(x)];
+            const std::vector<std::uint32_t>& texelOwners = owners[std::size_t(y) * std::size_t(n) + std::size_t(x)];
             for (int sideIndex = 0; sideIndex < 4; ++sideIndex) {
                 const glm::ivec2 s = kSides[std::size_t(sideIndex)];
                 const double nTop = neighbourTop(x, y, sideIndex);
@@ -531,7 +557,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                     const auto& other = cells[std::size_t(y + s.y) * std::size_t(n) + std::size_t(x + s.x)];
                     near.insert(near.end(), other.begin(), other.end());
                 }
-                castRays(col, start, s, across, ownTop, nTop, near);
+                castRays(col, start, s, across, ownTop, nTop, near, texelOwners);
             }
             if (prisms == 2) {
                 // The walls on either side of the strip between the two prisms, from its middle.
@@ -549,7 +575,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                     start[acrossAxis] += 0.5 * (p.lo[acrossAxis] + p.hi[acrossAxis]) * m.texel;
                     glm::dvec2 across(0.0);
                     across[acrossAxis] = (p.hi[acrossAxis] - p.lo[acrossAxis]) * m.texel;
-                    castRays(col, start, s, across, ownTop, m.zBase, here);
+                    castRays(col, start, s, across, ownTop, m.zBase, here, texelOwners);
                 }
             }
         }

@@ -62,8 +62,9 @@ struct BlockMap {
     // Per texel the prism's foot, as heights are stored (0 on an empty texel): a ray below it at the texel passes
     // under the prism (it is in the ground there: the terrain drawn under the block hides it; with no terrain, it
     // goes on to what is behind, as under the polygons; rising into the prism from below, it meets nothing). So walls
-    // do not hang below a building that stands higher than the block's lowest. A boundary texel's foot is at or below the lowest triangle over it; an inner
-    // texel's the lowest of its neighbours'. Empty: every foot at zBase.
+    // do not hang below a building that stands higher than the block's lowest. A boundary texel's foot is the lowest
+    // triangle over it of the buildings whose roofs lie over it, to the nearest height step; an inner texel's the
+    // lowest of its neighbours' of the same buildings. Empty: every foot at zBase.
     std::vector<std::uint8_t> foot;
     // Per texel the part of it its prism stands on, so the prisms end at the buildings' outlines, not at the texels'
     // edges (at an overview a texel is a pixel: whole texels move every outline by up to one): x0 | x1 << 4 | y0 << 8 |

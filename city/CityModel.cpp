@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <limits>
 #include <regex>
+#include <unordered_map>
 
 namespace seasonview::city {
 
@@ -76,6 +77,42 @@ void reframe(CityModel& model, const Crs& crs, glm::dvec2 origin) {
     model.crs = crs;
     model.origin = origin;
 }
+
+void labelConnectedBuildings(CityModel& m) {
+    const std::size_t n = m.triangles.size();
+    std::vector<std::uint32_t> parent(n);
+    for (std::size_t i = 0; i < n; ++i) parent[i] = std::uint32_t(i);
+    auto find = [&](std::uint32_t i) {
+        while (parent[i] != i) i = parent[i] = parent[parent[i]];
+        return i;
+    };
+    struct Key {
+        double x, y, z;
+        bool operator==(const Key&) const = default;
+    };
+    struct Hash {
+        std::size_t operator()(const Key& k) const {
+            return std::hash<double>()(k.x) ^ (std::hash<double>()(k.y) * 0x9E3779B97F4A7C15ull) ^
+                   (std::hash<double>()(k.z) * 0xC2B2AE3D27D4EB4Full);
+        }
+    };
+    std::unordered_map<Key, std::uint32_t, Hash> first;
+    first.reserve(n * 2);
+    for (std::size_t i = 0; i < n; ++i)
+        for (const glm::dvec3& v : m.triangles[i].v) {
+            const auto [it, added] = first.try_emplace(Key{v.x, v.y, v.z}, std::uint32_t(i));
+            if (!added) parent[find(std::uint32_t(i))] = find(it->second);
+        }
+    std::unordered_map<std::uint32_t, std::uint32_t> label;
+    m.buildingIds.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+        const auto [it, added] = label.try_emplace(find(std::uint32_t(i)), std::uint32_t(label.size()));
+        if (added) m.buildingIds.push_back("part" + std::to_string(it->second));
+        m.building[i] = it->second;
+    }
+    if (m.buildingIds.empty()) m.buildingIds = {"city"};
+}
+
 
 double placeOnTerrain(CityModel& model, const std::function<double(double, double)>& heightAt) {
     const std::size_t n = model.buildingIds.size();

@@ -98,5 +98,9 @@ void reframe(CityModel& model, const Crs& crs, glm::dvec2 origin);
 /// Sets every building on the terrain: shifts it vertically so its lowest vertex lies at the lowest terrain height
 /// under its vertices (`heightAt(x, y)` in the model's local frame, metres). Returns the largest shift (metres).
 double placeOnTerrain(CityModel& model, const std::function<double(double, double)>& heightAt);
+/// Labels as one building each set of triangles joined by shared corners (exactly equal positions: a building's
+/// walls meet its roofs at the eaves; buildings that touch are one), replacing model.building and buildingIds
+/// ("part0", "part1", ...): for a model that keeps no buildings (an atlas tree's, modelOfTree).
+void labelConnectedBuildings(CityModel& model);
 
 } // namespace seasonview::city

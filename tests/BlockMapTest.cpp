@@ -326,6 +326,55 @@ TEST(BlockMapTest, RaisedBuildingsEndAtTheirFeet) {
     EXPECT_EQ(int(r.kind), int(BlockMapHit::Kind::None));
 }
 
+// Two buildings with a street of 0.6 m between them, narrower than half a 2 m texel, the one on the right standing
+// lower (on a slope): the left one's walls facing the street are its own colour, not the back of its neighbour's
+// wall that the column's rays, starting from the next texel's middle, meet first, and its feet stay its own, not its
+// neighbour's lower ones (which would hang its walls below it where no terrain hides them).
+TEST(BlockMapTest, NeighboursAcrossANarrowStreetKeepTheirOwnWallsAndFeet) {
+    const std::vector<Prism> prisms = {{2, 4, 10, 28, 20.0, 6.0}, {10.6, 4, 20, 28, 18.0, 0.0}};
+    CityModel model = modelOf(prisms);
+    ASSERT_EQ(model.triangles.size(), std::size_t(20));
+    for (std::size_t i = 10; i < 20; ++i) model.building[i] = 1;
+    model.buildingIds = {"left", "right"};
+    BlockMapOptions o;
+    o.size = 16;
+    o.wallTexels = 8;
+    const auto colour = [](std::size_t tri, const glm::dvec3&) { return kFaceColour[g_faceOf[tri]]; };
+    auto m = buildBlockMap(model, {0.0, 0.0}, 32.0, o, colour);
+    ASSERT_TRUE(m) << m.message();
+    const double step = (m->zTop - m->zBase) / 255.0;
+    const std::uint32_t c = m->column[std::size_t(8) * 16 + 4]; // the left building's texel on the street
+    ASSERT_GT(c, 0u);
+    for (int j : {3, 5, 7}) {
+        const std::size_t at = (std::size_t(c - 1) * 8 + std::size_t(j)) * 4;
+        EXPECT_EQ(glm::ivec3(m->wallRgba[at], m->wallRgba[at + 1], m->wallRgba[at + 2]), glm::ivec3(0, 255, 0))
+            << "its own +x wall (green), not the neighbour's -x one (red), at " << j;
+    }
+    for (int y : {2, 8, 13}) {
+        EXPECT_NEAR(m->footAt(4, y), 6.0, 0.5 * step + 1e-9) << "the left building's foot on the street, row " << y;
+        EXPECT_NEAR(m->footAt(2, y), 6.0, 0.5 * step + 1e-9) << "and inside it, row " << y;
+    }
+    EXPECT_NEAR(m->footAt(7, 8), 0.0, 1e-9) << "the right one's foot";
+    // With no buildings told apart (one building), the column sees the neighbour's wall first: the test can fail.
+    std::fill(model.building.begin(), model.building.end(), 0u);
+    auto merged = buildBlockMap(model, {0.0, 0.0}, 32.0, o, colour);
+    ASSERT_TRUE(merged);
+    const std::size_t at = (std::size_t(merged->column[std::size_t(8) * 16 + 4] - 1) * 8 + 5) * 4;
+    EXPECT_NE(glm::ivec3(merged->wallRgba[at], merged->wallRgba[at + 1], merged->wallRgba[at + 2]), glm::ivec3(0, 255, 0));
+    EXPECT_NEAR(merged->footAt(4, 8), 0.0, 1e-9);
+}
+
+// A model that keeps no buildings (an atlas tree's) gets one per set of triangles joined by shared corners.
+TEST(BlockMapTest, ConnectedTrianglesAreOneBuilding) {
+    CityModel model = modelOf({{0, 0, 4, 4, 10.0}, {4, 0, 8, 4, 12.0}, {10, 0, 14, 4, 10.0}});
+    labelConnectedBuildings(model);
+    ASSERT_EQ(model.building.size(), std::size_t(30));
+    EXPECT_EQ(model.buildingIds.size(), std::size_t(2)) << "the two touching prisms are one";
+    for (std::size_t i = 0; i < 20; ++i) EXPECT_EQ(model.building[i], model.building[0]) << i;
+    for (std::size_t i = 20; i < 30; ++i) EXPECT_EQ(model.building[i], model.building[20]) << i;
+    EXPECT_NE(model.building[0], model.building[20]);
+}
+
 TEST(BlockMapTest, LeapingVisitsFewerTexels) {
     const std::vector<Prism> prisms = {{28, 28, 31, 31, 25.5}};
     const BlockMap m = build(prisms);
