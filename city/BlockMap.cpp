@@ -137,10 +137,10 @@ void feet(BlockMap& m, const CityModel& model, const std::vector<std::size_t>& t
         for (int x = 0; x < n; ++x) {
             if (m.heightAt(x, y) == 0) continue;
             double lowest = m.topAt(x, y);
+            const auto& own = owners[at(x, y)];
             for (int ny = std::max(y - 1, 0); ny <= std::min(y + 1, n - 1); ++ny)
                 for (int nx = std::max(x - 1, 0); nx <= std::min(x + 1, n - 1); ++nx)
                     for (const std::uint32_t k : cells[at(nx, ny)]) {
-                        const auto& own = owners[at(x, y)];
                         if (!own.empty() && std::find(own.begin(), own.end(), model.building[tris[k]]) == own.end())
                             continue; // another building's (across a street, standing lower down a slope)
                         const auto& v = model.triangles[tris[k]].v;

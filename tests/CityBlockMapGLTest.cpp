@@ -14,6 +14,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <tuple>
 
 using namespace seasonview;
 using namespace seasonview::test;
@@ -97,14 +98,37 @@ BlockCity& blockCity() {
     return c;
 }
 
+// The block city's renderers in atlas mode and in blockmap mode.
+std::pair<std::unique_ptr<city::CityRendererGL>, std::unique_ptr<city::CityRendererGL>> bothModes(BlockCity& bc) {
+    return {bc.renderer(bc.settings(city::CityMode::Atlas)), bc.renderer(bc.settings(city::CityMode::BlockMap))};
+}
+
+// The block city drawn in atlas mode and in blockmap mode at one camera, everything loaded: both pictures, their
+// frames' counters, and the PSNR over the city's pixels.
+struct Compared {
+    std::vector<std::uint8_t> atlas, blockmap;
+    city::CityFrameStats sa, sb;
+    double psnr = 0.0;
+    std::size_t pixels = 0;
+};
+Compared compareModes(city::CityRendererGL& atlas, city::CityRendererGL& blockmap, const Camera& cam,
+                      const gl::RenderTarget& target) {
+    Compared c;
+    atlas.complete(cam, kW, kH);
+    blockmap.complete(cam, kW, kH);
+    c.atlas = drawCity(atlas, cam, target, c.sa);
+    c.blockmap = drawCity(blockmap, cam, target, c.sb);
+    std::tie(c.psnr, c.pixels) = cityPsnr(c.atlas, c.blockmap);
+    return c;
+}
+
 } // namespace
 
 TEST(CityBlockMapGLTest, FarBlocksAreMapsAndThePictureIsTheAtlasModes) {
     ASSERT_TRUE(headlessContext());
     BlockCity& bc = blockCity();
     ASSERT_TRUE(bc.scene);
-    auto atlas = bc.renderer(bc.settings(city::CityMode::Atlas));
-    auto blockmap = bc.renderer(bc.settings(city::CityMode::BlockMap));
+    auto [atlas, blockmap] = bothModes(bc);
     ASSERT_TRUE(atlas && blockmap);
     gl::RenderTarget target(kW, kH);
     // The overview: buildings 4-6 px wide, maps of 2-4 m texels (at most 1 px), the outlines and the 1 m streets
@@ -121,12 +145,11 @@ TEST(CityBlockMapGLTest, FarBlocksAreMapsAndThePictureIsTheAtlasModes) {
     };
     for (const View& v : views) {
         SCOPED_TRACE(v.name);
-        city::CityFrameStats sa, sb;
-        atlas->complete(v.cam, kW, kH);
-        blockmap->complete(v.cam, kW, kH);
-        const auto a = drawCity(*atlas, v.cam, target, sa);
-        const auto b = drawCity(*blockmap, v.cam, target, sb);
-        const auto [psnr, pixels] = cityPsnr(a, b);
+        const Compared c = compareModes(*atlas, *blockmap, v.cam, target);
+        const auto &a = c.atlas, &b = c.blockmap;
+        const auto &sa = c.sa, &sb = c.sb;
+        const double psnr = c.psnr;
+        const std::size_t pixels = c.pixels;
         std::printf("%s: atlas %lld triangles %d calls, blockmap %lld triangles %d calls %d maps; PSNR %.1f dB over %zu px\n",
                     v.name, (long long)sa.triangles, sa.drawCalls, (long long)sb.triangles, sb.drawCalls, sb.blockMaps,
                     psnr, pixels);
@@ -161,8 +184,7 @@ TEST(CityBlockMapGLTest, EightOverviewsAgainstTheAtlasMode) {
     ASSERT_TRUE(headlessContext());
     BlockCity& bc = blockCity();
     ASSERT_TRUE(bc.scene);
-    auto atlas = bc.renderer(bc.settings(city::CityMode::Atlas));
-    auto blockmap = bc.renderer(bc.settings(city::CityMode::BlockMap));
+    auto [atlas, blockmap] = bothModes(bc);
     ASSERT_TRUE(atlas && blockmap);
     gl::RenderTarget target(kW, kH);
     const double cams[][5] = {{0, -350, 450, 0, -50},    {350, 0, 450, 270, -50},    {0, 350, 450, 180, -50},
@@ -171,19 +193,13 @@ TEST(CityBlockMapGLTest, EightOverviewsAgainstTheAtlasMode) {
     double se = 0.0; // summed squared error over 255², as mean × pixels
     std::size_t pixels = 0;
     for (const auto& c : cams) {
-        const Camera cam = bc.camera(c[0], c[1], c[2], c[3], c[4]);
-        city::CityFrameStats sa, sb;
-        atlas->complete(cam, kW, kH);
-        blockmap->complete(cam, kW, kH);
-        const auto a = drawCity(*atlas, cam, target, sa);
-        const auto b = drawCity(*blockmap, cam, target, sb);
-        const auto [psnr, n] = cityPsnr(a, b);
-        EXPECT_GT(n, std::size_t(kW * kH / 20)) << "the city is in view";
-        EXPECT_GT(sb.blockMaps, 0);
-        se += std::pow(10.0, -psnr / 10.0) * double(n);
-        pixels += n;
-        std::printf("overview at %g, %g, +%g m heading %g: %.2f dB over %zu px, %d maps\n", c[0], c[1], c[2], c[3], psnr,
-                    n, sb.blockMaps);
+        const Compared r = compareModes(*atlas, *blockmap, bc.camera(c[0], c[1], c[2], c[3], c[4]), target);
+        EXPECT_GT(r.pixels, std::size_t(kW * kH / 20)) << "the city is in view";
+        EXPECT_GT(r.sb.blockMaps, 0);
+        se += std::pow(10.0, -r.psnr / 10.0) * double(r.pixels);
+        pixels += r.pixels;
+        std::printf("overview at %g, %g, +%g m heading %g: %.2f dB over %zu px, %d maps\n", c[0], c[1], c[2], c[3],
+                    r.psnr, r.pixels, r.sb.blockMaps);
     }
     const double all = -10.0 * std::log10(se / double(pixels));
     std::printf("all eight: %.2f dB over %zu px\n", all, pixels);
