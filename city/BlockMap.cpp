@@ -229,13 +229,15 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
     const double step = (m.zTop - m.zBase) / 255.0;
 
     // Heights: the highest non-vertical triangle over each texel's centre. Pieces: per texel the box of what each
-    // non-vertical triangle covers of it, its highest point and the triangle's normal (the texel's parts, below).
+    // non-vertical triangle covers of it, the area it covers, its highest point and the triangle's normal (the
+    // texel's parts, below).
     std::vector<double> top(cellsCount, -kInf);
     std::vector<glm::dvec3> topNormal(cellsCount, glm::dvec3(0.0, 0.0, 1.0));
     struct Piece {
         glm::dvec2 lo, hi; // fractions of the texel
         double top;
         glm::dvec3 normal;
+        double area; // fraction of the texel
     };
     std::vector<std::vector<Piece>> pieces(cellsCount);
     // Per texel the buildings whose roofs lie over it (model.building; none where the model has no buildings).
@@ -260,7 +262,8 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                     // The whole triangle in the texel (most, in the coarse maps): no clipping.
                     if (std::abs(det) > 2e-9 * m.texel * m.texel)
                         pieces[i].push_back(
-                            Piece{(glm::dvec2(lo) - cellLo) / m.texel, (glm::dvec2(hi) - cellLo) / m.texel, hi.z, up});
+                            Piece{(glm::dvec2(lo) - cellLo) / m.texel, (glm::dvec2(hi) - cellLo) / m.texel, hi.z, up,
+                                  0.5 * std::abs(det) / (m.texel * m.texel)});
                 } else if (const int corners = clipToSquare(v, cellLo, cellHi, clipped); corners > 0) {
                     double area = 0.0;
                     for (int c = 0; c < corners; ++c) {
@@ -268,7 +271,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                         area += p.x * q.y - q.x * p.y;
                     }
                     if (std::abs(area) > 1e-9 * m.texel * m.texel) {
-                        Piece piece{glm::dvec2(kInf), glm::dvec2(-kInf), -kInf, up};
+                        Piece piece{glm::dvec2(kInf), glm::dvec2(-kInf), -kInf, up, 0.5 * std::abs(area) / (m.texel * m.texel)};
                         for (int c = 0; c < corners; ++c) {
                             const glm::dvec3& p = clipped[std::size_t(c)];
                             const glm::dvec2 f = (glm::dvec2(p) - cellLo) / m.texel;
@@ -306,18 +309,60 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
     m.height2.assign(cellsCount, 0);
     std::vector<double> top2(cellsCount, -kInf);
     struct Part {
-        glm::ivec2 lo{16}, hi{0};
+        glm::ivec2 lo{16}, hi{0}; // sixteenths (round())
+        glm::dvec2 box0{kInf}, box1{-kInf}; // the pieces' box, fractions of the texel
+        double area = 0.0;                 // the pieces' area, fraction of the texel
         double top = -kInf;
         glm::dvec3 normal{0.0, 0.0, 1.0}; // the roof's there: top is the height of its plane at `at`
         glm::dvec2 at{0.0};
         void add(const Piece& p) {
-            for (int a = 0; a < 2; ++a) {
-                lo[a] = std::min(lo[a], int(std::clamp(std::lround(p.lo[a] * 16.0), 0L, 16L)));
-                hi[a] = std::max(hi[a], int(std::clamp(std::lround(p.hi[a] * 16.0), 0L, 16L)));
-            }
+            box0 = glm::min(box0, p.lo);
+            box1 = glm::max(box1, p.hi);
+            area += p.area;
             if (p.top > top) {
                 top = p.top;
                 normal = p.normal;
+            }
+        }
+        // The box to sixteenths, with the area the pieces cover: its sides inside the texel (where the outline is)
+        // move in until the box covers no more than they do, so a building at an angle to the grid, whose pieces are
+        // trapezoids, ends halfway along its edge across the texel, not at its outermost point (half the error, and
+        // none of the growth); sides on the texel's edges (the building goes on into the neighbour) stay.
+        void round() {
+            if (!(box0.x <= box1.x && box0.y <= box1.y)) return; // no pieces: empty
+            glm::dvec2 b0 = box0, b1 = box1;
+            const glm::dvec2 ext = b1 - b0;
+            const double boxArea = ext.x * ext.y;
+            if (ext.x > 0.0 && ext.y > 0.0 && area < boxArea) {
+                constexpr double kEdge = 1e-9;
+                std::array<bool, 2> freeLo{}, freeHi{};
+                for (int a = 0; a < 2; ++a) {
+                    freeLo[std::size_t(a)] = b0[a] > kEdge;
+                    freeHi[std::size_t(a)] = b1[a] < 1.0 - kEdge;
+                }
+                const bool fx = freeLo[0] || freeHi[0], fy = freeLo[1] || freeHi[1];
+                glm::dvec2 scale(1.0);
+                if (fx && fy) scale = glm::dvec2(std::sqrt(area / boxArea));
+                else if (fx) scale.x = area / boxArea;
+                else if (fy) scale.y = area / boxArea;
+                for (int a = 0; a < 2; ++a) {
+                    if (scale[a] >= 1.0) continue;
+                    const double e = ext[a] * scale[a];
+                    const bool l = freeLo[std::size_t(a)], h = freeHi[std::size_t(a)];
+                    if (l && h) {
+                        const double c = 0.5 * (b0[a] + b1[a]);
+                        b0[a] = c - 0.5 * e;
+                        b1[a] = c + 0.5 * e;
+                    } else if (l) {
+                        b0[a] = b1[a] - e;
+                    } else {
+                        b1[a] = b0[a] + e;
+                    }
+                }
+            }
+            for (int a = 0; a < 2; ++a) {
+                lo[a] = int(std::clamp(std::lround(b0[a] * 16.0), 0L, 16L));
+                hi[a] = int(std::clamp(std::lround(b1[a] * 16.0), 0L, 16L));
             }
         }
         bool empty() const { return hi.x <= lo.x || hi.y <= lo.y; }
@@ -345,6 +390,8 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
         }
         Part first, second;
         for (const Piece& p : pieces[i]) (gapAxis >= 0 && p.lo[gapAxis] >= gapHi ? second : first).add(p);
+        first.round();
+        second.round();
         if (first.empty() && !second.empty()) std::swap(first, second);
         if (second.empty() && top[i] > -kInf) // one prism over the centre: at least the sixteenth around it
             for (int a = 0; a < 2; ++a)
@@ -455,6 +502,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
     std::vector<glm::dvec3> sums;    // per column texel: colour sum of the rays that met walls
     std::vector<int> counts;         // per column texel: rays that met a triangle
     std::vector<int> wallCounts;     // per column texel: of those, rays that met walls (not roofs)
+    std::vector<glm::dvec2> metNormal; // per column: the sum of the met walls' horizontal unit normals
     // A triangle that faces up or down by more than about 12° is a roof here (its steps are drawn as roof).
     auto roofLike = [&](std::size_t tri) {
         const auto& v = model.triangles[tri].v;
@@ -499,6 +547,11 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                 const auto& tv = model.triangles[bestTri].v;
                 const glm::dvec3 tn = glm::cross(tv[1] - tv[0], tv[2] - tv[0]);
                 const double facing = std::abs(tn.x * double(s.x) + tn.y * double(s.y));
+                // The column's normal: the mean of the walls' it met, facing out of the side (a wall at an angle
+                // to the grid is shaded as its polygons are, not by the steps its texels make).
+                if (const double h = std::hypot(tn.x, tn.y); h > 0.0)
+                    metNormal[std::size_t(col)] +=
+                        (tn.x * double(s.x) + tn.y * double(s.y) < 0.0 ? -1.0 : 1.0) * glm::dvec2(tn.x, tn.y) / h;
                 std::uint8_t& g = m.wallOnGrid[std::size_t(col)];
                 g = facing < 0.985 * std::hypot(tn.x, tn.y) ? 0 : g == 2 ? 1 : g;
             }
@@ -522,6 +575,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
             m.column[std::size_t(y) * std::size_t(n) + std::size_t(x)] = std::uint32_t(col + 1);
             m.wallNormal.push_back(glm::length(normal) > 0.0 ? glm::vec3(glm::normalize(normal)) : glm::vec3(0.0f));
             m.wallOnGrid.push_back(2); // no wall met yet
+            metNormal.push_back(glm::dvec2(0.0));
             sums.resize(sums.size() + std::size_t(W), glm::dvec3(0.0));
             counts.resize(counts.size() + std::size_t(W), 0);
             wallCounts.resize(wallCounts.size() + std::size_t(W), 0);
@@ -581,6 +635,8 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
         }
 
     for (std::uint8_t& g : m.wallOnGrid) g = g == 1; // a column that met no wall: by its normal
+    for (std::size_t c = 0; c < metNormal.size(); ++c) // a column that met no wall keeps its sides' mean
+        if (glm::length(metNormal[c]) > 1e-6) m.wallNormal[c] = glm::vec3(glm::normalize(metNormal[c]), 0.0f);
     if (m.columns() > kMaxColumns)
         return Error{"BlockMap: " + std::to_string(m.columns()) + " wall columns, more than " + std::to_string(kMaxColumns)};
     // Column texels no ray saw: the nearest seen one in the column; a column that saw nothing: the block's mean.
@@ -854,8 +910,11 @@ Result<CityBlockMapReport> buildCityBlockMaps(const CityModel& model, const City
         const glm::dvec2 uv = b.x * t.t[0] + b.y * t.t[1] + b.z * t.t[2];
         const WorldScale ws = textureWorldScale(t);
         const double texelsPerMetre = ws.s > 0.0 ? double((*tex)->sizes[0].x) / ws.s : 1.0;
-        // The texture's texels under one column texel: about the node's texel (the map being built).
-        const glm::vec4 c = (*tex)->sample(uv, std::max(1.0, nodeTexel * texelsPerMetre));
+        // The texture's texels under one sample: what a pixel covers where the map is drawn. A map is drawn where
+        // its texel covers at most a pixel and its parent's more (BlockMapTraversal), so a pixel covers one to two of
+        // its texels: √2, their geometric middle (one texel blurs less than the polygons' mipmaps do at an overview;
+        // two, more than they do at the switch distance).
+        const glm::vec4 c = (*tex)->sample(uv, std::max(1.0, std::sqrt(2.0) * nodeTexel * texelsPerMetre));
         return glm::dvec3(c) / 255.0;
     };
     std::size_t total = 0;

@@ -8,9 +8,10 @@
 // index for boundary texels (those with a lower 4-neighbour, the block's edge counting as lower) and a discrete
 // distance field over the empty space (the Chebyshev distance in texels to the nearest building texel) for leaping.
 // Each wall column holds `wallTexels` colours from the block's floor to the prism's top, the mean of what its exposed
-// sides show (and how much of it is wall rather than the steps of a sloped roof), the mean outward normal of those
-// sides; each texel its roof's normal and its prism's foot (the paper's blocks stand on flat ground; here a building
-// may stand higher than the block's floor, and its prisms end where it meets the ground), and the part of the texel
+// sides show (and how much of it is wall rather than the steps of a sloped roof), the mean outward normal of the
+// walls its rays met (of its exposed sides where they met none); each texel its roof's normal and its prism's foot
+// (the paper's blocks stand on flat ground; here a building may stand higher than the block's floor, and its prisms
+// end where it meets the ground), and the part of the texel
 // its prism stands on, to a sixteenth of a texel (the paper's prisms fill their texels; here they end where the
 // buildings' outlines are, so an overview whose texels are pixels shows the polygons' outlines, not the grid's), with
 // a second prism where a street crosses the texel, and a roof plane, not a level top. Roofs store no colour:
@@ -48,7 +49,7 @@ struct BlockMap {
     // Per wall texel RGB and A, the share of its rays that met walls (255) rather than roofs (0: a step of a sloped
     // roof seen from the side, drawn as roof); columns × wallTexels × 4, the lowest first.
     std::vector<std::uint8_t> wallRgba;
-    std::vector<glm::vec3> wallNormal;  // per column, unit and horizontal
+    std::vector<glm::vec3> wallNormal;  // per column, unit and horizontal: the met walls' mean (else the sides')
     // Per column 1 where every wall its rays met runs along the grid (across the side they went in by, within
     // 10°): a wall pixel there is shaded by the side its ray enters the texel through, as the polygons shade a
     // corner's two walls each by its own normal; 0 (or empty): by the column's normal (a wall at an angle to the grid,

@@ -283,8 +283,11 @@ void main() {
         int column = max(int(texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).y & 0xFFFFFFu) - 1, 0);
         float v = clamp((hit.z - bmZBase) / max(top - bmZBase, 1e-6), 0.0, 1.0);
         // The wall texels a pixel spans vertically: filtered from the column's halved levels (trilinear), so a
-        // far facade shows its mean, not a few of its texels.
+        // far facade shows its mean, not a few of its texels. Seen from above or below at an elevation e, a pixel
+        // spans 1 / cos e times its width up a vertical wall, whichever way the wall faces (cos e floored at 1/4).
         float metresPerPixel = tHit * length(d) * uPixelAngle;
+        float dz = d.z / length(d);
+        metresPerPixel /= sqrt(max(1.0 - dz * dz, 0.0625));
         float lod = log2(max(1.0, float(bmWallTexels) / max(top - bmZBase, 1e-3) * metresPerPixel));
         int l0 = int(floor(lod));
         vec4 w = mix(bmWallAt(column, v, l0), bmWallAt(column, v, l0 + 1), fract(lod));

@@ -471,6 +471,32 @@ TEST(BlockMapTest, WallsAtAnAngleAreOffTheGrid) {
     int off = 0;
     for (std::uint8_t g : m->wallOnGrid) off += g == 0;
     EXPECT_EQ(off, m->columns());
+    // Each column is shaded by the walls it shows, not by its texel's exposed sides (the steps: ±x, ±y or between,
+    // 15-45° off the walls here): away from the corners, within a degree of the nearest wall's normal.
+    int along = 0;
+    for (const glm::vec3& nrm : m->wallNormal) {
+        double best = -1.0;
+        for (int k = 0; k < 4; ++k) {
+            const double w = a + double(k) * 3.141592653589793 / 2.0;
+            best = std::max(best, double(nrm.x) * std::cos(w - 3.141592653589793 / 2.0) +
+                                      double(nrm.y) * std::sin(w - 3.141592653589793 / 2.0));
+        }
+        along += best > std::cos(1.0 * 3.141592653589793 / 180.0);
+    }
+    std::printf("%d of %d columns along their walls\n", along, m->columns());
+    EXPECT_GE(along * 10, m->columns() * 8);
+    // The texels' parts cover what the roof covers (12 × 12 m) within 2 %: their boxes' sides inside the texels stand
+    // halfway along the edge across them, not at its outermost point (153 m²: the building grown all round). What is
+    // left over: texels whose corner the outline cuts off, whose part touches all four sides and stays whole.
+    double covered = 0.0;
+    for (int y = 0; y < 32; ++y)
+        for (int x = 0; x < 32; ++x)
+            if (m->heightAt(x, y) > 0) {
+                const TexelPart p = texelPart(m->rectAt(x, y));
+                covered += (p.hi.x - p.lo.x) * (p.hi.y - p.lo.y);
+            }
+    std::printf("parts cover %.2f m2 of 144\n", covered);
+    EXPECT_NEAR(covered, 144.0, 3.0);
 }
 
 // A gabled roof (45° slopes, the ridge along x): each texel's roof normal is its slope's, and the steps the slope
