@@ -136,8 +136,8 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
 /// A city's BlockMaps (§4: "a quadtree hierarchy of finer and finer BlockMap representations"): a quadtree of squares
 /// over the model's footprint, its leaves `map.size · leafTexel` metres wide, every node with triangles a BlockMap
 /// of `map.size`² texels (empty nodes none), the root first, level by level. Wall colours from the model's textures
-/// (read through a TextureCache of `cacheBytes`, sampled at the map texel's footprint in each texture; untextured
-/// triangles the city's plain colour).
+/// (read through a TextureCache of `cacheBytes`, sampled over √2 of the map's texels in each texture, what a pixel
+/// covers where the map is drawn; untextured triangles the city's plain colour).
 struct CityBlockMapSettings {
     BlockMapOptions map;
     double leafTexel = 1.0; // metres per texel of the finest BlockMaps
