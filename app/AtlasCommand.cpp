@@ -15,7 +15,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
+#include <optional>
 
 namespace seasonview::app {
 
@@ -245,7 +247,17 @@ int atlasBuild(const AtlasArgs* a) {
 // atlas blockmaps INPUT --out FILE: the model's BlockMaps over a quadtree of its footprint (buildCityBlockMaps).
 int atlasBlockMaps(const AtlasArgs* a) {
     const auto t0 = std::chrono::steady_clock::now();
-    auto model = loadCityForCli(a->input, a->crs, a->objLocal, a->objUp);
+    // An atlas tree (.svat): its triangles, wall colours through its atlases (what `--city blockmap` builds).
+    std::optional<city::AtlasTreeFile> tree;
+    Result<city::CityModel> model = Error{""};
+    if (std::filesystem::path(a->input).extension() == ".svat") {
+        auto f = city::AtlasTreeFile::open(a->input);
+        if (!f) return fail(f.error().message);
+        tree = std::move(*f);
+        model = city::modelOfTree(*tree);
+    } else {
+        model = loadCityForCli(a->input, a->crs, a->objLocal, a->objUp);
+    }
     if (!model) return fail(model.error().message);
     std::printf("%s: %zu buildings, %zu triangles, %zu textures\n", a->input.c_str(), model->buildingIds.size(),
                 model->triangles.size(), model->textures.size());
@@ -256,20 +268,23 @@ int atlasBlockMaps(const AtlasArgs* a) {
     s.leafTexel = a->leafTexel;
     s.cacheBytes = std::uint64_t(std::max(16.0, a->cacheMb) * 1048576.0);
     s.progress = terminalProgress("blockmaps");
+    if (tree) s.atlasTree = &*tree;
     auto r = city::buildCityBlockMaps(*model, s, a->out);
     if (!r) return fail(model->failureWithWarnings(r.error().message));
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf("%s: %zu BlockMaps of %d² texels (depth %d, root %.0f m, leaves %.1f m per texel), %zu wall columns, "
-                "file %.1f MB, %llu texture reads, %.1f s, peak RSS %.2f GB\n",
+                "file %.1f MB, %llu texture reads, %llu atlas reads, %.1f s, peak RSS %.2f GB\n",
                 a->out.c_str(), r->maps, s.map.size, r->depth, r->rootSide, r->rootSide / double(s.map.size << r->depth),
-                r->columns, double(r->fileBytes) / 1e6, (unsigned long long)r->textureReads, seconds, peakRssGb());
+                r->columns, double(r->fileBytes) / 1e6, (unsigned long long)r->textureReads,
+                (unsigned long long)r->atlasReads, seconds, peakRssGb());
     if (!a->report.empty()) {
         nlohmann::json j = {{"input", a->input},     {"buildings", model->buildingIds.size()},
                             {"triangles", model->triangles.size()}, {"maps", r->maps},
                             {"depth", r->depth},     {"root_side_m", r->rootSide},
                             {"size", s.map.size},    {"wall_texels", s.map.wallTexels},
                             {"columns", r->columns}, {"file_bytes", r->fileBytes},
-                            {"texture_reads", r->textureReads}, {"seconds", seconds},
+                            {"texture_reads", r->textureReads}, {"atlas_reads", r->atlasReads},
+                            {"seconds", seconds},
                             {"peak_rss_gb", peakRssGb()}};
         std::string err;
         if (!writeTextAtomic(a->report, j.dump(2) + "\n", err)) return fail(a->report + ": " + err);
@@ -325,7 +340,10 @@ Runner addAtlasCommand(CLI::App& app) {
 
     CLI::App* blockmaps = cmd->add_subcommand(
         "blockmaps", "Build a city model's BlockMaps (Cignoni et al. 2007): discrete textured prisms for the far field");
-    blockmaps->add_option("INPUT", a->input, "City model: CityGML (.gml/.xml) or OBJ (.obj with its .mtl)")->required();
+    blockmaps->add_option("INPUT", a->input,
+                          "City model: CityGML (.gml/.xml) or OBJ (.obj with its .mtl), or its atlas tree (.svat: wall "
+                          "colours through its atlases, as --city blockmap builds them)")
+        ->required();
     blockmaps->add_option("--out", a->out, "BlockMap file to write (written whole or not at all)")->required();
     blockmaps->add_option("--size", a->blockMapSize, "Height-map texels per side of every BlockMap")
         ->check(CLI::Range(2, 4096))

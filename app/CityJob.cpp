@@ -70,7 +70,7 @@ Status prepareCityBlockMaps(const Scene& scene, const std::filesystem::path& tre
     city::placeInSceneFrame(scene, *file, settings.placeOnTerrain);
     const city::CityModel model = city::modelOfTree(*file);
     // The key: the placed triangles, their textures and coordinates, the texture files, the build settings.
-    std::string key = "blockmaps|v3|64|32|1", chunk;
+    std::string key = "blockmaps|v4|64|32|1", chunk;
     auto flush = [&] {
         key += "|" + std::to_string(stableHash64(chunk));
         chunk.clear();
@@ -81,6 +81,10 @@ Status prepareCityBlockMaps(const Scene& scene, const std::filesystem::path& tre
         chunk.append(reinterpret_cast<const char*>(&t.texture), sizeof t.texture);
         if (chunk.size() > (1u << 20)) flush();
     }
+    flush();
+    // Wall colours are read through the tree's atlases: theirs too.
+    for (const auto& tr : file->trees)
+        for (const auto& n : tr.nodes) chunk.append(reinterpret_cast<const char*>(&n.atlasCrc), sizeof n.atlasCrc);
     flush();
     for (const auto& t : model.textures) {
         std::error_code ec;
@@ -101,6 +105,7 @@ Status prepareCityBlockMaps(const Scene& scene, const std::filesystem::path& tre
     const auto t0 = std::chrono::steady_clock::now();
     city::CityBlockMapSettings bs;
     bs.progress = terminalProgress("BlockMaps");
+    bs.atlasTree = &*file;
     auto r = city::buildCityBlockMaps(model, bs, path);
     if (!r) return r.error();
     std::printf("city: built %zu BlockMaps of %s in %.1f s: %.1f MB, %s\n", r->maps, tree.string().c_str(),

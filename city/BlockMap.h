@@ -32,6 +32,8 @@
 
 namespace seasonview::city {
 
+struct AtlasTreeFile;
+
 struct BlockMapOptions {
     int size = 64;       // n: height-map texels per side (the paper's examples: 32; the issue: 64–256)
     int wallTexels = 32; // colours per wall column, from the prism's foot to its top (the paper: 31)
@@ -142,6 +144,13 @@ struct CityBlockMapSettings {
     BlockMapOptions map;
     double leafTexel = 1.0; // metres per texel of the finest BlockMaps
     std::uint64_t cacheBytes = std::uint64_t(512) << 20;
+    /// The atlas tree the model is of (modelOfTree(*atlasTree), its tree triangles first): a wall's colour is then
+    /// read through the tree's atlases (the issue's "through the atlas tree's textures"), from the node the atlas
+    /// mode draws where the map is drawn (the coarsest whose texels are no wider than √2 of the map's), with that
+    /// atlas's compression and filtering (over 1.7 times that, measured: buildCityBlockMaps), so a map and the atlases
+    /// it stands in for show the same walls; where even the leaves' atlases are coarser, the original texture. Null: the model's own textures. Atlases are read through an LRU cache of
+    /// `cacheBytes` / 2.
+    const AtlasTreeFile* atlasTree = nullptr;
     std::function<void(double, const char*)> progress; // 0..1 as maps are built, and the stage
 };
 struct CityBlockMapReport {
@@ -151,6 +160,7 @@ struct CityBlockMapReport {
     std::size_t columns = 0;  // wall columns, all maps
     std::uint64_t fileBytes = 0;
     std::uint64_t textureReads = 0;
+    std::uint64_t atlasReads = 0; // atlases decoded (settings.atlasTree), re-reads after eviction included
 };
 /// Builds the city's BlockMaps and writes them to `out` (writeBlockMaps). Errors: a texture that cannot be read (one
 /// line naming it), a model with no triangles, bad settings, the file not written.

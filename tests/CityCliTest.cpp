@@ -962,3 +962,62 @@ TEST(CityCliTest, ViewerKeyGSwitchesTheFarBlockMaps) {
     EXPECT_LT(offMapPixels, mapPixels / 20) << "G: the atlas tree draws them";
     EXPECT_EQ(on->pixels, again->pixels) << "`set city_blockmaps true` shows the maps again";
 }
+
+// `atlas blockmaps` of an atlas tree: the walls' colours read through the tree's atlases (what `--city blockmap`
+// draws next to the atlases), not the original textures. The facades repainted magenta after the tree was built:
+// maps of the model show magenta walls, the coarse maps of its tree the facades the atlases hold.
+TEST(CityCliTest, AtlasBlockMapsOfATreeReadItsAtlases) {
+    TempDir dir("city-cli-bm-atlas");
+    ASSERT_EQ(runCli({"synth", "--out", (dir / "s").string(), "--size-m", "256", "--gsd", "1", "--block-city", "40",
+                      "--facade-size", "64"})
+                  .exitCode,
+              0);
+    const auto tree = dir / "t.svat";
+    ASSERT_EQ(runCli({"atlas", "build", (dir / "s/city/city.obj").string(), "--obj-local", "--out", tree.string(),
+                      "--atlas-size", "128"})
+                  .exitCode,
+              0);
+    std::vector<std::uint8_t> magenta(64 * 64 * 3);
+    for (std::size_t i = 0; i < magenta.size(); i += 3) magenta[i] = magenta[i + 2] = 255;
+    int repainted = 0;
+    for (const auto& e : std::filesystem::directory_iterator(dir / "s/city/facades")) {
+        ASSERT_TRUE(writeImageAtomic(e.path(), magenta.data(), 64, 64, 3).ok());
+        ++repainted;
+    }
+    ASSERT_GT(repainted, 0);
+    const auto ofTree = dir / "tree.svbm", ofModel = dir / "model.svbm";
+    const CliResult bt = runCli({"atlas", "blockmaps", tree.string(), "--out", ofTree.string(), "--report",
+                                 (dir / "bt.json").string()});
+    ASSERT_EQ(bt.exitCode, 0) << bt.err;
+    EXPECT_GT(nlohmann::json::parse(std::ifstream(dir / "bt.json"))["atlas_reads"].get<int>(), 0);
+    const CliResult bo = runCli({"atlas", "blockmaps", (dir / "s/city/city.obj").string(), "--obj-local", "--out",
+                                 ofModel.string()});
+    ASSERT_EQ(bo.exitCode, 0) << bo.err;
+    // The root maps' mean wall colour (texels whose rays met walls).
+    auto rootWalls = [](const std::filesystem::path& p) {
+        auto maps = city::readBlockMaps(p);
+        EXPECT_TRUE(maps) << maps.message();
+        glm::dvec3 sum(0.0);
+        double n = 0.0;
+        if (!maps || maps->empty()) return sum;
+        const auto& w = maps->front().wallRgba;
+        for (std::size_t i = 0; i + 3 < w.size(); i += 4)
+            if (w[i + 3] > 128) {
+                sum += glm::dvec3(w[i], w[i + 1], w[i + 2]);
+                n += 1.0;
+            }
+        EXPECT_GT(n, 100.0) << p;
+        return n > 0.0 ? sum / n : sum;
+    };
+    const glm::dvec3 m = rootWalls(ofModel), t = rootWalls(ofTree);
+    EXPECT_GT(m.r, 200.0);
+    EXPECT_LT(m.g, 40.0) << "the model's maps: the repainted facades";
+    EXPECT_GT(t.g, 60.0) << "the tree's maps: its atlases' facades (" << t.r << ", " << t.g << ", " << t.b << ")";
+    // A damaged tree is refused with one line naming it, and no file.
+    const auto cut = dir / "cut.svat", bad = dir / "bad.svbm";
+    std::string bytes = readBytes(tree);
+    bytes.resize(bytes.size() / 2);
+    { std::ofstream(cut, std::ios::binary) << bytes; }
+    fails(runCli({"atlas", "blockmaps", cut.string(), "--out", bad.string()}), cut.string());
+    EXPECT_FALSE(std::filesystem::exists(bad));
+}
