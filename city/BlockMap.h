@@ -57,7 +57,8 @@ struct BlockMap {
     // corner's two walls each by its own normal; 0 (or empty): by the column's normal (a wall at an angle to the grid,
     // whose steps would otherwise be shaded in stripes).
     std::vector<std::uint8_t> wallOnGrid;
-    // Per texel the roof's normal (the highest triangle's, facing up) as x and y in 0..255 for -1..1 (z is implied;
+    // Per texel the roof's normal (the highest triangle's, facing up; where the first prism's roofs are of more than
+    // one plane, across a ridge, the normal of the plane fitted to them) as x and y in 0..255 for -1..1 (z is implied;
     // within 0.005 of 0 is 0): the roofs are shaded as the polygons' are (the paper's per-texel normals, §3.1), and
     // the texel's (first) prism's top is the plane of that normal through its height at the texel's centre, so a
     // sloped roof is a slope, not steps.

@@ -303,6 +303,42 @@ TEST(BlockMapTest, SlopedRoofsAreTheirPlanes) {
     EXPECT_GT(walls, 500);
 }
 
+// A texel across a gable's ridge: its roof is the plane that fits both slopes over it best (least squares), level at
+// their mean there, not one slope continued past the ridge (on the far side as high as the ridge, where the block's
+// top stops it).
+TEST(BlockMapTest, ARidgesTexelIsThePlaneThatFitsItsRoofs) {
+    const double x0 = 4.0, x1 = 28.0, y0 = 4.0, y1 = 16.0, low = 10.0, high = 14.0; // the ridge at y = 10
+    CityModel model;
+    test::addSlopedBuilding(model, x0, y0, x1, y1, low, high, true);
+    BlockMapOptions o;
+    o.size = 8; // 4 m texels: the row y = 8..12 has the ridge along its middle
+    o.wallTexels = 8;
+    auto built =
+        buildBlockMap(model, {0.0, 0.0}, 32.0, o, [](std::size_t, const glm::dvec3&) { return glm::dvec3(0.5); });
+    ASSERT_TRUE(built) << built.message();
+    const BlockMap& m = *built;
+    const double slope = (high - low) / (0.5 * (y1 - y0));
+    for (int x = 2; x <= 5; ++x) {
+        SCOPED_TRACE(x);
+        EXPECT_NEAR(m.roofSlopeAt(x, 2).y, 0.0, 0.02) << "level across the ridge";
+        // The mean over 4 × 4 points of the texel: 14 − slope · mean |y − 10| = 14 − slope · 1.
+        EXPECT_NEAR(m.topAt(x, 2), high - slope * 1.0, 0.06);
+        EXPECT_NEAR(m.roofSlopeAt(x, 1).y, slope, 0.02) << "one slope: its plane";
+    }
+    // Down onto the ridge's texels: the maps' roof as much above the slopes as below them (one slope continued, under
+    // the block's top: a third of a metre above on average).
+    double err = 0.0;
+    int n = 0;
+    for (double x = 8.25; x < 24.0; x += 0.5)
+        for (double y = 8.125; y < 12.0; y += 0.25) {
+            const BlockMapHit h = traceBlockMap(m, {x, y, 100.0}, {0.0, 0.0, -1.0});
+            ASSERT_EQ(h.kind, BlockMapHit::Kind::Roof) << x << ", " << y;
+            err += h.point.z - (high - slope * std::abs(y - 10.0));
+            ++n;
+        }
+    EXPECT_NEAR(err / n, 0.0, 0.1) << "metres";
+}
+
 TEST(BlockMapTest, RaisedBuildingsEndAtTheirFeet) {
     // Buildings standing higher than the block's floor (on a slope): their walls end at their feet, and a ray below
     // a foot passes under the building (in the ground there) to what is behind, as under the polygons. Two texels

@@ -140,7 +140,7 @@ TEST(CityBlockMapGLTest, FarBlocksAreMapsAndThePictureIsTheAtlasModes) {
         double minPsnr;
     };
     const View views[] = {
-        {"overview", bc.camera(0.0, -350.0, 450.0, 0.0, -50.0), 29.3},
+        {"overview", bc.camera(0.0, -350.0, 450.0, 0.0, -50.0), 29.5},
         {"street", bc.camera(0.0, -230.0, 40.0, 0.0, -12.0), 40.0},
     };
     for (const View& v : views) {
@@ -203,8 +203,9 @@ TEST(CityBlockMapGLTest, EightOverviewsAgainstTheAtlasMode) {
     }
     const double all = -10.0 * std::log10(se / double(pixels));
     std::printf("all eight: %.2f dB over %zu px\n", all, pixels);
-    EXPECT_GE(all, 29.8) << "walls shaded by the walls they show, parts of their roofs' area, colours through the "
-                            "atlases (29.7 dB from the original textures, 28.8 without the rest)";
+    EXPECT_GE(all, 30.0) << "walls shaded by the walls they show, parts of their roofs' area, colours through the "
+                            "atlases, roofs across ridges fitted (29.96 dB without the fit, 29.7 from the original "
+                            "textures, 28.8 without the rest)";
 }
 
 // The maps seen at a grazing angle are tested for occlusion first (city/CityRendererGL.h, MapOcclusion): drawn each
