@@ -375,6 +375,27 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
         bool empty() const { return hi.x <= lo.x || hi.y <= lo.y; }
         std::uint16_t packed() const { return std::uint16_t(lo.x | (hi.x - 1) << 4 | lo.y << 8 | (hi.y - 1) << 12); }
     };
+    // The height of the highest non-vertical triangle of `over` at the point q (-inf where none is over it), and its
+    // normal, facing up.
+    auto highestRoofAt = [&](glm::dvec2 q, const std::vector<std::uint32_t>& over, glm::dvec3& normal) {
+        double best = -kInf;
+        normal = glm::dvec3(0.0, 0.0, 1.0);
+        for (const std::uint32_t k : over) {
+            const auto& v = model.triangles[tris[k]].v;
+            const double det = (v[1].x - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (v[1].y - v[0].y);
+            const glm::dvec3 nrm = glm::cross(v[1] - v[0], v[2] - v[0]);
+            if (std::abs(det) < 1e-12 || std::abs(nrm.z) < 1e-6 * glm::length(nrm)) continue; // vertical
+            const double b1 = ((q.x - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (q.y - v[0].y)) / det;
+            const double b2 = ((v[1].x - v[0].x) * (q.y - v[0].y) - (q.x - v[0].x) * (v[1].y - v[0].y)) / det;
+            if (b1 < -1e-12 || b2 < -1e-12 || 1.0 - b1 - b2 < -1e-12) continue;
+            const double z = (1.0 - b1 - b2) * v[0].z + b1 * v[1].z + b2 * v[2].z;
+            if (z > best) {
+                best = z;
+                normal = (nrm.z < 0.0 ? -nrm : nrm) / glm::length(nrm);
+            }
+        }
+        return best;
+    };
     // The plane z = a + b · (x − centre) that fits the highest roofs over a part best, least squares over 4 × 4 points
     // of it: its height at the texel's centre and its normal (false where fewer than three points have a roof).
     auto fitRoofPlane = [&](const Part& part, glm::dvec2 cellLo, const std::vector<std::uint32_t>& over, double& z,
@@ -388,16 +409,8 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
                 const glm::dvec2 f =
                     (glm::dvec2(part.lo) + glm::dvec2(part.hi - part.lo) * (glm::dvec2(sx, sy) + 0.5) / double(kFitPoints)) / 16.0;
                 const glm::dvec2 q = cellLo + f * m.texel;
-                double best = -kInf;
-                for (const std::uint32_t k : over) {
-                    const auto& v = model.triangles[tris[k]].v;
-                    const double det = (v[1].x - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (v[1].y - v[0].y);
-                    if (std::abs(det) < 1e-12) continue; // vertical
-                    const double b1 = ((q.x - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (q.y - v[0].y)) / det;
-                    const double b2 = ((v[1].x - v[0].x) * (q.y - v[0].y) - (q.x - v[0].x) * (v[1].y - v[0].y)) / det;
-                    if (b1 < -1e-12 || b2 < -1e-12 || 1.0 - b1 - b2 < -1e-12) continue;
-                    best = std::max(best, (1.0 - b1 - b2) * v[0].z + b1 * v[1].z + b2 * v[2].z);
-                }
+                glm::dvec3 unused;
+                const double best = highestRoofAt(q, over, unused);
                 if (!(best > -kInf)) continue;
                 const glm::dvec3 r(1.0, (q - c0) / m.texel);
                 A += glm::outerProduct(r, r);
@@ -445,22 +458,8 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
         for (Part* part : {&first, &second})
             if (!part->empty() && !(part == &first && second.empty() && top[i] > -kInf)) {
                 const glm::dvec2 c = cellLo + glm::dvec2(part->lo + part->hi) / 32.0 * m.texel;
-                double best = -kInf;
-                glm::dvec3 bestNormal(0.0, 0.0, 1.0);
-                for (const std::uint32_t k : cells[i]) {
-                    const auto& v = model.triangles[tris[k]].v;
-                    const double det = (v[1].x - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (v[1].y - v[0].y);
-                    const glm::dvec3 nrm = glm::cross(v[1] - v[0], v[2] - v[0]);
-                    if (std::abs(det) < 1e-12 || std::abs(nrm.z) < 1e-6 * glm::length(nrm)) continue; // vertical
-                    const double b1 = ((c.x - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (c.y - v[0].y)) / det;
-                    const double b2 = ((v[1].x - v[0].x) * (c.y - v[0].y) - (c.x - v[0].x) * (v[1].y - v[0].y)) / det;
-                    if (b1 < -1e-12 || b2 < -1e-12 || 1.0 - b1 - b2 < -1e-12) continue;
-                    const double z = (1.0 - b1 - b2) * v[0].z + b1 * v[1].z + b2 * v[2].z;
-                    if (z > best) {
-                        best = z;
-                        bestNormal = (nrm.z < 0.0 ? -nrm : nrm) / glm::length(nrm);
-                    }
-                }
+                glm::dvec3 bestNormal;
+                const double best = highestRoofAt(c, cells[i], bestNormal);
                 if (best > -kInf) {
                     part->top = best;
                     part->normal = bestNormal;
