@@ -11,7 +11,6 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <list>
 #include <limits>
 #include <map>
 #include <optional>
@@ -902,18 +901,25 @@ namespace {
 // tree by tree, in the trees' order. A sample `footprint` metres wide is read from the coarsest node on the
 // triangle's path from the root whose atlas texels are no wider (AtlasTraversal draws the coarsest node its view
 // allows), trilinearly over `blur` footprints, as the atlas mode's sampler reads it; nullopt where the leaf's atlas is
-// coarser (the atlas mode draws the original texture there) or the triangle is not a tree's.
+// coarser (the atlas mode draws the original texture there) or the triangle is not a tree's. The atlases, decoded
+// with their mips, through a TextureCache.
 class AtlasColours {
 public:
-    AtlasColours(const AtlasTreeFile& file, std::uint64_t capacityBytes) : m_file(file), m_capacity(capacityBytes) {
+    AtlasColours(const AtlasTreeFile& file, std::uint64_t capacityBytes)
+        : m_file(file), m_cache([this](int id) { return read(id); }, capacityBytes) {
         std::size_t first = 0;
+        int nodes = 0;
         for (const AtlasTreeData& t : file.trees) {
             m_first.push_back(first);
             first += t.vertices.size() / 3;
+            m_firstNode.push_back(nodes);
+            nodes += int(t.nodes.size());
         }
         m_end = first;
     }
-    std::uint64_t reads() const { return m_reads; }
+    AtlasColours(const AtlasColours&) = delete; // its cache's reader holds `this`
+    AtlasColours& operator=(const AtlasColours&) = delete;
+    std::uint64_t reads() const { return m_cache.reads(); }
     std::optional<glm::dvec3> colour(std::size_t tri, const glm::dvec3& b, double footprint, double blur,
                                      std::string& failure) {
         if (tri >= m_end || !(footprint > 0.0)) return std::nullopt;
@@ -945,8 +951,11 @@ public:
             if (next < 0) return std::nullopt;
             node = next;
         }
-        auto atlas = get(tree, node, failure);
-        if (!atlas) return glm::dvec3(0.5);
+        auto atlas = m_cache.get(m_firstNode[std::size_t(tree)] + node);
+        if (!atlas) {
+            if (failure.empty()) failure = atlas.message();
+            return glm::dvec3(0.5);
+        }
         const double scale = std::ldexp(1.0, level);
         const glm::dvec2 root = b.x * glm::dvec2(v[0].root) + b.y * glm::dvec2(v[1].root) + b.z * glm::dvec2(v[2].root);
         // The node's quadrant of the root atlas from the triangle's centre (fract of a point on its edge could be
@@ -954,54 +963,29 @@ public:
         const glm::dvec2 centre = (glm::dvec2(v[0].root) + glm::dvec2(v[1].root) + glm::dvec2(v[2].root)) / 3.0;
         const glm::dvec2 uv = glm::clamp(root * scale - glm::floor(centre * scale), 0.0, 1.0);
         const double texelsPerMetre = scale * rootPerMetre;
-        return glm::dvec3(atlas->sample(uv, std::max(1.0, blur * footprint * texelsPerMetre))) / 255.0;
+        return glm::dvec3((*atlas)->sample(uv, std::max(1.0, blur * footprint * texelsPerMetre))) / 255.0;
     }
 
 private:
-    std::shared_ptr<const SourceTexture> get(int tree, int node, std::string& failure) {
-        const std::uint64_t key = (std::uint64_t(tree) << 32) | std::uint64_t(node);
-        if (auto it = m_entries.find(key); it != m_entries.end()) {
-            m_lru.splice(m_lru.begin(), m_lru, it->second.pos);
-            return it->second.tex;
-        }
-        auto rgba = m_file.readAtlasRgba(tree, node);
-        if (!rgba) {
-            if (failure.empty()) failure = rgba.message();
-            return nullptr;
-        }
-        auto t = std::make_shared<SourceTexture>();
-        t->repeat = false;
-        t->channels = m_file.trees[std::size_t(tree)].alpha ? 4 : 3;
-        t->mips.push_back(std::move(*rgba));
-        t->sizes.push_back(glm::ivec2(m_file.info.atlasSize));
-        while (t->sizes.back().x > 1) {
-            const glm::ivec2 sz = t->sizes.back();
-            t->mips.push_back(halveRgbaBox(t->mips.back(), sz));
-            t->sizes.push_back(glm::max(sz / 2, glm::ivec2(1)));
-        }
-        m_bytes += t->bytes();
-        m_lru.push_front(key);
-        m_entries[key] = {t, m_lru.begin()};
-        while (m_bytes > m_capacity && m_lru.size() > 1) {
-            auto& e = m_entries[m_lru.back()];
-            m_bytes -= e.tex->bytes();
-            m_entries.erase(m_lru.back());
-            m_lru.pop_back();
-        }
-        ++m_reads;
+    // The atlas of node `id` (the trees' nodes numbered on from one tree to the next), with its mips.
+    Result<SourceTexture> read(int id) const {
+        int tree = int(m_firstNode.size()) - 1;
+        while (tree > 0 && id < m_firstNode[std::size_t(tree)]) --tree;
+        auto rgba = m_file.readAtlasRgba(tree, id - m_firstNode[std::size_t(tree)]);
+        if (!rgba) return rgba.error();
+        SourceTexture t;
+        t.repeat = false;
+        t.channels = m_file.trees[std::size_t(tree)].alpha ? 4 : 3;
+        t.mips.push_back(std::move(*rgba));
+        t.sizes.push_back(glm::ivec2(m_file.info.atlasSize));
+        addBoxMips(t);
         return t;
     }
     const AtlasTreeFile& m_file;
-    std::uint64_t m_capacity, m_bytes = 0;
-    std::vector<std::size_t> m_first;
+    TextureCache m_cache;
+    std::vector<std::size_t> m_first; // per tree its first triangle in the model
+    std::vector<int> m_firstNode;     // per tree the id of its root
     std::size_t m_end = 0;
-    std::list<std::uint64_t> m_lru;
-    struct Entry {
-        std::shared_ptr<const SourceTexture> tex;
-        std::list<std::uint64_t>::iterator pos;
-    };
-    std::map<std::uint64_t, Entry> m_entries;
-    std::uint64_t m_reads = 0;
 };
 
 } // namespace

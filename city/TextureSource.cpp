@@ -87,13 +87,16 @@ Result<SourceTexture> readSourceTexture(const CityTexture& texture) {
         }
     t.mips.push_back(std::move(rgba));
     t.sizes.push_back({w, h});
-    // Box-filtered mips down to 1×1.
+    addBoxMips(t);
+    return t;
+}
+
+void addBoxMips(SourceTexture& t) {
     while (t.sizes.back().x > 1 || t.sizes.back().y > 1) {
         const glm::ivec2 s = t.sizes.back();
         t.mips.push_back(halveRgbaBox(t.mips.back(), s));
         t.sizes.push_back(glm::max(s / 2, glm::ivec2(1)));
     }
-    return t;
 }
 
 std::vector<std::uint8_t> halveRgbaBox(const std::vector<std::uint8_t>& src, glm::ivec2 s) {
@@ -115,7 +118,10 @@ std::vector<std::uint8_t> halveRgbaBox(const std::vector<std::uint8_t>& src, glm
 }
 
 TextureCache::TextureCache(const std::vector<CityTexture>& textures, std::uint64_t capacityBytes)
-    : m_textures(textures), m_capacity(capacityBytes) {}
+    : TextureCache([&textures](int t) { return readSourceTexture(textures[std::size_t(t)]); }, capacityBytes) {}
+
+TextureCache::TextureCache(std::function<Result<SourceTexture>(int)> read, std::uint64_t capacityBytes)
+    : m_read(std::move(read)), m_capacity(capacityBytes) {}
 
 void TextureCache::insert(int texture, std::shared_ptr<const SourceTexture> ptr) {
     ++m_reads;
@@ -142,7 +148,7 @@ Result<std::shared_ptr<const SourceTexture>> TextureCache::get(int texture) {
         m_lru.splice(m_lru.begin(), m_lru, it->second.pos);
         return it->second.tex;
     }
-    auto t = readSourceTexture(m_textures[std::size_t(texture)]);
+    auto t = m_read(texture);
     if (!t) return t.error();
     dropFinerMips(texture, *t);
     auto ptr = std::make_shared<const SourceTexture>(std::move(*t));
@@ -158,7 +164,7 @@ Status TextureCache::prefetch(const std::vector<int>& textures, int threads) {
     parallelIndices(int(missing.size()), threads,
                     [&](int i, int) {
                         const int texture = missing[std::size_t(i)];
-                        read[std::size_t(i)] = readSourceTexture(m_textures[std::size_t(texture)]);
+                        read[std::size_t(i)] = m_read(texture);
                         // On the worker, at once: a batch holds the reduced textures, not their full mips.
                         if (*read[std::size_t(i)]) dropFinerMips(texture, read[std::size_t(i)]->value());
                     });

@@ -9,6 +9,7 @@
 #include <glm/vec4.hpp>
 
 #include <cstdint>
+#include <functional>
 #include <list>
 #include <memory>
 #include <unordered_map>
@@ -33,6 +34,8 @@ struct SourceTexture {
 /// row/column folded into its neighbour (the atlases' mips average the same blocks: their areas start on
 /// multiples of the border). The result is max(size / 2, 1).
 std::vector<std::uint8_t> halveRgbaBox(const std::vector<std::uint8_t>& src, glm::ivec2 size);
+/// Appends to a texture holding its level 0 its box-filtered mips (halveRgbaBox) down to 1×1.
+void addBoxMips(SourceTexture& t);
 
 /// Reads a texture file (any format OpenImageIO reads; 8/16-bit, grey, RGB or RGBA) into a SourceTexture.
 Result<SourceTexture> readSourceTexture(const CityTexture& texture);
@@ -40,6 +43,8 @@ Result<SourceTexture> readSourceTexture(const CityTexture& texture);
 class TextureCache {
 public:
     explicit TextureCache(const std::vector<CityTexture>& textures, std::uint64_t capacityBytes);
+    /// The same over textures `read` makes (numbered as it knows them; called on prefetch's threads too).
+    TextureCache(std::function<Result<SourceTexture>(int)> read, std::uint64_t capacityBytes);
     /// The texture (read on first use, kept until the cache's bytes exceed the capacity, least recently used
     /// first). A failed read is an error naming the file.
     Result<std::shared_ptr<const SourceTexture>> get(int texture);
@@ -56,7 +61,7 @@ public:
 private:
     void insert(int texture, std::shared_ptr<const SourceTexture> tex);
     void dropFinerMips(int texture, SourceTexture& t) const;
-    const std::vector<CityTexture>& m_textures;
+    std::function<Result<SourceTexture>(int)> m_read;
     std::uint64_t m_capacity, m_bytes = 0, m_peak = 0, m_reads = 0;
     std::list<int> m_lru; // front = most recent
     struct Entry {
