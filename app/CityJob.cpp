@@ -70,7 +70,7 @@ Status prepareCityBlockMaps(const Scene& scene, const std::filesystem::path& tre
     city::placeInSceneFrame(scene, *file, settings.placeOnTerrain);
     const city::CityModel model = city::modelOfTree(*file);
     // The key: the placed triangles, their textures and coordinates, the texture files, the build settings.
-    std::string key = "blockmaps|v4|64|32|1", chunk;
+    std::string key = "blockmaps|v5|64|32|1", chunk;
     auto flush = [&] {
         key += "|" + std::to_string(stableHash64(chunk));
         chunk.clear();

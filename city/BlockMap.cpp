@@ -151,7 +151,7 @@ void feet(BlockMap& m, const CityModel& model, const std::vector<std::size_t>& t
                         lowest = std::min({lowest, v[0].z, v[1].z, v[2].z});
                     }
             m.foot[at(x, y)] =
-                std::uint8_t(std::clamp(std::round((lowest - m.zBase) / step), 0.0,
+                std::uint16_t(std::clamp(std::round((lowest - m.zBase) / step), 0.0,
                                         double(m.height2At(x, y) > 0 ? std::min(m.heightAt(x, y), m.height2At(x, y))
                                                                      : m.heightAt(x, y))));
             if (!boundary(x, y)) inner.push_back(int(at(x, y)));
@@ -230,7 +230,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
     }
     m.zBase = zLo;
     m.zTop = zHi > zLo ? zHi : zLo + 1.0;
-    const double step = (m.zTop - m.zBase) / 255.0;
+    const double step = (m.zTop - m.zBase) / BlockMap::kHeightSteps;
 
     // Heights: the highest non-vertical triangle over each texel's centre. Pieces: per texel the box of what each
     // non-vertical triangle covers of it, the area it covers, its highest point and the triangle's normal (the
@@ -497,8 +497,11 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
             m.roofNormal[i * 2 + std::size_t(c)] =
                 std::uint8_t(std::clamp(std::lround((topNormal[i][c] * 0.5 + 0.5) * 255.0), 0L, 255L));
     for (std::size_t i = 0; i < cellsCount; ++i) {
-        if (top[i] > -kInf) m.height[i] = std::uint8_t(std::clamp(std::lround((top[i] - m.zBase) / step), 1L, 255L));
-        if (top2[i] > -kInf) m.height2[i] = std::uint8_t(std::clamp(std::lround((top2[i] - m.zBase) / step), 1L, 255L));
+        const auto steps = [&](double z) {
+            return std::uint16_t(std::clamp(std::lround((z - m.zBase) / step), 1L, long(BlockMap::kHeightSteps)));
+        };
+        if (top[i] > -kInf) m.height[i] = steps(top[i]);
+        if (top2[i] > -kInf) m.height2[i] = steps(top2[i]);
     }
     distanceField(m);
     feet(m, model, tris, cells, owners, step);
@@ -516,7 +519,7 @@ Result<BlockMap> buildBlockMap(const CityModel& model, const std::vector<std::ui
         if (m.heightAt(x, y) == 0) return 0;
         out[0] = {texelPart(m.rectAt(x, y)), m.topAt(x, y)};
         if (m.height2At(x, y) == 0) return 1;
-        out[1] = {texelPart(m.rect2At(x, y)), m.zBase + double(m.height2At(x, y)) * step};
+        out[1] = {texelPart(m.rect2At(x, y)), m.top2At(x, y)};
         return 2;
     };
     auto reachesSide = [](const TexelPart& part, int s) {
@@ -777,7 +780,7 @@ BlockMapHit traceBlockMap(const BlockMap& m, const glm::dvec3& o, const glm::dve
             const int prisms = m.height2At(cx, cy) > 0 ? 2 : 1;
             for (int k = 0; k < prisms; ++k) {
                 const double prismTop =
-                    k == 0 ? m.topAt(cx, cy) : m.zBase + double(m.height2At(cx, cy)) * (m.zTop - m.zBase) / 255.0;
+                    k == 0 ? m.topAt(cx, cy) : m.top2At(cx, cy);
                 const TexelPart part = texelPart(k == 0 ? m.rectAt(cx, cy) : m.rect2At(cx, cy));
                 double enter = tCell, exit = tOut;
                 int entryAxis = -1;
@@ -1125,8 +1128,8 @@ namespace {
 
 constexpr char kMagic[8] = {'S', 'V', 'B', 'L', 'O', 'C', 'K', 'M'};
 // 2: wall texels RGBA (A: walls' share), per-texel roof normals; 3: prisms' feet, walls on the grid; 4: texels' parts
-// and second prisms
-constexpr std::uint32_t kVersion = 4;
+// and second prisms; 5: heights, feet and second prisms' tops of 16 bits
+constexpr std::uint32_t kVersion = 5;
 constexpr std::size_t kMapHeaderBytes = 5 * 8 + 3 * 4;
 
 template <typename T> void put(std::vector<std::uint8_t>& out, const T& v) {
@@ -1140,7 +1143,7 @@ template <typename T> T get(const std::uint8_t* p) {
 }
 
 std::size_t dataBytes(std::size_t n, std::size_t W, std::size_t columns) {
-    return n * n * (1 + 1 + 4 + 2 + 1 + 2 + 2 + 1) + columns * W * 4 + columns * (3 * 4 + 1);
+    return n * n * (2 + 1 + 4 + 2 + 2 + 2 + 2 + 2) + columns * W * 4 + columns * (3 * 4 + 1);
 }
 
 std::vector<std::uint8_t> serializeMap(const BlockMap& m) {
@@ -1149,19 +1152,18 @@ std::vector<std::uint8_t> serializeMap(const BlockMap& m) {
     put(out, std::int32_t(m.size));
     put(out, std::int32_t(m.wallTexels));
     put(out, std::int32_t(m.columns()));
-    out.insert(out.end(), m.height.begin(), m.height.end());
+    for (std::uint16_t h : m.height) put(out, h);
     out.insert(out.end(), m.distance.begin(), m.distance.end());
     for (std::uint32_t c : m.column) put(out, c);
     out.insert(out.end(), m.roofNormal.begin(), m.roofNormal.end());
     out.insert(out.end(), m.wallRgba.begin(), m.wallRgba.end());
     for (const glm::vec3& nrm : m.wallNormal)
         for (int i = 0; i < 3; ++i) put(out, float(nrm[i]));
-    if (m.foot.empty()) out.resize(out.size() + m.height.size(), 0);
-    else out.insert(out.end(), m.foot.begin(), m.foot.end());
+    for (std::size_t i = 0; i < m.height.size(); ++i) put(out, m.foot.empty() ? std::uint16_t(0) : m.foot[i]);
     for (int c = 0; c < m.columns(); ++c) put(out, std::uint8_t(m.wallOnGrid.empty() ? 0 : m.wallOnGrid[std::size_t(c)]));
     for (std::size_t i = 0; i < m.height.size(); ++i) put(out, m.rect.empty() ? BlockMap::kWholeTexel : m.rect[i]);
     for (std::size_t i = 0; i < m.height.size(); ++i) put(out, m.rect2.empty() ? BlockMap::kWholeTexel : m.rect2[i]);
-    for (std::size_t i = 0; i < m.height.size(); ++i) put(out, m.height2.empty() ? std::uint8_t(0) : m.height2[i]);
+    for (std::size_t i = 0; i < m.height.size(); ++i) put(out, m.height2.empty() ? std::uint16_t(0) : m.height2[i]);
     put(out, std::uint32_t(libdeflate_crc32(0, out.data(), out.size())));
     return out;
 }
@@ -1245,16 +1247,16 @@ int wallSpan(int wallTexels) {
 BlockMapPacked packBlockMap(const BlockMap& map) {
     BlockMapPacked p;
     const std::size_t n2 = std::size_t(map.size) * std::size_t(map.size);
-    p.tile.resize(n2 * 3);
+    p.tile.resize(n2 * 4);
     for (std::size_t i = 0; i < n2; ++i) {
-        // A building's texel has distance 0: its byte holds the second prism's top.
-        const std::uint32_t second = map.height2.empty() ? 0u : map.height2[i];
-        p.tile[i * 3] = std::uint32_t(map.height[i]) |
-                        std::uint32_t(map.height[i] > 0 ? second : map.distance[i]) << 8 |
-                        std::uint32_t(map.roofNormal[i * 2]) << 16 | std::uint32_t(map.roofNormal[i * 2 + 1]) << 24;
-        p.tile[i * 3 + 1] = map.column[i] | (map.foot.empty() ? 0u : std::uint32_t(map.foot[i]) << 24);
-        p.tile[i * 3 + 2] = std::uint32_t(map.rect.empty() ? BlockMap::kWholeTexel : map.rect[i]) |
-                            std::uint32_t(map.rect2.empty() ? BlockMap::kWholeTexel : map.rect2[i]) << 16;
+        std::uint32_t* t = &p.tile[i * 4];
+        t[0] = std::uint32_t(map.height[i]) | std::uint32_t(map.roofNormal[i * 2]) << 16 |
+               std::uint32_t(map.roofNormal[i * 2 + 1]) << 24;
+        t[1] = map.column[i] | std::uint32_t(map.distance[i]) << 24;
+        t[2] = std::uint32_t(map.rect.empty() ? BlockMap::kWholeTexel : map.rect[i]) |
+               std::uint32_t(map.rect2.empty() ? BlockMap::kWholeTexel : map.rect2[i]) << 16;
+        t[3] = std::uint32_t(map.foot.empty() ? 0u : map.foot[i]) |
+               std::uint32_t(map.height2.empty() ? 0u : map.height2[i]) << 16;
     }
     const int columns = map.columns(), W = map.wallTexels;
     p.span = wallSpan(W);
@@ -1294,7 +1296,7 @@ BlockMapPacked packBlockMap(const BlockMap& map) {
 std::uint64_t BlockMapRecord::gpuBytes() const {
     const auto n = std::uint64_t(size), c = std::uint64_t(columns);
     const std::size_t words = std::size_t(c) * std::size_t(1 + wallSpan(wallTexels));
-    return n * n * (4 + 4 + 4) + std::uint64_t(blockMapPages(words)) * kBlockMapPageWords * 4;
+    return n * n * (4 + 4 + 4 + 4) + std::uint64_t(blockMapPages(words)) * kBlockMapPageWords * 4;
 }
 
 namespace {
@@ -1382,8 +1384,11 @@ Result<BlockMap> BlockMapFile::read(std::size_t k) const {
     m.wallTexels = r.wallTexels;
     const std::size_t cells = std::size_t(r.size) * std::size_t(r.size);
     const std::uint8_t* p = h + kMapHeaderBytes;
-    m.height.assign(p, p + cells);
-    p += cells;
+    const auto words16 = [&](std::vector<std::uint16_t>& v) {
+        v.resize(cells);
+        for (std::size_t i = 0; i < cells; ++i, p += 2) v[i] = get<std::uint16_t>(p);
+    };
+    words16(m.height);
     m.distance.assign(p, p + cells);
     p += cells;
     m.column.resize(cells);
@@ -1400,8 +1405,7 @@ Result<BlockMap> BlockMapFile::read(std::size_t k) const {
         nrm = {get<float>(p), get<float>(p + 4), get<float>(p + 8)};
         p += 12;
     }
-    m.foot.assign(p, p + cells);
-    p += cells;
+    words16(m.foot);
     for (std::size_t i = 0; i < cells; ++i)
         if (m.foot[i] > m.height[i]) return fileError(name, "damaged (" + which + ": a foot above its top)");
     m.wallOnGrid.assign(p, p + r.columns);
@@ -1417,8 +1421,7 @@ Result<BlockMap> BlockMapFile::read(std::size_t k) const {
                 return fileError(name, "damaged (" + which + ": a texel's part turned inside out)");
         }
     }
-    m.height2.assign(p, p + cells);
-    p += cells;
+    words16(m.height2);
     for (std::size_t i = 0; i < cells; ++i)
         if (m.height2[i] > 0 && (m.height[i] == 0 || m.foot[i] > m.height2[i]))
             return fileError(name, "damaged (" + which + ": a second prism on an empty texel or below its foot)");

@@ -4,7 +4,8 @@
 // far away by casting rays against it instead of sending its polygons. Plain C++: the data (§3.1), its construction
 // from a model's triangles (§3.3) and the CPU ray traversal (§3.2) that the GPU's is checked against.
 //
-// §3.1 as stored here: per texel a height (8 bits over the block's height range, 0: no building), a wall column
+// §3.1 as stored here: per texel a height (16 bits over the block's height range, 0: no building; the paper's 8 bits
+// put a flat roof up to half a step of 1/255 of the range off, which moves eaves across pixel centres at an overview), a wall column
 // index for boundary texels (those with a lower 4-neighbour, the block's edge counting as lower) and a discrete
 // distance field over the empty space (the Chebyshev distance in texels to the nearest building texel) for leaping.
 // Each wall column holds `wallTexels` colours from the block's floor to the prism's top, the mean of what its exposed
@@ -43,9 +44,10 @@ struct BlockMap {
     glm::dvec2 origin{0.0};         // local metres: the corner with the smallest x and y
     double texel = 1.0;             // metres per height-map texel
     int size = 0;                   // n
-    double zBase = 0.0, zTop = 1.0; // heights are zBase + value · (zTop − zBase) / 255
+    double zBase = 0.0, zTop = 1.0; // heights are zBase + value · (zTop − zBase) / kHeightSteps
     int wallTexels = 0;
-    std::vector<std::uint8_t> height;   // n², row-major, row 0 at origin.y
+    static constexpr int kHeightSteps = 65535;
+    std::vector<std::uint16_t> height;  // n², row-major, row 0 at origin.y
     std::vector<std::uint8_t> distance; // n²: Chebyshev distance in texels to the nearest building texel (0 on one)
     std::vector<std::uint32_t> column;  // n²: 1 + the wall column of a boundary texel, 0 elsewhere
     // Per wall texel RGB and A, the share of its rays that met walls (255) rather than roofs (0: a step of a sloped
@@ -69,7 +71,7 @@ struct BlockMap {
     // do not hang below a building that stands higher than the block's lowest. A boundary texel's foot is the lowest
     // triangle over it of the buildings whose roofs lie over it, to the nearest height step; an inner texel's the
     // lowest of its neighbours' of the same buildings. Empty: every foot at zBase.
-    std::vector<std::uint8_t> foot;
+    std::vector<std::uint16_t> foot;
     // Per texel the part of it its prism stands on, so the prisms end at the buildings' outlines, not at the texels'
     // edges (at an overview a texel is a pixel: whole texels move every outline by up to one): x0 | x1 << 4 | y0 << 8 |
     // y1 << 12, the prism over [x0, x1 + 1] / 16 × [y0, y1 + 1] / 16 of the texel (x, y from its lowest corner).
@@ -80,16 +82,19 @@ struct BlockMap {
     // prism beyond the strip: its part (as rect) and level top (as heights, 0: none; the first prism is the taller
     // over the parts' centres). Both stand on the texel's foot. Empty vectors: no second prisms.
     std::vector<std::uint16_t> rect2;
-    std::vector<std::uint8_t> height2;
+    std::vector<std::uint16_t> height2;
 
     int columns() const { return int(wallNormal.size()); }
-    std::uint8_t heightAt(int x, int y) const { return height[std::size_t(y) * std::size_t(size) + std::size_t(x)]; }
+    std::uint16_t heightAt(int x, int y) const { return height[std::size_t(y) * std::size_t(size) + std::size_t(x)]; }
+    /// A stored height (height, height2, foot) in metres.
+    double metresOf(std::uint16_t value) const { return zBase + double(value) * (zTop - zBase) / kHeightSteps; }
     /// The top of the prism at texel (x, y) in metres (zBase where there is none).
-    double topAt(int x, int y) const { return zBase + double(heightAt(x, y)) * (zTop - zBase) / 255.0; }
+    double topAt(int x, int y) const { return metresOf(heightAt(x, y)); }
+    /// The top of texel (x, y)'s second prism in metres (zBase where there is none).
+    double top2At(int x, int y) const { return metresOf(height2At(x, y)); }
     /// The foot of the prism at texel (x, y) in metres.
     double footAt(int x, int y) const {
-        return foot.empty() ? zBase
-                            : zBase + double(foot[std::size_t(y) * std::size_t(size) + std::size_t(x)]) * (zTop - zBase) / 255.0;
+        return foot.empty() ? zBase : metresOf(foot[std::size_t(y) * std::size_t(size) + std::size_t(x)]);
     }
     /// The roof's normal at texel (x, y), as stored (roofNormal).
     glm::dvec3 roofNormalAt(int x, int y) const;
@@ -102,7 +107,7 @@ struct BlockMap {
     std::uint16_t rectAt(int x, int y) const {
         return rect.empty() ? kWholeTexel : rect[std::size_t(y) * std::size_t(size) + std::size_t(x)];
     }
-    std::uint8_t height2At(int x, int y) const {
+    std::uint16_t height2At(int x, int y) const {
         return height2.empty() ? 0 : height2[std::size_t(y) * std::size_t(size) + std::size_t(x)];
     }
     std::uint16_t rect2At(int x, int y) const {
@@ -226,10 +231,10 @@ int wallSpan(int wallTexels);
 /// A map as BlockMapPoolGL stores it. Plain C++, so the pager's loader thread packs it and the GL thread only uploads.
 struct BlockMapPacked {
     int span = 1; // wallSpan(wallTexels)
-    /// n² × 3 words, row-major (BlockMapPoolGL's tiles): the texel's height, distance (on a building's texel, where
-    /// the distance is 0, its second prism's top: BlockMap::height2), and roof normal's x and y (as BlockMap stores
-    /// them, a byte each, lowest first), then its wall column (BlockMap::column, 24 bits) and foot (BlockMap::foot,
-    /// the top byte), then its part and its second prism's (BlockMap::rect, rect2: the low and high 16 bits).
+    /// n² × 4 words, row-major (BlockMapPoolGL's tiles): the texel's height (the low 16 bits) and roof normal's x and
+    /// y (as BlockMap stores them, a byte each); its wall column (BlockMap::column, 24 bits) and distance (the top
+    /// byte); its part and its second prism's (BlockMap::rect, rect2: the low and high 16 bits); its foot and second
+    /// prism's top (BlockMap::foot, height2: the low and high 16 bits).
     std::vector<std::uint32_t> tile;
     /// 32-bit words: each column's outward normal ((n + 1) / 2 as RGB8 in bytes 0..2) and on-the-grid flag (byte 3,
     /// BlockMap::wallOnGrid), then each column's `span`

@@ -49,7 +49,7 @@ BlockMapPoolGL::BlockMapPoolGL(int mapSize)
               kMinTiles),
       m_pages(m_pageStore, maxBufferTexels() / kBlockMapPageWords, kMinPages), m_instances(gl::Buffer::create()),
       m_vao(gl::VertexArray::create()) {
-    m_tileStore.format = GL_RGB32UI; // n² texels a map (BlockMapGL.h's top)
+    m_tileStore.format = GL_RGBA32UI; // n² texels a map (BlockMapGL.h's top)
     m_tileStore.unitBytes = tileBytes(1);
     m_pageStore.format = GL_R32UI;
     m_pageStore.unitBytes = pageBytes(1);
@@ -58,7 +58,7 @@ BlockMapPoolGL::BlockMapPoolGL(int mapSize)
 }
 
 std::uint64_t BlockMapPoolGL::tileBytes(std::uint64_t tiles) const {
-    return std::uint64_t(m_size) * std::uint64_t(m_size) * 12 * tiles;
+    return std::uint64_t(m_size) * std::uint64_t(m_size) * 16 * tiles;
 }
 
 std::uint64_t BlockMapPoolGL::pageBytes(std::uint64_t pages) { return pages * kBlockMapPageWords * 4; }

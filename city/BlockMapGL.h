@@ -5,8 +5,8 @@
 //
 // BlockMapPoolGL holds every resident map of a city in storage shared by all of them, so that any set of them is a few
 // instanced draws (§4: the paper's renderer draws a frame's BlockMaps as one batch of boxes): per texel its height,
-// distance and roof normal (a byte each), its wall column and foot, and its part of the texel in an RGB32UI texture
-// buffer, n² texels a map (a tile;
+// roof normal, distance, wall column, parts of the texel, foot and second prism's top in an RGBA32UI texture buffer
+// (BlockMapPacked::tile), n² texels a map (a tile;
 // buffers, as texture uploads cost llvmpipe about 17 ms a MB against 1 ms for buffers); the wall columns' normals and
 // colours as 32-bit words in another texture buffer, in pages of kBlockMapPageWords taken wherever they are free (the
 // map's first page starts with its page table), so maps come and go with no room lost between them. The storage is

@@ -23,13 +23,13 @@ uniform float uLookupTexels;
 uniform mat2 uLookupSlope;
 #endif
 #include "common_blockmap.glsl"
-// Per texel of a map's tile (n² texels from its first, row by row): x: a byte each, lowest first, its height (0 no
-// building, else zBase + value · (zTop − zBase) / 255), Chebyshev distance in texels to the nearest building texel,
-// the roof's normal's x and y ((v + 1) / 2 · 255; z implied); y: 1 + a boundary texel's wall column (24 bits) and
-// the prism's foot (the top byte, as heights: a ray below it passes under the prism); z: the part of the texel the
-// prism stands on (city/BlockMap.h's BlockMap::rect: x0 | x1 << 4 | y0 << 8 | y1 << 12, sixteenths), and in the high
-// 16 bits a second prism's (BlockMap::rect2) where the texel has one: then x's distance byte, 0 on a building's
-// texel, holds its top (BlockMap::height2).
+// Per texel of a map's tile (n² texels from its first, row by row; city/BlockMap.h's BlockMapPacked::tile): x: its
+// height in the low 16 bits (0 no building, else zBase + value · (zTop − zBase) / 65535), then a byte each the roof's
+// normal's x and y ((v + 1) / 2 · 255; z implied); y: 1 + a boundary texel's wall column (24 bits) and in the top
+// byte the Chebyshev distance in texels to the nearest building texel; z: the part of the texel the prism stands on
+// (BlockMap::rect: x0 | x1 << 4 | y0 << 8 | y1 << 12, sixteenths), and in the high 16 bits a second prism's
+// (BlockMap::rect2) where the texel has one; w: the prism's foot (the low 16 bits, as heights: a ray below it passes
+// under the prism) and the second prism's top (the high 16 bits, 0: none; BlockMap::height2).
 uniform usamplerBuffer uBmTexels;
 // A map's words from its first: its columns' outward normals ((n + 1) / 2, RGB8; A: 1 for walls along the grid),
 // then each column's colours (RGBA8, span words): its wallTexels colours (the lowest first), then the same halved
@@ -69,9 +69,9 @@ uvec4 bmTexelAt(ivec2 c) {
     uint w = texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).x;
     return uvec4(w & 255u, (w >> 8) & 255u, (w >> 16) & 255u, w >> 24);
 }
-// Texel `c`'s words for the traversal (one fetch): its height, distance, roof normal (x: bmTexelAt's bytes), its
-// column and foot (y), its prisms' parts (z).
-uvec3 bmStepAt(ivec2 c) { return texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).xyz; }
+// Texel `c`'s words for the traversal (one fetch): its height and roof normal (x: bmTexelAt's bytes 2 and 3 the
+// normal), its column and distance (y), its prisms' parts (z), its foot and second prism's top (w).
+uvec4 bmStepAt(ivec2 c) { return texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x); }
 
 // The roof's normal from its stored x and y (city/BlockMap.h, BlockMap::roofNormalAt: within 0.005 of 0 is 0).
 vec3 bmNormalOf(uvec2 xy) {
@@ -122,7 +122,7 @@ vec3 bmRoof(vec2 world, ivec2 c) {
     return uRoofColour * (0.62 + 0.38 * abs(dot(bmRoofNormal(c), uSunDir)));
 }
 
-float bmTop(uint value) { return bmZBase + float(value) * (bmZTop - bmZBase) / 255.0; }
+float bmTop(uint value) { return bmZBase + float(value) * (bmZTop - bmZBase) / 65535.0; }
 bool bmOutside(ivec2 c) { return any(lessThan(c, ivec2(0))) || any(greaterThanEqual(c, ivec2(uBmSize))); }
 
 void main() {
@@ -160,17 +160,16 @@ void main() {
     float top = 0.0;
     for (int it = 0; it < 4 * uBmSize + 8 && kind == kNone; ++it) {
         float tOut = min(min(nextT.x, nextT.y), t1);
-        uvec3 texel = bmStepAt(c);
-        uint value = texel.x & 255u, second = (texel.x >> 8) & 255u; // second: the distance on an empty texel
+        uvec4 texel = bmStepAt(c);
+        uint value = texel.x & 0xFFFFu, second = texel.w >> 16;
         if (value > 0u) {
-            float foot = bmTop(texel.y >> 24);
+            float foot = bmTop(texel.w & 0xFFFFu);
             // A ray above the texel's highest roof point all through it (over the roofs, the rooftop band's grazing
             // rays) meets nothing there: on to the next texel without the prisms' tests.
             vec2 slope = bmRoofSlope(texel.x);
             float highest = max(bmTop(value) + 0.5 * bmMetres * (abs(slope.x) + abs(slope.y)), bmTop(second));
             if (min(o.z + tCell * d.z, o.z + tOut * d.z) <= highest) {
-                // The ray against each prism's box in the texel (the second's where the texel's second byte, its
-                // distance elsewhere, holds its top): a part's sides bound it where they lie inside the texel (a
+                // The ray against each prism's box in the texel (the second's where it has one): a part's sides bound it where they lie inside the texel (a
                 // whole texel: the texel's, where the ray is already), then its foot and top. axis: that of the face
                 // it enters by, -1 the one it entered the texel by. The nearest prism entered counts.
                 float tBest = 1e30;
@@ -232,7 +231,7 @@ void main() {
                 }
             }
         } else {
-            int r = int(second) - 1;
+            int r = int(texel.y >> 24) - 1; // the distance
             if (r >= 1) {
                 // Every texel within r of this one is empty: on to where the ray leaves that square.
                 vec2 ex = (vec2(c + stp * r + up) * bmMetres - o.xy) / d.xy;
@@ -310,16 +309,16 @@ void main() {
             next[along] += f < 0.0 ? -1 : 1;
             ivec2 outward = ivec2(n.xy);
             if (!bmOutside(next)) {
-                uvec3 tn = bmStepAt(next);
+                uvec4 tn = bmStepAt(next);
                 int nextColumn = int(tn.y & 0xFFFFFFu) - 1;
-                float nextTop = bmTop(tn.x & 255u);
+                float nextTop = bmTop(tn.x & 0xFFFFu);
                 bool exposed = true; // the next texel's side: nothing in front of it as high as the hit
                 ivec2 front = next + outward;
                 if (!bmOutside(front)) {
-                    uint h = bmStepAt(front).x & 255u;
+                    uint h = bmStepAt(front).x & 0xFFFFu;
                     exposed = h == 0u || bmTop(h) < hit.z;
                 }
-                if (nextColumn >= 0 && (tn.x & 255u) > 0u && nextTop >= hit.z && exposed) {
+                if (nextColumn >= 0 && (tn.x & 0xFFFFu) > 0u && nextTop >= hit.z && exposed) {
                     float nv = clamp((hit.z - bmZBase) / max(nextTop - bmZBase, 1e-6), 0.0, 1.0);
                     w = mix(w, mix(bmWallAt(nextColumn, nv, l0), bmWallAt(nextColumn, nv, l0 + 1), fract(lod)), abs(f));
                 }

@@ -248,7 +248,7 @@ TEST(BlockMapGLTest, WallPixelsShowTheirSidesColours) {
                 next[along] += f < 0.0 ? -1 : 1;
                 const auto at = [&](glm::ivec2 t) { return std::size_t(t.y) * 32 + std::size_t(t.x); };
                 const auto inside = [](glm::ivec2 t) { return t.x >= 0 && t.y >= 0 && t.x < 32 && t.y < 32; };
-                const auto topOf = [&](std::uint8_t v) { return map->zBase + double(v) * (map->zTop - map->zBase) / 255.0; };
+                const auto topOf = [&](std::uint16_t v) { return map->metresOf(v); };
                 if (inside(next) && map->column[at(next)] != 0 && topOf(map->height[at(next)]) >= h.point.z) {
                     const glm::ivec2 front = next + glm::ivec2(glm::round(glm::dvec2(h.normal)));
                     if (!inside(front) || map->height[at(front)] == 0 || topOf(map->height[at(front)]) < h.point.z)
@@ -322,7 +322,7 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
     const std::size_t wordsA = packBlockMap(a).words.size(), wordsB = packBlockMap(b).words.size();
     ASSERT_GT(wordsA, kBlockMapPageWords) << "the test needs maps of several pages";
     auto counted = [&](int i) {
-        return std::uint64_t(a.size) * std::uint64_t(a.size) * 12 +
+        return std::uint64_t(a.size) * std::uint64_t(a.size) * 16 + // four words a texel
                std::uint64_t(blockMapPages(i % 3 == 0 ? wordsB : wordsA)) * kBlockMapPageWords * 4;
     };
     std::uint64_t sum = 0;
@@ -437,7 +437,7 @@ TEST(BlockMapGLTest, PoolDrawsManyMapsInOneDrawAsEachAlone) {
 TEST(BlockMapGLTest, PoolGrowsWithinItsByteLimit) {
     ASSERT_TRUE(headlessContext());
     const BlockMap a = blockMap({0.0, 0.0}, kOffGrid);
-    const std::uint64_t tile = std::uint64_t(a.size) * std::uint64_t(a.size) * 12,
+    const std::uint64_t tile = std::uint64_t(a.size) * std::uint64_t(a.size) * 16, // four words a texel
                         pages = std::uint64_t(blockMapPages(packBlockMap(a).words.size())) * kBlockMapPageWords * 4,
                         one = tile + pages;
     // What the maps need: their tiles and pages. A map's pages lie in one segment, so past the limit each segment may

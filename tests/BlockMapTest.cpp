@@ -125,7 +125,7 @@ void addTriangle(CityModel& model, glm::dvec3 a, glm::dvec3 b, glm::dvec3 c, Sur
 
 } // namespace
 
-// Heights on the 8-bit grid of the block's range (25.5 m / 255 = 0.1 m), walls on texel edges (1 m): the BlockMap
+// Heights on the grid of the block's range (25.5 m / 65535: 0.1 m is 257 steps), walls on texel edges (1 m): the BlockMap
 // is then the prisms exactly, and every ray must meet what they meet.
 TEST(BlockMapTest, BoxMatchesTheExactIntersection) { expectExact({{8, 10, 20, 18, 25.5}}, "box"); }
 
@@ -201,7 +201,7 @@ TEST(BlockMapTest, TwoBuildingsInATexelAreTwoPrisms) {
     TexelPart p = texelPart(m.rectAt(12, 8));
     EXPECT_EQ(p.lo, glm::dvec2(0.0, 0.0));
     EXPECT_EQ(p.hi, glm::dvec2(0.25, 1.0));
-    ASSERT_EQ(m.height2At(12, 8), 123);
+    ASSERT_EQ(m.height2At(12, 8), 123 * 257); // 12.3 m of 25.5
     p = texelPart(m.rect2At(12, 8));
     EXPECT_EQ(p.lo, glm::dvec2(0.75, 0.0));
     EXPECT_EQ(p.hi, glm::dvec2(1.0, 1.0));
@@ -289,7 +289,7 @@ TEST(BlockMapTest, SlopedRoofsAreTheirPlanes) {
         if (kind == BlockMapHit::Kind::None) continue;
         roofs += kind == BlockMapHit::Kind::Roof;
         walls += kind == BlockMapHit::Kind::Wall;
-        // A roof hit's height against the roof's there (heights are 8-bit steps of 14 m / 255, the normal's 8 bits
+        // A roof hit's height against the roof's there (heights are steps of 14 m / 65535, the normal's 8 bits
         // tilt the plane a little); a wall's place along the ray.
         if (kind == BlockMapHit::Kind::Roof)
             worstRoof = std::max(worstRoof, std::abs(h.point.z - (low + slope * (h.point.y - y0))));
@@ -378,7 +378,7 @@ TEST(BlockMapTest, NeighboursAcrossANarrowStreetKeepTheirOwnWallsAndFeet) {
     const auto colour = [](std::size_t tri, const glm::dvec3&) { return kFaceColour[g_faceOf[tri]]; };
     auto m = buildBlockMap(model, {0.0, 0.0}, 32.0, o, colour);
     ASSERT_TRUE(m) << m.message();
-    const double step = (m->zTop - m->zBase) / 255.0;
+    const double step = (m->zTop - m->zBase) / BlockMap::kHeightSteps;
     const std::uint32_t c = m->column[std::size_t(8) * 16 + 4]; // the left building's texel on the street
     ASSERT_GT(c, 0u);
     for (int j : {3, 5, 7}) {
@@ -428,9 +428,9 @@ TEST(BlockMapTest, HeightsDistancesAndColumns) {
     ASSERT_EQ(m.size, 32);
     EXPECT_DOUBLE_EQ(m.zBase, 0.0);
     EXPECT_DOUBLE_EQ(m.zTop, 25.5);
-    EXPECT_EQ(m.heightAt(8, 10), 255);
-    EXPECT_EQ(m.heightAt(19, 17), 255);
-    EXPECT_EQ(m.heightAt(21, 11), 123);
+    EXPECT_EQ(m.heightAt(8, 10), BlockMap::kHeightSteps);
+    EXPECT_EQ(m.heightAt(19, 17), BlockMap::kHeightSteps);
+    EXPECT_EQ(m.heightAt(21, 11), 123 * 257); // 12.3 m of 25.5
     EXPECT_NEAR(m.topAt(21, 11), 12.3, 1e-9);
     EXPECT_EQ(m.heightAt(7, 10), 0);
     EXPECT_EQ(m.heightAt(20, 14), 0);
@@ -581,7 +581,7 @@ TEST(BlockMapTest, SlopedRoofsAreShadedAsRoofsAndTheirStepsAreRoof) {
 TEST(BlockMapTest, AnEmptyBlockHasNoBuildingsAndEveryRayMisses) {
     const BlockMap m = build({{100, 100, 110, 110, 10}});
     EXPECT_EQ(m.columns(), 0);
-    for (std::uint8_t h : m.height) EXPECT_EQ(h, 0);
+    for (std::uint16_t h : m.height) EXPECT_EQ(h, 0);
     EXPECT_EQ(m.distance[0], 255);
     const BlockMapHit h = traceBlockMap(m, {-10, -10, 50}, glm::normalize(glm::dvec3(1, 1, -1)));
     EXPECT_EQ(int(h.kind), int(BlockMapHit::Kind::None));

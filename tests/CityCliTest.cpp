@@ -619,7 +619,7 @@ TEST(CityCliTest, AtlasBlockMapsBuildsTheCitysQuadtree) {
     for (const city::BlockMap& m : *maps) {
         finest = std::min(finest, m.texel);
         columns += std::size_t(m.columns());
-        EXPECT_GT(std::count_if(m.height.begin(), m.height.end(), [](std::uint8_t h) { return h > 0; }), 0);
+        EXPECT_GT(std::count_if(m.height.begin(), m.height.end(), [](std::uint16_t h) { return h > 0; }), 0);
         EXPECT_GE(m.zBase, lo.z - 1e-6);
         EXPECT_LE(m.zTop, hi.z + 1.0);
     }
