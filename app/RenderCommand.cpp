@@ -18,7 +18,8 @@ struct RenderArgs {
     ClipmapArgs clipmap;
     CanopyArgs canopy;
     CityArgs city;
-    std::string out, stats, accuracy, cityAccuracy;
+    std::string out, stats, accuracy, cityAccuracy, cityAccuracyAgainst = "original";
+    int supersample = 1;
 };
 
 // The render and imagery settings of the options, group by group: the first problem as one line naming its option.
@@ -37,6 +38,7 @@ Status renderSettingsFrom(const RenderArgs& a, RenderSettings& settings, Imagery
     settings.clipmap.size = a.clipmap.clipSize;
     settings.clipmap.minClipLevels = a.clipmap.clipLevels;
     settings.windowed = a.frame.window;
+    settings.supersample = a.supersample;
     auto canopy = a.canopy.settings();
     if (!canopy) return canopy.error();
     settings.canopy = *canopy;
@@ -75,12 +77,26 @@ Runner addRenderCommand(CLI::App& app) {
                     "Also render the reference and write PSNR and geometric accuracy (mean depth difference in "
                     "screen pixels) to this JSON file")
         ->group(kFrameGroup);
+    cmd->add_option("--supersample", args->supersample,
+                    "K x K samples a pixel, box-filtered down (antialiasing; the PSNR files compare the filtered "
+                    "pixels). The city's atlases and BlockMaps are those the output's pixels need (--city-tpp and "
+                    "--city-blockmap-error stay in output pixels)")
+        ->check(CLI::Range(1, 8))
+        ->capture_default_str()
+        ->group(kFrameGroup);
     args->imagery.addTo(*cmd);
     args->clipmap.addTo(*cmd);
     args->canopy.addTo(*cmd);
     args->city.addTo(*cmd);
     cmd->add_option("--city-accuracy", args->cityAccuracy,
-                    "With --city: write the city's PSNR against its original textures (same view) to this JSON")
+                    "With --city: write the city's PSNR against its original textures (same view) to this JSON, or "
+                    "against another mode's picture (--city-accuracy-against)")
+        ->group(kCityGroup);
+    cmd->add_option("--city-accuracy-against", args->cityAccuracyAgainst,
+                    "What --city-accuracy compares the city with: original (its own textures) or atlas (the atlas "
+                    "mode's picture: e.g. --city blockmap's far field against the polygons it stands for)")
+        ->check(CLI::IsMember({"original", "atlas"}))
+        ->capture_default_str()
         ->group(kCityGroup);
     return [args]() -> int {
         const auto t0 = std::chrono::steady_clock::now();
@@ -108,11 +124,15 @@ Runner addRenderCommand(CLI::App& app) {
         const Camera camera = *spec ? (*spec)->resolve([&](double x, double y) { return scene->terrainHeight(x, y); })
                                    : overviewCamera(*scene, double(w) / double(h));
         if (!args->cityAccuracy.empty() && !settings.city) return fail("--city-accuracy needs --city atlas|flat");
-        auto info = renderStills(*scene, w, h, {{camera, imagery, args->out, args->stats, args->accuracy, args->cityAccuracy}},
-                                 settings);
+        StillRequest still{camera, imagery, args->out, args->stats, args->accuracy, args->cityAccuracy};
+        still.cityAccuracyAgainst = *city::parseCityMode(args->cityAccuracyAgainst);
+        auto info = renderStills(*scene, w, h, {still}, settings);
         if (!info) return fail(info.message());
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        std::printf("wrote %s (%dx%d, %s, %s renderer%s, %s: %s) camera %s in %.2f s\n", args->out.c_str(), w, h,
+        std::printf("wrote %s (%dx%d%s, %s, %s renderer%s, %s: %s) camera %s in %.2f s\n", args->out.c_str(), w, h,
+                    args->supersample > 1 ? (", " + std::to_string(args->supersample) + "x" +
+                                             std::to_string(args->supersample) + " samples a pixel").c_str()
+                                          : "",
                     args->imagery.view.c_str(), args->clipmap.renderer.c_str(),
                     settings.renderer == RendererKind::Clipmap ? (", centers " + args->clipmap.centers).c_str() : "",
                     info->platform.c_str(), info->renderer.c_str(), camera.toString().c_str(), s);

@@ -42,6 +42,7 @@ struct StillRequest {
     std::filesystem::path statsOut; // optional: level statistics JSON (clipmap renderer)
     std::filesystem::path accuracyOut; // optional: PSNR and depth accuracy against the reference renderer (JSON)
     std::filesystem::path cityAccuracyOut; // optional: the city's PSNR against its original textures (JSON)
+    city::CityMode cityAccuracyAgainst = city::CityMode::Original; // ... or against another mode's picture (Atlas)
 };
 
 enum class RendererKind { Clipmap, Reference };
@@ -61,6 +62,10 @@ struct RenderSettings {
     CanopyRenderSettings canopy;       // the `canopy` view
     std::optional<city::CitySettings> city; // the city model (nullopt: none drawn)
     std::filesystem::path cityTree;         // its atlas tree (prepareCityTree)
+    // Stills drawn with K × K samples a pixel, box-filtered down (antialiasing). The city's levels of detail are
+    // chosen for the output's pixels (CitySettings::tpp and blockMapErrorPx scaled by K), so an error bound in
+    // pixels holds as given; the terrain's are those of the samples.
+    int supersample = 1;
 };
 
 /// Makes sure both seasons' pyramids are prepared (building them when needed, with a progress bar on a terminal;

@@ -28,16 +28,42 @@ double psnr(double squaredErrors, double values) {
     return mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 999.0;
 }
 
+// RGBA of `w` × `h` pixels box-filtered by `k` × `k` (the mean of each block, rounded).
+std::vector<std::uint8_t> boxFiltered(const std::vector<std::uint8_t>& rgba, int w, int h, int k) {
+    if (k <= 1) return rgba;
+    const int ow = w / k, oh = h / k;
+    std::vector<std::uint8_t> out(std::size_t(ow) * std::size_t(oh) * 4);
+    const int n = k * k;
+    for (int y = 0; y < oh; ++y)
+        for (int x = 0; x < ow; ++x)
+            for (int c = 0; c < 4; ++c) {
+                int sum = 0;
+                for (int j = 0; j < k; ++j)
+                    for (int i = 0; i < k; ++i)
+                        sum += rgba[(std::size_t(y * k + j) * std::size_t(w) + std::size_t(x * k + i)) * 4 + std::size_t(c)];
+                out[(std::size_t(y) * std::size_t(ow) + std::size_t(x)) * 4 + std::size_t(c)] = std::uint8_t((sum + n / 2) / n);
+            }
+    return out;
+}
+
 // One context's stills: what every still needs (the context, the target, GL error checks, a window to show them in).
+// With RenderSettings::supersample K the target holds K × K samples a pixel: width and height are the samples', and
+// readRgba() and write() give the output's pixels.
 struct StillContext {
     std::unique_ptr<gl::GlContext> ctx;
     const RenderSettings& settings;
-    int width, height;
+    int samples;             // K
+    int outWidth, outHeight; // the output's pixels
+    int width, height;       // the target's: the samples
     int errorsBefore;
     gl::RenderTarget target;
 
     StillContext(std::unique_ptr<gl::GlContext> c, const RenderSettings& s, int w, int h)
-        : ctx(std::move(c)), settings(s), width(w), height(h), errorsBefore(gl::debugErrorCount()), target(w, h) {}
+        : ctx(std::move(c)), settings(s), samples(std::max(1, s.supersample)), outWidth(w), outHeight(h),
+          width(w * samples), height(h * samples), errorsBefore(gl::debugErrorCount()), target(width, height) {}
+
+    /// The picture at the output's size (each pixel the mean of its samples), rows from the top.
+    std::vector<std::uint8_t> readRgba() const { return boxFiltered(target.readRgba(), width, height, samples); }
 
     Status checkGl(const std::filesystem::path& out) const {
         if (const std::string e = gl::drainErrors(); !e.empty() || gl::debugErrorCount() != errorsBefore)
@@ -54,7 +80,15 @@ struct StillContext {
     }
     Status write(const std::filesystem::path& out) {
         if (auto st = checkGl(out); !st) return st;
-        if (auto st = writeRgb(target, out); !st) return st;
+        if (samples == 1) {
+            if (auto st = writeRgb(target, out); !st) return st;
+        } else {
+            const std::vector<std::uint8_t> rgba = readRgba();
+            std::vector<std::uint8_t> rgb(rgba.size() / 4 * 3);
+            for (std::size_t i = 0; i < rgba.size() / 4; ++i)
+                for (std::size_t c = 0; c < 3; ++c) rgb[i * 3 + c] = rgba[i * 4 + c];
+            if (auto st = writeImageAtomic(out, rgb.data(), outWidth, outHeight, 3); !st) return st;
+        }
         present();
         return Ok{};
     }
@@ -129,6 +163,8 @@ Status ClipmapStills::create(const std::vector<StillRequest>& stills) {
     if (m_settings.city) {
         city::CitySettings cs = *m_settings.city;
         cs.threaded = false; // stills load everything they show
+        cs.tpp *= double(m_c.samples); // the levels of detail of the output's pixels
+        cs.blockMapErrorPx *= double(m_c.samples);
         if (auto st = prepareCityBlockMaps(m_scene, m_settings.cityTree, m_settings.cacheDir, cs); !st) return st.error();
         auto c = city::CityRendererGL::create(m_scene, m_settings.cityTree.string(), cs);
         if (!c) return c.error();
@@ -205,7 +241,7 @@ GeometryFrameStats ClipmapStills::drawTerrain(const StillRequest& s, ImagerySett
 // The city over the terrain drawn, every node it needs resident; with --city-accuracy its PSNR file too.
 Result<city::CityFrameStats> ClipmapStills::drawCity(const StillRequest& s, const ImagerySettings& imagery) {
     std::vector<std::uint8_t> ground;
-    if (!s.cityAccuracyOut.empty()) ground = m_c.target.readRgba();
+    if (!s.cityAccuracyOut.empty()) ground = m_c.readRgba();
     m_city->settings().view = city::cityViewFor(s.imagery);
     m_city->complete(s.camera, m_c.width, m_c.height);
     m_city->resetOcclusion(); // a still: every node tested before it is drawn
@@ -216,13 +252,14 @@ Result<city::CityFrameStats> ClipmapStills::drawCity(const StillRequest& s, cons
     return cst;
 }
 
-// The same view with the original textures, over the terrain as it was: PSNR over the pixels the city drew (those
-// that differ from the terrain alone in either image). Leaves this mode's picture in the target.
+// The same view with the original textures (or in the mode StillRequest::cityAccuracyAgainst names), over the
+// terrain as it was: PSNR over the pixels the city drew (those that differ from the terrain alone in either image), at
+// the output's pixels. Leaves this mode's picture in the target.
 Status ClipmapStills::writeCityAccuracy(const StillRequest& s, const ImagerySettings& imagery,
                                         const std::vector<std::uint8_t>& ground, const city::CityFrameStats& cst) {
-    const std::vector<std::uint8_t> mine = m_c.target.readRgba();
+    const std::vector<std::uint8_t> mine = m_c.readRgba();
     city::CitySettings os = m_city->settings();
-    os.mode = city::CityMode::Original;
+    os.mode = s.cityAccuracyAgainst;
     os.threaded = false;
     os.capacityBytes = std::max<std::uint64_t>(os.capacityBytes, 4ull << 30);
     auto orig = city::CityRendererGL::create(m_scene, m_settings.cityTree.string(), os);
@@ -230,7 +267,7 @@ Status ClipmapStills::writeCityAccuracy(const StillRequest& s, const ImagerySett
     m_renderer->render(s.camera, imagery, m_c.target);
     (*orig)->complete(s.camera, m_c.width, m_c.height);
     const city::CityFrameStats ost = (*orig)->draw(s.camera, m_renderer.get(), m_c.target);
-    const std::vector<std::uint8_t> ref = m_c.target.readRgba();
+    const std::vector<std::uint8_t> ref = m_c.readRgba();
     double sq = 0.0;
     std::int64_t n = 0;
     for (std::size_t i = 0; i < ref.size(); i += 4) {
@@ -245,15 +282,18 @@ Status ClipmapStills::writeCityAccuracy(const StillRequest& s, const ImagerySett
         }
     }
     nlohmann::json j = {{"camera", s.camera.toString()},
-                        {"size", {m_c.width, m_c.height}},
+                        {"size", {m_c.outWidth, m_c.outHeight}},
+                        {"supersample", m_c.samples},
                         {"mode", city::cityModeName(m_city->settings().mode)},
-                        {"against", "original"},
+                        {"against", city::cityModeName(s.cityAccuracyAgainst)},
                         {"psnr_db", psnr(sq, double(n * 3))},
                         {"city_pixels", n},
                         {"atlas_nodes", cst.atlasNodes},
                         {"original_leaves", cst.originalLeaves},
                         {"coarser_than_wanted", cst.coarserThanWanted},
-                        {"original_missing_textures", ost.missingOriginals}};
+                        {"original_missing_textures", ost.missingOriginals},
+                        {"block_maps", cst.blockMaps}};
+    if (s.cityAccuracyAgainst != city::CityMode::Original) j.erase("original_missing_textures");
     std::string err;
     if (!writeTextAtomic(s.cityAccuracyOut, j.dump(2) + "\n", err)) return fileError(s.cityAccuracyOut.string(), err);
     // Back to this mode's picture for the image file.
@@ -264,7 +304,7 @@ Status ClipmapStills::writeCityAccuracy(const StillRequest& s, const ImagerySett
 
 // The same camera through the brute-force renderer: colour PSNR and geometric accuracy.
 Status ClipmapStills::writeAccuracy(const StillRequest& s, const GeometryFrameStats& drawn) {
-    const std::vector<std::uint8_t> mine = m_c.target.readRgba();
+    const std::vector<std::uint8_t> mine = m_c.readRgba();
     const std::vector<float> mineDepth = m_c.target.readDepth();
     if (!m_reference) {
         ReferenceOptions ro;
@@ -277,7 +317,7 @@ Status ClipmapStills::writeAccuracy(const StillRequest& s, const GeometryFrameSt
     }
     const ImageryView v = s.imagery.view == ImageryView::LeafOff ? ImageryView::LeafOff : ImageryView::LeafOn;
     m_reference->render(s.camera, v == ImageryView::LeafOn ? Season::LeafOn : Season::LeafOff, m_c.target);
-    const std::vector<std::uint8_t> ref = m_c.target.readRgba();
+    const std::vector<std::uint8_t> ref = m_c.readRgba(); // the output's pixels; depths at the samples
     const DepthAccuracy acc = compareDepth(m_c.target.readDepth(), mineDepth, m_c.width, m_c.height, kNearPlane);
     double sq = 0;
     for (size_t i = 0; i < ref.size(); i += 4)
@@ -286,7 +326,8 @@ Status ClipmapStills::writeAccuracy(const StillRequest& s, const GeometryFrameSt
             sq += d * d;
         }
     nlohmann::json j = {{"camera", s.camera.toString()},
-                        {"size", {m_c.width, m_c.height}},
+                        {"size", {m_c.outWidth, m_c.outHeight}},
+                        {"supersample", m_c.samples},
                         {"view", imageryViewName(v)},
                         {"psnr_db", psnr(sq, double(ref.size() / 4 * 3))},
                         {"mean_depth_error_px", acc.meanErrorPx},
@@ -312,7 +353,8 @@ Status ClipmapStills::writeStats(const StillRequest& s, const ClipmapFrameStats&
                         {"centers", placementName(m_settings.centers)},
                         {"view", imageryViewName(s.imagery.view)},
                         {"camera", s.camera.toString()},
-                        {"size", {m_c.width, m_c.height}},
+                        {"size", {m_c.outWidth, m_c.outHeight}},
+                        {"supersample", m_c.samples},
                         {"clip_size", m_geometry.size},
                         {"clip_levels", m_geometry.levels},
                         {"coverage", ls.coverage},
@@ -362,7 +404,10 @@ Result<gl::ContextInfo> renderStillsOnce(const Scene& scene, int width, int heig
     auto ctx = settings.windowed ? gl::createWindowContext(width, height, "seasonview", false)
                                  : gl::createHeadlessContext();
     if (!ctx) return ctx.error();
-    if (auto st = gl::checkFramebufferSize((*ctx)->info(), width, height, "--size"); !st) return st.error();
+    const int k = std::max(1, settings.supersample);
+    if (auto st = gl::checkFramebufferSize((*ctx)->info(), width * k, height * k, k > 1 ? "--size times --supersample" : "--size");
+        !st)
+        return st.error();
     StillContext c(std::move(*ctx), settings, width, height);
     if (settings.renderer == RendererKind::Reference) {
         if (auto st = renderReferenceStills(scene, pyramids, stills, c); !st) return st.error();

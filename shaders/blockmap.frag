@@ -52,11 +52,11 @@ flat in int vMap;
 out vec4 fragColor;
 
 // The map drawn (its record: common_blockmap.glsl), set first in main().
-vec2 bmOrigin;
-float bmMetres, bmZBase, bmZTop; // metres per texel, the height range
-int bmTile; // the map's first texel in uBmTexels
-int bmFirstWord, bmWallTexels, bmSpan, bmColumns; // bmFirstWord: the words' first after the page table
-int bmFirstPage;
+vec2 bmOrigin = vec2(0.0);
+float bmMetres = 1.0, bmZBase = 0.0, bmZTop = 1.0; // metres per texel, the height range
+int bmTile = 0; // the map's first texel in uBmTexels
+int bmFirstWord = 0, bmWallTexels = 1, bmSpan = 1, bmColumns = 0; // bmFirstWord: the words' first after the page table
+int bmFirstPage = 0;
 
 // Word w of the map (counted from its page table's first): its page through the table, in the first page.
 uint bmWord(int w) {
@@ -103,19 +103,40 @@ vec4 bmWallAt(int column, float v, int level) {
 // The roof's normal over texel `c`.
 vec3 bmRoofNormal(ivec2 c) { return bmNormalOf(bmTexelAt(c).ba); }
 
-// The roof at `world` (local metres) over texel `c`: the terrain's imagery there (ROOF_IMAGERY, as the polygon roofs
-// show it, unlit), else one colour lit by the texel's roof normal.
-vec3 bmRoof(vec2 world, ivec2 c) {
+#ifdef ROOF_IMAGERY
+// The local -> image lookup as city_building.vert does it per vertex, here per pixel.
+vec2 bmImageUv(vec2 world) {
+    vec2 t = (world - uLookupMin) / uLookupSize;
+    vec2 tc = clamp(t, 0.0, 1.0);
+    return textureLod(uLocalToImage, (tc * (uLookupTexels - 1.0) + 0.5) / uLookupTexels, 0.0).xy +
+           uLookupSlope * (t - tc);
+}
+#endif
+
+// The ray's direction's derivatives across the screen (dFdx, dFdy of vWorld - uEye), taken in main() before any
+// branch: the box's faces are planes, so they hold at every pixel of its quad.
+vec3 bmRayDx = vec3(0.0), bmRayDy = vec3(0.0);
+
+// The roof at `hit` (relative to the map's origin; the ray o + t·d met it at t) over texel `c`: the terrain's imagery
+// there (ROOF_IMAGERY, as the polygon roofs show it, unlit), else one colour lit by the texel's roof normal. The
+// imagery is filtered over the pixel's footprint on the roof's plane, from where the neighbouring pixels' rays meet
+// that plane, as a rasteriser's derivatives are a polygon's: the hits' own derivatives jump at a roof's edge (a
+// neighbour's ray meets a wall, the ground or nothing), which took the whole roof's edge to a coarse level of the
+// imagery, blended with the street around the building.
+vec3 bmRoof(vec3 hit, vec3 d, float t, ivec2 c) {
 #ifdef ROOF_IMAGERY
     if (uHasImagery != 0) {
-        // The local -> image lookup as city_building.vert does it per vertex, here per pixel.
-        vec2 t = (world - uLookupMin) / uLookupSize;
-        vec2 tc = clamp(t, 0.0, 1.0);
-        vec2 imageUv = textureLod(uLocalToImage, (tc * (uLookupTexels - 1.0) + 0.5) / uLookupTexels, 0.0).xy +
-                       uLookupSlope * (t - tc);
+        vec2 world = hit.xy + bmOrigin;
+        vec2 imageUv = bmImageUv(world);
         if (all(greaterThanEqual(imageUv, vec2(0.0))) && all(lessThanEqual(imageUv, vec2(1.0)))) {
-            vec2 p = imageUv * uLevel0Size;
-            return roofImagery(p, clipmapFootprint(p), uRoofColour);
+            // hit(x) = o + t(x)·d(x) with n·(hit - plane point) = 0: dhit = t·(dd - d·(n·dd)/(n·d)).
+            vec3 n = bmRoofNormal(c);
+            float nd = dot(n, d);
+            nd = abs(nd) > 1e-12 ? nd : -1e-12;
+            vec3 hx = t * (bmRayDx - d * dot(n, bmRayDx) / nd), hy = t * (bmRayDy - d * dot(n, bmRayDy) / nd);
+            vec2 px = (bmImageUv(world + hx.xy) - imageUv) * uLevel0Size;
+            vec2 py = (bmImageUv(world + hy.xy) - imageUv) * uLevel0Size;
+            return roofImagery(imageUv * uLevel0Size, clipmapFootprintOf(px, py), uRoofColour);
         }
     }
 #endif
@@ -137,6 +158,8 @@ void main() {
     bmSpan = m.wall.y;
     bmColumns = m.wall.z;
     bmFirstPage = m.wall.w;
+    bmRayDx = dFdx(vWorld);
+    bmRayDy = dFdy(vWorld);
     vec3 o = vec3(uEye.xy - bmOrigin, uEye.z);
     vec3 d = vWorld - uEye;
     // No component exactly 0 (the slabs divide by them); a nudge far below a texel.
@@ -329,7 +352,7 @@ void main() {
         if (wallShare >= 0.5) faceNormal = n;
     }
     vec3 roof = vec3(0.0);
-    if (wallShare < 1.0) roof = bmRoof(hit.xy + bmOrigin, c);
+    if (wallShare < 1.0) roof = bmRoof(hit, d, tHit, c);
     fragColor = vec4(mix(roof, wall, wallShare), 1.0);
     if (m.source.a > 0.0) fragColor = vec4(m.source.rgb * (0.62 + 0.38 * abs(dot(faceNormal, uSunDir))), 1.0);
 }
