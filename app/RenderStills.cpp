@@ -40,8 +40,10 @@ std::vector<std::uint8_t> boxFiltered(const std::vector<std::uint8_t>& rgba, int
                 int sum = 0;
                 for (int j = 0; j < k; ++j)
                     for (int i = 0; i < k; ++i)
-                        sum += rgba[(std::size_t(y * k + j) * std::size_t(w) + std::size_t(x * k + i)) * 4 + std::size_t(c)];
-                out[(std::size_t(y) * std::size_t(ow) + std::size_t(x)) * 4 + std::size_t(c)] = std::uint8_t((sum + n / 2) / n);
+                        sum += rgba[(std::size_t(y * k + j) * std::size_t(w) + std::size_t(x * k + i)) * 4 +
+                                    std::size_t(c)];
+                out[(std::size_t(y) * std::size_t(ow) + std::size_t(x)) * 4 + std::size_t(c)] =
+                    std::uint8_t((sum + n / 2) / n);
             }
     return out;
 }
@@ -405,9 +407,8 @@ Result<gl::ContextInfo> renderStillsOnce(const Scene& scene, int width, int heig
                                  : gl::createHeadlessContext();
     if (!ctx) return ctx.error();
     const int k = std::max(1, settings.supersample);
-    if (auto st = gl::checkFramebufferSize((*ctx)->info(), width * k, height * k, k > 1 ? "--size times --supersample" : "--size");
-        !st)
-        return st.error();
+    const char* what = k > 1 ? "--size times --supersample" : "--size";
+    if (auto st = gl::checkFramebufferSize((*ctx)->info(), width * k, height * k, what); !st) return st.error();
     StillContext c(std::move(*ctx), settings, width, height);
     if (settings.renderer == RendererKind::Reference) {
         if (auto st = renderReferenceStills(scene, pyramids, stills, c); !st) return st.error();

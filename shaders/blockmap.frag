@@ -117,20 +117,19 @@ vec2 bmImageUv(vec2 world) {
 // branch: the box's faces are planes, so they hold at every pixel of its quad.
 vec3 bmRayDx = vec3(0.0), bmRayDy = vec3(0.0);
 
-// The roof at `hit` (relative to the map's origin; the ray o + t·d met it at t) over texel `c`: the terrain's imagery
-// there (ROOF_IMAGERY, as the polygon roofs show it, unlit), else one colour lit by the texel's roof normal. The
+// The roof at `hit` (relative to the map's origin; the ray o + t·d met it at t), of normal `n` (its texel's): the
+// terrain's imagery there (ROOF_IMAGERY, as the polygon roofs show it, unlit), else one colour lit by `n`. The
 // imagery is filtered over the pixel's footprint on the roof's plane, from where the neighbouring pixels' rays meet
 // that plane, as a rasteriser's derivatives are a polygon's: the hits' own derivatives jump at a roof's edge (a
 // neighbour's ray meets a wall, the ground or nothing), which took the whole roof's edge to a coarse level of the
 // imagery, blended with the street around the building.
-vec3 bmRoof(vec3 hit, vec3 d, float t, ivec2 c) {
+vec3 bmRoof(vec3 hit, vec3 d, float t, vec3 n) {
 #ifdef ROOF_IMAGERY
     if (uHasImagery != 0) {
         vec2 world = hit.xy + bmOrigin;
         vec2 imageUv = bmImageUv(world);
         if (all(greaterThanEqual(imageUv, vec2(0.0))) && all(lessThanEqual(imageUv, vec2(1.0)))) {
             // hit(x) = o + t(x)·d(x) with n·(hit - plane point) = 0: dhit = t·(dd - d·(n·dd)/(n·d)).
-            vec3 n = bmRoofNormal(c);
             float nd = dot(n, d);
             nd = abs(nd) > 1e-12 ? nd : -1e-12;
             vec3 hx = t * (bmRayDx - d * dot(n, bmRayDx) / nd), hy = t * (bmRayDy - d * dot(n, bmRayDy) / nd);
@@ -140,7 +139,7 @@ vec3 bmRoof(vec3 hit, vec3 d, float t, ivec2 c) {
         }
     }
 #endif
-    return uRoofColour * (0.62 + 0.38 * abs(dot(bmRoofNormal(c), uSunDir)));
+    return uRoofColour * (0.62 + 0.38 * abs(dot(n, uSunDir)));
 }
 
 float bmTop(uint value) { return bmZBase + float(value) * (bmZTop - bmZBase) / 65535.0; }
@@ -192,9 +191,10 @@ void main() {
             vec2 slope = bmRoofSlope(texel.x);
             float highest = max(bmTop(value) + 0.5 * bmMetres * (abs(slope.x) + abs(slope.y)), bmTop(second));
             if (min(o.z + tCell * d.z, o.z + tOut * d.z) <= highest) {
-                // The ray against each prism's box in the texel (the second's where it has one): a part's sides bound it where they lie inside the texel (a
-                // whole texel: the texel's, where the ray is already), then its foot and top. axis: that of the face
-                // it enters by, -1 the one it entered the texel by. The nearest prism entered counts.
+                // The ray against each prism's box in the texel (the second's where it has one): a part's sides
+                // bound it where they lie inside the texel (a whole texel: the texel's, where the ray is already),
+                // then its foot and top. axis: that of the face it enters by, -1 the one it entered the texel by. The
+                // nearest prism entered counts.
                 float tBest = 1e30;
                 int axisBest = -1;
                 for (int k = 0; k < (second > 0u ? 2 : 1); ++k) {
@@ -300,7 +300,7 @@ void main() {
     // A wall's colour and how much of it is wall (the rest: the steps of a sloped roof, drawn as roof).
     float wallShare = 0.0;
     vec3 wall = vec3(0.0);
-    vec3 faceNormal = bmRoofNormal(c);
+    vec3 roofNormal = bmRoofNormal(c), faceNormal = roofNormal;
     if (kind == kWall) {
         int column = max(int(texelFetch(uBmTexels, bmTile + c.y * uBmSize + c.x).y & 0xFFFFFFu) - 1, 0);
         float v = clamp((hit.z - bmZBase) / max(top - bmZBase, 1e-6), 0.0, 1.0);
@@ -352,7 +352,7 @@ void main() {
         if (wallShare >= 0.5) faceNormal = n;
     }
     vec3 roof = vec3(0.0);
-    if (wallShare < 1.0) roof = bmRoof(hit, d, tHit, c);
+    if (wallShare < 1.0) roof = bmRoof(hit, d, tHit, roofNormal);
     fragColor = vec4(mix(roof, wall, wallShare), 1.0);
     if (m.source.a > 0.0) fragColor = vec4(m.source.rgb * (0.62 + 0.38 * abs(dot(faceNormal, uSunDir))), 1.0);
 }
