@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include <glm/geometric.hpp>
+#include <glm/matrix.hpp>
 #include <glm/trigonometric.hpp>
 
 namespace seasonview {
@@ -100,25 +101,26 @@ GeometryFrameStats CanopyRendererGL::renderView(const Camera& camera, const Clip
 }
 
 void CanopyRendererGL::ensureEntry(const gl::RenderTarget& target) const {
-    if (m_entryFramebuffer && m_entrySize == glm::ivec2(target.width(), target.height())) return;
+    const glm::ivec2 size = entrySize(target);
+    if (m_entryFramebuffer && m_entrySize == size) return;
     m_entryFramebuffer = gl::Framebuffer::create();
     m_entryDepth = gl::Renderbuffer::create();
-    glNamedRenderbufferStorage(m_entryDepth.id(), GL_DEPTH_COMPONENT32F, target.width(), target.height());
-    for (int i = 0; i < 3; ++i) {
+    glNamedRenderbufferStorage(m_entryDepth.id(), GL_DEPTH_COMPONENT32F, size.x, size.y);
+    for (int i = 0; i < 2; ++i) {
         m_entry[i] = gl::Texture::create(GL_TEXTURE_2D);
-        glTextureStorage2D(m_entry[i].id(), 1, GL_RGBA32F, target.width(), target.height());
+        glTextureStorage2D(m_entry[i].id(), 1, GL_RGBA32F, size.x, size.y);
         glTextureParameteri(m_entry[i].id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
         glTextureParameteri(m_entry[i].id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
         glNamedFramebufferTexture(m_entryFramebuffer.id(), GLenum(GL_COLOR_ATTACHMENT0 + i), m_entry[i].id(), 0);
     }
     glNamedFramebufferRenderbuffer(m_entryFramebuffer.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, m_entryDepth.id());
-    const GLenum buffers[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
-    glNamedFramebufferDrawBuffers(m_entryFramebuffer.id(), 3, buffers);
+    const GLenum buffers[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+    glNamedFramebufferDrawBuffers(m_entryFramebuffer.id(), 2, buffers);
     assert(glCheckNamedFramebufferStatus(m_entryFramebuffer.id(), GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE &&
            "CanopyRendererGL: incomplete entry framebuffer");
-    m_entrySize = {target.width(), target.height()};
+    m_entrySize = size;
     if (!m_emptyVao) m_emptyVao = gl::VertexArray::create();
-    for (int i = 0; i < 3; ++i) m_marchInput.entry[i] = m_entry[i].id();
+    for (int i = 0; i < 2; ++i) m_marchInput.entry[i] = m_entry[i].id();
 }
 
 GeometryFrameStats CanopyRendererGL::marchForward(const Camera& camera, const ClipmapTerrainRendererGL& terrain,
@@ -129,10 +131,9 @@ GeometryFrameStats CanopyRendererGL::marchForward(const Camera& camera, const Cl
     const gl::ShaderProgram& marcher = terrain.program("terrain_resolve.vert", "canopy_march.frag", {"VIEW 0"});
     terrain.bindTerrain(marcher, viewProj);
     canopy.bind(marcher, kCanopyUnit);
-    for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(kCanopyEntryUnit + i), m_entry[i].id());
+    for (int i = 0; i < 2; ++i) glBindTextureUnit(GLuint(kCanopyEntryUnit + i), m_entry[i].id());
     marcher.set("uEntry", kCanopyEntryUnit);
-    marcher.set("uEntryFootprint", kCanopyEntryUnit + 1);
-    marcher.set("uEntryRay", kCanopyEntryUnit + 2);
+    marcher.set("uEntryRay", kCanopyEntryUnit + 1);
     marcher.set("uClipAniso", m_marchAnisotropy);
     marcher.set("uShade", m_marchShade);
     marcher.set("uSunDir", glm::vec3(glm::normalize(glm::dvec3(-0.5, 0.6, 0.75))));
@@ -148,7 +149,7 @@ GeometryFrameStats CanopyRendererGL::marchForward(const Camera& camera, const Cl
     glDisable(GL_BLEND);
     glBindVertexArray(0);
     glDepthFunc(GL_GREATER);
-    for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(kCanopyEntryUnit + i), 0);
+    for (int i = 0; i < 2; ++i) glBindTextureUnit(GLuint(kCanopyEntryUnit + i), 0);
     GeometryFrameStats st;
     st.drawCalls = 1;
     return st;
@@ -171,20 +172,31 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
     const bool march = pass == CanopyPass::Marched;
     if (march && s.mode != CanopyDrawMode::March) return {};
     const float shade = std::clamp(s.shading, 0.0f, 1.0f);
-    // NORMALS is a compile-time constant (shaders/terrain_geometry.vert): the rasterised layers with and without
-    // shading; the march always needs the terrain's normals (the local plane its rays are intersected over).
+    // NORMALS is a compile-time constant (shaders/terrain_geometry.vert): the layers with and without shading. The
+    // march's record without takes the plane its rays are intersected over from each triangle's own
+    // (terrain_clipmap.frag): the vertex normals cost four height fetches a vertex.
+    const std::string normals = std::string("NORMALS ") + (shade > 0.0f ? "1" : "0");
     const gl::ShaderProgram& program =
-        march ? terrain.program("terrain_geometry.vert", "terrain_clipmap.frag", {"CANOPY_LAYER", "CANOPY_MARCH", "NORMALS 1"})
-              : terrain.program("terrain_geometry.vert", "terrain_clipmap.frag",
-                                {"CANOPY_LAYER", std::string("NORMALS ") + (shade > 0.0f ? "1" : "0")});
-    terrain.bindTerrain(program, viewProj);
+        march ? terrain.program("terrain_geometry.vert", "terrain_clipmap.frag",
+                                {"CANOPY_LAYER", "CANOPY_MARCH", normals})
+              : terrain.program("terrain_geometry.vert", "terrain_clipmap.frag", {"CANOPY_LAYER", normals});
+    // The record is drawn at 1 / kEntryScale of the target's resolution: its texel (i, j) covers the frame's pixels
+    // kEntryScale i .. kEntryScale (i + 1) - 1 (and likewise in y), past the frame's edge for an odd size.
+    const glm::ivec2 entry = entrySize(target);
+    glm::dmat4 toEntry(1.0);
+    toEntry[0][0] = double(target.width()) / double(kEntryScale * entry.x);
+    toEntry[1][1] = double(target.height()) / double(kEntryScale * entry.y);
+    toEntry[3][0] = toEntry[0][0] - 1.0;
+    toEntry[3][1] = toEntry[1][1] - 1.0;
+    const glm::dmat4 drawnViewProj = march ? toEntry * viewProj : viewProj;
+    terrain.bindTerrain(program, drawnViewProj);
     canopy.bind(program, kCanopyUnit);
     if (march) {
         // The top layer's patches record where each pixel's ray enters the stack, into their own targets and depth
         // buffer (the terrain's geometry pass still needs the ground under them); a full-screen pass marches.
         ensureEntry(target);
         glBindFramebuffer(GL_FRAMEBUFFER, m_entryFramebuffer.id());
-        glViewport(0, 0, target.width(), target.height());
+        glViewport(0, 0, entry.x, entry.y);
         const float none[4] = {-1.0f, -1.0f, 0.0f, 0.0f};
         glClearNamedFramebufferfv(m_entryFramebuffer.id(), GL_COLOR, 0, none);
         const float far = 0.0f; // reversed Z
@@ -259,7 +271,7 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
         for (int j = 0; j < n; ++j)
             out.push_back({n <= 1 ? top : first + int(std::lround(double((n - 1 - j) * span) / double(n - 1))), packed});
     };
-    GeometryFrameStats st = terrain.geometry().drawPatches(program, viewProj, s.treeHeight, instances);
+    GeometryFrameStats st = terrain.geometry().drawPatches(program, drawnViewProj, s.treeHeight, instances);
     if (march) {
         target.bind();
         // What the march (common_canopy_march.glsl) needs besides the terrain's bindings, for whichever pass marches.
@@ -268,6 +280,16 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
         const glm::vec2 shift = s.shift;
         const glm::vec3 eye(camera.position);
         const glm::mat2 localToPixel(toPixel);
+        // The view ray through window point (x, y), local metres: towards the point of a plane parallel to the
+        // image's (here NDC depth 1, the near plane), affine in x and y.
+        const glm::dmat4 inverse = glm::inverse(viewProj);
+        auto towards = [&](double x, double y) {
+            const glm::dvec4 q = inverse * glm::dvec4(2.0 * x / double(target.width()) - 1.0,
+                                                      2.0 * y / double(target.height()) - 1.0, 1.0, 1.0);
+            return glm::dvec3(q) / q.w - camera.position;
+        };
+        const glm::vec3 ray0(towards(0.0, 0.0)), rayDx(towards(1.0, 0.0) - towards(0.0, 0.0)),
+            rayDy(towards(0.0, 1.0) - towards(0.0, 0.0));
         m_marchInput.setUniforms = [=](const gl::ShaderProgram& p) {
             p.set("uCanopyHeight", canopyHeight);
             p.set("uCrownBase", crownBase);
@@ -276,6 +298,9 @@ GeometryFrameStats CanopyRendererGL::render(const Camera& camera, const ClipmapT
             p.set("uFirstLayer", first);
             p.set("uEye", eye);
             p.set("uLocalToPixel", localToPixel);
+            p.set("uRay0", ray0);
+            p.set("uRayDx", rayDx);
+            p.set("uRayDy", rayDy);
         };
         m_marchAnisotropy = std::clamp(s.anisotropy, 1.0f, kMaxAnisotropy);
         m_marchShade = shade;

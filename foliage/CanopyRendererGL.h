@@ -20,7 +20,8 @@ namespace seasonview {
 
 /// How the stacked layers are drawn. Layers: each layer is its own lifted copy of the geometry clipmap's patches,
 /// rasterised, its fragments kept where the canopy reaches the layer (the paper's §4.2 as written: up to N fragments
-/// per pixel). March: only the top layer is rasterised, recording where each pixel's view ray enters the stack; one
+/// per pixel). March: only the top layer is rasterised (at half the frame's resolution), recording where the view rays
+/// enter the stack (each pixel meets its own ray with the top layer's plane there); one
 /// full-screen pass (shaders/canopy_march.frag) intersects each ray with the layers below in turn, over the terrain's
 /// local plane, keeping the first layer whose canopy it meets (one march per pixel, N cheap fetches at most; the
 /// same layers, exact on planar terrain).
@@ -101,15 +102,20 @@ public:
 
 private:
     CanopyRendererGL() = default;
-    // The marched pass's record of where each pixel's ray enters the stack (common_canopy_march.glsl), sized to the
-    // target: RGBA32F (p, dFdx p), (dFdy p, normal xy), (entry point, first layer + 256 × level), its own depth.
+    // The marched pass's record of where the rays enter the stack (common_canopy_march.glsl), at 1 / kEntryScale of
+    // the target's resolution in each axis: RGBA32F (p, the plane's normal xy), (entry point, first layer + 256 ×
+    // level), its own depth.
+    static constexpr int kEntryScale = 2; // common_canopy_march.glsl's kCanopyEntryScale
     void ensureEntry(const gl::RenderTarget& target) const;
+    static glm::ivec2 entrySize(const gl::RenderTarget& target) {
+        return {(target.width() + kEntryScale - 1) / kEntryScale, (target.height() + kEntryScale - 1) / kEntryScale};
+    }
     // The march with forward terrain shading: a full-screen pass before the terrain (with deferred shading the
     // terrain's resolve marches, ImagerySettings::canopyMarch).
     GeometryFrameStats marchForward(const Camera& camera, const ClipmapTerrainRendererGL& terrain,
                                     const CanopyClipmapGL& canopy, const gl::RenderTarget& target) const;
     mutable gl::Framebuffer m_entryFramebuffer;
-    mutable gl::Texture m_entry[3];
+    mutable gl::Texture m_entry[2];
     mutable gl::Renderbuffer m_entryDepth; // the top layer's own depth: the terrain's geometry pass draws under it
     mutable glm::ivec2 m_entrySize{0};
     mutable gl::VertexArray m_emptyVao;

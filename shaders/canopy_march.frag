@@ -11,7 +11,7 @@ out vec4 fragColor;
 
 void main() {
     ivec2 pixel = ivec2(gl_FragCoord.xy);
-    if (texelFetch(uEntry, pixel, 0).x < 0.0) discard;
+    if (!canopyEntryRecorded(pixel)) discard;
     CanopyHit h = canopyMarchAt(pixel);
     if (h.layer < 0) {
         gl_FragDepth = 0.0; // reversed Z: far, as cleared
@@ -19,6 +19,7 @@ void main() {
         return;
     }
     int used;
-    fragColor = vec4(shaded(canopyLayerFactor(h.layer) * sampleClipmap(0, h.p, h.f, used).rgb, h.n), 1.0);
+    vec4 a = sampleClipmap(0, h.p, clipmapFootprintOf(h.dx, h.dy), used);
+    fragColor = vec4(shaded(canopyLayerFactor(h.layer) * a.rgb, h.n), 1.0);
     gl_FragDepth = canopyHitDepth(h);
 }

@@ -1,15 +1,20 @@
 // The stacked canopy layers intersected per pixel (foliage/CanopyRendererGL.h, CanopyDrawMode::March; Ropinski et
-// al. 2007 §4.2's layers, marched instead of rasterised). The top layer's patches record where each pixel's ray
-// enters the stack (terrain_clipmap.frag, variant CANOPY_MARCH); a pass over the whole frame marches from there once
-// per pixel: the deferred terrain resolve (terrain_resolve.frag, variant CANOPY_MARCH), or with forward shading
-// canopy_march.frag. Marching in the top layer's own fragments ran the loop again in every 4 × 4 block each of its
-// small triangles touched (llvmpipe: ten fragment invocations per pixel drawn). From the entry, the ray meets layer i
-// where it has come down the height between the two, over the terrain's local plane (its normal); the first layer
-// whose canopy it meets there is drawn. Include after common_view.glsl.
+// al. 2007 §4.2's layers, marched instead of rasterised). The top layer's patches record, at half the frame's
+// resolution in each axis, the point and plane where the rays enter the stack (terrain_clipmap.frag, variant
+// CANOPY_MARCH); a pass over the whole frame marches from there once per pixel: the deferred terrain resolve
+// (terrain_resolve.frag, variant CANOPY_MARCH), or with forward shading canopy_march.frag. Each pixel intersects its
+// own ray with the plane of the record's texel it lies in (the top layer's triangle there), which gives its entry
+// and the entry's screen derivatives exactly where that triangle covers the pixel (a quarter of the record's fragments
+// and clears; docs/performance.md). Marching in the top layer's own fragments ran the loop again in every 4 × 4 block
+// each of its small triangles touched (llvmpipe: ten fragment invocations per pixel drawn). From the entry, the ray
+// meets layer i where it has come down the height between the two, over the terrain's local plane (its normal); the
+// first layer whose canopy it meets there is drawn. Include after common_view.glsl.
 
-uniform sampler2D uEntry;         // p, dFdx(p); p.x < 0: no top layer here
-uniform sampler2D uEntryFootprint; // dFdy(p), n.xy
-uniform sampler2D uEntryRay;      // the local point the ray enters at, its first layer + 256 × its patch's canopy level
+const int kCanopyEntryScale = 2;  // frame pixels per record texel along each axis (CanopyRendererGL::kEntryScale)
+uniform sampler2D uEntry;         // p, the top layer's unit normal xy (its plane); p.x < 0: no top layer here
+uniform sampler2D uEntryRay;      // the local point the record's ray enters at, first layer + 256 × canopy level
+// The view ray's local direction through window point (x, y): uRay0 + x uRayDx + y uRayDy.
+uniform vec3 uRay0, uRayDx, uRayDy;
 uniform vec3 uEye;                // local metres
 uniform mat2 uLocalToPixel;       // d(level-0 pixels) / d(local metres)
 uniform mat4 uViewProj;
@@ -22,26 +27,37 @@ struct CanopyHit {
     int layer;        // the layer met, -1: none
     vec2 p;           // level-0 texel position of the hit (the layer's shift included)
     vec3 at;          // local metres
-    ClipFootprint f;  // the entry's footprint, used at the hit
+    vec2 dx, dy;      // the entry's screen derivatives of p (its footprint, used at the hit)
     vec3 n;           // the terrain's normal at the entry
 };
+
+// Whether the record has a top layer under frame pixel `pixel` (canopy_march.frag skips the others).
+bool canopyEntryRecorded(ivec2 pixel) { return texelFetch(uEntry, pixel / kCanopyEntryScale, 0).x >= 0.0; }
 
 CanopyHit canopyMarchAt(ivec2 pixel) {
     CanopyHit h;
     h.layer = -1;
-    vec4 e0 = texelFetch(uEntry, pixel, 0);
-    h.entered = e0.x >= 0.0;
+    ivec2 rec = pixel / kCanopyEntryScale;
+    vec4 e0 = texelFetch(uEntry, rec, 0), e1 = texelFetch(uEntryRay, rec, 0);
     // Straight-line code for every pixel (where no top layer was drawn the values come from the cleared record and
     // are not used: h.layer stays -1); only the loops ask for an entry. llvmpipe runs a branch's or a loop's body
     // for every block whether or not a pixel takes it (docs/performance.md, step 23): wrapping this in one saved
     // nothing.
-    vec4 e1 = texelFetch(uEntryFootprint, pixel, 0), e2 = texelFetch(uEntryRay, pixel, 0);
-    vec2 p = e0.xy;
-    vec3 entry = e2.xyz;
-    int layerAndLevel = int(e2.w);
+    h.n = vec3(e0.zw, sqrt(max(1.0 - dot(e0.zw, e0.zw), 0.0)));
+    // This pixel's ray and its neighbours' (one pixel on in x and in y) met with the record texel's plane: the eye is
+    // above it (the patches marched see their top from above), so rays that come down meet it at t > 0.
+    vec3 ray = uRay0 + (float(pixel.x) + 0.5) * uRayDx + (float(pixel.y) + 0.5) * uRayDy;
+    float below = dot(h.n, e1.xyz - uEye); // < 0
+    float dn = min(dot(h.n, ray), -1e-20), dnx = min(dot(h.n, ray + uRayDx), -1e-20);
+    float dny = min(dot(h.n, ray + uRayDy), -1e-20);
+    h.entered = e0.x >= 0.0 && dot(h.n, ray) < 0.0;
+    vec3 entry = uEye + (below / dn) * ray;
+    vec2 entryXy = entry.xy;
+    vec2 p = e0.xy + uLocalToPixel * (entryXy - e1.xy);
+    h.dx = uLocalToPixel * ((uEye.xy + (below / dnx) * (ray.xy + uRayDx.xy)) - entryXy);
+    h.dy = uLocalToPixel * ((uEye.xy + (below / dny) * (ray.xy + uRayDy.xy)) - entryXy);
+    int layerAndLevel = int(e1.w);
     int firstTested = layerAndLevel & 255, canopyLevel = layerAndLevel >> 8;
-    h.f = clipmapFootprintOf(e0.zw, e1.xy); // the entry's level and footprint, used at the hit
-    h.n = vec3(e1.zw, sqrt(max(1.0 - dot(e1.zw, e1.zw), 0.0)));
     vec3 dir = entry - uEye;
     vec2 grad = h.n.z > 0.2 ? -h.n.xy / h.n.z : vec2(0.0); // terrain slope, metres per metre
     float descent = -dir.z + dot(grad, dir.xy);             // height over the terrain lost per unit of t

@@ -13,8 +13,9 @@ flat in int vLayer;
 flat in ivec2 vCanopyLevels; // the canopy levels this patch may read (CanopyRendererGL bounds its layers by them)
 #endif
 #ifdef CANOPY_MARCH
-// Where the pixel's ray enters the stacked layers (foliage/CanopyRendererGL.h, CanopyDrawMode::March): this fragment
-// lies on the top layer. canopy_march.frag marches from here once per pixel, however small the top layer's triangles.
+// Where the rays enter the stacked layers (foliage/CanopyRendererGL.h, CanopyDrawMode::March), at half the frame's
+// resolution: this fragment lies on the top layer, whose plane here each frame pixel of the texel meets its own ray
+// with (common_canopy_march.glsl). The march runs from there once per frame pixel, however small the triangles.
 in vec3 vLocal;
 #endif
 #ifdef GBUFFER
@@ -27,10 +28,10 @@ layout(location = 1) out vec4 gFootprint; // dFdy(p), n.xy
 #ifdef GBUFFER_DEPTH
 layout(location = 2) out float gDepth;    // the depth: the canopy view's marching resolve writes it back
 #endif
+// GBUFFER_DEPTH_PACKED (the same without normals, NORMALS 0): gFootprint = (dFdy(p), depth, 0).
 #elif defined(CANOPY_MARCH)
-layout(location = 0) out vec4 eEntry;     // p, dFdx(p)
-layout(location = 1) out vec4 eFootprint; // dFdy(p), n.xy
-layout(location = 2) out vec4 eRay;       // the local point the ray enters at, the first layer it tests + 256 × the
+layout(location = 0) out vec4 eEntry;     // p, the plane's unit normal xy
+layout(location = 1) out vec4 eRay;       // the local point the ray enters at, the first layer it tests + 256 × the
                                           // canopy level its patch reads
 #else
 out vec4 fragColor;
@@ -50,8 +51,15 @@ void main() {
     p += uLayerShift * float(vLayer);
 #endif
 #ifdef CANOPY_MARCH
-    eEntry = vec4(p, dFdx(p));
-    eFootprint = vec4(dFdy(p), normalize(vNormal).xy);
+#if NORMALS
+    vec3 n = normalize(vNormal); // shaded crowns: the smooth normal, also the plane's (off the triangle's by a little)
+#else
+    // The triangle's own plane: the vertices' normals are not computed (4 height fetches a vertex) where the crowns
+    // are not shaded.
+    vec3 facet = cross(dFdx(vLocal), dFdy(vLocal));
+    vec3 n = normalize(facet.z < 0.0 ? -facet : facet);
+#endif
+    eEntry = vec4(p, n.xy);
     eRay = vec4(vLocal, float(vLayer + 256 * vCanopyLevels.x));
 #else
 #ifdef CANOPY_LAYER
@@ -75,7 +83,11 @@ void main() {
     fragColor = vec4(needed / 255.0, float(min(used, 254)) / 255.0, 0.0, 1.0);
 #elif defined(GBUFFER)
     gPosition = vec4(p, dFdx(p));
+#ifdef GBUFFER_DEPTH_PACKED
+    gFootprint = vec4(dFdy(p), gl_FragCoord.z, 0.0);
+#else
     gFootprint = vec4(dFdy(p), normalize(vNormal).xy);
+#endif
 #ifdef GBUFFER_DEPTH
     gDepth = gl_FragCoord.z;
 #endif

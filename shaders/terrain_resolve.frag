@@ -9,7 +9,8 @@
 #include "common_view.glsl"
 #ifdef CANOPY_MARCH
 #include "common_canopy_march.glsl"
-uniform sampler2D uGDepth; // the terrain's depth (terrain_clipmap.frag, variant GBUFFER_DEPTH)
+uniform sampler2D uGDepth; // the terrain's depth (terrain_clipmap.frag, variant GBUFFER_DEPTH; GBUFFER_DEPTH_PACKED:
+                           // in uGFootprint's z, the terrain unshaded)
 #endif
 
 uniform sampler2D uGPosition;  // p, dFdx(p); p.x < 0: no terrain here
@@ -26,18 +27,25 @@ void main() {
     CanopyHit h = canopyMarchAt(at);
     // The top layer's record has its own depth buffer: terrain nearer than the crown's hit (a crest in front of the
     // forest behind it) hides the crown, as it did when the crowns were drawn first (reversed Z; ties: the crown).
+    vec4 g1 = texelFetch(uGFootprint, at, 0);
+#ifdef GBUFFER_DEPTH_PACKED
+    float terrainDepth = g0.x < 0.0 ? 0.0 : g1.z; // cleared: no terrain, the far depth
+    vec3 n = vec3(0.0, 0.0, 1.0);
+#else
     float terrainDepth = texelFetch(uGDepth, at, 0).r;
+    vec3 n = vec3(g1.zw, sqrt(max(1.0 - dot(g1.zw, g1.zw), 0.0)));
+#endif
     bool crown = h.layer >= 0 && (g0.x < 0.0 || canopyHitDepth(h) >= terrainDepth);
     if (g0.x < 0.0 && !crown) discard;
-    vec4 g1 = texelFetch(uGFootprint, at, 0);
-    vec3 n = vec3(g1.zw, sqrt(max(1.0 - dot(g1.zw, g1.zw), 0.0)));
-    ClipFootprint f = clipmapFootprintOf(g0.zw, g1.xy);
-    int canopyLevel = int(floor(max(f.lambdaIso, 0.0)));
+    // The ground's canopy level from its isotropic footprint alone (clipmapFootprintOf's lambdaIso); the footprint
+    // itself once, of what the pixel shows.
+    float iso = max(length(g0.zw), length(g1.xy));
+    int canopyLevel = int(floor(max(iso > 1e-8 ? log2(min(iso, 1e30)) : log2(1e-8), 0.0)));
     bool under = !crown && canopyAtNoting(g0.xy, canopyLevel) > 0;
     bool base = under && uCanopyBase > 0.0;
     int season = crown || base ? 0 : uCanopyGround[under ? 1 : 0];
     vec2 sp = crown ? h.p : g0.xy;
-    ClipFootprint sf = crown ? h.f : f;
+    ClipFootprint sf = clipmapFootprintOf(crown ? h.dx : g0.zw, crown ? h.dy : g1.xy);
     int used;
     vec4 a = sampleClipmap(season, sp, sf, used);
     vec3 c = crown ? canopyLayerFactor(h.layer) * a.rgb : (base ? uCanopyBase : 1.0) * seasonColourOf(a, season, sp, sf);

@@ -220,14 +220,18 @@ GeometryFrameStats ClipmapTerrainRendererGL::renderDeferred(const Camera& camera
     // The canopy view with marched layers: the resolve marches them and writes each pixel's depth, the terrain's
     // from a third target where no crown is met.
     const bool march = s.canopyMarch && s.view == ImageryView::Canopy;
+    // Without normals (n = z) the depth takes the normal's place in the second target: one target less to write and
+    // fetch per pixel.
+    const bool depthTarget = march && normals, depthPacked = march && !normals;
     const GLenum buffers[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
-    glNamedFramebufferDrawBuffers(m_gbuffer.id(), march ? 3 : 2, buffers);
+    glNamedFramebufferDrawBuffers(m_gbuffer.id(), depthTarget ? 3 : 2, buffers);
     glBindFramebuffer(GL_FRAMEBUFFER, m_gbuffer.id());
     glViewport(0, 0, target.width(), target.height());
     const float noTerrain[4] = {-1.0f, -1.0f, 0.0f, 0.0f};
     glClearNamedFramebufferfv(m_gbuffer.id(), GL_COLOR, 0, noTerrain);
     std::vector<std::string> geometryDefines = {"GBUFFER", normals ? "NORMALS 1" : "NORMALS 0"};
-    if (march) geometryDefines.push_back("GBUFFER_DEPTH");
+    if (depthTarget) geometryDefines.push_back("GBUFFER_DEPTH");
+    if (depthPacked) geometryDefines.push_back("GBUFFER_DEPTH_PACKED");
     const gl::ShaderProgram& geometryPass = program("terrain_geometry.vert", "terrain_clipmap.frag", geometryDefines);
     GeometryFrameStats st = draw(geometryPass, camera, target);
     target.bind();
@@ -249,6 +253,7 @@ GeometryFrameStats ClipmapTerrainRendererGL::renderDeferred(const Camera& camera
         if (x1 <= x0) continue;
         std::vector<std::string> defines = viewDefines(s.view, season);
         if (march) defines.push_back("CANOPY_MARCH");
+        if (depthPacked) defines.push_back("GBUFFER_DEPTH_PACKED");
         const gl::ShaderProgram& resolve = program("terrain_resolve.vert", "terrain_resolve.frag", defines);
         setViewUniforms(resolve, s, swipeX);
         bindTerrain(resolve, viewProj);
@@ -257,12 +262,11 @@ GeometryFrameStats ClipmapTerrainRendererGL::renderDeferred(const Camera& camera
         resolve.set("uGPosition", kGBufferUnit);
         resolve.set("uGFootprint", kGBufferUnit + 1);
         if (march) {
-            glBindTextureUnit(kGBufferUnit + 2, m_gDepth.id());
+            glBindTextureUnit(kGBufferUnit + 2, depthTarget ? m_gDepth.id() : 0);
             resolve.set("uGDepth", kGBufferUnit + 2);
-            for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(kCanopyEntryUnit + i), s.canopyMarch->entry[i]);
+            for (int i = 0; i < 2; ++i) glBindTextureUnit(GLuint(kCanopyEntryUnit + i), s.canopyMarch->entry[i]);
             resolve.set("uEntry", kCanopyEntryUnit);
-            resolve.set("uEntryFootprint", kCanopyEntryUnit + 1);
-            resolve.set("uEntryRay", kCanopyEntryUnit + 2);
+            resolve.set("uEntryRay", kCanopyEntryUnit + 1);
             if (s.canopyMarch->setUniforms) s.canopyMarch->setUniforms(resolve);
         }
         resolve.use();
@@ -275,7 +279,7 @@ GeometryFrameStats ClipmapTerrainRendererGL::renderDeferred(const Camera& camera
     glBindTextureUnit(kGBufferUnit + 1, 0);
     if (march) {
         glBindTextureUnit(kGBufferUnit + 2, 0);
-        for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(kCanopyEntryUnit + i), 0);
+        for (int i = 0; i < 2; ++i) glBindTextureUnit(GLuint(kCanopyEntryUnit + i), 0);
     }
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_GREATER);

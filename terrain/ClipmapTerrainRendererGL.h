@@ -43,10 +43,11 @@ TerrainShading resolveTerrainShading(TerrainShading t, const std::string& glRend
 
 /// The canopy view's marched layers (foliage/CanopyRendererGL.h, CanopyDrawMode::March) for the deferred resolve to
 /// march (shaders/terrain_resolve.frag, variant CANOPY_MARCH; common_canopy_march.glsl): the top layer's record of
-/// where each pixel's ray enters the stack (three RGBA32F textures the size of the frame) and what sets the march's
-/// own uniforms (the stack's heights, the eye, ...). The crowns take the terrain's anisotropy and shading.
+/// where the rays enter the stack (two RGBA32F textures at half the frame's resolution: the point and plane each frame
+/// pixel meets its own ray with) and what sets the march's own uniforms (the stack's heights, the eye, the rays, ...).
+/// The crowns take the terrain's anisotropy and shading.
 struct CanopyMarchInput {
-    GLuint entry[3] = {0, 0, 0};
+    GLuint entry[2] = {0, 0};
     std::function<void(const gl::ShaderProgram&)> setUniforms;
 };
 
@@ -86,7 +87,7 @@ public:
     virtual void bind(const gl::ShaderProgram& program, int firstUnit) const = 0;
 };
 /// Texture units of the terrain passes: imagery clipmap 0.., elevation and lookup 8..12, canopy 13..15, G-buffer
-/// 16..18 (position, footprint, depth), the canopy march's entry record 19..21 (kCanopyEntryUnit).
+/// 16..18 (position, footprint, depth), the canopy march's entry record 19..20 (kCanopyEntryUnit).
 inline constexpr int kCanopyUnit = 13;
 /// The SSBO binding of the canopy view's record of the canopy blocks its lookups read (shaders/common_view.glsl,
 /// canopyAtNoting; foliage/CanopyClipmapGL.h reads it back).
