@@ -48,9 +48,9 @@ CanopyHit canopyMarchAt(ivec2 pixel) {
     // above it (the patches marched see their top from above), so rays that come down meet it at t > 0.
     vec3 ray = uRay0 + (float(pixel.x) + 0.5) * uRayDx + (float(pixel.y) + 0.5) * uRayDy;
     float below = dot(h.n, e1.xyz - uEye); // < 0
-    float dn = min(dot(h.n, ray), -1e-20), dnx = min(dot(h.n, ray + uRayDx), -1e-20);
-    float dny = min(dot(h.n, ray + uRayDy), -1e-20);
-    h.entered = e0.x >= 0.0 && dot(h.n, ray) < 0.0;
+    float down = dot(h.n, ray);
+    float dn = min(down, -1e-20), dnx = min(dot(h.n, ray + uRayDx), -1e-20), dny = min(dot(h.n, ray + uRayDy), -1e-20);
+    h.entered = e0.x >= 0.0 && down < 0.0;
     vec3 entry = uEye + (below / dn) * ray;
     vec2 entryXy = entry.xy;
     vec2 p = e0.xy + uLocalToPixel * (entryXy - e1.xy);

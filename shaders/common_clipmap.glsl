@@ -43,6 +43,12 @@ struct ClipFootprint {
 
 uniform float uClipAniso;   // maximum anisotropy (probes per pixel); 1 = off
 
+// log2 of level-0 texels per pixel, isotropic (ClipFootprint::lambdaIso), from the derivatives alone.
+float clipmapLambdaIso(vec2 dx, vec2 dy) {
+    float iso = max(length(dx), length(dy));
+    return iso > 1e-8 ? log2(min(iso, 1e30)) : log2(1e-8);
+}
+
 // The footprint from the screen-space derivatives dx = dFdx(p), dy = dFdy(p) (the deferred resolve stores them).
 ClipFootprint clipmapFootprintOf(vec2 dx, vec2 dy) {
     // Eigen-decomposition of J Jᵀ, J = [dx dy]: the footprint ellipse's squared semi-axes and the major direction.
@@ -64,8 +70,7 @@ ClipFootprint clipmapFootprintOf(vec2 dx, vec2 dy) {
     // which would undersample when the ratio is just above an integer.
     float m = major / ratio;
     f.lambda = m > 1e-8 ? log2(min(m, 1e30)) : log2(1e-8);
-    float iso = max(length(dx), length(dy));
-    f.lambdaIso = iso > 1e-8 ? log2(min(iso, 1e30)) : log2(1e-8);
+    f.lambdaIso = clipmapLambdaIso(dx, dy);
     return f;
 }
 

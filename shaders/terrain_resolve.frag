@@ -37,10 +37,8 @@ void main() {
 #endif
     bool crown = h.layer >= 0 && (g0.x < 0.0 || canopyHitDepth(h) >= terrainDepth);
     if (g0.x < 0.0 && !crown) discard;
-    // The ground's canopy level from its isotropic footprint alone (clipmapFootprintOf's lambdaIso); the footprint
-    // itself once, of what the pixel shows.
-    float iso = max(length(g0.zw), length(g1.xy));
-    int canopyLevel = int(floor(max(iso > 1e-8 ? log2(min(iso, 1e30)) : log2(1e-8), 0.0)));
+    // The ground's canopy level from its isotropic footprint alone; the footprint itself once, of what the pixel shows.
+    int canopyLevel = int(floor(max(clipmapLambdaIso(g0.zw, g1.xy), 0.0)));
     bool under = !crown && canopyAtNoting(g0.xy, canopyLevel) > 0;
     bool base = under && uCanopyBase > 0.0;
     int season = crown || base ? 0 : uCanopyGround[under ? 1 : 0];
