@@ -10,63 +10,76 @@ std::vector<glm::vec4> findCrownCentres(const CrownSearchLevel& in, float minRad
     const TexelRect& w = in.window;
     const auto inWindow = [&](int x, int y) { return x >= w.x0 && x < w.x1 && y >= w.y0 && y < w.y1; };
     const auto wrap = [&](int v) { return ((v % n) + n) % n; };
-    // -1: unknown (outside the window or the level's image, or not derived), else the canopy value.
-    const auto valueAt = [&](int x, int y) -> int {
-        if (!inWindow(x, y) || x < 0 || y < 0) return -1;
-        const int bx = x / in.block, by = y / in.block;
-        if (in.tags[size_t(by % slots) * size_t(slots) + size_t(bx % slots)] != (bx | (by << 16))) return -1;
-        return int(in.values[size_t(wrap(y)) * size_t(n) + size_t(wrap(x))]);
-    };
-    // Per window texel (row-major from the window's first), as trunk_find.comp's images.
-    std::vector<float> zeroAt(size_t(n) * size_t(n)), unknownAt(zeroAt.size()), dist(zeroAt.size());
+    const int width = w.x1 - w.x0, height = w.y1 - w.y0;
+    // Per window texel (row-major from the window's first), as trunk_find.comp's images; every pass below walks them
+    // row by row (a column-major walk misses the cache at every texel).
     const auto at = [&](int x, int y) { return size_t(y - w.y0) * size_t(n) + size_t(x - w.x0); };
+    // -1: unknown (outside the level's image, or not derived), else the canopy value; one tag check per block row.
+    std::vector<std::int16_t> value(size_t(n) * size_t(std::max(height, 0)), -1);
+    for (int y = std::max(w.y0, 0); y < w.y1; ++y) {
+        const int by = y / in.block;
+        const std::uint8_t* row = in.values.data() + size_t(wrap(y)) * size_t(n);
+        std::int16_t* out = value.data() + at(w.x0, y);
+        for (int x = std::max(w.x0, 0); x < w.x1;) {
+            const int bx = x / in.block, end = std::min(w.x1, (bx + 1) * in.block);
+            const bool derived = in.tags[size_t(by % slots) * size_t(slots) + size_t(bx % slots)] == (bx | (by << 16));
+            for (; x < end; ++x) out[x - w.x0] = derived ? std::int16_t(row[wrap(x)]) : std::int16_t(-1);
+        }
+    }
+    const auto valueAt = [&](int x, int y) -> int { return inWindow(x, y) ? int(value[at(x, y)]) : -1; };
+    std::vector<float> zeroAt(size_t(n) * size_t(n)), unknownAt(zeroAt.size()), dist(zeroAt.size());
 
     // Pass 0, along each column: the nearest texel outside the canopy up or down (0 on one), and the nearest unknown
     // one met before it, both clamped past maxRadius (trunk_find.comp; one scan of the whole column instead of the
-    // shader's runs of 64 rows: only events within maxRadius count, the same either way).
-    const int none = -(1 << 20);
+    // shader's runs of 64 rows: only events within maxRadius count, the same either way). The rows beyond the window
+    // are unknown, so each column's scan starts with an unknown texel just outside. All columns at once, row by row:
+    // last[x] is the row of the last texel <= 0 met in column x, lastValue[x] its value; upRow the one met going down
+    // the rows (its row, or -1 - its row where it was unknown).
     const float far = float(maxRadius + 1);
-    std::vector<int> value(static_cast<size_t>(n)), upRow(static_cast<size_t>(n));
-    for (int x = w.x0; x < w.x1; ++x) {
-        int lastRow = none, lastValue = 0;
-        for (int y = w.y0 - maxRadius; y < w.y1; ++y) {
-            const int v = valueAt(x, y);
-            if (y >= w.y0) {
-                value[size_t(y - w.y0)] = v;
-                upRow[size_t(y - w.y0)] = lastRow == none ? none : (lastValue == 0 ? lastRow : -1 - lastRow);
-            }
-            if (v <= 0) {
-                lastRow = y;
-                lastValue = v;
+    std::vector<int> upRow(value.size()), last(size_t(std::max(width, 0)), w.y0 - 1);
+    std::vector<std::int16_t> lastValue(last.size(), -1);
+    for (int y = w.y0; y < w.y1; ++y) {
+        const std::int16_t* v = value.data() + at(w.x0, y);
+        int* up = upRow.data() + at(w.x0, y);
+        for (int i = 0; i < width; ++i) {
+            up[i] = lastValue[size_t(i)] == 0 ? last[size_t(i)] : -1 - last[size_t(i)];
+            if (v[i] <= 0) {
+                last[size_t(i)] = y;
+                lastValue[size_t(i)] = v[i];
             }
         }
-        lastRow = none;
-        for (int y = w.y1 - 1 + maxRadius; y >= w.y0; --y) {
-            const int v = y < w.y1 ? value[size_t(y - w.y0)] : valueAt(x, y);
-            if (y < w.y1) {
-                float zero = far, unknown = far;
-                if (v < 0) {
-                    zero = -1.0f;
-                } else if (v == 0) {
-                    zero = 0.0f;
-                } else {
-                    const int u = upRow[size_t(y - w.y0)];
-                    const bool upSeen = u != none && (u >= 0 ? y - u : y - (-1 - u)) <= maxRadius;
-                    const float du = upSeen ? float(u >= 0 ? y - u : y - (-1 - u)) : far;
-                    const bool upZero = upSeen && u >= 0;
-                    const bool downSeen = lastRow != none && lastRow - y <= maxRadius;
-                    const float dd = downSeen ? float(lastRow - y) : far;
-                    const bool downZero = downSeen && lastValue == 0;
-                    zero = std::min(upZero ? du : far, downZero ? dd : far);
-                    if (upSeen && !upZero && du <= (downZero ? dd : far)) unknown = std::min(unknown, du);
-                    if (downSeen && !downZero && dd < (upZero ? du : far)) unknown = std::min(unknown, dd);
-                }
-                zeroAt[at(x, y)] = zero;
-                unknownAt[at(x, y)] = unknown;
+    }
+    std::fill(last.begin(), last.end(), w.y1);
+    std::fill(lastValue.begin(), lastValue.end(), std::int16_t(-1));
+    for (int y = w.y1 - 1; y >= w.y0; --y) {
+        const std::int16_t* v = value.data() + at(w.x0, y);
+        const int* up = upRow.data() + at(w.x0, y);
+        float* zeroRow = zeroAt.data() + at(w.x0, y);
+        float* unknownRow = unknownAt.data() + at(w.x0, y);
+        for (int i = 0; i < width; ++i) {
+            float zero = far, unknown = far;
+            if (v[i] < 0) {
+                zero = -1.0f;
+            } else if (v[i] == 0) {
+                zero = 0.0f;
+            } else {
+                const int u = up[i];
+                const int upDistance = u >= 0 ? y - u : y - (-1 - u);
+                const bool upSeen = upDistance <= maxRadius;
+                const float du = upSeen ? float(upDistance) : far;
+                const bool upZero = upSeen && u >= 0;
+                const bool downSeen = last[size_t(i)] - y <= maxRadius;
+                const float dd = downSeen ? float(last[size_t(i)] - y) : far;
+                const bool downZero = downSeen && lastValue[size_t(i)] == 0;
+                zero = std::min(upZero ? du : far, downZero ? dd : far);
+                if (upSeen && !upZero && du <= (downZero ? dd : far)) unknown = std::min(unknown, du);
+                if (downSeen && !downZero && dd < (upZero ? du : far)) unknown = std::min(unknown, dd);
             }
-            if (v <= 0) {
-                lastRow = y;
-                lastValue = v;
+            zeroRow[i] = zero;
+            unknownRow[i] = unknown;
+            if (v[i] <= 0) {
+                last[size_t(i)] = y;
+                lastValue[size_t(i)] = v[i];
             }
         }
     }
