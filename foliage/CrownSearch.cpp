@@ -14,7 +14,7 @@ std::vector<glm::vec4> findCrownCentres(const CrownSearchLevel& in, float minRad
     // Per window texel (row-major from the window's first), as trunk_find.comp's images; every pass below walks them
     // row by row (a column-major walk misses the cache at every texel).
     const auto at = [&](int x, int y) { return size_t(y - w.y0) * size_t(n) + size_t(x - w.x0); };
-    // -1: unknown (outside the level's image, or not derived), else the canopy value; one tag check per block row.
+    // -1: unknown (outside the level's image, or not derived), else the canopy value; one tag check per block and row.
     std::vector<std::int16_t> value(size_t(n) * size_t(std::max(height, 0)), -1);
     for (int y = std::max(w.y0, 0); y < w.y1; ++y) {
         const int by = y / in.block;
