@@ -70,6 +70,9 @@ struct Mode {
     bool perFrameSegmentation = false; // the canopy layer re-derived every frame (the paper's per-frame evaluation)
     std::optional<bool> canopyLevelsRead; // compare canopy-levels: derive only the blocks read (unset: --canopy-levels)
     std::optional<CanopyDerivation> canopyDerivation; // compare canopy-derive (unset: --canopy-derive)
+    // compare canopy-pyramid: off derives every block as it is read, on reads the precomputed layer (built for this
+    // mode's parameters first when the cache has none); unset: the precomputed layer where the cache has it.
+    std::optional<bool> canopyPyramid;
     bool terrainOnly = false;     // scene=terrain: the relief alone (geometry, no imagery, no canopy)
     std::optional<CanopyDrawMode> canopyDraw; // canopy-draw=...: this mode's way of drawing the layers
     std::optional<city::CityMode> cityMode; // the city model drawn after the terrain (nullopt: none)
@@ -272,6 +275,9 @@ Status applyCompareValue(const BenchSettings& a, const std::string& key, const s
     } else if (key == "canopy-levels") {
         if (v != "read" && v != "all") return Error{"--compare: canopy-levels '" + v + "' (expected all|read)"};
         m.canopyLevelsRead = v == "read";
+    } else if (key == "canopy-pyramid") {
+        if (v != "off" && v != "on") return Error{"--compare: canopy-pyramid '" + v + "' (expected off|on)"};
+        m.canopyPyramid = v == "on";
     } else if (key == "canopy-derive") {
         CanopyRenderSettings c;
         if (!parseCanopyDeriveArg(v, c)) return Error{"--compare: canopy-derive '" + v + "' (expected auto|cpu|gpu)"};
@@ -349,6 +355,7 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
     const std::string key = a.compare.substr(0, eq);
     if (eq == std::string::npos || (key != "centers" && key != "renderer" && key != "aniso" && key != "canopy" &&
                                     key != "canopy-draw" && key != "segmentation" && key != "canopy-levels" && key != "canopy-derive" &&
+                                    key != "canopy-pyramid" &&
                                     key != "scene" &&
                                     key != "city" &&
                                     key != "city-upload" && key != "city-occlusion" && key != "city-flush" &&
@@ -357,6 +364,7 @@ Result<std::vector<Mode>> parseModes(const BenchSettings& a) {
         return Error{"--compare '" + a.compare +
                      "': expected centers=A,B,..., renderer=clipmap,reference, aniso=A,B,..., canopy=off,N,..., "
                      "canopy-draw=layers,march, segmentation=upload,perframe, canopy-levels=all,read, canopy-derive=gpu,cpu, "
+                     "canopy-pyramid=off,on, "
                      "scene=terrain,full or "
                      "city=atlas,original,flat,off, city-upload=compressed,decoded,auto, city-occlusion=off,on, "
                      "city-flush=off,on, city-map-occlusion=conditional,readback, terrain=on,off, "
@@ -508,7 +516,13 @@ Status BenchRun::createCanopy(Mode& m, const std::vector<ImagePyramid>& pyramids
     opt.layers = std::max(1, layers);
     opt.onDemand = m.canopyLevelsRead ? m.canopyLevelsRead : m_canopy.levelsRead;
     opt.derivation = m.canopyDerivation.value_or(m_canopy.derivation);
-    auto cc = CanopyClipmapGL::create(*m.clipmap, statsFromHistograms(*hist, opt.params.method), opt);
+    const SegmentationStats stats = statsFromHistograms(*hist, opt.params.method);
+    if (m.canopyPyramid != false) {
+        auto p = canopyPyramid(pyramids, opt, stats, m_cache, m.canopyPyramid == true);
+        if (!p) return p.error();
+        opt.precomputed = std::move(*p);
+    }
+    auto cc = CanopyClipmapGL::create(*m.clipmap, stats, opt);
     if (!cc) return cc.error();
     m.canopy = std::move(*cc);
     auto cr = CanopyRendererGL::create();
@@ -931,6 +945,12 @@ ModeFigures modeFigures(const Mode& m) {
                  {"resident_texture_bytes_start", m.rows.front().residentBytes},
                  {"resident_texture_bytes_end", m.rows.back().residentBytes},
                  {"worst_frame_over_median", jsonNumber(percentile(f.frame, 100) / f.median)},
+                 // Where the canopy layer's clip-level blocks come from: read from the layer `prepare` made, derived
+                 // on the loader's workers, or derived on the GPU; null without a canopy.
+                 {"canopy_source", !m.canopy ? nlohmann::json(nullptr)
+                                   : m.canopy->readsPrecomputed() ? nlohmann::json("precomputed")
+                                   : m.canopy->derivesOnCpu()     ? nlohmann::json("cpu")
+                                                                  : nlohmann::json("gpu")},
                  {"city", m.city ? cityFigures(m) : nlohmann::json(nullptr)},
                  {"stages", stageFigures(m)},
                  {"totals",

@@ -44,6 +44,8 @@ Runner addBenchCommand(CLI::App& app) {
                         "layer derived when blocks arrive vs re-derived every frame), \"canopy-levels=all,read\" (every "
                         "arriving block of the canopy layer derived vs only those the view reads), \"canopy-derive=gpu,cpu\" "
                         "(the canopy layer's blocks derived by a compute shader vs on the block loader's workers), "
+                        "\"canopy-pyramid=off,on\" (the canopy layer derived while flying vs read from the layer "
+                        "`prepare` makes, built first when missing), "
                         "\"scene=terrain,full\" (the "
                         "relief alone vs both seasons, canopy layers and trunks), \"city=atlas,original,flat,off\", "
                         "\"city-upload=compressed,decoded\", \"city-occlusion=off,on\", \"city-flush=off,on\" "

@@ -486,6 +486,20 @@ Runner addDemoCommand(CLI::App& app) {
         RenderSettings settings;
         settings.windowed = args->frame.window;
         settings.cacheDir = args->scene.cacheDir();
+        {
+            // The canopy view's layer for its default parameters, as `prepare` makes it: the stills, the benchmark and
+            // `bench --view canopy` on this scene read it instead of deriving it while they fly.
+            auto pyramids = preparePyramids(*scene, settings.cacheDir);
+            if (!pyramids) return fail(pyramids.message());
+            auto h = preparePairStats(*scene, *pyramids, settings.cacheDir);
+            if (!h) return fail(h.message());
+            const CanopyRenderSettings defaults;
+            CanopyOptions co;
+            co.params = defaults.params;
+            co.layers = defaults.layers;
+            auto p = canopyPyramid(*pyramids, co, statsFromHistograms(*h, co.params.method), settings.cacheDir, true);
+            if (!p) return fail(p.message());
+        }
         const auto tr = clock::now();
         auto info = renderStills(*scene, run.width, run.height, requests, settings);
         if (!info) return fail(info.message());

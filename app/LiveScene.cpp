@@ -26,7 +26,11 @@ Status LiveScene::ensureCanopy(const ViewerSettings& s) {
     co.layers = layers;
     co.onDemand = s.canopyLevelsRead;
     co.derivation = s.canopyDerivation;
-    auto c = CanopyClipmapGL::create(*clip, statsFromHistograms(*histograms, co.params.method), co);
+    const SegmentationStats stats = statsFromHistograms(*histograms, co.params.method);
+    auto p = canopyPyramid(pyramids, co, stats, cache, false); // where `prepare` made it
+    if (!p) return p.error();
+    co.precomputed = std::move(*p);
+    auto c = CanopyClipmapGL::create(*clip, stats, co);
     if (!c) return c.error();
     canopy = std::move(*c);
     terrain->setCanopy(canopy.get());

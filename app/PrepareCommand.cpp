@@ -1,5 +1,7 @@
 // `seasonview prepare`: builds (or checks) the tiled mip pyramid of each imagery layer in the cache, then the pair's
-// segmentation statistics (foliage/PairStats.h) from them.
+// segmentation statistics (foliage/PairStats.h) from them, the canopy layer precomputed for the canopy view's
+// parameters (foliage/CanopyPyramid.h) and the DEM's elevation pyramid.
+#include "CanopyPyramid.h"
 #include "Commands.h"
 #include "ElevationPyramid.h"
 #include "ImagePyramid.h"
@@ -16,21 +18,34 @@ namespace {
 struct PrepareArgs {
     SceneArgs scene;
     bool force = false;
+    CanopyArgs canopy; // --method, --k, --canopy-layers: the canopy layer's parameters (the canopy view's defaults)
 };
 } // namespace
 
 Runner addPrepareCommand(CLI::App& app) {
     auto args = std::make_shared<PrepareArgs>();
     CLI::App* cmd = app.add_subcommand(
-        "prepare", "Build the tiled mip pyramids of a scene's imagery and the pair's segmentation statistics in the "
-        "cache (skipped when up to date)");
+        "prepare", "Build the tiled mip pyramids of a scene's imagery, the pair's segmentation statistics, the canopy "
+        "layer and the elevation pyramid in the cache (skipped when up to date)");
     args->scene.addTo(*cmd);
     cmd->add_flag("--force", args->force, "Rebuild the pyramids and statistics even when they are up to date");
+    cmd->add_option("--method", args->canopy.method,
+                    "the canopy layer's segmentation method (as the canopy view's --method), "
+                    "pixel|neighborhood|equalized|default")
+        ->capture_default_str();
+    cmd->add_option("--k", args->canopy.k, "the canopy layer's neighbourhood size (as the canopy view's --k)")
+        ->capture_default_str();
+    cmd->add_option("--canopy-layers", args->canopy.layers,
+                    "the canopy layer's stacked layers (as the canopy view's --canopy-layers), 1..32, or off (no "
+                    "canopy layer prepared)")
+        ->capture_default_str();
     return [args]() -> int {
         auto fail = [](const std::string& m) {
             std::fprintf(stderr, "seasonview prepare: %s\n", m.c_str());
             return 1;
         };
+        auto canopy = args->canopy.settings();
+        if (!canopy) return fail(canopy.message());
         auto scene = args->scene.load();
         if (!scene) return fail(scene.message());
         printSceneNotes(*scene);
@@ -59,6 +74,8 @@ Runner addPrepareCommand(CLI::App& app) {
             std::fflush(stdout);
             pyramids.push_back(report->pyramid);
         }
+        const std::vector<ImagePyramid> seasons = pyramids;
+        std::optional<SegmentationHistograms> histograms;
         {
             // The histograms behind the segmentation's equalisation tables and drop threshold, from level 0.
             pyramids = preparedPart(pyramids); // streamed seasons: from the first level both have on disk
@@ -77,6 +94,30 @@ Runner addPrepareCommand(CLI::App& app) {
             else
                 std::printf("pair statistics: up to date: drop threshold %.3f, %s\n", drop, report.file.c_str());
             std::fflush(stdout);
+            histograms = std::move(*h);
+        }
+        if (canopy->layers > 0 && seasons[0].streamedLevels == 0 && seasons[1].streamedLevels == 0) {
+            // The canopy view's layer for these parameters, read by its loader instead of derived while flying.
+            CanopyOptions co;
+            co.params = canopy->params;
+            co.layers = canopy->layers;
+            const CanopyPyramidParams cp{co.params, co.layers, canopyTopK(co.params, co.topK)};
+            const SegmentationStats stats = statsFromHistograms(*histograms, co.params.method);
+            options.progress = terminalProgress("canopy");
+            auto report = preparePyramid(canopyPyramidSource(seasons[0], seasons[1], cp, stats), options);
+            if (!report) return fail(report.message());
+            const std::string_view method = kSegmentationMethodNames[size_t(co.params.method)];
+            char what[96];
+            std::snprintf(what, sizeof what, "%.*s, k %d, %d layers", int(method.size()), method.data(),
+                          effectiveK(co.params), co.layers);
+            if (report->built)
+                std::printf("canopy layer: built in %.2f s (%s): %s, %s\n", report->seconds, report->reason.c_str(),
+                            what, report->pyramid.folder.c_str());
+            else
+                std::printf("canopy layer: up to date: %s, %s\n", what, report->pyramid.folder.c_str());
+            std::fflush(stdout);
+        } else if (canopy->layers > 0) {
+            std::printf("canopy layer: not prepared (a season streams: the view derives it as it flies)\n");
         }
         if (scene->elevation) {
             const ElevationGrid grid = elevationGrid(*scene);

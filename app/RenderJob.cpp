@@ -5,6 +5,7 @@
 #include "CityJob.h"
 
 #include "CanopyClipmapGL.h"
+#include "CanopyPyramid.h"
 #include "CanopyRendererGL.h"
 #include "TrunksGL.h"
 
@@ -195,6 +196,33 @@ Result<SegmentationHistograms> preparePairStats(const Scene& scene, const std::v
         std::fflush(stdout);
     }
     return histograms;
+}
+
+Result<std::optional<ImagePyramid>> canopyPyramid(const std::vector<ImagePyramid>& pyramids,
+                                                  const CanopyOptions& options, const SegmentationStats& stats,
+                                                  const std::filesystem::path& cacheDir, bool build) {
+    assert(pyramids.size() == 2 && "canopyPyramid(): the leaf-on and leaf-off pyramids");
+    if (pyramids[0].streamedLevels > 0 || pyramids[1].streamedLevels > 0) return std::optional<ImagePyramid>();
+    const CanopyPyramidParams params{options.params, options.layers, canopyTopK(options.params, options.topK)};
+    const PyramidSource source = canopyPyramidSource(pyramids[0], pyramids[1], params, stats);
+    if (!build) {
+        // Not prepared, or damaged (the next prepare rebuilds it): the loader derives the blocks as before.
+        auto p = openPyramid(source, cacheDir);
+        return p ? std::optional<ImagePyramid>(std::move(*p)) : std::optional<ImagePyramid>();
+    }
+    PrepareOptions o;
+    o.cacheDir = cacheDir;
+    o.progress = terminalProgress("canopy");
+    auto report = preparePyramid(source, o);
+    if (!report) return report.error();
+    if (report->built) {
+        const std::string_view method = kSegmentationMethodNames[size_t(options.params.method)];
+        std::printf("prepared the canopy layer (%.*s, k %d, %d layers) in %.2f s (%s)\n", int(method.size()),
+                    method.data(), effectiveK(options.params), options.layers,
+                    report->seconds, report->reason.c_str());
+        std::fflush(stdout);
+    }
+    return std::optional<ImagePyramid>(std::move(report->pyramid));
 }
 
 Result<std::optional<ImagePyramid>> prepareElevation(const Scene& scene, const std::filesystem::path& cacheDir) {

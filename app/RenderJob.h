@@ -4,6 +4,7 @@
 #include "Camera.h"
 #include "CliOptions.h"
 #include "ClipmapCenters.h"
+#include "CanopyClipmapGL.h"
 #include "CanopyRendererGL.h"
 #include "CityRendererGL.h"
 #include "ClipmapTerrainRendererGL.h"
@@ -103,6 +104,14 @@ std::optional<std::array<std::filesystem::path, 2>> levelZeroOf(const Scene& sce
 /// into the equalisation tables and drop threshold of a method. Errors name the file.
 Result<SegmentationHistograms> preparePairStats(const Scene& scene, const std::vector<ImagePyramid>& pyramids,
                                                 const std::filesystem::path& cacheDir);
+
+/// The canopy layer precomputed for `options`' parameters from the two prepared pyramids `pyramids` and the pair's
+/// `stats` (foliage/CanopyPyramid.h), for CanopyOptions::precomputed: with `build` made when the cache has none (with
+/// a progress bar on a terminal; says so on stdout when it built it), else the cache's when it has a valid one.
+/// nullopt where there is none to use: not prepared (without `build`), or a season streams.
+Result<std::optional<ImagePyramid>> canopyPyramid(const std::vector<ImagePyramid>& pyramids,
+                                                  const CanopyOptions& options, const SegmentationStats& stats,
+                                                  const std::filesystem::path& cacheDir, bool build);
 
 /// Makes sure the DEM's elevation pyramid (terrain/ElevationPyramid.h) is prepared; nullopt for a flat scene.
 Result<std::optional<ImagePyramid>> prepareElevation(const Scene& scene, const std::filesystem::path& cacheDir);

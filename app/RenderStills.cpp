@@ -182,7 +182,11 @@ Status ClipmapStills::createCanopy() {
     co.params = m_settings.canopy.params;
     co.layers = std::max(1, m_settings.canopy.layers);
     co.derivation = m_settings.canopy.derivation;
-    auto c = CanopyClipmapGL::create(*m_clipmap, statsFromHistograms(*hist, co.params.method), co);
+    const SegmentationStats stats = statsFromHistograms(*hist, co.params.method);
+    auto p = canopyPyramid(m_pyramids, co, stats, m_settings.cacheDir, false); // where `prepare` made it
+    if (!p) return p.error();
+    co.precomputed = std::move(*p);
+    auto c = CanopyClipmapGL::create(*m_clipmap, stats, co);
     if (!c) return c.error();
     m_canopy = std::move(*c);
     auto cr = CanopyRendererGL::create();

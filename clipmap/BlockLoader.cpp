@@ -33,11 +33,11 @@ PyramidBlockSource::~PyramidBlockSource() = default;
 Status PyramidBlockSource::read(int layer, int level, const TexelRect& t, std::uint8_t* rgba) {
     const std::filesystem::path& file = m_files[size_t(layer)][size_t(level)];
     const OIIO::ustring name(file.string());
-    // Imagery pyramid files are premultiplied RGBA, as the texture holds them. Elevation: floats.
-    const bool rgb = m_format == TexelFormat::Rgba8;
+    // Imagery pyramid files are premultiplied RGBA, as the texture holds them. Elevation: floats; the canopy: bytes.
     if (auto st = m_cache->check.check(file, t.x0, t.y0, t.x1, t.y1); !st) return st.error();
-    if (!m_cache->cache->get_pixels(name, 0, 0, t.x0, t.x1, t.y0, t.y1, 0, 1, 0, rgb ? 4 : 1,
-                                    rgb ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT, rgba, OIIO::AutoStride,
+    if (!m_cache->cache->get_pixels(name, 0, 0, t.x0, t.x1, t.y0, t.y1, 0, 1, 0, texelChannels(m_format),
+                                    m_format == TexelFormat::R32F ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8,
+                                    rgba, OIIO::AutoStride,
                                     OIIO::AutoStride, OIIO::AutoStride)) {
         std::string e = m_cache->cache->geterror();
         if (auto nl = e.find('\n'); nl != std::string::npos) e.resize(nl);

@@ -48,12 +48,13 @@ std::vector<std::vector<std::filesystem::path>> pyramidLevelFiles(const std::vec
 class PyramidBlockSource final : public BlockSource {
 public:
     /// levelFiles[layer][level]: the tiled TIFF of that pyramid level. `cacheMegabytes` bounds the tile cache.
-    /// `format`: Rgba8 files are read as they are (premultiplied RGBA8), R32F files as floats.
+    /// `format`: Rgba8 files are read as they are (premultiplied RGBA8), R32F files as floats, R8 as bytes.
     PyramidBlockSource(std::vector<std::vector<std::filesystem::path>> levelFiles, int cacheMegabytes = 256,
                        TexelFormat format = TexelFormat::Rgba8);
     ~PyramidBlockSource() override;
     int layers() const override { return int(m_files.size()); }
     Status read(int layer, int level, const TexelRect& texels, std::uint8_t* rgba) override;
+    int bytesPerTexel() const override { return texelBytes(m_format); }
     std::int64_t cacheBytes() const override;
 
 private:

@@ -245,8 +245,8 @@ std::string checkLevelFile(const fs::path& file, std::uintmax_t bytes, int width
         return name + " unreadable";
     }
     const OIIO::ImageSpec& s = in->spec();
-    const int channels = format == TexelFormat::Rgba8 ? 4 : 1;
-    const OIIO::TypeDesc type = format == TexelFormat::Rgba8 ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT;
+    const int channels = texelChannels(format);
+    const OIIO::TypeDesc type = format == TexelFormat::R32F ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8;
     if (s.width != width || s.height != height || s.nchannels != channels || s.format != type ||
         s.tile_width != tileSize || s.tile_height != tileSize)
         return name + " is " + std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +

@@ -24,9 +24,12 @@ struct PyramidLevel {
     int width = 0, height = 0;  // level 0 = the source size; level k = ceil(level k-1 / 2), down to 1x1
 };
 
-/// What a pyramid's texels are: display RGBA, premultiplied (imagery) or float heights (elevation,
-/// terrain/ElevationPyramid.h).
-enum class TexelFormat { Rgba8, R32F };
+/// What a pyramid's texels are: display RGBA, premultiplied (imagery), float heights (elevation,
+/// terrain/ElevationPyramid.h) or one byte (the canopy layer's values, foliage/CanopyPyramid.h).
+enum class TexelFormat { Rgba8, R32F, R8 };
+/// Channels and bytes per texel of `format`.
+inline int texelChannels(TexelFormat format) { return format == TexelFormat::Rgba8 ? 4 : 1; }
+inline int texelBytes(TexelFormat format) { return format == TexelFormat::R8 ? 1 : 4; }
 
 /// Reads texels of a level that has no file (a streamed level, app/StreamedPyramid.h): `texels` (level texel
 /// coordinates) as rows of premultiplied RGBA8 into `rgba`, (0, 0, 0, 0) where the season has no data. Errors are one

@@ -1,5 +1,6 @@
 #include "CanopyClipmapGL.h"
 
+#include "CanopyPyramid.h"
 #include "ToroidalWindow.h"
 
 #include <algorithm>
@@ -82,9 +83,7 @@ Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL
     assert(L.block % kTile == 0 && "CanopyClipmapGL: the block must be a multiple of the work group's tile");
     auto c = std::unique_ptr<CanopyClipmapGL>(new CanopyClipmapGL(source, options));
     c->m_stats = stats;
-    int top = options.topK > 0 ? options.topK : std::min(kSegMaxK, 3 * k);
-    if (options.params.method == SegmentationMethod::Pixel) top = 1;
-    top = std::clamp(top | 1, k, kSegMaxK);
+    const int top = canopyTopK(options.params, options.topK);
     c->m_topK = top;
 
     for (int coarse : {0, 1}) {
@@ -175,8 +174,16 @@ Result<std::unique_ptr<CanopyClipmapGL>> CanopyClipmapGL::create(const ClipmapGL
         std::vector<std::vector<CanopyGroup>> groups;
         for (int level = 0; level < clipLevels; ++level)
             groups.push_back(canopyGroups(options.params, options.layers, top, level));
-        c->m_cpuSource = std::make_unique<CanopyBlockSource>(source.blockSource(), L, options.params.method, stats,
-                                                             std::move(groups));
+        if (const std::optional<ImagePyramid>& p = options.precomputed) {
+            assert(p->format == TexelFormat::R8 && int(p->levels.size()) > clipLevels &&
+                   p->levels[0].width == L.levelSizes[0].x && p->levels[0].height == L.levelSizes[0].y &&
+                   "CanopyClipmapGL: the precomputed canopy of the imagery clipmap's pyramids");
+            c->m_cpuSource = std::make_unique<PyramidBlockSource>(pyramidLevelFiles({*p}), 64, TexelFormat::R8);
+            c->m_precomputed = true;
+        } else {
+            c->m_cpuSource = std::make_unique<CanopyBlockSource>(source.blockSource(), L, options.params.method, stats,
+                                                                 std::move(groups));
+        }
         c->m_cpu = std::make_unique<BlockLoader>(*c->m_cpuSource, source.schedule(), 16 << 20,
                                                  std::max(1, options.cpuWorkers));
     }

@@ -43,6 +43,9 @@ struct CanopyOptions {
     int readWindow = 30;
     CanopyDerivation derivation = CanopyDerivation::Auto;
     int cpuWorkers = 2;          // Cpu: the loader's threads deriving blocks
+    // Cpu: the layer precomputed for these parameters (foliage/CanopyPyramid.h, canopyPyramidSource() of the imagery
+    // clipmap's two pyramids): the loader reads its clip levels' blocks, a byte per texel, instead of deriving them.
+    std::optional<ImagePyramid> precomputed;
 };
 
 struct CanopyFrameStats {
@@ -86,6 +89,8 @@ public:
     const CanopyOptions& options() const { return m_options; }
     /// Whether the clip levels' blocks are derived on the CPU (options().derivation resolved).
     bool derivesOnCpu() const { return m_cpu != nullptr; }
+    /// Whether the loader reads the clip levels' blocks from the precomputed layer (CanopyOptions::precomputed).
+    bool readsPrecomputed() const { return m_precomputed; }
     /// Keeps a copy of clip level `level` on the CPU from now on (the trunks' crown search on the CPU, TrunksGL):
     /// blocks derived on the CPU are copied as they are uploaded; after a derivation on the GPU the copy is read back
     /// when next asked for. Const: the trunks hold the layer by const reference.
@@ -140,6 +145,7 @@ private:
     // Cpu: uploads a derived block into its slot, its cell maxima straight into the CPU's view of them.
     void store(const LoadedBlock& block);
     std::unique_ptr<BlockSource> m_cpuSource;
+    bool m_precomputed = false;
     std::unique_ptr<BlockLoader> m_cpu;
     std::string m_readError;
     bool m_onDemand = false;

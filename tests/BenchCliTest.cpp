@@ -322,6 +322,55 @@ TEST(BenchCli, CanopyLevelsReadDeriveOnlyTheBlocksTheViewReads) {
     samePicture("out-ground");
 }
 
+// canopy-pyramid=off,on: `on` builds the canopy layer for the view's parameters (once, into the cache) and reads it
+// instead of deriving its blocks; `off` derives them; without the key a prepared layer is read where the cache has
+// one. The layer holds the derived bytes (CanopyClipmapGLTest), so once still both draw the same picture.
+TEST(BenchCli, CanopyPyramidReadsThePreparedLayer) {
+    TempDir dir("bench-canopy-pyramid");
+    const CliResult s = runCli({"synth", "--out", (dir / "scene").string(), "--size-m", "256", "--gsd", "0.25"});
+    ASSERT_EQ(s.exitCode, 0) << s.err;
+    std::ofstream(dir / "still.json") << R"([{"time": 0, "x": -60, "y": -60, "z": "+30", "yaw": 45, "pitch": -30},
+                                            {"time": 1, "x": -60, "y": -60, "z": "+30", "yaw": 45, "pitch": -30}])";
+    auto bench = [&](const std::string& out, std::vector<std::string> extra) {
+        std::vector<std::string> args = {"bench", (dir / "scene/scene.json").string(), "--path",
+                                         (dir / "still.json").string(), "--frames", "12", "--warmup", "2", "--size",
+                                         "160x90", "--clip-size", "256", "--view", "canopy", "--coverage-every", "0",
+                                         "--cache", (dir / "cache").string(), "--out", (dir / out).string()};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return runCli(args);
+    };
+    // The one mode's canopy_source, or the named mode's.
+    auto source = [&](const std::string& out, const std::string& mode = "") {
+        std::ifstream in(dir / out / "summary.json");
+        const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+        if (!j.is_object() || !j.contains("modes")) return std::string("(no summary)");
+        const nlohmann::json& m = mode.empty() ? j["modes"].begin().value() : j["modes"][mode];
+        return m.value("canopy_source", std::string());
+    };
+    // Nothing prepared yet: derived.
+    const CliResult before = bench("before", {});
+    ASSERT_EQ(before.exitCode, 0) << before.err;
+    const CliResult r = bench("compare", {"--compare", "canopy-pyramid=off,on"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(r.out.find("prepared the canopy layer (default, k 5, 16 layers)"), std::string::npos) << r.out;
+    EXPECT_EQ(source("compare", "canopy-pyramid=off"), "cpu");
+    EXPECT_EQ(source("compare", "canopy-pyramid=on"), "precomputed");
+    auto off = readImageU8(dir / "compare/last_frame_canopy-pyramid_off.png", 3);
+    auto on = readImageU8(dir / "compare/last_frame_canopy-pyramid_on.png", 3);
+    ASSERT_TRUE(off.ok()) << off.message();
+    ASSERT_TRUE(on.ok()) << on.message();
+    EXPECT_EQ(off->pixels, on->pixels);
+    // Now prepared: read without asking, and not built again.
+    const CliResult after = bench("after", {});
+    ASSERT_EQ(after.exitCode, 0) << after.err;
+    EXPECT_EQ(after.out.find("prepared the canopy layer"), std::string::npos) << after.out;
+    EXPECT_EQ(source("before"), "cpu");
+    EXPECT_EQ(source("after"), "precomputed");
+    const CliResult bad = bench("bad", {"--compare", "canopy-pyramid=off,maybe"});
+    EXPECT_EQ(bad.exitCode, 1);
+    EXPECT_NE(bad.err.find("canopy-pyramid 'maybe' (expected off|on)"), std::string::npos) << bad.err;
+}
+
 // Counters add up where both clipmaps stream: a 4 km scene with a 4 m DEM (1024² samples) under a 63-vertex
 // geometry clipmap and 256² imagery levels, on the `fast` path. Every frame's uploads in frames.csv sum to what the
 // imagery and elevation clipmaps themselves counted, and both uploaded in several frames. Frames never wait for the

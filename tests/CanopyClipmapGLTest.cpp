@@ -16,6 +16,9 @@
 #include <algorithm>
 #include <atomic>
 #include <random>
+#include <set>
+
+#include <tiffio.h>
 
 using namespace seasonview;
 using namespace seasonview::test;
@@ -194,7 +197,8 @@ struct SynthCanopy {
 };
 
 SynthCanopy synthCanopy(bool derived, CanopyDerivation derivation = CanopyDerivation::Auto,
-                        SegmentationMethod method = SegmentationMethod::Default) {
+                        SegmentationMethod method = SegmentationMethod::Default,
+                        std::optional<ImagePyramid> precomputed = std::nullopt) {
     SynthCanopy c;
     ClipmapOptions co;
     co.size = 256;
@@ -210,6 +214,7 @@ SynthCanopy synthCanopy(bool derived, CanopyDerivation derivation = CanopyDeriva
     CanopyOptions o;
     o.derivation = derivation;
     o.params.method = method;
+    o.precomputed = std::move(precomputed);
     auto canopy = CanopyClipmapGL::create(*c.clip, pairStats(synth().pyramids, o.params.method), o);
     EXPECT_TRUE(canopy.ok()) << canopy.message();
     if (!canopy) return c;
@@ -307,6 +312,112 @@ TEST(CanopyClipmapGLTest, CpuAndGpuDeriveTheSameBytes) {
                 << x0 << "," << y0 << " level " << level;
         }
     }
+    EXPECT_EQ(gl::drainErrors(), "");
+}
+
+// The layer precomputed at prepare time (foliage/CanopyPyramid.h) is what the loader's workers derive: read through
+// the loader instead, every clip level holds the same bytes in the same blocks, for every method, the window's outer
+// ring and the image's edge included, and the same cell maxima. Its cache key follows the parameters.
+TEST(CanopyClipmapGLTest, PrecomputedLayerHoldsTheDerivedBytes) {
+    ASSERT_TRUE(headlessContext());
+    TempDir cache("canopy-pyramid");
+    const std::vector<ImagePyramid>& pyr = synth().pyramids;
+    std::set<std::filesystem::path> folders;
+    for (SegmentationMethod m : {SegmentationMethod::Default, SegmentationMethod::Pixel,
+                                 SegmentationMethod::Neighborhood, SegmentationMethod::Equalized}) {
+        SCOPED_TRACE(std::string(segmentationMethodName(m)));
+        CanopyOptions o;
+        o.params.method = m;
+        const SegmentationStats stats = pairStats(pyr, m);
+        auto none = app::canopyPyramid(pyr, o, stats, cache.path(), false);
+        ASSERT_TRUE(none.ok()) << none.message();
+        EXPECT_FALSE(*none); // not prepared yet: derived as before
+        auto p = app::canopyPyramid(pyr, o, stats, cache.path(), true);
+        ASSERT_TRUE(p.ok()) << p.message();
+        ASSERT_TRUE(*p);
+        EXPECT_EQ((*p)->format, TexelFormat::R8);
+        EXPECT_EQ((*p)->levels.size(), pyr[0].levels.size());
+        folders.insert((*p)->folder);
+        auto again = app::canopyPyramid(pyr, o, stats, cache.path(), false);
+        ASSERT_TRUE(again.ok() && *again);
+        EXPECT_EQ((*again)->folder, (*p)->folder);
+
+        const SynthCanopy derived = synthCanopy(true, CanopyDerivation::Cpu, m);
+        const SynthCanopy read = synthCanopy(true, CanopyDerivation::Cpu, m, *p);
+        ASSERT_TRUE(derived.canopy && read.canopy);
+        EXPECT_TRUE(read.canopy->derivesOnCpu());
+        EXPECT_EQ(read.canopy->readError(), "");
+        const CanopyReadBack a(derived), b(read);
+        const ClipmapLayout& L = a.L;
+        for (int l = 0; l < L.clipLevels(); ++l) {
+            const glm::ivec2 size = L.levelSizes[size_t(l)];
+            long long present = 0, canopy = 0, differing = 0;
+            for (int y = 0; y < size.y; ++y)
+                for (int x = 0; x < size.x; ++x) {
+                    const int u = a.texel(l, x, y), v = b.texel(l, x, y);
+                    present += u >= 0 ? 1 : 0;
+                    canopy += u > 0 ? 1 : 0;
+                    differing += u != v ? 1 : 0;
+                }
+            SCOPED_TRACE("level " + std::to_string(l));
+            EXPECT_GT(present, 10000);
+            EXPECT_GT(canopy, 100);
+            EXPECT_EQ(differing, 0) << differing << " of " << present << " texels differ";
+        }
+        std::mt19937 rng(5);
+        std::uniform_int_distribution<int> pos(400, 600), size(1, 24), lev(0, L.clipLevels());
+        for (int trial = 0; trial < 100; ++trial) {
+            const int x0 = pos(rng), y0 = pos(rng), level = lev(rng);
+            const glm::dvec2 lo(x0, y0), hi(x0 + size(rng) - 1e-3, y0 + size(rng) - 1e-3);
+            EXPECT_EQ(derived.canopy->maxValueOver(lo, hi, level, level), read.canopy->maxValueOver(lo, hi, level, level))
+                << x0 << "," << y0 << " level " << level;
+        }
+    }
+    EXPECT_EQ(folders.size(), 4u); // one pyramid per method
+    // Another k, another layer count: other pyramids, none prepared yet.
+    for (auto [k, layers] : {std::pair{7, 16}, std::pair{5, 8}}) {
+        CanopyOptions o;
+        o.params.k = k;
+        o.layers = layers;
+        auto p = app::canopyPyramid(pyr, o, pairStats(pyr, o.params.method), cache.path(), false);
+        ASSERT_TRUE(p.ok()) << p.message();
+        EXPECT_FALSE(*p) << "k " << k << ", " << layers << " layers";
+    }
+    EXPECT_EQ(gl::drainErrors(), "");
+}
+
+// A precomputed layer whose tile no longer holds what was written (its checksum flipped) is bad input like the
+// imagery: the blocks it covers are never uploaded, the failure is one line naming the level file, and that line
+// invalidates the pyramid (the next prepare builds it again; until then the blocks are derived).
+TEST(CanopyClipmapGLTest, DamagedPrecomputedLayerIsReportedAndNeverDrawn) {
+    ASSERT_TRUE(headlessContext());
+    TempDir cache("canopy-pyramid-damaged");
+    const std::vector<ImagePyramid>& pyr = synth().pyramids;
+    CanopyOptions o;
+    const SegmentationStats stats = pairStats(pyr, o.params.method);
+    auto p = app::canopyPyramid(pyr, o, stats, cache.path(), true);
+    ASSERT_TRUE(p.ok() && *p) << p.message();
+    const std::filesystem::path level0 = (*p)->levels[0].file;
+    // Level 0's tile (1, 1) (texels 256..511 of the 1024² level, under the windows centred at (500, 520)): its
+    // trailing CRC-32 flipped.
+    TIFF* t = TIFFOpen(level0.c_str(), "r");
+    ASSERT_TRUE(t);
+    const std::uint64_t at = TIFFGetStrileOffset(t, 5), bytes = TIFFGetStrileByteCount(t, 5);
+    TIFFClose(t);
+    ASSERT_GT(bytes, 4u);
+    flipByte(level0, at + bytes - 1);
+    const SynthCanopy read = synthCanopy(true, CanopyDerivation::Cpu, SegmentationMethod::Default, *p);
+    ASSERT_TRUE(read.canopy);
+    const std::string e = read.canopy->readError();
+    EXPECT_EQ(e.rfind(level0.string() + ": ", 0), 0u) << e;
+    EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+    const CanopyReadBack b(read);
+    EXPECT_EQ(b.texel(0, 450, 450), -1);  // in the damaged tile: never uploaded
+    EXPECT_GE(b.texel(0, 560, 560), 0);   // elsewhere as derived
+    EXPECT_TRUE(invalidateDamagedPyramid(e, cache.path()));
+    auto gone = app::canopyPyramid(pyr, o, stats, cache.path(), false);
+    ASSERT_TRUE(gone.ok()) << gone.message();
+    EXPECT_FALSE(*gone);
     EXPECT_EQ(gl::drainErrors(), "");
 }
 
