@@ -1,7 +1,6 @@
 // `seasonview prepare`: builds (or checks) the tiled mip pyramid of each imagery layer in the cache, then the pair's
 // segmentation statistics (foliage/PairStats.h) from them, the canopy layer precomputed for the canopy view's
 // parameters (foliage/CanopyPyramid.h) and the DEM's elevation pyramid.
-#include "CanopyPyramid.h"
 #include "Commands.h"
 #include "ElevationPyramid.h"
 #include "ImagePyramid.h"
@@ -101,23 +100,20 @@ Runner addPrepareCommand(CLI::App& app) {
             CanopyOptions co;
             co.params = canopy->params;
             co.layers = canopy->layers;
-            const CanopyPyramidParams cp{co.params, co.layers, canopyTopK(co.params, co.topK)};
-            const SegmentationStats stats = statsFromHistograms(*histograms, co.params.method);
             options.progress = terminalProgress("canopy");
-            auto report = preparePyramid(canopyPyramidSource(seasons[0], seasons[1], cp, stats), options);
+            auto report = preparePyramid(
+                canopyLayerSource(seasons, co, statsFromHistograms(*histograms, co.params.method)), options);
             if (!report) return fail(report.message());
-            const std::string_view method = kSegmentationMethodNames[size_t(co.params.method)];
-            char what[96];
-            std::snprintf(what, sizeof what, "%.*s, k %d, %d layers", int(method.size()), method.data(),
-                          effectiveK(co.params), co.layers);
+            const std::string what = canopyLayerName(co);
             if (report->built)
                 std::printf("canopy layer: built in %.2f s (%s): %s, %s\n", report->seconds, report->reason.c_str(),
-                            what, report->pyramid.folder.c_str());
+                            what.c_str(), report->pyramid.folder.c_str());
             else
-                std::printf("canopy layer: up to date: %s, %s\n", what, report->pyramid.folder.c_str());
+                std::printf("canopy layer: up to date: %s, %s\n", what.c_str(), report->pyramid.folder.c_str());
             std::fflush(stdout);
         } else if (canopy->layers > 0) {
             std::printf("canopy layer: not prepared (a season streams: the view derives it as it flies)\n");
+            std::fflush(stdout);
         }
         if (scene->elevation) {
             const ElevationGrid grid = elevationGrid(*scene);

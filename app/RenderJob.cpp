@@ -198,13 +198,24 @@ Result<SegmentationHistograms> preparePairStats(const Scene& scene, const std::v
     return histograms;
 }
 
+PyramidSource canopyLayerSource(const std::vector<ImagePyramid>& pyramids, const CanopyOptions& options,
+                                const SegmentationStats& stats) {
+    assert(pyramids.size() == 2 && "canopyLayerSource(): the leaf-on and leaf-off pyramids");
+    const CanopyPyramidParams params{options.params, options.layers, canopyTopK(options.params, options.topK)};
+    return canopyPyramidSource(pyramids[0], pyramids[1], params, stats);
+}
+
+std::string canopyLayerName(const CanopyOptions& options) {
+    return std::string(kSegmentationMethodNames[size_t(options.params.method)]) + ", k " +
+           std::to_string(effectiveK(options.params)) + ", " + std::to_string(options.layers) + " layers";
+}
+
 Result<std::optional<ImagePyramid>> canopyPyramid(const std::vector<ImagePyramid>& pyramids,
                                                   const CanopyOptions& options, const SegmentationStats& stats,
                                                   const std::filesystem::path& cacheDir, bool build) {
     assert(pyramids.size() == 2 && "canopyPyramid(): the leaf-on and leaf-off pyramids");
     if (pyramids[0].streamedLevels > 0 || pyramids[1].streamedLevels > 0) return std::optional<ImagePyramid>();
-    const CanopyPyramidParams params{options.params, options.layers, canopyTopK(options.params, options.topK)};
-    const PyramidSource source = canopyPyramidSource(pyramids[0], pyramids[1], params, stats);
+    const PyramidSource source = canopyLayerSource(pyramids, options, stats);
     if (!build) {
         // Not prepared, or damaged (the next prepare rebuilds it): the loader derives the blocks as before.
         auto p = openPyramid(source, cacheDir);
@@ -216,9 +227,7 @@ Result<std::optional<ImagePyramid>> canopyPyramid(const std::vector<ImagePyramid
     auto report = preparePyramid(source, o);
     if (!report) return report.error();
     if (report->built) {
-        const std::string_view method = kSegmentationMethodNames[size_t(options.params.method)];
-        std::printf("prepared the canopy layer (%.*s, k %d, %d layers) in %.2f s (%s)\n", int(method.size()),
-                    method.data(), effectiveK(options.params), options.layers,
+        std::printf("prepared the canopy layer (%s) in %.2f s (%s)\n", canopyLayerName(options).c_str(),
                     report->seconds, report->reason.c_str());
         std::fflush(stdout);
     }

@@ -105,6 +105,13 @@ std::optional<std::array<std::filesystem::path, 2>> levelZeroOf(const Scene& sce
 Result<SegmentationHistograms> preparePairStats(const Scene& scene, const std::vector<ImagePyramid>& pyramids,
                                                 const std::filesystem::path& cacheDir);
 
+/// The recipe of the canopy layer for `options`' parameters (method, k, layers, top k) from the two prepared pyramids
+/// `pyramids` (none streamed) and the pair's `stats`: foliage/CanopyPyramid.h's canopyPyramidSource.
+PyramidSource canopyLayerSource(const std::vector<ImagePyramid>& pyramids, const CanopyOptions& options,
+                                const SegmentationStats& stats);
+/// What a canopy layer of `options` is made for, for messages: "default, k 5, 16 layers".
+std::string canopyLayerName(const CanopyOptions& options);
+
 /// The canopy layer precomputed for `options`' parameters from the two prepared pyramids `pyramids` and the pair's
 /// `stats` (foliage/CanopyPyramid.h), for CanopyOptions::precomputed: with `build` made when the cache has none (with
 /// a progress bar on a terminal; says so on stdout when it built it), else the cache's when it has a valid one.
