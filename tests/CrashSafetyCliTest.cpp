@@ -11,6 +11,7 @@
 #include <chrono>
 #include <iostream>
 #include <fcntl.h>
+#include <functional>
 #include <map>
 #include <random>
 #include <signal.h>
@@ -127,18 +128,23 @@ struct CrashSafety : ::testing::Test {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     }
 
-    /// Kills `args` `kills` times at random moments within `seconds`; after each kill `check` sees what is on disk.
-    /// Returns how many of the runs were killed before they finished.
+    /// Starts `args` and kills it at a random moment within `seconds` until `kills` runs were killed before they
+    /// finished (at most 3 × `kills` runs: a run that resumes earlier work can finish before its moment comes); after
+    /// each run `check` sees what is on disk. After a run that finished, `startOver` (when given) clears what it
+    /// left, so that the next run has the whole work to do again instead of finding it done. Returns how many runs
+    /// were killed before they finished.
     int killRepeatedly(const std::vector<std::string>& args, double seconds, int kills,
-                       const std::function<void()>& check) {
+                       const std::function<void()>& check, const std::function<void()>& startOver = {}) {
         int killed = 0;
         std::uniform_real_distribution<double> when(0.02, 1.0);
-        for (int i = 0; i < kills; ++i) {
+        for (int run = 0; run < 3 * kills && killed < kills; ++run) {
             const pid_t pid = spawn(args, dir / "log.txt");
             std::this_thread::sleep_for(std::chrono::duration<double>(when(random) * seconds));
             ::kill(pid, SIGKILL);
-            if (waitFor(pid) == -SIGKILL) ++killed;
+            const bool wasKilled = waitFor(pid) == -SIGKILL;
+            killed += wasKilled;
             check();
+            if (!wasKilled && startOver) startOver();
         }
         return killed;
     }
@@ -166,7 +172,7 @@ TEST_F(CrashSafety, SynthKilledLeavesNoSceneThatReadsAsWhole) {
                 EXPECT_EQ(bytes, reference.at(name)) << name << " is not whole";
             }
     });
-    std::cout << "[ kills    ] synth: " << killed << " of 6 runs killed before they finished\n";
+    std::cout << "[ kills    ] synth: " << killed << " runs killed before they finished (6 wanted)\n";
     EXPECT_GE(killed, 3) << "too few runs were killed before they finished to mean anything";
     runWhole(args);
     EXPECT_EQ(snapshot(out), reference) << "after the kills: not identical, or temporaries left behind";
@@ -178,8 +184,8 @@ TEST_F(CrashSafety, PrepareKilledLeavesOnlyValidPyramidsAndResumes) {
     const double seconds = runWhole(args);
     const auto reference = snapshot(dir / "cache");
     fs::remove_all(dir / "cache");
-    const int killed = killRepeatedly(args, seconds, 8, [&] {
-        // Every pyramid with an index, and every statistics file, is the complete one.
+    // Every pyramid with an index, and every statistics file, is the complete one.
+    const auto check = [&] {
         for (const auto& [name, bytes] : committed(snapshot(dir / "cache"))) {
             const fs::path folder = fs::path(name).parent_path();
             const bool indexed = fs::exists(dir / "cache" / folder / "pyramid.json") || folder.filename() == "pairstats" ||
@@ -188,8 +194,10 @@ TEST_F(CrashSafety, PrepareKilledLeavesOnlyValidPyramidsAndResumes) {
                 EXPECT_EQ(bytes, reference.count(name) ? reference.at(name) : "(absent)") << name;
             }
         }
-    });
-    std::cout << "[ kills    ] prepare: " << killed << " of 8 runs killed before they finished\n";
+    };
+    // A prepare that finished leaves every later one nothing to do: those start again from no cache.
+    const int killed = killRepeatedly(args, seconds, 8, check, [&] { fs::remove_all(dir / "cache"); });
+    std::cout << "[ kills    ] prepare: " << killed << " runs killed before they finished (8 wanted)\n";
     EXPECT_GE(killed, 4);
     runWhole(args);
     EXPECT_EQ(snapshot(dir / "cache"), reference) << "after the kills: not identical, or temporaries left behind";
@@ -224,7 +232,7 @@ TEST_F(CrashSafety, AtlasBuildAndSegmentKilledLeaveTheOldResultOrNone) {
                     }
             });
             std::cout << "[ kills    ] " << args->front() << (round == 0 ? " (old result there)" : " (none there)")
-                      << ": " << killed << " of 4 runs killed before they finished\n";
+                      << ": " << killed << " runs killed before they finished (4 wanted)\n";
             EXPECT_GE(killed, 2);
         }
         runWhole(*args);
