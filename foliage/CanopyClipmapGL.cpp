@@ -511,17 +511,22 @@ void CanopyClipmapGL::store(const LoadedBlock& b) {
     const size_t cells = size_t(m_cellsPerSide) * size_t(m_cellsPerSide);
     std::uint8_t* cell = m_cellMax.data() + size_t(index) * cells;
     std::fill(cell, cell + cells, std::uint8_t(0));
-    const glm::ivec2 origin = glm::ivec2(b.key.bx, b.key.by) * L.block;
-    int top = 0;
-    for (int y = 0; y < t.height(); ++y)
-        for (int x = 0; x < t.width(); ++x) {
-            const std::uint8_t value = v[size_t(y) * size_t(t.width()) + size_t(x)];
-            std::uint8_t& c = cell[size_t((t.y0 + y - origin.y) / kCell) * size_t(m_cellsPerSide) +
-                                   size_t((t.x0 + x - origin.x) / kCell)];
-            c = std::max(c, value);
-            top = std::max(top, int(value));
+    // The block's texels start at its origin (the image's edge cuts only its far side): cell (cx, cy) holds the
+    // block's texels [8 cx, 8 cx + 8) × [8 cy, 8 cy + 8), row by row, 8 texels at a time.
+    assert(t.x0 == b.key.bx * L.block && t.y0 == b.key.by * L.block);
+    std::uint8_t top = 0;
+    for (int y = 0; y < t.height(); ++y) {
+        const std::uint8_t* row = v.data() + size_t(y) * size_t(t.width());
+        std::uint8_t* cellRow = cell + size_t(y / kCell) * size_t(m_cellsPerSide);
+        for (int x0 = 0; x0 < t.width(); x0 += kCell) {
+            const int x1 = std::min(x0 + kCell, t.width());
+            std::uint8_t m = cellRow[x0 / kCell];
+            for (int x = x0; x < x1; ++x) m = std::max(m, row[x]);
+            cellRow[x0 / kCell] = m;
+            top = std::max(top, m);
         }
-    m_maxKnown[size_t(index)] = top;
+    }
+    m_maxKnown[size_t(index)] = int(top);
     m_maxGeneration[size_t(index)] = 0; // no GPU copy in flight overwrites it
 }
 
