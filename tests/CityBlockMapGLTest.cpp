@@ -47,19 +47,37 @@ std::pair<double, std::size_t> cityPsnr(const std::vector<std::uint8_t>& a, cons
 }
 
 struct BlockCity {
-    TempDir dir{"city-blockmap"};
+    std::filesystem::path dir;
     std::string tree;
     std::optional<Scene> scene;
     BlockCity() {
-        // 400 buildings on 50 blocks: about 400 × 380 m around the centre.
-        const CliResult synth = runCli({"synth", "--out", (dir / "s").string(), "--size-m", "512", "--gsd", "1",
-                                        "--block-city", "400", "--facade-size", "64"});
-        EXPECT_EQ(synth.exitCode, 0) << synth.err;
+        // 400 buildings on 50 blocks: about 400 × 380 m around the centre. Made once for all of this file's test
+        // processes (the atlas tree and the BlockMaps take most of a test's time, under the sanitizers minutes).
+        const auto shared = sharedFixture("city-blockmap", [](const std::filesystem::path& d) {
+            const CliResult synth = runCli({"synth", "--out", (d / "s").string(), "--size-m", "512", "--gsd", "1",
+                                            "--block-city", "400", "--facade-size", "64"});
+            EXPECT_EQ(synth.exitCode, 0) << synth.err;
+            const CliResult atlas = runCli({"atlas", "build", (d / "s/city/city.obj").string(), "--obj-local", "--out",
+                                            (d / "t.svat").string(), "--atlas-size", "128"});
+            EXPECT_EQ(atlas.exitCode, 0) << atlas.err;
+            if (synth.exitCode != 0 || atlas.exitCode != 0) return false;
+            // The pyramids and the BlockMaps into the cache, so that the tests find them made.
+            auto sources = parseManifest(d / "s/scene.json");
+            if (!sources.ok()) return false;
+            auto s = loadScene(*sources, d / "cache");
+            if (!s.ok()) return false;
+            city::CitySettings cs;
+            cs.mode = city::CityMode::BlockMap;
+            const auto st = app::prepareCityBlockMaps(*s, (d / "t.svat").string(), d / "cache", cs);
+            EXPECT_TRUE(st.ok()) << st.message();
+            return st.ok();
+        });
+        if (!shared) {
+            ADD_FAILURE() << "the block city could not be made";
+            return;
+        }
+        dir = *shared;
         tree = (dir / "t.svat").string();
-        EXPECT_EQ(runCli({"atlas", "build", (dir / "s/city/city.obj").string(), "--obj-local", "--out", tree,
-                          "--atlas-size", "128"})
-                      .exitCode,
-                  0);
         auto sources = parseManifest(dir / "s/scene.json");
         EXPECT_TRUE(sources.ok()) << sources.message();
         auto s = loadScene(*sources, dir / "cache");

@@ -14,6 +14,8 @@
 #include <iterator>
 #include <sstream>
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -37,6 +39,50 @@ TempDir::~TempDir() {
         std::error_code ec;
         std::filesystem::remove_all(m_path, ec);
     }
+}
+
+namespace {
+// What identifies the build a shared fixture was made by: seasonview's and this binary's sizes and times.
+std::string buildStamp() {
+    std::string stamp;
+    for (const char* p : {SEASONVIEW_BINARY, "/proc/self/exe"}) {
+        std::error_code ec;
+        const auto target = std::filesystem::canonical(p, ec);
+        const auto size = ec ? 0 : std::filesystem::file_size(target, ec);
+        const auto time = ec ? 0 : std::filesystem::last_write_time(target, ec).time_since_epoch().count();
+        stamp += target.string() + " " + std::to_string(size) + " " + std::to_string(time) + "\n";
+    }
+    return stamp;
+}
+} // namespace
+
+std::optional<std::filesystem::path> sharedFixture(const std::string& name,
+                                                   const std::function<bool(const std::filesystem::path&)>& make) {
+    const auto root = outputDir() / "shared";
+    std::filesystem::create_directories(root);
+    const auto dir = root / name, stampFile = dir / ".made-by";
+    const int lock = ::open((root / (name + ".lock")).c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (lock < 0 || ::flock(lock, LOCK_EX) != 0) {
+        ADD_FAILURE() << "cannot lock " << (root / (name + ".lock"));
+        if (lock >= 0) ::close(lock);
+        return std::nullopt;
+    }
+    const std::string stamp = buildStamp();
+    std::optional<std::filesystem::path> out = dir;
+    if (!std::filesystem::exists(stampFile) || readBytes(stampFile) != stamp) {
+        std::error_code ec;
+        std::filesystem::remove_all(dir, ec);
+        std::filesystem::create_directories(dir);
+        if (make(dir)) {
+            std::ofstream(stampFile, std::ios::binary) << stamp;
+        } else {
+            std::filesystem::remove_all(dir, ec);
+            out = std::nullopt;
+        }
+    }
+    ::flock(lock, LOCK_UN);
+    ::close(lock);
+    return out;
 }
 
 std::optional<std::filesystem::path> realDataDir() {

@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -30,6 +31,15 @@ public:
 private:
     std::filesystem::path m_path;
 };
+
+/// A folder that the test processes of one build share, for a fixture that takes long to make and that the tests only
+/// read (CTest runs each test in a process of its own, so a static fixture is made once per test): the first process
+/// that asks makes outputDir()/shared/NAME by calling `make` on it while it holds a lock on NAME.lock, the others wait
+/// for the lock and find it made. It is made again when seasonview or the test binary changed since (their sizes and
+/// modification times are the stamp written last), or when an earlier `make` failed or was killed part way. `make`
+/// returns whether it succeeded; on failure the folder is removed and nullopt returned.
+std::optional<std::filesystem::path> sharedFixture(const std::string& name,
+                                                   const std::function<bool(const std::filesystem::path&)>& make);
 
 /// ../shared/data (or $SEASONVIEW_DATA) when present.
 std::optional<std::filesystem::path> realDataDir();
